@@ -1,0 +1,16 @@
+"""dnarod: coarse-grained DNA as a discrete shearable, extensible elastic rod.
+
+Each base pair is a rigid node (position, frame); consecutive nodes interact through the
+SMK elastic energy of Shi, McClain & Hearst (2001) in exact Cayley strains. See README.
+"""
+from .errors import DnarodError, GeometryError, ParameterError, SimulationError, StructureError
+from .model import RodModel
+from .parameters import StepParameters
+from .strains import Closure, chain_from_strains, strains
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "DnarodError", "GeometryError", "ParameterError", "SimulationError", "StructureError",
+    "RodModel", "StepParameters", "Closure", "strains", "chain_from_strains", "__version__",
+]
