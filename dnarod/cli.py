@@ -1,0 +1,54 @@
+"""Command-line interface: ``dnarod COMMAND``.
+
+Commands live in the module of the concept they serve and are registered at the end of this
+file. Errors about bad input are printed as one line and exit with status 2.
+"""
+from __future__ import annotations
+
+import sys
+
+import click
+
+from .errors import DnarodError
+
+
+class DnarodGroup(click.Group):
+    """A click group that turns dnarod's input errors into one-line messages and exit status 2."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except DnarodError as exc:
+            click.echo(f"dnarod: error: {exc}", err=True)
+            sys.exit(2)
+
+
+@click.group(cls=DnarodGroup)
+@click.version_option(package_name="dnarod")
+def main():
+    """dnarod: coarse-grained DNA as a discrete shearable, extensible elastic rod."""
+
+
+@main.command("forcefields")
+@click.argument("name", required=False)
+def forcefields_cmd(name):
+    """List the bundled force fields, or describe NAME (a bundled name or a .toml path)."""
+    import numpy as np
+
+    from .forcefield import available_forcefields, load_forcefield
+    from .thermal import kT, persistence_length
+
+    if name is None:
+        for n in available_forcefields():
+            ff = load_forcefield(n)
+            click.echo(f"{n:14s} {ff.kind:14s} {ff.description}")
+        return
+    ff = load_forcefield(name)
+    click.echo(f"name: {ff.name}\nkind: {ff.kind}\nds: {ff.ds} nm\nnode mass: {ff.node_mass:g} amu\n"
+               f"node inertia: {np.array2string(ff.node_inertia, precision=4)} amu nm^2\n"
+               f"temperature: {ff.temperature:g} K\nstep types: {', '.join(sorted(ff.table))}")
+    for s in sorted(ff.table):
+        from .parameters import StepParameters
+        K, xi0 = ff.table[s]
+        lp = persistence_length(StepParameters(K, xi0), ff.ds, kT(ff.temperature))
+        click.echo(f"  {s}: bending persistence length (exact, {ff.temperature:g} K) {lp:.2f} nm")
