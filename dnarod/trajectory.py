@@ -130,12 +130,13 @@ def load_trajectory(path):
     try:
         with open(path, "rb") as fh:
             header = _read_header(fh, path)
-            data = np.frombuffer(fh.read(), dtype="<f8")
+            raw = fh.read()
     except OSError as exc:
         raise DnarodError(f"{path}: cannot read trajectory ({exc})") from None
     n = header["n_nodes"]
     rs = _record_size(header)
-    nf = data.size // rs
+    nf = len(raw) // (8 * rs)  # a trailing partial record (crash mid-write) is ignored
+    data = np.frombuffer(raw[: nf * rs * 8], dtype="<f8")
     rec = data[: nf * rs].reshape(nf, rs)
     pos = rec[:, 2:2 + 3 * n].reshape(nf, n, 3)
     frm = rec[:, 2 + 3 * n:2 + 12 * n].reshape(nf, n, 3, 3)
@@ -181,8 +182,9 @@ class TrajectoryWriter:
                 self._fh.close()
                 raise DnarodError(f"{self.path}: cannot resume, the file holds {old['n_nodes']} nodes "
                                   f"(velocities={old.get('velocities')}) but the run has {self.n_nodes}")
-            data = np.frombuffer(self._fh.read(), dtype="<f8")
-            nf = data.size // self._rs
+            raw = self._fh.read()
+            nf = len(raw) // (8 * self._rs)
+            data = np.frombuffer(raw[: nf * self._rs * 8], dtype="<f8")
             steps = data[: nf * self._rs].reshape(nf, self._rs)[:, 0]
             keep = int(np.searchsorted(steps, resume_step, side="right"))
             self._fh.truncate(HEADER_SIZE + keep * self._rs * 8)

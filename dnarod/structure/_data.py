@@ -1,0 +1,20 @@
+"""Locate the bundled reference data (standard bases, residue names, fibre templates)."""
+from __future__ import annotations
+
+from ..errors import StructureError
+
+
+def data_file(*parts):
+    """Path of a file under dnarod's bundled ``data/`` directory.
+
+    Raises
+    ------
+    StructureError
+        If the file is missing (a broken installation).
+    """
+    from ..forcefield import data_dir
+
+    p = data_dir().joinpath(*parts)
+    if not p.is_file():
+        raise StructureError(f"bundled data file {'/'.join(parts)} is missing from {data_dir()}; reinstall dnarod")
+    return p
