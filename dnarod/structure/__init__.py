@@ -1,7 +1,15 @@
 """From PDB-like input to base-pair nodes and back.
 
-``reader`` (PDB/mmCIF -> nucleotides), ``frames`` (standard-base least-squares frames),
-``pairing`` (base pairs and duplex ordering), ``bpparams`` (base-pair parameters and middle
-frames), ``analysis`` (the whole pipeline), ``builders`` (RodModel from a structure or a
-sequence), ``rebuild`` (all-atom PDB from node frames), ``cli_structure`` (CLI commands).
+``reader`` (PDB/mmCIF -> nucleotides, through gemmi), ``frames`` (standard-base least-squares
+frames), ``pairing`` (base pairs and duplex ordering), ``bpparams`` (base-pair parameters and
+middle frames), ``analysis`` (the pipeline, also over trajectory frames), ``builders``
+(RodModel from a structure or a sequence), ``rebuild`` (all-atom PDB from node frames),
+``cli_structure`` (the ``steps``, ``pairs``, ``build``, ``rebuild`` commands).
 """
+from .analysis import analyze_structure, analyze_trajectory, step_parameters_over_frames
+from .builders import model_from_sequence, model_from_structure
+from .reader import read_structure
+from .rebuild import rebuild_coordinates, rebuild_model, write_pdb
+
+__all__ = ["analyze_structure", "analyze_trajectory", "step_parameters_over_frames", "model_from_sequence",
+           "model_from_structure", "read_structure", "rebuild_coordinates", "rebuild_model", "write_pdb"]

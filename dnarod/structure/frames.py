@@ -90,6 +90,13 @@ def kabsch(reference, observed):
     return R, origin, rmsd
 
 
+def has_base_atoms(nucleotide):
+    """True if any ring atom of the nucleotide's standard base is present."""
+    _, ring = standard_bases()
+    letter = FIT_BASE.get(nucleotide.base)
+    return letter is not None and any(a in nucleotide.atoms for a in ring[letter])
+
+
 def ring_atoms_present(nucleotide, source="<structure>"):
     """Ring atom names of a nucleotide used for its fit (at least three, not collinear).
 

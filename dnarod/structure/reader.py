@@ -199,16 +199,34 @@ def _read_gemmi(path, text, source):
         if not p.is_file():
             raise StructureError(f"{source}: no such file")
         head = p.read_bytes()[:4096]
+        if head[:2] == b"\x1f\x8b":  # gzip (gemmi reads it directly): check the decompressed start
+            import gzip
+
+            try:
+                with gzip.open(p) as fh:
+                    head = fh.read(4096)
+            except (OSError, EOFError) as exc:
+                raise StructureError(f"{source}: broken gzip file ({exc})") from None
         if not head.strip():
             raise StructureError(f"{source}: the file is empty; give a PDB or mmCIF file")
         if b"\0" in head or _mostly_binary(head):
             raise StructureError(f"{source}: binary data, not a PDB or mmCIF text file")
-        return gemmi.read_structure(str(p))
+        # keep chain parts apart so that atoms stay in file order (trajectory atom indices)
+        return gemmi.read_structure(str(p), merge_chain_parts=False)
     except StructureError:
         raise
     except Exception as exc:  # gemmi raises RuntimeError/ValueError/... with the line; keep its words
         msg = str(exc).replace("\n", " ").strip()
-        raise StructureError(f"{source}: cannot parse as PDB/mmCIF (truncated or malformed?): {msg}") from None
+    # Old PDB files carry the ID code and a serial in columns 73-80, where gemmi expects the
+    # element and charge: retry reading only the first 72 columns.
+    try:
+        if text is not None and not text.lstrip().startswith("data_"):
+            return gemmi.read_pdb_string(text, max_line_length=72)
+        if path is not None and not str(path).lower().endswith((".cif", ".mmcif", ".cif.gz")):
+            return gemmi.read_pdb(str(path), max_line_length=72)
+    except Exception:  # same as above: report the first error
+        pass
+    raise StructureError(f"{source}: cannot parse as PDB/mmCIF (truncated or malformed?): {msg}")
 
 
 def _mostly_binary(head):
@@ -235,25 +253,19 @@ def _choose_altloc(res_atoms, altloc, source, label):
                 raise StructureError(f"{source}: {label}: conflicting altlocs for atom {name}: it is given both "
                                      f"without an altloc and with altloc(s) {[c for c in codes if c]}")
             total = sum(occ for _, occ, *_ in entries)
-            if total > 1.0 + 0.02:
+            if altloc is None and total > 1.0 + 0.02:
                 raise StructureError(f"{source}: {label}: conflicting altlocs for atom {name}: occupancies "
                                      f"{[round(o, 2) for _, o, *_ in entries]} of altlocs {codes} sum to "
-                                     f"{total:.2f} > 1; fix the occupancies or choose one with altloc=")
+                                     f"{total:.2f} > 1; fix the occupancies or choose one (altloc=, CLI --altloc)")
     if altloc is None and alts:
         occ_sum = {a: sum(o for e in by_name.values() for alt, o, *_ in e if alt == a) for a in alts}
         altloc = max(alts, key=lambda a: (occ_sum[a], -ord(a[0])))
     atoms, index = {}, {}
     for name, entries in by_name.items():
-        pick = None
-        for alt, occ, xyz, idx in entries:
-            if alt == "" or alt == altloc:
-                pick = (xyz, idx)
-        if pick is None and altloc is not None and all(alt for alt, *_ in entries) and len(entries) >= 1:
-            if not any(alt == altloc for alt, *_ in entries):
-                pick = (entries[0][2], entries[0][3])  # atom only present in another conformer
-        if pick is not None:
-            atoms[name] = pick[0]
-            index[name] = pick[1]
+        match = [e for e in entries if e[0] in ("", altloc)]
+        pick = match[0] if match else entries[0]  # an atom present only in another conformer
+        atoms[name] = pick[2]
+        index[name] = pick[3]
     return atoms, index
 
 
@@ -302,62 +314,74 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
     others = set()
     nucleotides, skipped, seen = [], [], {}
     atom_counter = 0
-    for chain in st[model - 1]:
-        for res in chain:
-            first_index = atom_counter
-            atom_counter += len(res)
-            name = res.name.strip().upper()
-            label = f"chain {chain.name} residue {res.seqid.num}{res.seqid.icode.strip()} ({res.name})"
-            if name in ignore:
-                skipped.append(f"{label}: ignored on request")
-                continue
-            if name in WATER:
-                counts["water"] += 1
-                continue
-            parent = normalise_residue_name(name, extra)
-            if parent is None:
-                info = _tabulated(name)
-                if info is not None and info.is_water():
-                    counts["water"] += 1
-                elif info is not None and info.is_amino_acid():
-                    counts["amino acid"] += 1
-                elif _looks_nucleotide(res):
-                    raise StructureError(
-                        f"{source}: {label}: unknown residue name {res.name!r} with nucleotide atoms; map it "
-                        f"to its parent base (extra_residues={{'{name}': 'C'}}, CLI --map {name}=C) or ignore "
-                        f"it (ignore_residues, CLI --ignore {name})")
-                else:
-                    counts["other (ions, ligands)"] += 1
-                    others.add(name)
-                continue
-            base, modified = parent
-            if base == "P":
-                skipped.append(f"{label}: pseudouridine is not supported (no standard base); skipped")
-                continue
-            raw = []
-            for k, atom in enumerate(res):
-                aname = _normalise_atom_name(atom.name)
-                if _is_hydrogen(atom, aname):
-                    counts["hydrogen atoms"] += 1
+    try:
+        for chain in st[model - 1]:
+            for res in chain:
+                first_index = atom_counter
+                atom_counter += len(res)
+                name = res.name.strip().upper()
+                label = f"chain {chain.name} residue {res.seqid.num}{res.seqid.icode.strip()} ({res.name})"
+                if name in ignore:
+                    skipped.append(f"{label}: ignored on request")
                     continue
-                pos = atom.pos
-                raw.append((aname, atom.altloc.strip("\0 "), float(atom.occ),
-                            (pos.x, pos.y, pos.z), first_index + k))
-            atoms, index = _choose_altloc(raw, altloc, source, label)
-            if not atoms:
-                skipped.append(f"{label}: no heavy atoms; skipped")
-                continue
-            xyz = np.array(list(atoms.values()), dtype=float)
-            if not np.isfinite(xyz).all() or np.abs(xyz).max() > 1e6:
-                raise StructureError(f"{source}: {label}: non-finite or absurd coordinates")
-            key = (chain.name, res.seqid.num, res.seqid.icode.strip())
-            if key in seen:
-                raise StructureError(f"{source}: {label}: residue appears twice in chain {chain.name} "
-                                     f"(duplicate atoms); remove the duplicate copy")
-            seen[key] = True
-            nucleotides.append(Nucleotide(chain.name, res.seqid.num, res.seqid.icode.strip(), res.name.strip(), base,
-                                          modified, len(nucleotides), {k: 0.1 * np.array(v) for k, v in atoms.items()},
-                                          index))
+                if name in WATER:
+                    counts["water"] += 1
+                    continue
+                parent = normalise_residue_name(name, extra)
+                if parent is None:
+                    info = _tabulated(name)
+                    if info is not None and info.is_water():
+                        counts["water"] += 1
+                    elif info is not None and info.is_amino_acid():
+                        counts["amino acid"] += 1
+                    elif _looks_nucleotide(res):
+                        raise StructureError(
+                            f"{source}: {label}: unknown residue name {res.name!r} with nucleotide atoms; map it "
+                            f"to its parent base (extra_residues={{'{name}': 'C'}}, CLI --map {name}=C) or ignore "
+                            f"it (ignore_residues, CLI --ignore {name})")
+                    else:
+                        counts["other (ions, ligands)"] += 1
+                        others.add(name)
+                    continue
+                base, modified = parent
+                if base == "P":
+                    skipped.append(f"{label}: pseudouridine is not supported (no standard base); skipped")
+                    continue
+                raw = []
+                for k, atom in enumerate(res):
+                    aname = _normalise_atom_name(atom.name)
+                    if _is_hydrogen(atom, aname):
+                        counts["hydrogen atoms"] += 1
+                        continue
+                    pos = atom.pos
+                    raw.append((aname, atom.altloc.strip("\0 "), float(atom.occ),
+                                (pos.x, pos.y, pos.z), first_index + k))
+                atoms, index = _choose_altloc(raw, altloc, source, label)
+                if not atoms:
+                    skipped.append(f"{label}: no heavy atoms; skipped")
+                    continue
+                xyz = np.array(list(atoms.values()), dtype=float)
+                if not np.isfinite(xyz).all() or np.abs(xyz).max() > 1e6:
+                    raise StructureError(f"{source}: {label}: non-finite or absurd coordinates")
+                key = (chain.name, res.seqid.num, res.seqid.icode.strip())
+                xyz_nm = {k: 0.1 * np.array(v) for k, v in atoms.items()}
+                if key in seen:  # the residue's atoms come in several blocks: merge them unless they repeat
+                    prev = seen[key]
+                    both = sorted(set(prev.atoms) & set(xyz_nm))
+                    if both or prev.resname != res.name.strip():
+                        what = f"duplicate atom {both[0]}" if both else f"also named {prev.resname}"
+                        raise StructureError(f"{source}: {label}: residue appears twice in chain {chain.name} "
+                                             f"({what}); remove the duplicate copy")
+                    prev.atoms.update(xyz_nm)
+                    prev.atom_index.update(index)
+                    continue
+                nt = Nucleotide(chain.name, res.seqid.num, res.seqid.icode.strip(), res.name.strip(), base, modified,
+                                len(nucleotides), xyz_nm, index)
+                seen[key] = nt
+                nucleotides.append(nt)
+    except UnicodeDecodeError:
+        raise StructureError(f"{source}: non-ASCII bytes in a chain, residue or atom name near atom "
+                             f"{atom_counter}; PDB/mmCIF names must be plain text") from None
     for what, n in counts.items():
         if n:
             extra_txt = f" ({', '.join(sorted(others))})" if what.startswith("other") else ""

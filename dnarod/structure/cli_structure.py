@@ -1,0 +1,209 @@
+"""CLI commands on structures: ``steps``, ``pairs``, ``build``, ``rebuild``.
+
+CSV contracts (scripts parse them; do not change the columns):
+
+* ``dnarod steps INPUT --csv OUT``: ``step,bp1,bp2,shift_A,slide_A,rise_A,tilt_deg,roll_deg,
+  twist_deg,Omega1_per_nm,Omega2_per_nm,Omega3_per_nm,Gamma1,Gamma2,Gamma3``; one row per
+  step, ``step`` counting from 1 along strand I (continuing across duplexes), ``bp1``/``bp2``
+  like ``C-G``. Strains from :func:`dnarod.strains.strains` with the force field's ds.
+* ``dnarod pairs INPUT --csv OUT``: ``bp,name,shear_A,stretch_A,stagger_A,buckle_deg,
+  propeller_deg,opening_deg``; ``bp`` counts from 1 along strand I, ``name`` like ``C-G``.
+
+Without ``--csv`` a readable table goes to stdout. Notes (what was skipped) go to stderr
+with ``--csv`` and into the table as ``#`` lines otherwise. Bad input raises a
+:class:`~dnarod.errors.DnarodError`, which the ``dnarod`` group prints as one line (exit 2).
+"""
+from __future__ import annotations
+
+import csv
+import io
+
+import click
+
+from ..errors import StructureError
+
+STEP_COLUMNS = ("step", "bp1", "bp2", "shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg",
+                "Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2", "Gamma3")
+PAIR_COLUMNS = ("bp", "name", "shear_A", "stretch_A", "stagger_A", "buckle_deg", "propeller_deg", "opening_deg")
+
+
+def _read_pairs_file(path):
+    pairs = []
+    with open(path) as fh:
+        for k, line in enumerate(fh, 1):
+            line = line.split("#")[0].replace(",", " ").strip()
+            if not line:
+                continue
+            parts = line.split()
+            if len(parts) != 2:
+                raise StructureError(f"{path}, line {k}: expected two residue ids like 'A:1 B:24', got {line!r}")
+            pairs.append((parts[0], parts[1]))
+    return pairs
+
+
+def _parse_map(items):
+    out = {}
+    for it in items:
+        if "=" not in it:
+            raise StructureError(f"--map {it!r}: use NAME=LETTER, e.g. --map XYZ=C")
+        name, letter = it.split("=", 1)
+        if letter.strip().upper() not in ("A", "C", "G", "T", "U"):
+            raise StructureError(f"--map {it!r}: the parent base must be A, C, G, T or U")
+        out[name.strip().upper()] = letter.strip().upper()
+    return out
+
+
+def structure_options(f):
+    """Options shared by the structure commands."""
+    f = click.option("--ignore", "ignore", multiple=True, metavar="NAME",
+                     help="Residue name to ignore even if it looks like a nucleotide (repeatable).")(f)
+    f = click.option("--map", "maps", multiple=True, metavar="NAME=BASE",
+                     help="Treat residue NAME as a modified BASE (A, C, G, T, U); repeatable.")(f)
+    f = click.option("--pairs", "pairs_file", type=click.Path(exists=True, dir_okay=False),
+                     help="File of explicit pairs, one 'A:1 B:24' per line, instead of geometric pairing.")(f)
+    f = click.option("--altloc", default=None, help="Alternate location to keep (default: most occupied).")(f)
+    f = click.option("--model", "model", default=1, show_default=True, type=int, help="Model number (1-based).")(f)
+    return f
+
+
+def _analyze(path, model, altloc, pairs_file, maps, ignore):
+    from .analysis import analyze_structure
+
+    pairs = _read_pairs_file(pairs_file) if pairs_file else None
+    return analyze_structure(path, model=model, altloc=altloc, pairs=pairs, extra_residues=_parse_map(maps),
+                             ignore_residues=ignore)
+
+
+def _emit(rows, columns, csv_path, title_lines, notes, fmt):
+    from ..io_utils import write_text_atomic
+
+    if csv_path:
+        buf = io.StringIO()
+        w = csv.writer(buf, lineterminator="\n")
+        w.writerow(columns)
+        for r in rows:
+            w.writerow([f"{v:.6f}" if isinstance(v, float) else v for v in r])
+        write_text_atomic(csv_path, buf.getvalue())
+        for n in notes:
+            click.echo(f"note: {n}", err=True)
+        click.echo(f"wrote {len(rows)} rows to {csv_path}", err=True)
+        return
+    for t in title_lines + [f"note: {n}" for n in notes]:
+        click.echo(f"# {t}")
+    click.echo(" ".join(f"{c:>{w}}" for c, w in zip(columns, fmt)))
+    for r in rows:  # Angstrom and degrees to 2 decimals (as 3DNA), strains to 4
+        cells = [(f"{v:>{w}.4f}" if c.startswith(("Omega", "Gamma")) else f"{v:>{w}.2f}") if isinstance(v, float)
+                 else f"{v!s:>{w}}" for v, w, c in zip(r, fmt, columns)]
+        click.echo(" ".join(cells))
+
+
+def _titles(ana):
+    out = [f"{ana.source}: model {ana.structure.model} of {ana.structure.n_models}, "
+           f"{len(ana.structure.nucleotides)} nucleotides, {len(ana.duplexes)} duplex(es)"]
+    for k, d in enumerate(ana.duplexes):
+        out.append(f"duplex {k + 1}: {d.n_bp} bp, strand I {d.strand1[0].rid}..{d.strand1[-1].rid}, "
+                   f"strand II {d.strand2[0].rid}..{d.strand2[-1].rid}" + (" (circular)" if d.circular else ""))
+    return out
+
+
+def step_rows(ana, ds):
+    """Rows of the ``steps`` table (lengths in Angstrom, angles in degrees, strains per nm)."""
+    from ..stepparams import to_angstrom_degrees
+    from ..strains import strains
+
+    rows, k = [], 0
+    for d in ana.duplexes:
+        if d.n_bp < 2:
+            continue
+        sp = to_angstrom_degrees(d.step_params)
+        Om, Ga = strains(d.bp_origins, d.bp_frames, ds)
+        labels = d.bp_labels
+        for i in range(d.n_bp - 1):
+            k += 1
+            rows.append((k, labels[i], labels[i + 1], *map(float, sp[i]), *map(float, Om[i]), *map(float, Ga[i])))
+    return rows
+
+
+def pair_rows(ana):
+    """Rows of the ``pairs`` table (lengths in Angstrom, angles in degrees)."""
+    from ..stepparams import to_angstrom_degrees
+
+    rows, k = [], 0
+    for d in ana.duplexes:
+        bp = to_angstrom_degrees(d.bp_params)
+        for i, lab in enumerate(d.bp_labels):
+            k += 1
+            rows.append((k, lab, *map(float, bp[i])))
+    return rows
+
+
+@click.command("steps")
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write CSV here instead of a table.")
+@click.option("--forcefield", default="dna-default", show_default=True, help="Force field whose ds scales the strains.")
+@structure_options
+def steps(input_path, csv_path, forcefield, model, altloc, pairs_file, maps, ignore):
+    """Step parameters (3DNA convention) and SMK strains of every base-pair step of INPUT (PDB/mmCIF)."""
+    from ..forcefield import load_forcefield
+
+    ff = load_forcefield(forcefield)
+    ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
+    rows = step_rows(ana, ff.ds)
+    title = _titles(ana) + [f"strains with ds = {ff.ds:g} nm ({ff.name}); Omega in 1/nm, Gamma dimensionless"]
+    _emit(rows, STEP_COLUMNS, csv_path, title, ana.skipped, (4, 5, 5) + (8,) * 6 + (13,) * 3 + (7,) * 3)
+
+
+@click.command("pairs")
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write CSV here instead of a table.")
+@structure_options
+def pairs(input_path, csv_path, model, altloc, pairs_file, maps, ignore):
+    """Base pairs of INPUT (PDB/mmCIF) and their six parameters (3DNA convention)."""
+    ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
+    rows = pair_rows(ana)
+    if not csv_path:  # the readable table also names the residues and the pair class
+        ids = [f"{a.rid}/{b.rid}" for d in ana.duplexes for a, b in zip(d.strand1, d.strand2)]
+        kinds = [n for d in ana.duplexes for n in d.names]
+        rows = [r + (i, c) for r, i, c in zip(rows, ids, kinds)]
+        _emit(rows, PAIR_COLUMNS + ("residues", "class"), None, _titles(ana), ana.skipped,
+              (4, 5) + (13,) * 6 + (14, 7))
+        return
+    _emit(rows, PAIR_COLUMNS, csv_path, _titles(ana), ana.skipped, ())
+
+
+@click.command("build")
+@click.argument("input_path", metavar="INPUT", required=False, type=click.Path(dir_okay=False))
+@click.option("--sequence", help="Build the intrinsic shape of this sequence instead of reading INPUT.")
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Model file (.npz).")
+@click.option("--forcefield", default="dna-default", show_default=True)
+@click.option("--duplex", type=int, default=None, help="Duplex number (1-based; default the longest).")
+@structure_options
+def build(input_path, sequence, output, forcefield, duplex, model, altloc, pairs_file, maps, ignore):
+    """A dnarod model (.npz) from a structure INPUT (nodes at its base-pair frames) or from --sequence."""
+    from .builders import model_from_sequence, model_from_structure
+
+    if (input_path is None) == (sequence is None):
+        raise StructureError("build: give either INPUT (a PDB/mmCIF file) or --sequence, not both or neither")
+    if sequence is not None:
+        m = model_from_sequence(sequence, forcefield)
+    else:
+        ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
+        m = model_from_structure(analysis=ana, forcefield=forcefield, duplex=None if duplex is None else duplex - 1)
+    m.save(output)
+    click.echo(f"wrote {output}: {m.n_nodes} nodes, ds = {m.ds:g} nm, force field {forcefield}", err=True)
+
+
+@click.command("rebuild")
+@click.argument("model_path", metavar="MODEL", type=click.Path(exists=True, dir_okay=False))
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="All-atom PDB to write.")
+def rebuild(model_path, output):
+    """An all-atom PDB from a dnarod model file (.npz): standard bases in the node frames, B-DNA backbone."""
+    from ..model import RodModel
+    from .rebuild import rebuild_model
+
+    m = RodModel.load(model_path)
+    xyz, atoms = rebuild_model(m, output)
+    click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides", err=True)
+
+
+COMMANDS = (steps, pairs, build, rebuild)
