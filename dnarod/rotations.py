@@ -130,11 +130,12 @@ def cayley_T(w):
 
 
 def rotation_about_axis(axis, angle):
-    """Rotation matrix by ``angle`` (rad) about a unit vector (Rodrigues' formula).
+    """Rotation matrix by ``angle`` (rad) about an axis (Rodrigues' formula).
 
     Parameters
     ----------
     axis : array_like, shape (..., 3)
+        Rotation axes; normalised here (a zero axis is an error).
     angle : array_like, shape (...)
 
     Returns
@@ -142,6 +143,10 @@ def rotation_about_axis(axis, angle):
     ndarray, shape (..., 3, 3)
     """
     axis = np.asarray(axis, dtype=float)
+    norm = np.linalg.norm(axis, axis=-1)
+    if not np.all(norm > 0):
+        raise GeometryError("rotation axis has zero length (or is not finite)")
+    axis = axis / norm[..., None]
     angle = np.asarray(angle, dtype=float)
     K = hat(axis)
     s = np.sin(angle)[..., None, None]

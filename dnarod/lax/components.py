@@ -28,22 +28,29 @@ Superscript 1 = node k+1; for ``periodic=True`` it wraps around (node n-1 couple
 """
 from __future__ import annotations
 
-import numpy as np
-
 from ._checks import as_ds, as_fields, as_lambda, as_reading, shift_next
 from .pair import U_NAMES, V_NAMES
 
 __all__ = ["component_rhs", "smk_rhs", "appendix_rhs"]
 
 
+_P1 = [1, 2, 0]   # component a+1 (mod 3)
+_P2 = [2, 0, 1]   # component a+2 (mod 3)
+
+
 def _cyc(x, y):
     """Component a: x_{a+1} y_{a+2} (indices mod 3)."""
-    return np.roll(x, -1, axis=-1) * np.roll(y, -2, axis=-1)
+    return x[..., _P1] * y[..., _P2]
+
+
+def _cross(x, y):
+    """x × y over the last axis (np.cross has a large per-call overhead for small arrays)."""
+    return x[..., _P1] * y[..., _P2] - x[..., _P2] * y[..., _P1]
 
 
 def _r1(Gamma, Omega, p, m, gamma, omega, P, M, g1, w1, P1, M1, lam, ds):
     l2, l4, l6 = lam ** 2, lam ** 4, lam ** 6
-    cross = np.cross
+    cross = _cross
     dGamma = (g1 - gamma) / ds + cross(Gamma, w1) + cross(Omega, gamma)
     dOmega = (w1 - omega) / ds + _cyc(Omega, w1) - _cyc(omega, Omega)
     dp = (P1 - P) / ds + _cyc(p, w1) - _cyc(omega, p) - (_cyc(P, Omega) - _cyc(Omega, P1))
@@ -58,7 +65,7 @@ def _r1(Gamma, Omega, p, m, gamma, omega, P, M, g1, w1, P1, M1, lam, ds):
 
 def _midpoint(Gamma, Omega, p, m, gamma, omega, P, M, g1, w1, P1, M1, lam, ds):
     l2, l4, l6 = lam ** 2, lam ** 4, lam ** 6
-    cross = np.cross
+    cross = _cross
     gb, wb, Pb, Mb = 0.5 * (gamma + g1), 0.5 * (omega + w1), 0.5 * (P + P1), 0.5 * (M + M1)
     dGamma = (g1 - gamma) / ds + cross(Gamma, wb) + cross(Omega, gb)
     dOmega = (w1 - omega) / ds + cross(Omega, wb)

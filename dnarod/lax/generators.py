@@ -18,7 +18,7 @@ from ..rotations import axial, hat
 
 __all__ = [
     "J", "K", "LEVI_CIVITA", "XPLUS", "XMINUS", "D_FLIP", "commutator",
-    "so4_matrix", "so4_coefficients", "antisymmetric_part", "symmetric_part",
+    "so4_matrix", "so4_coefficients", "xpm_coefficients", "antisymmetric_part", "symmetric_part",
 ]
 
 
@@ -104,6 +104,23 @@ def so4_matrix(j, k):
     return out
 
 
+def xpm_coefficients(j, k):
+    """Split ``j.J + k.K`` into the two commuting so(3) copies: ``(j + k).X^+ + (j - k).X^-``.
+
+    Parameters
+    ----------
+    j, k : array_like, shape (..., 3), real or complex
+
+    Returns
+    -------
+    plus, minus : ndarray, shape (..., 3)
+        Coefficients of X^+_a and X^-_a.
+    """
+    j = np.asarray(j)
+    k = np.asarray(k)
+    return j + k, j - k
+
+
 def antisymmetric_part(X):
     """``(X - X^T)/2`` over the last two axes (plain transpose, no conjugation)."""
     X = np.asarray(X)
@@ -119,8 +136,8 @@ def symmetric_part(X):
 def so4_coefficients(X):
     """Coefficients (j, k) of the antisymmetric part of X on the basis J_a, K_a.
 
-    Uses the trace form ``j_a = -tr(J_a X)/2`` and ``k_a = -tr(K_a X)/2``; the symmetric part of X is
-    orthogonal to so(4) in this form and does not contribute.
+    Equal to the trace form ``j_a = -tr(J_a X)/2``, ``k_a = -tr(K_a X)/2``: the symmetric part of X
+    is orthogonal to so(4) in this form and does not contribute.
 
     Parameters
     ----------

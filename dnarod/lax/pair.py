@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import DnarodError
 from ._checks import as_ds, as_fields, as_lambda, shift_next
 from .generators import D_FLIP, so4_coefficients, so4_matrix
 
@@ -179,7 +180,6 @@ def so4_to_fields(X, lam):
     """
     lam = as_lambda(lam)
     if lam == 0.0:
-        from ..errors import DnarodError
         raise DnarodError("lam: must be nonzero to separate p, Gamma and m from the so(4) projection")
     j, k = so4_coefficients(np.asarray(X, dtype=complex))
     Omega = -np.real(j)
