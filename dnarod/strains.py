@@ -56,13 +56,13 @@ class Closure:
 
 
 def _with_image(positions, frames, closure):
-    """Positions and frames of the step ends: nodes 1..N-1 plus, if circular, the image of node 0."""
+    """Positions and frames of both ends of every step (leading frame axes allowed)."""
     if closure is None:
-        return positions[:-1], frames[:-1], positions[1:], frames[1:]
-    r_img = closure.Q @ positions[0] + closure.t
-    L_img = closure.Q @ frames[0]
-    r_next = np.concatenate([positions[1:], r_img[None]], axis=0)
-    L_next = np.concatenate([frames[1:], L_img[None]], axis=0)
+        return positions[..., :-1, :], frames[..., :-1, :, :], positions[..., 1:, :], frames[..., 1:, :, :]
+    r_img = positions[..., 0, :] @ closure.Q.T + closure.t
+    L_img = closure.Q @ frames[..., 0, :, :]
+    r_next = np.concatenate([positions[..., 1:, :], r_img[..., None, :]], axis=-2)
+    L_next = np.concatenate([frames[..., 1:, :, :], L_img[..., None, :, :]], axis=-3)
     return positions, frames, r_next, L_next
 
 
@@ -71,22 +71,22 @@ def step_geometry(positions, frames, closure=None):
 
     Parameters
     ----------
-    positions : ndarray, shape (n_nodes, 3)
-        Node centres, nm.
-    frames : ndarray, shape (n_nodes, 3, 3)
+    positions : ndarray, shape (..., n_nodes, 3)
+        Node centres, nm (optional leading axes, e.g. trajectory frames).
+    frames : ndarray, shape (..., n_nodes, 3, 3)
         Directors as columns.
     closure : Closure or None
         Screw closure of a circular chain; ``None`` for an open chain.
 
     Returns
     -------
-    R : ndarray, shape (n_steps, 3, 3)
+    R : ndarray, shape (..., n_steps, 3, 3)
         ``L_k^T L_{k+1}``.
-    e : ndarray, shape (n_steps, 3)
+    e : ndarray, shape (..., n_steps, 3)
         Lab chord ``r_{k+1} - r_k``, nm.
     """
     r0, L0, r1, L1 = _with_image(np.asarray(positions, float), np.asarray(frames, float), closure)
-    R = np.swapaxes(L0, 1, 2) @ L1
+    R = np.swapaxes(L0, -1, -2) @ L1
     return R, r1 - r0
 
 
@@ -95,9 +95,9 @@ def strains(positions, frames, ds, closure=None):
 
     Parameters
     ----------
-    positions : ndarray, shape (n_nodes, 3)
-        Node centres, nm.
-    frames : ndarray, shape (n_nodes, 3, 3)
+    positions : ndarray, shape (..., n_nodes, 3)
+        Node centres, nm; leading axes (e.g. trajectory frames) are vectorised over.
+    frames : ndarray, shape (..., n_nodes, 3, 3)
         Directors as columns (proper rotations).
     ds : float
         Reference arc length per step, nm.
@@ -106,9 +106,9 @@ def strains(positions, frames, ds, closure=None):
 
     Returns
     -------
-    Omega : ndarray, shape (n_steps, 3)
+    Omega : ndarray, shape (..., n_steps, 3)
         Bend, bend, twist strains, 1/nm (Cayley vector of ``R_k`` divided by ``ds``).
-    Gamma : ndarray, shape (n_steps, 3)
+    Gamma : ndarray, shape (..., n_steps, 3)
         Shear, shear, extension strains (dimensionless), in frame k.
 
     Raises
@@ -119,9 +119,9 @@ def strains(positions, frames, ds, closure=None):
     positions = np.asarray(positions, dtype=float)
     frames = np.asarray(frames, dtype=float)
     R, e = step_geometry(positions, frames, closure)
-    L0 = frames if closure is not None else frames[:-1]
+    L0 = frames if closure is not None else frames[..., :-1, :, :]
     Omega = cayley_inverse(R, what="step") / ds
-    Gamma = np.einsum("kji,kj->ki", L0, e) / ds
+    Gamma = np.einsum("...kji,...kj->...ki", L0, e) / ds
     return Omega, Gamma
 
 

@@ -115,3 +115,16 @@ def test_chain_from_strains_is_the_inverse(chain):
     p2, f2 = chain_from_strains(Om, Ga, ds, pos[0], frm[0])
     assert np.abs(p2 - pos).max() < 1e-12 and np.abs(f2 - frm).max() < 1e-12
     assert np.allclose(cayley(ds * Om), np.swapaxes(frm[:-1], 1, 2) @ frm[1:], atol=1e-13)
+
+
+def test_strains_vectorised_over_frames_equal_per_frame_loop():
+    """Leading (trajectory-frame) axes give the same strains as a loop (open and screw-closed)."""
+    chains = [random_chain(s, n=6) for s in range(4)]
+    pos = np.stack([c[0] for c in chains])
+    frm = np.stack([c[1] for c in chains])
+    closure = Closure(Rotation.random(random_state=3).as_matrix(), np.array([0.1, 0.2, 0.3]))
+    for cl in (None, closure):
+        Om, Ga = strains(pos, frm, 0.34, cl)
+        for i in range(4):
+            o, g = strains(pos[i], frm[i], 0.34, cl)
+            assert np.allclose(Om[i], o, rtol=1e-13, atol=1e-13) and np.allclose(Ga[i], g, rtol=1e-13, atol=1e-13)
