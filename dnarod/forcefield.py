@@ -10,6 +10,9 @@ A force field is a TOML file in ``forcefields/`` (or any path). Every quantity i
     Angstrom/degrees and 6x6 force constants in kT) in CSV tables; converted to Cayley
     coordinates through the Jacobian of the strain map at each mean step
     (:mod:`dnarod.conversion`).
+``sequence-cayley``
+    Sequence dependent, given directly in Cayley coordinates: one ``[steps.XY]`` table per
+    dinucleotide with ``Omega0``, ``Gamma0``, ``A``, ``B``, ``C`` (what ``dnarod analyze`` writes).
 ``material``
     A uniform circular rod from material constants (Young's and shear moduli, radius,
     density, shear coefficient): any shearable, extensible rod, not only DNA.
@@ -247,14 +250,30 @@ def _uniform_table(doc, where):
     st = doc.get("step")
     if not isinstance(st, dict):
         raise ParameterError(f"{where}: missing [step] table")
-    w = f"{where}[step]"
+    return {"*": _step_table(st, f"{where}[step]")}
+
+
+def _sequence_cayley_table(doc, where):
+    steps = doc.get("steps")
+    if not isinstance(steps, dict) or not steps:
+        raise ParameterError(f"{where}: missing [steps.XY] tables (one per dinucleotide step type)")
+    table = {}
+    for name, st in steps.items():
+        if len(name) != 2 or not set(name) <= set("ACGT") or not isinstance(st, dict):
+            raise ParameterError(f"{where}: [steps.{name}] is not a dinucleotide step table (e.g. [steps.AC])")
+        table[name] = _step_table(st, f"{where}[steps.{name}]")
+    return table
+
+
+def _step_table(st, w):
+    """``(K (6, 6), xi0 (6,))`` from a table with Omega0, Gamma0, A, B, C."""
     A = quantity(st, "A", "energy*length", w, (3, 3))
     B = quantity(st, "B", "energy", w, (3, 3))
     C = quantity(st, "C", "energy/length", w, (3, 3))
     K = check_stiffness(np.block([[A, B], [B.T, C]]), name=f"{w} stiffness")
     xi0 = np.concatenate([quantity(st, "Omega0", "inverse length", w, (3,)),
                           quantity(st, "Gamma0", "dimensionless", w, (3,))])
-    return {"*": (K, xi0)}
+    return K, xi0
 
 
 def _read_csv(path, where):
@@ -355,6 +374,10 @@ def load_forcefield(name_or_path):
         table = _uniform_table(doc, where)
         ds = float(quantity(doc["step"], "ds", "length", f"{where}[step]", ()))
         mass, inertia = _node_block(doc, where)
+    elif kind == "sequence-cayley":
+        ds = float(quantity(doc.get("step", {}), "ds", "length", f"{where}[step]", ()))
+        table = _sequence_cayley_table(doc, where)
+        mass, inertia = _node_block(doc, where)
     elif kind == "sequence-3dna":
         ds = float(quantity(doc.get("step", {}), "ds", "length", f"{where}[step]", ()))
         table = _sequence_3dna_table(doc, where, _data_base(p), ds, temperature)
@@ -374,7 +397,8 @@ def load_forcefield(name_or_path):
             quantity(st, "Gamma0", "dimensionless", f"{where}[step]", (3,)))
         table = {"*": (check_stiffness(K, name=f"{where} stiffness"), xi0)}
     else:
-        raise ParameterError(f"{where}: kind must be 'uniform', 'sequence-3dna' or 'material', got {kind!r}")
+        raise ParameterError(f"{where}: kind must be 'uniform', 'sequence-cayley', 'sequence-3dna' or 'material', "
+                             f"got {kind!r}")
     if not ds > 0:
         raise ParameterError(f"{where}[step].ds must be positive, got {ds}")
     return ForceField(name=doc.get("name", p.stem), kind=kind, ds=ds, node_mass=mass, node_inertia=inertia,
@@ -389,3 +413,61 @@ def _data_base(ff_path):
         if c.is_dir():
             return c
     return data_dir()
+
+
+def _toml_str(text):
+    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def write_forcefield(path, name, table, ds, node_mass, node_inertia, temperature=300.0, description="",
+                     sources=(), header=""):
+    """Write a force field file that :func:`load_forcefield` reads (atomically).
+
+    Parameters
+    ----------
+    path : str or Path
+    name : str
+    table : dict
+        ``{"*": (K, xi0)}`` writes ``kind = "uniform"``; dinucleotide keys ``{"AC": (K, xi0), ...}``
+        write ``kind = "sequence-cayley"``. K (6, 6) in kJ/mol units, xi0 (6,) as (Omega0 1/nm, Gamma0).
+    ds : float
+        nm.
+    node_mass : float
+        amu.
+    node_inertia : array (3,)
+        amu nm^2.
+    temperature : float
+        K.
+    description : str
+    sources : sequence of str
+    header : str
+        Comment lines put at the top of the file.
+    """
+    from .io_utils import write_text_atomic
+
+    num = lambda v: f"{float(v):.12g}"
+    vec = lambda v: "[" + ", ".join(num(x) for x in v) + "]"
+    mat = lambda M: "[" + ", ".join(vec(r) for r in M) + "]"
+
+    def block(K, xi0):
+        K, xi0 = check_stiffness(K, name=f"{name}"), np.asarray(xi0, float)
+        return [f'Omega0 = {{ value = {vec(xi0[:3])}, unit = "1/nm" }}',
+                f'Gamma0 = {{ value = {vec(xi0[3:])}, unit = "1" }}',
+                f'A = {{ value = {mat(K[:3, :3])}, unit = "kJ/mol*nm" }}',
+                f'B = {{ value = {mat(K[:3, 3:])}, unit = "kJ/mol" }}',
+                f'C = {{ value = {mat(K[3:, 3:])}, unit = "kJ/mol/nm" }}']
+
+    uniform = set(table) == {"*"}
+    lines = [f"# {line}" for line in header.splitlines()] + [
+        f"name = {_toml_str(name)}", f'kind = "{"uniform" if uniform else "sequence-cayley"}"',
+        f"description = {_toml_str(description)}", f'temperature = {{ value = {num(temperature)}, unit = "K" }}',
+        "sources = [" + ", ".join(_toml_str(s) for s in sources) + "]", "",
+        "[step]", f'ds = {{ value = {num(ds)}, unit = "nm" }}']
+    if uniform:
+        lines += block(*table["*"])
+    else:
+        for step in sorted(table):
+            lines += ["", f"[steps.{step}]"] + block(*table[step])
+    lines += ["", "[node]", f'mass = {{ value = {num(node_mass)}, unit = "amu" }}',
+              f'inertia = {{ value = {vec(node_inertia)}, unit = "amu*nm^2" }}', ""]
+    write_text_atomic(path, "\n".join(lines))

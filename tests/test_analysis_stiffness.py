@@ -89,13 +89,14 @@ def test_stiffness_fit_on_chains_per_step_type_and_forcefield_round_trip(tmp_pat
     assert back.kind == "uniform" and back.name == "fit-ac"
     assert np.allclose(back.table["*"][0], types["AC"]["stiffness"], rtol=1e-10, atol=1e-9)
     assert np.allclose(back.table["*"][1], types["AC"]["mean"], rtol=1e-10, atol=1e-12)
-    # Per-step-type set (sequence-3dna via the exact Jacobian equivalence): loads back to the same (xi0, K).
-    path = fit.write_sequence_forcefield(tmp_path / "seqff", ff_name="fit-seq")
+    # Per-step-type set (sequence-cayley): loads back to the same (xi0, K).
+    path = fit.write_sequence_forcefield(tmp_path / "seqff.toml", ff_name="fit-seq")
     seqff = load_forcefield(path)
+    assert seqff.kind == "sequence-cayley"
     for name in set(params.names):
         K2, xi2 = seqff.table[name]
-        assert np.allclose(K2, types[name]["stiffness"], rtol=1e-7, atol=1e-6)
-        assert np.allclose(xi2, types[name]["mean"], rtol=1e-9, atol=1e-10)
+        assert np.allclose(K2, types[name]["stiffness"], rtol=1e-10, atol=1e-9)
+        assert np.allclose(xi2, types[name]["mean"], rtol=1e-10, atol=1e-12)
     assert seqff.model_from_sequence(seq).n_nodes == len(seq)
 
 

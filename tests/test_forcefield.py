@@ -189,3 +189,19 @@ def test_unknown_step_type_and_name(tmp_path):
     f.write_text("name = [")
     with pytest.raises(ParameterError, match="not valid TOML"):
         load_forcefield(f)
+
+
+def test_sequence_cayley_write_and_load_round_trip(tmp_path):
+    from dnarod.forcefield import write_forcefield
+
+    ff = load_forcefield("olson1998")
+    write_forcefield(tmp_path / "s.toml", "s", ff.table, ff.ds, 650.0, [117.0, 117.0, 234.0], sources=["test"])
+    back = load_forcefield(tmp_path / "s.toml")
+    assert back.kind == "sequence-cayley" and set(back.table) == set(ff.table)
+    for k in ff.table:
+        assert np.allclose(back.table[k][0], ff.table[k][0], rtol=1e-10)
+        assert np.allclose(back.table[k][1], ff.table[k][1], rtol=1e-10, atol=1e-13)
+    bad = (tmp_path / "s.toml").read_text().replace("[steps.AA]", "[steps.AX]")
+    (tmp_path / "bad.toml").write_text(bad)
+    with pytest.raises(ParameterError, match=r"\[steps.AX\] is not a dinucleotide"):
+        load_forcefield(tmp_path / "bad.toml")

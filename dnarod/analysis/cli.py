@@ -176,12 +176,12 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
                             "stiffness_err": pooled["stiffness_err"],
                             "units": "Omega 1/nm, Gamma 1; A kJ/mol nm, B kJ/mol, C kJ/mol/nm",
                             "note": "all steps pooled; with a sequence the per-step-type fits are in "
-                                    "stiffness_table.csv and sequence_forcefield/",
+                                    "stiffness_table.csv and sequence_stiffness.toml",
                             "skipped_step_types": fit.results.skipped_types}
     summary["files"].update(stiffness_table="stiffness_table.csv", stiffness="stiffness.toml")
     types = [t for t in fit.results.types if t != "*"]
     if types and all(len(t) == 2 for t in types):
-        p = fit.write_sequence_forcefield(out / "sequence_forcefield", ff_name="fitted-sequence",
+        p = fit.write_sequence_forcefield(out / "sequence_stiffness.toml", ff_name="fitted-sequence",
                                           node_mass=ff.node_mass, node_inertia=ff.node_inertia)
         summary["files"]["sequence_forcefield"] = str(p.relative_to(out))
 

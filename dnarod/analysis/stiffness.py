@@ -25,16 +25,13 @@ C kJ/mol/nm), kT kJ/mol.
 """
 from __future__ import annotations
 
-import csv
 from pathlib import Path
 
 import numpy as np
 
-from ..conversion import stiffness_to_step_coordinates
 from ..errors import DnarodError, ParameterError
-from ..io_utils import atomic_path, write_text_atomic
+from ..forcefield import write_forcefield
 from ..parameters import STRAIN_NAMES, StepParameters
-from ..stepparams import STEP_PARAMETER_NAMES
 from ..thermal import kT as thermal_kT
 from .base import AnalysisBase, closure_of
 from .steps import frame_strains, step_names
@@ -231,37 +228,21 @@ class StiffnessFit(AnalysisBase):
             amu nm^2.
         """
         t = self._type(name)
-        K, xi0 = t["stiffness"], t["mean"]
-        fmt = lambda M: "[" + ", ".join("[" + ", ".join(f"{v:.12g}" for v in row) + "]" for row in M) + "]"
-        vec = lambda v: "[" + ", ".join(f"{x:.12g}" for x in v) + "]"
         desc = description or (f"Stiffness fitted by dnarod analyze from {t['n_samples']} samples of step type "
                                f"{name} (Haar-reweighted covariance, K = kT (ds Cov_W)^-1)")
         src = list(sources) + [f"kT = {self.results.kT:.6g} kJ/mol at {self.temperature:g} K; ds = {self.ds:g} nm"]
-        text = "\n".join([
-            "# dnarod force field written by dnarod.analysis.stiffness.StiffnessFit.write_forcefield",
-            f'name = "{ff_name}"', 'kind = "uniform"', f'description = "{desc}"',
-            f'temperature = {{ value = {self.temperature:.12g}, unit = "K" }}',
-            "sources = [" + ", ".join(f'"{s}"' for s in src) + "]", "",
-            "[step]", f'ds = {{ value = {self.ds:.12g}, unit = "nm" }}',
-            f'Omega0 = {{ value = {vec(xi0[:3])}, unit = "1/nm" }}',
-            f'Gamma0 = {{ value = {vec(xi0[3:])}, unit = "1" }}',
-            f'A = {{ value = {fmt(K[:3, :3])}, unit = "kJ/mol*nm" }}',
-            f'B = {{ value = {fmt(K[:3, 3:])}, unit = "kJ/mol" }}',
-            f'C = {{ value = {fmt(K[3:, 3:])}, unit = "kJ/mol/nm" }}', "",
-            "[node]", f'mass = {{ value = {float(node_mass):.12g}, unit = "amu" }}',
-            f'inertia = {{ value = {vec(node_inertia)}, unit = "amu*nm^2" }}', ""])
-        write_text_atomic(path, text)
+        write_forcefield(path, ff_name, {"*": (t["stiffness"], t["mean"])}, self.ds, node_mass, node_inertia,
+                         self.temperature, desc, src,
+                         header="dnarod force field written by dnarod.analysis.stiffness.StiffnessFit.write_forcefield")
 
-    def write_sequence_forcefield(self, directory, ff_name="fitted-sequence", node_mass=650.0,
+    def write_sequence_forcefield(self, path, ff_name="fitted-sequence", node_mass=650.0,
                                   node_inertia=(117.0, 117.0, 234.0)):
-        """Write every dinucleotide type as a ``kind = "sequence-3dna"`` force field.
+        """Write every dinucleotide type's fit as a ``kind = "sequence-cayley"`` force field.
 
-        The loader has no per-step-type table in Cayley coordinates, so each type's
-        ``(xi0, K)`` is written as its exact 3DNA Gaussian equivalent (mean step parameters and
-        force constants through the Jacobian at ``xi0``, :func:`dnarod.conversion.stiffness_to_step_coordinates`),
-        which the loader maps back to the same ``(xi0, K)``. Layout (as the repository's):
-        ``DIR/forcefields/NAME.toml`` and ``DIR/data/NAME_means.csv``,
-        ``DIR/data/NAME_force_constants.csv``.
+        Parameters
+        ----------
+        path : str or Path
+            The ``.toml`` file to write.
 
         Returns
         -------
@@ -271,37 +252,12 @@ class StiffnessFit(AnalysisBase):
         types = {n: t for n, t in self.results.types.items() if n != "*"}
         if not types or any(len(n) != 2 or not set(n) <= set("ACGT") for n in types):
             raise ParameterError("a sequence force field needs dinucleotide step types; fit with a sequence")
-        d = Path(directory)
-        kt = self.results.kT
-        means_rows, fc_rows = [], []
-        for n, t in sorted(types.items()):
-            p0, F = stiffness_to_step_coordinates(t["mean"], t["stiffness"], self.ds, kt)
-            means_rows.append([n, *[f"{v:.12g}" for v in p0]])
-            for i, row in enumerate(STEP_PARAMETER_NAMES):
-                fc_rows.append([n, row, *[f"{v:.12g}" for v in F[i]]])
-        for fname, header, rows in (
-                (f"{ff_name}_means.csv", ["step", "shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg"],
-                 means_rows),
-                (f"{ff_name}_force_constants.csv", ["step", "row", *STEP_PARAMETER_NAMES], fc_rows)):
-            with atomic_path(d / "data" / fname) as tmp, open(tmp, "w", newline="") as fh:
-                w = csv.writer(fh)
-                w.writerow(header)
-                w.writerows(rows)
-        vec = lambda v: "[" + ", ".join(f"{x:.12g}" for x in v) + "]"
-        text = "\n".join([
-            "# dnarod force field written by dnarod.analysis.stiffness.StiffnessFit.write_sequence_forcefield",
-            "# Per-step-type Haar-reweighted stiffness fits, stored as exact 3DNA Gaussian equivalents.",
-            f'name = "{ff_name}"', 'kind = "sequence-3dna"',
-            f'description = "Sequence-dependent stiffness fitted by dnarod analyze ({len(types)} step types)"',
-            f'temperature = {{ value = {self.temperature:.12g}, unit = "K" }}', "",
-            "[source]   # relative to ../data", f'means = "{ff_name}_means.csv"', 'means_unit = "A,deg"',
-            f'force_constants = "{ff_name}_force_constants.csv"', 'force_constants_unit = "kT"', "",
-            "[step]", f'ds = {{ value = {self.ds:.12g}, unit = "nm" }}', "",
-            "[node]", f'mass = {{ value = {float(node_mass):.12g}, unit = "amu" }}',
-            f'inertia = {{ value = {vec(node_inertia)}, unit = "amu*nm^2" }}', ""])
-        path = d / "forcefields" / f"{ff_name}.toml"
-        write_text_atomic(path, text)
-        return path
+        write_forcefield(path, ff_name, {n: (t["stiffness"], t["mean"]) for n, t in types.items()}, self.ds,
+                         node_mass, node_inertia, self.temperature,
+                         f"Sequence-dependent stiffness fitted by dnarod analyze ({len(types)} step types)",
+                         [f"kT = {self.results.kT:.6g} kJ/mol at {self.temperature:g} K"],
+                         header="Per-step-type Haar-reweighted stiffness fits (dnarod.analysis.stiffness)")
+        return Path(path)
 
     def table_rows(self):
         """Long table of every type's mean and stiffness with errors: list of dicts (for CSV)."""
