@@ -52,3 +52,16 @@ def forcefields_cmd(name):
         K, xi0 = ff.table[s]
         lp = persistence_length(StepParameters(K, xi0), ff.ds, kT(ff.temperature))
         click.echo(f"  {s}: bending persistence length (exact, {ff.temperature:g} K) {lp:.2f} nm")
+
+
+from .structure.cli_structure import build as _structure_build, pairs as _structure_pairs  # noqa: E402
+from .structure.cli_structure import rebuild as _structure_rebuild, steps as _structure_steps  # noqa: E402
+
+main.add_command(_structure_steps)
+main.add_command(_structure_pairs)
+main.add_command(_structure_build)
+main.add_command(_structure_rebuild)
+from .openmm.cli import simulate_cmd as _simulate_cmd; main.add_command(_simulate_cmd)  # noqa: E402
+from .integrators.cli import lax_run as _lax_run; main.add_command(_lax_run)  # noqa: E402
+from .analysis.cli import analyze_cmd as _analyze_cmd; main.add_command(_analyze_cmd)  # noqa: E402
+from .validate.cli import validate as _validate; main.add_command(_validate)  # noqa: E402

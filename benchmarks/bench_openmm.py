@@ -1,0 +1,200 @@
+"""Benchmark: the OpenMM engine on the CPU platform.
+
+For 10^2 .. 10^6 nodes of dna-default DNA (LangevinMiddle, 300 K, the default time step),
+each size in its own process (clean peak memory):
+
+* ``floor``    -- the same particles and constraints with no forces (bare integration);
+* ``bonded``   -- the fast elastic path (numba analytic loads through PythonForce);
+* ``full``     -- bonded + excluded volume + Debye-Hueckel (the default model);
+* ``portable`` -- the CustomCompoundBondForce path on CPU (10^3 and 10^4 nodes only: its
+  expression compiles for several seconds);
+
+node-steps per second (best of interleaved repeats, so machine load hits all alike), the
+ratios to the floor, the time to build a simulation (fastest-mode estimate, system,
+OpenMM Context) and the peak resident memory. Then a 1 kbp duplex at 300 K with the default
+time step through ``RodSimulation.run`` (trajectory every 1 ps, energies, checkpoints): ns/day
+against oxDNA 3.7's ~110 ns/day on one core of this machine (issue 7).
+
+Targets (issue 7): bonded >= 40% of the floor at 10^4 nodes; full <= 2x bonded cost at 10^4;
+1 kbp >= 3300 ns/day; Context creation < 2 s; 10^6 nodes fit in memory.
+
+Usage: ``python benchmarks/bench_openmm.py [--sizes 100,1000,...] [--budget SECONDS] [--json OUT]``.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+OXDNA_NS_PER_DAY = 110.0
+
+
+def _rate(integrator, n_nodes, budget):
+    """Node-steps per second, running about ``budget`` seconds."""
+    integrator.step(2)
+    t = time.perf_counter()
+    integrator.step(1)
+    one = max(time.perf_counter() - t, 1e-5)
+    steps = max(2, int(budget / one))
+    t = time.perf_counter()
+    integrator.step(steps)
+    return n_nodes * steps / (time.perf_counter() - t)
+
+
+def single(n, budget, repeats):
+    """Measure one size; returns a dict (run in a fresh process)."""
+    import openmm
+
+    from dnarod.forcefield import load_forcefield
+    from dnarod.openmm.particles import particle_positions
+    from dnarod.openmm.simulation import RodSimulation, omega_max
+
+    ff = load_forcefield("dna-default")
+    rng = np.random.default_rng(0)
+    model = ff.model_from_sequence("".join(rng.choice(list("ACGT"), n)))
+    out = dict(n_nodes=n)
+    t = time.perf_counter()
+    w = omega_max(model)
+    out["omega_max_s"] = time.perf_counter() - t
+    out["omega_max"] = w
+    sims = {}
+    for name, nb in (("bonded", False), ("full", True)):
+        t = time.perf_counter()
+        sims[name] = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1)
+        out[f"{name}_setup_s"] = time.perf_counter() - t
+        out[f"{name}_context_s"] = sims[name].context_time
+    dt = sims["bonded"].dt
+    out["dt_ps"] = dt
+    # floor: particles + constraints, no forces
+    t = time.perf_counter()
+    system = openmm.System()
+    for _ in range(3 * n):
+        system.addParticle(model.mass[0] / 3)
+    side = 0.6 * np.sqrt(3)
+    for k in range(n):
+        for i, j in ((0, 1), (1, 2), (0, 2)):
+            system.addConstraint(3 * k + i, 3 * k + j, side)
+    integ = openmm.LangevinMiddleIntegrator(300.0, 1.0, dt)
+    integ.setConstraintTolerance(1e-8)
+    ctx = openmm.Context(system, integ, openmm.Platform.getPlatformByName("CPU"))
+    ctx.setPositions(particle_positions(model.positions, model.frames, 0.6))
+    ctx.setVelocitiesToTemperature(300.0, 1)
+    out["floor_setup_s"] = time.perf_counter() - t
+    runs = {"floor": integ, "bonded": sims["bonded"].integrator, "full": sims["full"].integrator}
+    if n in (1000, 10000):
+        t = time.perf_counter()
+        sims["portable"] = RodSimulation(model, temperature=300.0, nonbonded=False, seed=1, elastic="portable",
+                                         dt=dt)
+        out["portable_setup_s"] = time.perf_counter() - t
+        out["portable_context_s"] = sims["portable"].context_time
+        runs["portable"] = sims["portable"].integrator
+    rates = {k: [] for k in runs}
+    for _ in range(repeats):
+        for k, it in runs.items():
+            rates[k].append(_rate(it, n, budget))
+    for k, r in rates.items():
+        out[f"{k}_node_steps_per_s"] = max(r)
+    out["peak_rss_MB"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    return out
+
+
+def kbp(budget):
+    """1 kbp duplex, 300 K, default dt, full model, through RodSimulation.run with reporters."""
+    from dnarod.forcefield import load_forcefield
+    from dnarod.openmm.simulation import RodSimulation
+
+    rng = np.random.default_rng(1)
+    model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))
+    t = time.perf_counter()
+    sim = RodSimulation(model, temperature=300.0, seed=2)
+    setup = time.perf_counter() - t
+    fi = max(1, int(round(1.0 / sim.dt)))
+    sim.integrator.step(10)
+    t = time.perf_counter()
+    sim.integrator.step(200)
+    per_step = (time.perf_counter() - t) / 200
+    n_steps = max(fi, int(budget / per_step) // fi * fi)
+    with tempfile.TemporaryDirectory() as d:
+        s = sim.run(n_steps, d, frame_interval=fi, checkpoint_interval=100 * fi, progress=False)
+    bare = sim.dt * 1e-3 / per_step * 86400
+    return dict(n_nodes=1000, dt_ps=sim.dt, setup_s=setup, context_s=sim.context_time, steps=n_steps,
+                ns_per_day_with_reporters=s["ns_per_day"], ns_per_day_bare=bare,
+                mean_temperature=s["mean_temperature"], vs_oxdna=s["ns_per_day"] / OXDNA_NS_PER_DAY)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--sizes", default="100,1000,10000,100000,1000000")
+    ap.add_argument("--budget", type=float, default=2.0, help="seconds per rate measurement")
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_openmm.json"))
+    ap.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--kbp", action="store_true", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.single is not None:
+        print(json.dumps(single(args.single, args.budget, args.repeats)))
+        return
+    if args.kbp:
+        print(json.dumps(kbp(10 * args.budget)))
+        return
+    results = []
+    for n in [int(s) for s in args.sizes.split(",")]:
+        reps = args.repeats if n <= 100000 else 1
+        budget = args.budget if n <= 100000 else max(args.budget, 3.0)
+        t = time.perf_counter()
+        p = subprocess.run([sys.executable, __file__, "--single", str(n), "--budget", str(budget),
+                            "--repeats", str(reps)], capture_output=True, text=True, timeout=1800)
+        if p.returncode != 0:
+            results.append(dict(n_nodes=n, error=p.stderr.strip().splitlines()[-1] if p.stderr else "failed"))
+        else:
+            results.append(json.loads(p.stdout.strip().splitlines()[-1]))
+        results[-1]["wall_s"] = time.perf_counter() - t
+        print(f"measured {n} nodes in {results[-1]['wall_s']:.0f} s", file=sys.stderr)
+    p = subprocess.run([sys.executable, __file__, "--kbp", "--budget", str(args.budget)], capture_output=True,
+                       text=True, timeout=1800)
+    k = json.loads(p.stdout.strip().splitlines()[-1]) if p.returncode == 0 else dict(error=p.stderr[-500:])
+
+    hdr = (f"{'nodes':>8} {'floor':>10} {'bonded':>10} {'full':>10} {'portable':>10} {'bond/floor':>10} "
+           f"{'full/bond':>9} {'setup s':>8} {'context s':>9} {'omega s':>8} {'peak MB':>8}")
+    print("node-steps per second, CPU platform, LangevinMiddle 300 K, default dt")
+    print(hdr)
+    for r in results:
+        if "error" in r:
+            print(f"{r['n_nodes']:>8} error: {r['error']}")
+            continue
+        port = r.get("portable_node_steps_per_s")
+        r["bonded_over_floor"] = r["bonded_node_steps_per_s"] / r["floor_node_steps_per_s"]
+        r["full_cost_over_bonded"] = r["bonded_node_steps_per_s"] / r["full_node_steps_per_s"]
+        print(f"{r['n_nodes']:>8} {r['floor_node_steps_per_s']:>10.3g} {r['bonded_node_steps_per_s']:>10.3g} "
+              f"{r['full_node_steps_per_s']:>10.3g} {'-' if port is None else format(port, '.3g'):>10} "
+              f"{r['bonded_over_floor']:>10.2f} {r['full_cost_over_bonded']:>9.2f} {r['full_setup_s']:>8.2f} "
+              f"{r['full_context_s']:>9.3f} {r['omega_max_s']:>8.2f} {r['peak_rss_MB']:>8.0f}")
+    print()
+    if "error" in k:
+        print("1 kbp: error", k["error"])
+    else:
+        print(f"1 kbp duplex, 300 K, dt {k['dt_ps'] * 1000:.1f} fs, full model with reporters: "
+              f"{k['ns_per_day_with_reporters']:.0f} ns/day ({k['vs_oxdna']:.0f}x oxDNA's ~110 ns/day), "
+              f"bare {k['ns_per_day_bare']:.0f} ns/day; simulation setup {k['setup_s']:.2f} s "
+              f"(OpenMM Context {k['context_s']:.3f} s); mean T {k['mean_temperature']:.1f} K")
+    out = dict(benchmark="bench_openmm", machine=platform.platform(), cpu_count=os.cpu_count(),
+               python=platform.python_version(), sizes=results, kbp=k,
+               targets=dict(bonded_over_floor_1e4=">= 0.40", full_cost_over_bonded_1e4="<= 2",
+                            kbp_ns_per_day=">= 3300", context_s="< 2", nodes_1e6="fit in memory"))
+    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.json).write_text(json.dumps(out, indent=2))
+    print(f"wrote {args.json}")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,123 @@
+"""Export trajectories of node centres and frames for MD tools (mdtraj, MDAnalysis, VMD).
+
+Coarse-grained topology: one chain, one residue per base pair named by the pair (``AT``,
+``GC``, ...; ``BP`` without a sequence), three beads per residue:
+
+* ``CA``  -- the node centre;
+* ``D1``  -- the tip of director d1 at ``centre + a d1``;
+* ``D3``  -- the tip of director d3 at ``centre + a d3`` (``a = 1 nm`` by default),
+
+bonded ``CA-D1``, ``CA-D3`` and ``CA(k)-CA(k+1)``. The first frame goes to a PDB file (the
+topology) and all frames to a DCD file (float32, Angstrom). The frames are recovered from
+the beads by :func:`frames_from_beads` (``d2 = d3 x d1``), to float32 precision; the exact
+float64 frames are in the ``.dtraj`` file (:func:`load_dtraj`).
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DnarodError
+from ..trajectory import Trajectory, load_trajectory
+
+BEADS = ("CA", "D1", "D3")
+
+
+def load_dtraj(path):
+    """The dnarod loader: a :class:`~dnarod.trajectory.Trajectory` with frames bit-exact."""
+    return load_trajectory(path)
+
+
+def bead_positions(positions, frames, arm=1.0):
+    """Bead coordinates ``(n_frames, 3 n_nodes, 3)`` nm from centres and frames.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n_frames, n_nodes, 3)
+    frames : ndarray, shape (n_frames, n_nodes, 3, 3)
+    arm : float
+        Director tip distance, nm.
+    """
+    pos = np.asarray(positions, float)
+    frm = np.asarray(frames, float)
+    out = np.stack([pos, pos + arm * frm[..., :, 0], pos + arm * frm[..., :, 2]], axis=-2)
+    return out.reshape(pos.shape[0], -1, 3)
+
+
+def frames_from_beads(xyz):
+    """Centres and orthonormal frames from bead coordinates ``(n_frames, 3 n_nodes, 3)``."""
+    b = np.asarray(xyz, float).reshape(xyz.shape[0], -1, 3, 3)
+    c = b[:, :, 0]
+    d1 = b[:, :, 1] - c
+    d1 /= np.linalg.norm(d1, axis=-1, keepdims=True)
+    d3 = b[:, :, 2] - c
+    d3 -= np.einsum("fki,fki->fk", d3, d1)[..., None] * d1
+    d3 /= np.linalg.norm(d3, axis=-1, keepdims=True)
+    d2 = np.cross(d3, d1)
+    return c, np.stack([d1, d2, d3], axis=-1)
+
+
+def mdtraj_topology(n_nodes, residue_names):
+    """An ``mdtraj.Topology`` with the coarse-grained beads."""
+    import mdtraj as md
+
+    top = md.Topology()
+    chain = top.add_chain()
+    prev = None
+    for k in range(n_nodes):
+        res = top.add_residue(residue_names[k], chain, resSeq=k + 1)
+        atoms = [top.add_atom(name, md.element.carbon, res) for name in BEADS]
+        top.add_bond(atoms[0], atoms[1])
+        top.add_bond(atoms[0], atoms[2])
+        if prev is not None:
+            top.add_bond(prev, atoms[0])
+        prev = atoms[0]
+    return top
+
+
+def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0):
+    """Write a ``.dtraj`` trajectory (or :class:`Trajectory`) as PDB topology + DCD frames.
+
+    Parameters
+    ----------
+    traj : Trajectory or str or Path
+    pdb_path : str or Path
+        First frame with the topology (CONECT records for the bonds).
+    dcd_path : str or Path or None
+        All frames (skip if None).
+    sequence : str or None
+        Strand I letters for residue names (default: the trajectory's metadata ``sequence``).
+    arm : float
+        nm.
+
+    Returns
+    -------
+    mdtraj.Trajectory
+    """
+    import mdtraj as md
+
+    from ..io_utils import atomic_path
+    from .system import base_pair_names
+
+    if not isinstance(traj, Trajectory):
+        traj = load_trajectory(traj)
+    if traj.n_frames == 0:
+        raise DnarodError("the trajectory has no frames to export")
+    n = traj.n_nodes
+    seq = sequence if sequence is not None else traj.metadata.get("sequence") or None
+    if seq is not None and len(seq) != n:
+        seq = None
+    names = base_pair_names(type("M", (), dict(sequence=seq, n_nodes=n))())
+    top = mdtraj_topology(n, names)
+    xyz = bead_positions(traj.positions, traj.frames, arm).astype(np.float32)
+    t = md.Trajectory(xyz, top, time=traj.time)
+    for path, sl in ((pdb_path, slice(0, 1)), (dcd_path, slice(None))):
+        if path is None:
+            continue
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp_ext = str(tmp) + path.suffix
+            t[sl].save(tmp_ext, force_overwrite=True)
+            Path(tmp_ext).replace(tmp)
+    return t

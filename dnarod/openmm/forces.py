@@ -1,0 +1,353 @@
+"""The SMK step energy as OpenMM forces (design A1, A2, Part C item 5).
+
+Two interchangeable implementations of ``E = sum_k ds H(Omega_k, Gamma_k)`` on the
+three-particle nodes of :mod:`dnarod.openmm.particles`:
+
+* :func:`elastic_compound_force` -- the **portable path**: a ``CustomCompoundBondForce`` over
+  the six particles of neighbouring nodes, written with the dot-product form of A1, per-bond
+  parameters ``dnarod_Kij`` (the 6x6 stiffness, upper triangle; entries that are zero on
+  every step are left out of the expression), ``dnarod_xi1..6`` (intrinsic strains),
+  ``dnarod_ds`` and the reverse-map scales ``dnarod_ua = 1/(3 l_k)``, ``dnarod_va =
+  1/(sqrt(3) l_k)`` (``ub``, ``vb`` for node k+1). Runs on every OpenMM platform. A circular
+  chain adds a second force of one bond whose second node is the screw image of node 0,
+  ``p -> Q p + t`` (per-bond ``dnarod_Q11..33``, ``dnarod_t1..3``): the directors of the image
+  are ``Q d_a(0)`` and its centre ``Q c_0 + t``, exactly as in :mod:`dnarod.strains`.
+* :func:`elastic_python_force` -- the **fast CPU path**: an ``openmm.PythonForce`` whose
+  callback runs a numba kernel of the analytic loads of A2 (tested equal to
+  :func:`dnarod.energy.loads`) and spreads each node's force and torque over its particles
+  (:func:`dnarod.openmm.particles.loads_to_particle_forces`).
+
+The two paths give the same energy and the same total force and torque on every node; their
+per-particle forces differ only by components along the constraint directions, which the
+rigid-body constraints absorb, so the constrained dynamics are identical.
+"""
+from __future__ import annotations
+
+import numba
+import numpy as np
+import openmm
+
+from ..errors import ParameterError
+from .particles import SQRT3
+
+#: Force groups used by the engine (energies are attributed per group on a blow-up).
+GROUPS = {"elastic": 1, "nonbonded": 2, "external": 3}
+
+
+
+def _vectors(prefix, i, j, k, scale_u, scale_v):
+    """Definitions of the directors of a node from its particles i, j, k (1-based)."""
+    # OpenMM substitutes a definition only into the text before it: d3 comes first.
+    p = prefix
+    defs = [f"{p}3x = {p}1y*{p}2z - {p}1z*{p}2y", f"{p}3y = {p}1z*{p}2x - {p}1x*{p}2z",
+            f"{p}3z = {p}1x*{p}2y - {p}1y*{p}2x"]
+    for c in "xyz":
+        defs.append(f"{prefix}1{c} = (2*{c}{i} - {c}{j} - {c}{k})*{scale_u}")
+        defs.append(f"{prefix}2{c} = ({c}{j} - {c}{k})*{scale_v}")
+    return defs
+
+
+def elastic_expression(used_pairs, image=False):
+    """The energy expression of one step.
+
+    Parameters
+    ----------
+    used_pairs : list of (int, int)
+        Stiffness entries ``(i, j)``, ``i <= j`` (0-based, strain order of
+        :class:`~dnarod.parameters.StepParameters`), included in the expression.
+    image : bool
+        The second node is the screw image of the first node of the chain.
+
+    Returns
+    -------
+    str
+        An OpenMM expression in the coordinates of particles 1-6.
+    """
+    terms = []
+    for i, j in used_pairs:
+        if i == j:
+            terms.append(f"0.5*dnarod_K{i + 1}{j + 1}*u{i + 1}^2")
+        else:
+            terms.append(f"dnarod_K{i + 1}{j + 1}*u{i + 1}*u{j + 1}")
+    lines = [f"dnarod_ds*({' + '.join(terms) if terms else '0'})"]
+    lines += [f"u{a} = {s}{a if a <= 3 else a - 3} - dnarod_xi{a}"
+              for a, s in zip(range(1, 7), ["W", "W", "W", "G", "G", "G"])]
+    lines += ["W1 = 2*(d32 - d23)/(dnarod_ds*D)", "W2 = 2*(d13 - d31)/(dnarod_ds*D)",
+              "W3 = 2*(d21 - d12)/(dnarod_ds*D)", "D = 1 + d11 + d22 + d33"]
+    lines += [f"G{a} = (a{a}x*ex + a{a}y*ey + a{a}z*ez)/dnarod_ds" for a in (1, 2, 3)]
+    lines += [f"d{a}{b} = a{a}x*b{b}x + a{a}y*b{b}y + a{a}z*b{b}z" for a in (1, 2, 3) for b in (1, 2, 3)]
+    lines += [f"e{c} = cb{c} - (x1 + x2 + x3)/3".replace("x1 + x2 + x3", f"{c}1 + {c}2 + {c}3") for c in "xyz"]
+    lines += _vectors("a", 1, 2, 3, "dnarod_ua", "dnarod_va")
+    if image:
+        for a in (1, 2, 3):
+            for r, c in enumerate("xyz"):
+                lines.append(f"b{a}{c} = dnarod_Q{r + 1}1*r{a}x + dnarod_Q{r + 1}2*r{a}y + dnarod_Q{r + 1}3*r{a}z")
+        for r, c in enumerate("xyz"):
+            lines.append(f"cb{c} = dnarod_Q{r + 1}1*sx + dnarod_Q{r + 1}2*sy + dnarod_Q{r + 1}3*sz + dnarod_t{r + 1}")
+        lines += [f"s{c} = ({c}4 + {c}5 + {c}6)/3" for c in "xyz"]
+        lines += _vectors("r", 4, 5, 6, "dnarod_ub", "dnarod_vb")
+    else:
+        lines += [f"cb{c} = ({c}4 + {c}5 + {c}6)/3" for c in "xyz"]
+        lines += _vectors("b", 4, 5, 6, "dnarod_ub", "dnarod_vb")
+    return "; ".join(lines)
+
+
+def used_stiffness_pairs(stiffness, steps=None):
+    """Upper-triangle stiffness entries that are non-zero on at least one step."""
+    K = np.asarray(stiffness)[steps] if steps is not None else np.asarray(stiffness)
+    return [(i, j) for i in range(6) for j in range(i, 6) if np.any(K[:, i, j] != 0)]
+
+
+def elastic_compound_forces(model, radius):
+    """The portable path: CustomCompoundBondForce(s) carrying the step energy.
+
+    Parameters
+    ----------
+    model : RodModel
+    radius : ndarray, shape (n_nodes,)
+        Triangle circumradius of every node, nm.
+
+    Returns
+    -------
+    list of openmm.CustomCompoundBondForce
+        One force for an open chain; two (inner steps, closing step) for a circular chain.
+        All in force group ``GROUPS["elastic"]``.
+    """
+    n = model.n_nodes
+    K, xi0 = model.params.stiffness, model.params.intrinsic
+    inner = np.arange(n - 1)
+    forces = []
+    blocks = [(inner, False)] + ([(np.array([n - 1]), True)] if model.closure is not None else [])
+    for steps, image in blocks:
+        if steps.size == 0:
+            continue
+        pairs = used_stiffness_pairs(K, steps)
+        f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image))
+        names = [f"dnarod_K{i + 1}{j + 1}" for i, j in pairs] + [f"dnarod_xi{a}" for a in range(1, 7)]
+        names += ["dnarod_ds", "dnarod_ua", "dnarod_va", "dnarod_ub", "dnarod_vb"]
+        if image:
+            names += [f"dnarod_Q{r}{c}" for r in (1, 2, 3) for c in (1, 2, 3)] + ["dnarod_t1", "dnarod_t2", "dnarod_t3"]
+        for name in names:
+            f.addPerBondParameter(name)
+        for k in steps:
+            k1 = (k + 1) % n
+            vals = [K[k, i, j] for i, j in pairs] + list(xi0[k]) + [model.ds]
+            vals += [1 / (3 * radius[k]), 1 / (SQRT3 * radius[k]), 1 / (3 * radius[k1]), 1 / (SQRT3 * radius[k1])]
+            if image:
+                vals += list(model.closure.Q.reshape(-1)) + list(model.closure.t)
+            f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * k1, 3 * k1 + 1, 3 * k1 + 2], [float(v) for v in vals])
+        f.setForceGroup(GROUPS["elastic"])
+        f.setName("dnarod elastic (portable)" + (" closure" if image else ""))
+        forces.append(f)
+    return forces
+
+
+# ----------------------------------------------------------------------------------------
+# Fast path: numba kernel of the analytic loads (design A2)
+# ----------------------------------------------------------------------------------------
+@numba.njit(cache=True)
+def _frames_from_particles(p, radius, centres, frames):
+    n = radius.shape[0]
+    s3 = np.sqrt(3.0)
+    for k in range(n):
+        for c in range(3):
+            a0 = p[3 * k, c]
+            a1 = p[3 * k + 1, c]
+            a2 = p[3 * k + 2, c]
+            centres[k, c] = (a0 + a1 + a2) / 3.0
+            frames[k, c, 0] = (2.0 * a0 - a1 - a2) / (3.0 * radius[k])
+            frames[k, c, 1] = (a1 - a2) / (s3 * radius[k])
+        d1 = frames[k, :, 0]
+        d2 = frames[k, :, 1]
+        frames[k, 0, 2] = d1[1] * d2[2] - d1[2] * d2[1]
+        frames[k, 1, 2] = d1[2] * d2[0] - d1[0] * d2[2]
+        frames[k, 2, 2] = d1[0] * d2[1] - d1[1] * d2[0]
+
+
+@numba.njit(cache=True)
+def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
+    """Energy and lab loads of every node (design A2), accumulated into ``F`` and ``tau``.
+
+    Same maths as :func:`dnarod.energy.loads`, one step at a time. Returns the energy.
+    """
+    n = centres.shape[0]
+    m = n if circular else n - 1
+    E = 0.0
+    L1 = np.empty((3, 3))
+    c1 = np.empty(3)
+    R = np.empty((3, 3))
+    w = np.empty(3)
+    dxi = np.empty(6)
+    sig = np.empty(6)
+    e = np.empty(3)
+    mu_b = np.empty(3)
+    n_lab = np.empty(3)
+    mu_lab = np.empty(3)
+    for k in range(m):
+        j = k + 1
+        if j < n:
+            for a in range(3):
+                c1[a] = centres[j, a]
+                for b in range(3):
+                    L1[a, b] = frames[j, a, b]
+        else:
+            for a in range(3):
+                c1[a] = t[a]
+                for b in range(3):
+                    c1[a] += Q[a, b] * centres[0, b]
+                    s = 0.0
+                    for q in range(3):
+                        s += Q[a, q] * frames[0, q, b]
+                    L1[a, b] = s
+        for a in range(3):
+            e[a] = c1[a] - centres[k, a]
+            for b in range(3):
+                s = 0.0
+                for q in range(3):
+                    s += frames[k, q, a] * L1[q, b]
+                R[a, b] = s
+        D = 1.0 + R[0, 0] + R[1, 1] + R[2, 2]
+        w[0] = 2.0 * (R[2, 1] - R[1, 2]) / D
+        w[1] = 2.0 * (R[0, 2] - R[2, 0]) / D
+        w[2] = 2.0 * (R[1, 0] - R[0, 1]) / D
+        for a in range(3):
+            dxi[a] = w[a] / ds - xi0[k, a]
+            s = 0.0
+            for q in range(3):
+                s += frames[k, q, a] * e[q]
+            dxi[3 + a] = s / ds - xi0[k, 3 + a]
+        H = 0.0
+        for a in range(6):
+            s = 0.0
+            for b in range(6):
+                s += K[k, a, b] * dxi[b]
+            sig[a] = s
+            H += 0.5 * dxi[a] * s
+        E += ds * H
+        wM = w[0] * sig[0] + w[1] * sig[1] + w[2] * sig[2]
+        mu_b[0] = sig[0] + 0.5 * (w[1] * sig[2] - w[2] * sig[1]) + 0.25 * w[0] * wM
+        mu_b[1] = sig[1] + 0.5 * (w[2] * sig[0] - w[0] * sig[2]) + 0.25 * w[1] * wM
+        mu_b[2] = sig[2] + 0.5 * (w[0] * sig[1] - w[1] * sig[0]) + 0.25 * w[2] * wM
+        for a in range(3):
+            n_lab[a] = frames[k, a, 0] * sig[3] + frames[k, a, 1] * sig[4] + frames[k, a, 2] * sig[5]
+            mu_lab[a] = frames[k, a, 0] * mu_b[0] + frames[k, a, 1] * mu_b[1] + frames[k, a, 2] * mu_b[2]
+        F[k, 0] += n_lab[0]
+        F[k, 1] += n_lab[1]
+        F[k, 2] += n_lab[2]
+        tau[k, 0] += mu_lab[0] + e[1] * n_lab[2] - e[2] * n_lab[1]
+        tau[k, 1] += mu_lab[1] + e[2] * n_lab[0] - e[0] * n_lab[2]
+        tau[k, 2] += mu_lab[2] + e[0] * n_lab[1] - e[1] * n_lab[0]
+        if j < n:
+            for a in range(3):
+                F[j, a] -= n_lab[a]
+                tau[j, a] -= mu_lab[a]
+        else:
+            for a in range(3):
+                for b in range(3):
+                    F[0, a] -= Q[b, a] * n_lab[b]
+                    tau[0, a] -= Q[b, a] * mu_lab[b]
+    return E
+
+
+@numba.njit(cache=True)
+def spread_loads(p, centres, F, tau, out):
+    """Particle forces ``F/3 + a x x_i``, ``a = A^{-1} tau`` (see particles.loads_to_particle_forces)."""
+    n = centres.shape[0]
+    A = np.empty((3, 3))
+    x = np.empty((3, 3))
+    for k in range(n):
+        for i in range(3):
+            for c in range(3):
+                x[i, c] = p[3 * k + i, c] - centres[k, c]
+        for a in range(3):
+            for b in range(3):
+                A[a, b] = 0.0
+        for i in range(3):
+            r2 = x[i, 0] ** 2 + x[i, 1] ** 2 + x[i, 2] ** 2
+            for a in range(3):
+                A[a, a] += r2
+                for b in range(3):
+                    A[a, b] -= x[i, a] * x[i, b]
+        # Solve A a = tau by Cramer's rule (A is symmetric positive definite for a triangle).
+        det = (A[0, 0] * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]) - A[0, 1] * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+               + A[0, 2] * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0]))
+        t0, t1, t2 = tau[k, 0], tau[k, 1], tau[k, 2]
+        a0 = (t0 * (A[1, 1] * A[2, 2] - A[1, 2] * A[2, 1]) - A[0, 1] * (t1 * A[2, 2] - A[1, 2] * t2)
+              + A[0, 2] * (t1 * A[2, 1] - A[1, 1] * t2)) / det
+        a1 = (A[0, 0] * (t1 * A[2, 2] - A[1, 2] * t2) - t0 * (A[1, 0] * A[2, 2] - A[1, 2] * A[2, 0])
+              + A[0, 2] * (A[1, 0] * t2 - t1 * A[2, 0])) / det
+        a2 = (A[0, 0] * (A[1, 1] * t2 - t1 * A[2, 1]) - A[0, 1] * (A[1, 0] * t2 - t1 * A[2, 0])
+              + t0 * (A[1, 0] * A[2, 1] - A[1, 1] * A[2, 0])) / det
+        for i in range(3):
+            out[3 * k + i, 0] = F[k, 0] / 3.0 + a1 * x[i, 2] - a2 * x[i, 1]
+            out[3 * k + i, 1] = F[k, 1] / 3.0 + a2 * x[i, 0] - a0 * x[i, 2]
+            out[3 * k + i, 2] = F[k, 2] / 3.0 + a0 * x[i, 1] - a1 * x[i, 0]
+
+
+@numba.njit(cache=True)
+def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
+    """Energy and particle forces of the step energy from particle positions (fast path)."""
+    n = radius.shape[0]
+    centres = np.empty((n, 3))
+    frames = np.empty((n, 3, 3))
+    _frames_from_particles(p, radius, centres, frames)
+    F = np.zeros((n, 3))
+    tau = np.zeros((n, 3))
+    E = loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau)
+    spread_loads(p, centres, F, tau, out)
+    return E
+
+
+class ElasticCallback:
+    """Picklable PythonForce computation: the step energy through the numba kernel."""
+
+    def __init__(self, model, radius):
+        self.radius = np.ascontiguousarray(radius, dtype=float)
+        self.K = np.ascontiguousarray(model.params.stiffness, dtype=float)
+        self.xi0 = np.ascontiguousarray(model.params.intrinsic, dtype=float)
+        self.ds = float(model.ds)
+        self.circular = model.closure is not None
+        self.Q = np.eye(3) if model.closure is None else np.ascontiguousarray(model.closure.Q, float)
+        self.t = np.zeros(3) if model.closure is None else np.ascontiguousarray(model.closure.t, float)
+        self._out = np.zeros((3 * self.radius.size, 3))
+        self.last_energy = 0.0
+
+    def __call__(self, state):
+        p = np.ascontiguousarray(state.getPositions(asNumpy=True)._value, dtype=float)
+        out = self._out
+        E = elastic_particle_kernel(p, self.radius, self.K, self.xi0, self.ds, self.Q, self.t, self.circular, out)
+        self.last_energy = E
+        return E, out.copy()
+
+    def __getstate__(self):
+        d = dict(self.__dict__)
+        d.pop("_out")
+        return d
+
+    def __setstate__(self, d):
+        self.__dict__.update(d)
+        self._out = np.zeros((3 * self.radius.size, 3))
+
+
+def elastic_python_force(model, radius, callback=None):
+    """The fast CPU path: an ``openmm.PythonForce`` evaluating the analytic loads.
+
+    Parameters
+    ----------
+    model : RodModel
+    radius : ndarray, shape (n_nodes,)
+        nm.
+    callback : ElasticCallback, optional
+        The computation (default: a new one); it records ``last_energy``.
+
+    Returns
+    -------
+    openmm.PythonForce
+        In force group ``GROUPS["elastic"]``.
+    """
+    if not hasattr(openmm, "PythonForce"):
+        raise ParameterError("this OpenMM has no PythonForce (needs OpenMM >= 8.3); use elastic='portable'")
+    f = openmm.PythonForce(callback if callback is not None else ElasticCallback(model, radius))
+    f.setForceGroup(GROUPS["elastic"])
+    f.setName("dnarod elastic (fast)")
+    return f

@@ -1,0 +1,200 @@
+"""Build an OpenMM System and Topology from a :class:`~dnarod.model.RodModel`.
+
+Particles: node k owns particles ``3k, 3k+1, 3k+2`` (mass ``m_k/3`` each, rigid equilateral
+triangle of circumradius ``l_k = sqrt(J3_k/m_k)`` held by three constraints; see
+:mod:`dnarod.openmm.particles`). Clamped nodes get zero-mass particles and no constraints.
+
+Forces (force groups in :data:`dnarod.openmm.forces.GROUPS`):
+
+* elastic step energy -- ``"fast"`` (numba analytic loads through ``PythonForce``) or
+  ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the fast path on the CPU and
+  Reference platforms and the portable one on GPU platforms (CUDA, OpenCL, HIP), where a
+  Python callback would copy positions off the device every step;
+* non-local terms (:mod:`dnarod.openmm.nonbonded`), on by default;
+* external loads (:mod:`dnarod.openmm.loads`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import openmm
+from openmm import app
+
+from ..errors import GeometryError, ParameterError
+from .forces import ElasticCallback, elastic_compound_forces, elastic_python_force
+from .loads import build_load_forces
+from .nonbonded import NonbondedSettings, nonbonded_force
+from .particles import SQRT3, triangle_radius
+
+PYTHON_FORCE_PLATFORMS = ("CPU", "Reference")
+
+
+def get_platform(name):
+    """The OpenMM platform called ``name`` (error listing the installed ones)."""
+    names = [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
+    if name not in names:
+        raise ParameterError(f"OpenMM platform {name!r} is not installed here; available: {', '.join(names)}")
+    return openmm.Platform.getPlatformByName(name)
+
+
+def base_pair_names(model):
+    """Residue name of every node: its base pair (``"AT"``, ``"GC"``, ...), or ``"BP"`` without sequence."""
+    comp = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A"}
+    if not model.sequence:
+        return ["BP"] * model.n_nodes
+    return [f"{b}{comp.get(b, 'N')}" for b in model.sequence.upper()]
+
+
+def check_overlaps(model, min_distance=None):
+    """Raise GeometryError if two nodes overlap (centres closer than ``min_distance``, default ds/4).
+
+    Uses a grid on the centres, so it costs O(n).
+    """
+    from scipy.spatial import cKDTree
+
+    d = model.ds / 4 if min_distance is None else min_distance
+    pairs = cKDTree(model.positions).query_pairs(d, output_type="ndarray")
+    if len(pairs):
+        i, j = map(int, pairs[0])
+        dist = np.linalg.norm(model.positions[i] - model.positions[j])
+        raise GeometryError(f"nodes {i} and {j} overlap: centres {dist:.4g} nm apart (less than {d:.4g} nm); "
+                            f"fix the model's positions")
+
+
+@dataclass
+class RodSystem:
+    """An OpenMM system for a rod model.
+
+    Attributes
+    ----------
+    system : openmm.System
+    radius : ndarray, shape (n_nodes,)
+        Triangle circumradius, nm.
+    elastic : str
+        ``"fast"`` or ``"portable"``.
+    clamped : list of int
+        Clamped nodes.
+    load_info : dict
+        From :func:`dnarod.openmm.loads.build_load_forces`.
+    nonbonded : dict or None
+        Resolved non-local numbers (Debye length, charge, cutoff, ...), ``None`` if off.
+    """
+
+    system: openmm.System
+    radius: np.ndarray
+    elastic: str
+    clamped: list = field(default_factory=list)
+    load_info: dict = field(default_factory=dict)
+    nonbonded: dict | None = None
+    nonbonded_callback: object = None
+    elastic_callback: object = None
+    residue_names: list = field(default_factory=list)
+
+    @property
+    def topology(self):
+        """The OpenMM Topology (built on first use: one chain, one residue per node named by its
+        base pair, atoms P0, P1, P2 bonded in a triangle, P0 bonded along the chain)."""
+        if getattr(self, "_topology", None) is None:
+            topology = app.Topology()
+            chain = topology.addChain("A")
+            prev = None
+            for k, name in enumerate(self.residue_names):
+                res = topology.addResidue(name, chain, id=str(k + 1))
+                atoms = [topology.addAtom(f"P{i}", None, res) for i in range(3)]
+                topology.addBond(atoms[0], atoms[1])
+                topology.addBond(atoms[1], atoms[2])
+                topology.addBond(atoms[0], atoms[2])
+                if prev is not None:
+                    topology.addBond(prev, atoms[0])
+                prev = atoms[0]
+            self._topology = topology
+        return self._topology
+
+    @property
+    def degrees_of_freedom(self):
+        """6 per free node."""
+        return 6 * (self.radius.size - len(self.clamped))
+
+
+def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=(), temperature=300.0):
+    """Build the OpenMM System and Topology of a model.
+
+    Parameters
+    ----------
+    model : RodModel
+    platform : str
+        Platform name (used to choose the elastic path for ``elastic="auto"``).
+    elastic : {"auto", "fast", "portable"}
+    nonbonded : bool or NonbondedSettings
+        ``True`` for the defaults, ``False``/``None`` for none.
+    loads : sequence
+        External loads (:mod:`dnarod.openmm.loads`).
+    temperature : float
+        K (energy scale of the WCA term and the Bjerrum length).
+
+    Returns
+    -------
+    RodSystem
+    """
+    radius = triangle_radius(model.mass, model.inertia)
+    check_overlaps(model)
+    if elastic == "auto":
+        elastic = "fast" if platform in PYTHON_FORCE_PLATFORMS else "portable"
+    if elastic not in ("fast", "portable"):
+        raise ParameterError(f"elastic must be 'auto', 'fast' or 'portable', got {elastic!r}")
+    n = model.n_nodes
+    system = openmm.System()
+    info = build_load_forces(list(loads), model, radius, system)
+    clamped = set(info["clamped"])
+    for k in range(n):
+        for _ in range(3):
+            system.addParticle(0.0 if k in clamped else model.mass[k] / 3.0)
+    for k in range(n):
+        if k in clamped:
+            continue
+        side = SQRT3 * radius[k]
+        for i, j in ((0, 1), (1, 2), (0, 2)):
+            system.addConstraint(3 * k + i, 3 * k + j, side)
+    elastic_cb = None
+    if elastic == "fast":
+        elastic_cb = ElasticCallback(model, radius)
+        system.addForce(elastic_python_force(model, radius, callback=elastic_cb))
+    else:
+        for f in elastic_compound_forces(model, radius):
+            system.addForce(f)
+    nb_numbers = None
+    nb_cb = None
+    if nonbonded:
+        settings = nonbonded if isinstance(nonbonded, NonbondedSettings) else NonbondedSettings()
+        f, nb_numbers = nonbonded_force(model, settings, temperature)
+        if f is not None:
+            _check_nonbonded_overlaps(model, nb_numbers)
+            system.addForce(f)
+            nb_cb = f.dnarod_callback
+        else:
+            nb_numbers = None
+    return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,
+                     residue_names=base_pair_names(model))
+
+
+def _check_nonbonded_overlaps(model, numbers):
+    """Non-excluded node pairs far inside the WCA core (energy above ~1000 kT) are an input error."""
+    if numbers["eps"] <= 0:
+        return
+    from scipy.spatial import cKDTree
+
+    d = 0.5 * numbers["sigma"]
+    pairs = cKDTree(model.positions).query_pairs(d, output_type="ndarray")
+    if len(pairs) == 0:
+        return
+    n = model.n_nodes
+    sep = np.abs(pairs[:, 1] - pairs[:, 0])
+    if model.closure is not None:
+        sep = np.minimum(sep, n - sep)
+    bad = pairs[sep > numbers["n_exclude"]]
+    if len(bad):
+        i, j = map(int, bad[0])
+        dist = np.linalg.norm(model.positions[i] - model.positions[j])
+        raise GeometryError(f"nodes {i} and {j} overlap: centres {dist:.3g} nm apart, less than half the excluded-"
+                            f"volume diameter {numbers['sigma']} nm; fix the model or switch excluded volume off")
