@@ -1,4 +1,4 @@
-"""``dnarod simulate``: run the OpenMM engine on a sequence or a saved model."""
+"""``dnarod simulate``: run the OpenMM engine on a structure (PDB/mmCIF), a sequence or a saved model."""
 from __future__ import annotations
 
 import json
@@ -14,10 +14,17 @@ def _load_model(source, forcefield, circular):
     from ..forcefield import load_forcefield
     from ..model import RodModel
 
-    if source.endswith(".npz") or Path(source).is_file():
+    suffix = Path(source).suffix.lower()
+    if suffix in (".pdb", ".ent", ".cif", ".mmcif") or source.endswith(".npz") or Path(source).is_file():
         if not Path(source).is_file():
-            raise ParameterError(f"{source}: model file not found")
-        return RodModel.load(source)
+            raise ParameterError(f"{source}: file not found")
+        if suffix == ".npz":
+            return RodModel.load(source)
+        from ..structure import model_from_structure
+
+        if circular:
+            raise ParameterError("--circular applies to a sequence; a structure's duplex is an open chain")
+        return model_from_structure(source, forcefield=forcefield)
     return load_forcefield(forcefield).model_from_sequence(source, circular=circular)
 
 
@@ -63,7 +70,10 @@ def _parse_trap(text, n_nodes):
 def simulate_cmd(source, forcefield, circular, time_ns, dt, temperature, friction, integrator, platform, threads,
                  elastic, excluded_volume, electrostatics, salt, pull, torque, rotation_clamp, turns, clamp_first,
                  trap, minimize, outdir, frame_interval, checkpoint_interval, resume, overwrite, seed, export, progress):
-    """Simulate SOURCE (a DNA sequence or a saved model .npz) with the OpenMM engine.
+    """Simulate SOURCE (a PDB/mmCIF structure, a DNA sequence or a saved model .npz) with the OpenMM engine.
+
+    A structure's longest duplex becomes the model: nodes at its base-pair frames, parameters from
+    --forcefield for its sequence.
 
     Writes OUT/trajectory.dtraj, OUT/energies.csv, OUT/checkpoint.npz, OUT/final_model.npz
     (and OUT/trajectory.pdb + .dcd with --export) and prints a summary.
