@@ -28,6 +28,7 @@ import numpy as np
 import openmm
 
 from ..errors import ParameterError
+from ..kernels import loads_kernel  # noqa: F401 (one compiled home of the A2 loads)
 from .particles import SQRT3
 
 #: Force groups used by the engine (energies are attributed per group on a blow-up).
@@ -162,91 +163,6 @@ def _frames_from_particles(p, radius, centres, frames):
         frames[k, 0, 2] = d1[1] * d2[2] - d1[2] * d2[1]
         frames[k, 1, 2] = d1[2] * d2[0] - d1[0] * d2[2]
         frames[k, 2, 2] = d1[0] * d2[1] - d1[1] * d2[0]
-
-
-@numba.njit(cache=True)
-def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
-    """Energy and lab loads of every node (design A2), accumulated into ``F`` and ``tau``.
-
-    Same maths as :func:`dnarod.energy.loads`, one step at a time. Returns the energy.
-    """
-    n = centres.shape[0]
-    m = n if circular else n - 1
-    E = 0.0
-    L1 = np.empty((3, 3))
-    c1 = np.empty(3)
-    R = np.empty((3, 3))
-    w = np.empty(3)
-    dxi = np.empty(6)
-    sig = np.empty(6)
-    e = np.empty(3)
-    mu_b = np.empty(3)
-    n_lab = np.empty(3)
-    mu_lab = np.empty(3)
-    for k in range(m):
-        j = k + 1
-        if j < n:
-            for a in range(3):
-                c1[a] = centres[j, a]
-                for b in range(3):
-                    L1[a, b] = frames[j, a, b]
-        else:
-            for a in range(3):
-                c1[a] = t[a]
-                for b in range(3):
-                    c1[a] += Q[a, b] * centres[0, b]
-                    s = 0.0
-                    for q in range(3):
-                        s += Q[a, q] * frames[0, q, b]
-                    L1[a, b] = s
-        for a in range(3):
-            e[a] = c1[a] - centres[k, a]
-            for b in range(3):
-                s = 0.0
-                for q in range(3):
-                    s += frames[k, q, a] * L1[q, b]
-                R[a, b] = s
-        D = 1.0 + R[0, 0] + R[1, 1] + R[2, 2]
-        w[0] = 2.0 * (R[2, 1] - R[1, 2]) / D
-        w[1] = 2.0 * (R[0, 2] - R[2, 0]) / D
-        w[2] = 2.0 * (R[1, 0] - R[0, 1]) / D
-        for a in range(3):
-            dxi[a] = w[a] / ds - xi0[k, a]
-            s = 0.0
-            for q in range(3):
-                s += frames[k, q, a] * e[q]
-            dxi[3 + a] = s / ds - xi0[k, 3 + a]
-        H = 0.0
-        for a in range(6):
-            s = 0.0
-            for b in range(6):
-                s += K[k, a, b] * dxi[b]
-            sig[a] = s
-            H += 0.5 * dxi[a] * s
-        E += ds * H
-        wM = w[0] * sig[0] + w[1] * sig[1] + w[2] * sig[2]
-        mu_b[0] = sig[0] + 0.5 * (w[1] * sig[2] - w[2] * sig[1]) + 0.25 * w[0] * wM
-        mu_b[1] = sig[1] + 0.5 * (w[2] * sig[0] - w[0] * sig[2]) + 0.25 * w[1] * wM
-        mu_b[2] = sig[2] + 0.5 * (w[0] * sig[1] - w[1] * sig[0]) + 0.25 * w[2] * wM
-        for a in range(3):
-            n_lab[a] = frames[k, a, 0] * sig[3] + frames[k, a, 1] * sig[4] + frames[k, a, 2] * sig[5]
-            mu_lab[a] = frames[k, a, 0] * mu_b[0] + frames[k, a, 1] * mu_b[1] + frames[k, a, 2] * mu_b[2]
-        F[k, 0] += n_lab[0]
-        F[k, 1] += n_lab[1]
-        F[k, 2] += n_lab[2]
-        tau[k, 0] += mu_lab[0] + e[1] * n_lab[2] - e[2] * n_lab[1]
-        tau[k, 1] += mu_lab[1] + e[2] * n_lab[0] - e[0] * n_lab[2]
-        tau[k, 2] += mu_lab[2] + e[0] * n_lab[1] - e[1] * n_lab[0]
-        if j < n:
-            for a in range(3):
-                F[j, a] -= n_lab[a]
-                tau[j, a] -= mu_lab[a]
-        else:
-            for a in range(3):
-                for b in range(3):
-                    F[0, a] -= Q[b, a] * n_lab[b]
-                    tau[0, a] -= Q[b, a] * mu_lab[b]
-    return E
 
 
 @numba.njit(cache=True)
