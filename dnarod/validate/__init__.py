@@ -1,0 +1,93 @@
+"""Validation suite: the two engines against each other and against exact results (``dnarod validate``).
+
+Checks (by name; each module states its system, reference and tolerances):
+
+* ``engines`` -- OpenMM and the Lax-form integrator agree in NVE, converging as dt^2 (:mod:`.engines`);
+* ``thermal`` -- Langevin runs of both engines reproduce the exact equilibrium of design A5 iii
+  (:mod:`.thermal_equilibrium`);
+* ``dispersion`` -- OpenMM normal modes equal the exact dispersion relation (:mod:`.dispersion`);
+* ``helix`` -- the intrinsic helix is a zero-force state in both engines (:mod:`.helix`);
+* ``paper_scheme`` -- the printed (3.13) is O(ds) from the exact system and unstable (:mod:`.paper_scheme`);
+* ``force_extension`` -- a 1 kbp chain against the extensible WLC (slow; not in ``quick``)
+  (:mod:`.force_extension`).
+
+:func:`run_validation` runs a selection and writes ``report.md``, PNG plots and ``results.json``
+(``{"checks": {NAME: {"passed": bool, ...}}}``) to a folder.
+"""
+from __future__ import annotations
+
+import importlib
+import time
+import traceback
+from pathlib import Path
+
+from ..errors import DnarodError
+
+#: name -> (module, function)
+CHECKS = {
+    "engines": ("engines", "check_engines"),
+    "thermal": ("thermal_equilibrium", "check_thermal"),
+    "dispersion": ("dispersion", "check_dispersion"),
+    "helix": ("helix", "check_helix"),
+    "paper_scheme": ("paper_scheme", "check_paper_scheme"),
+    "force_extension": ("force_extension", "check_force_extension"),
+}
+#: Checks of ``--quick`` (everything but the slow force-extension runs).
+QUICK_CHECKS = ("engines", "thermal", "dispersion", "helix", "paper_scheme")
+
+
+def check_function(name):
+    """The function that runs check ``name`` (signature ``f(out_dir, quick=False, **options) -> dict``)."""
+    if name not in CHECKS:
+        raise DnarodError(f"unknown validation check {name!r}; available: {', '.join(CHECKS)}")
+    mod, fn = CHECKS[name]
+    return getattr(importlib.import_module(f"{__name__}.{mod}"), fn)
+
+
+def run_validation(out_dir, quick=False, checks=None, options=None, echo=None):
+    """Run validation checks and write the report folder.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        Report folder (created): ``report.md``, ``results.json``, PNG plots.
+    quick : bool
+        Short runs; without ``checks`` only :data:`QUICK_CHECKS`.
+    checks : sequence of str, optional
+        Names to run (default: all, or the quick subset).
+    options : dict, optional
+        ``{name: {keyword: value}}`` passed to the check functions (used by the tests to shrink runs
+        or to feed deliberately wrong references).
+    echo : callable, optional
+        Called with a one-line progress message before and after each check.
+
+    Returns
+    -------
+    dict
+        ``{"checks": {name: {"passed": bool, ...}}}`` -- exactly what ``results.json`` holds. A check
+        that raises is recorded as failed with its error message and traceback.
+    """
+    from .report import write_report
+
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    names = list(checks) if checks else list(QUICK_CHECKS if quick else CHECKS)
+    for n in names:
+        check_function(n)  # validate names before running anything
+    options = options or {}
+    results = {"checks": {}}
+    t0 = time.perf_counter()
+    for n in names:
+        if echo:
+            echo(f"running {n} ...")
+        tc = time.perf_counter()
+        try:
+            r = check_function(n)(out_dir, quick=quick, **options.get(n, {}))
+        except Exception as exc:  # noqa: BLE001 - a crashing check is a failed check, reported
+            r = {"passed": False, "error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
+        r["runtime_s"] = time.perf_counter() - tc
+        results["checks"][n] = r
+        if echo:
+            echo(f"  {n}: {'passed' if r['passed'] else 'FAILED'} ({r['runtime_s']:.1f} s)")
+    total = time.perf_counter() - t0
+    return write_report(out_dir, results, quick=quick, runtime_s=total)

@@ -1,0 +1,32 @@
+"""``dnarod validate``: run the validation suite and write the report folder."""
+from __future__ import annotations
+
+import sys
+import time
+
+import click
+
+from . import CHECKS
+
+
+@click.command("validate")
+@click.option("--quick", is_flag=True, help="Short runs, without the slow force-extension check (a few minutes).")
+@click.option("--out", "out_dir", default="validation", show_default=True, type=click.Path(file_okay=False),
+              help="Report folder: report.md, results.json and PNG plots.")
+@click.option("--only", "only", multiple=True, type=click.Choice(list(CHECKS)),
+              help="Run only this check (repeatable).")
+def validate(quick, out_dir, only):
+    """Check the engines against each other and against exact results.
+
+    Exit status 0 if every check passed, 1 otherwise.
+    """
+    from . import run_validation
+    from .report import summary_table
+
+    t0 = time.perf_counter()
+    res = run_validation(out_dir, quick=quick, checks=list(only) or None, echo=lambda m: click.echo(m, err=True))
+    wall = time.perf_counter() - t0
+    click.echo(summary_table(res))
+    ok = all(r["passed"] for r in res["checks"].values())
+    click.echo(f"{'all checks passed' if ok else 'SOME CHECKS FAILED'}; runtime {wall:.1f} s; report: {out_dir}/report.md")
+    sys.exit(0 if ok else 1)

@@ -1,0 +1,210 @@
+"""Check ``force_extension`` (slow, not in ``--quick``): a 1 kbp chain against the extensible WLC.
+
+A free open ``dna-default`` chain of ``n_bp`` base pairs, started straight at its intrinsic shape,
+is pulled by opposite constant forces F on its two end nodes (along the initial axis), with
+Langevin dynamics in the Lax-form engine (BAOAB splitting, numba kernel). The mean projected
+end-to-end extension ``<(r_N-1 - r_0) . z> / L0`` (``L0 = (n_bp - 1) ds``) of the second part of
+the run (the first part is discarded as equilibration) is compared with the extensible worm-like
+chain (:func:`dnarod.wlc.extensible_wlc_extension`, Bouchiat et al. 1999 interpolation with
+``l = x/L - F/S``) with the model's **own** parameters:
+
+* persistence length: the exact discrete value :func:`dnarod.thermal.persistence_length`;
+* stretch modulus: ``S = 1 / (K^-1)_66`` (axial compliance with every other stress zero, i.e.
+  twist, bend and shear free), converted to pN.
+
+Tolerance: ``|x/L - x_WLC/L| <= Z_TOL * SE + ALLOWANCE`` at every force, with the block-jackknife
+standard error SE and a fixed allowance for what separates this model from the reference (finite
+length ``L0/lp ~ 7``, shear, discreteness).
+
+Convergence: the slow modes of a 340 nm chain at 0.1 pN have periods of tens of ns, longer than
+affordable runs, so every force is run from **two starts** on opposite sides of the answer: the
+straight intrinsic shape (too extended) and a coil drawn from the exact force-free equilibrium
+(i.i.d. steps with the density of design A5 iii, rejection-sampled), rotated so that its
+end-to-end vector lies along the force (too short at high forces). A force point passes only if
+the two runs agree within ``Z_TOL`` combined standard errors (equilibrated) **and** their mean
+agrees with the WLC.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ._common import jackknife, new_figure, save_figure, split_blocks
+
+NAME = "force_extension"
+PN = 0.602214076  # kJ/mol/nm per pN
+Z_TOL = 3.0
+ALLOWANCE = 0.02
+DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)
+
+
+def model_constants(model, temperature):
+    """``(lp nm, S pN, kT pN nm, L0 nm)`` of a uniform model at ``temperature`` K."""
+    from ..thermal import kT, persistence_length
+
+    kt = kT(temperature)
+    lp = persistence_length(model.params, model.ds, kt)
+    K = model.params.stiffness[0]
+    S = 1.0 / np.linalg.inv(K)[5, 5] / PN
+    L0 = model.ds * float(np.sum(model.params.Gamma0[:, 2]))
+    return float(lp), float(S), kt / PN, L0
+
+
+def equilibrium_coil(model, temperature, seed):
+    """A pose drawn from the exact force-free equilibrium of a uniform open chain (design A5 iii).
+
+    Steps are i.i.d.: ``w = ds Omega`` is Gaussian about ``ds Omega0`` with covariance ``kT ds S^-1``
+    (``S = A - B C^-1 B^T``) times the Haar factor ``(1 + |w|^2/4)^-2`` (rejection sampling, the
+    factor is <= 1); ``Gamma | Omega`` is Gaussian with mean ``Gamma0 - C^-1 B^T (Omega - Omega0)`` and
+    covariance ``kT (ds C)^-1``. The pose is rotated so that its end-to-end vector is along z.
+    """
+    from ..rotations import rotation_about_axis
+    from ..strains import chain_from_strains
+    from ..thermal import bend_twist_schur, kT
+
+    rng = np.random.default_rng(seed)
+    kt, ds, m = kT(temperature), model.ds, model.n_steps
+    K = model.params.stiffness[0]
+    xi0 = model.params.intrinsic[0]
+    A, B, C = K[:3, :3], K[:3, 3:], K[3:, 3:]
+    Lw = np.linalg.cholesky(kt * ds * np.linalg.inv(bend_twist_schur(K)))
+    w = np.empty((0, 3))
+    while len(w) < m:
+        cand = ds * xi0[:3] + rng.standard_normal((2 * m, 3)) @ Lw.T
+        keep = rng.random(2 * m) < (1.0 + 0.25 * np.einsum("ki,ki->k", cand, cand)) ** -2
+        w = np.concatenate([w, cand[keep]])
+    Omega = w[:m] / ds
+    Ci = np.linalg.inv(C)
+    Gamma = xi0[3:] - (Omega - xi0[:3]) @ (Ci @ B.T).T
+    Gamma += rng.standard_normal((m, 3)) @ np.linalg.cholesky(kt * Ci / ds).T
+    pos, frm = chain_from_strains(Omega, Gamma, ds)
+    e = pos[-1] - pos[0]
+    e /= np.linalg.norm(e)
+    axis = np.cross(e, [0.0, 0.0, 1.0])
+    angle = np.arctan2(np.linalg.norm(axis), e[2])
+    R = rotation_about_axis(axis / max(np.linalg.norm(axis), 1e-300), angle) if angle > 0 else np.eye(3)
+    return model.with_pose(pos @ R.T, R @ frm)
+
+
+def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_every, seed, start="straight"):
+    """One pulling run along z from ``start`` ("straight" or "coil"); returns the projected extension (nm) series."""
+    from ..forcefield import load_forcefield
+    from ..integrators import BoundaryConditions, SplittingIntegrator
+    from ..integrators.splitting import maxwell_state
+
+    model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
+    if start == "coil":
+        model = equilibrium_coil(model, temperature, seed + 1000)
+    axis = np.array([0.0, 0.0, 1.0])
+    f = force_pn * PN * axis
+    bc = BoundaryConditions(forces={0: -f, n_bp - 1: f})
+    integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed), boundary=bc,
+                                temperature=temperature, friction=friction, seed=seed + 1, check_stability=False)
+    integ.step(int(round(t_equil / dt)))
+    stride = max(1, int(round(sample_every / dt)))
+    n_samp = int(round(t_prod / (stride * dt)))
+    ext = np.empty(n_samp)
+    for i in range(n_samp):
+        integ.step(stride)
+        p = integ.state.positions
+        ext[i] = (p[-1] - p[0]) @ axis
+    return ext
+
+
+def _pull_star(args):
+    return pull(*args)
+
+
+def string_friction(force_pn, model):
+    """Collision rate (1/ps) that critically damps the slowest transverse mode of the pulled chain.
+
+    The chain under tension F is a string: its lowest mode has ``omega = (pi/L0) sqrt(F/rho)`` with
+    ``rho = m/ds``. A friction ``gamma = 2 omega`` relaxes it in ~1/omega, the fastest possible;
+    a larger friction overdamps it (time gamma/omega^2), a smaller one leaves it unthermostatted
+    (time 2/gamma). Clipped to [1e-4, 2e-3] 1/ps.
+    """
+    L0 = model.ds * (model.n_nodes - 1)
+    rho = model.mass[0] / model.ds
+    return float(np.clip(2.0 * np.pi / L0 * np.sqrt(force_pn * PN / rho), 1e-4, 2e-3))
+
+
+def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FORCES_PN, temperature=300.0, dt=0.2,
+                          friction=None, t_equil=20000.0, t_prod=60000.0, sample_every=20.0, seed=11,
+                          lp_override=None, workers=2, plots=True):
+    """Run the check (times in ps).
+
+    ``friction`` (1/ps): ``None`` for :func:`string_friction` per force. ``dt = 0.2 ps`` is
+    ``omega_max dt = 0.91`` (stable below 2); BAOAB samples harmonic configurations exactly at any
+    stable step, and the extension is set by the soft bending modes (``omega dt << 1``).
+    ``lp_override`` replaces the model's persistence length in the reference curve (the tests use a
+    wrong value to show the check fails); ``workers`` processes run the runs in parallel.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    from ..forcefield import load_forcefield
+    from ..wlc import extensible_wlc_extension
+
+    t0 = time.perf_counter()
+    model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
+    lp, S, kt_pn, L0 = model_constants(model, temperature)
+    lp_ref = lp if lp_override is None else float(lp_override)
+    starts = ("straight", "coil")
+    gammas = [string_friction(F, model) if friction is None else float(friction) for F in forces_pn]
+    jobs = [(n_bp, F, temperature, dt, g, t_equil, t_prod, sample_every, seed + 7 * i, st)
+            for i, (F, g) in enumerate(zip(forces_pn, gammas)) for st in starts]
+    if workers and workers > 1 and len(jobs) > 1:
+        import multiprocessing as mp
+
+        with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as ex:
+            series = list(ex.map(_pull_star, jobs))
+    else:
+        series = [pull(*j) for j in jobs]
+    rows = []
+    ok = True
+    def mean_se(x):
+        v, e = jackknife(lambda bl: np.mean(np.concatenate([b[0] for b in bl])), split_blocks([x], 20))
+        return float(v), float(e)
+
+    for i, F in enumerate(forces_pn):
+        xs = [series[len(starts) * i + j] / L0 for j in range(len(starts))]
+        (v1, e1), (v2, e2) = mean_se(xs[0]), mean_se(xs[1])
+        val, se = 0.5 * (v1 + v2), 0.5 * np.hypot(e1, e2)
+        ref = float(extensible_wlc_extension(F, lp_ref, S, kt_pn))
+        tol = Z_TOL * se + ALLOWANCE
+        converged = bool(abs(v1 - v2) <= Z_TOL * np.hypot(e1, e2))
+        passed = bool(converged and abs(val - ref) <= tol)
+        ok = ok and passed
+        rows.append(dict(force_pN=F, friction_per_ps=gammas[i], relative_extension=val, standard_error=se, wlc=ref,
+                         difference=val - ref,
+                         tolerance=tol, from_straight=v1, from_straight_se=e1, from_coil=v2, from_coil_se=e2,
+                         starts_agree=converged, passed=passed))
+    res = dict(model=f"dna-default open chain, {n_bp} bp, two starts per force (straight; equilibrium coil)",
+               temperature_K=temperature,
+               engine="Lax-form BAOAB splitting (numba)", dt_ps=dt,
+               friction="per force, critical damping of the slowest string mode" if friction is None else friction,
+               equilibration_ps_per_force=t_equil, production_ps_per_force=t_prod, contour_length_nm=L0,
+               persistence_length_nm=lp, persistence_length_used_nm=lp_ref, stretch_modulus_pN=S, kT_pN_nm=kt_pn,
+               z_tolerance=Z_TOL, absolute_allowance=ALLOWANCE, forces=rows, passed=bool(ok))
+    if plots:
+        res["plots"] = [_plot(out_dir, rows, lp_ref, S, kt_pn)]
+    res["runtime_s"] = time.perf_counter() - t0
+    return res
+
+
+def _plot(out_dir, rows, lp, S, kt):
+    from ..wlc import extensible_wlc_extension
+
+    fig, ax = new_figure(1, 1, width=6.0, height=4.2)
+    a = ax[0, 0]
+    F = np.logspace(np.log10(min(r["force_pN"] for r in rows)) - 0.2, np.log10(max(r["force_pN"] for r in rows)) + 0.1, 80)
+    a.semilogx(F, extensible_wlc_extension(F, lp, S, kt), "k-", label=f"extensible WLC (lp {lp:.1f} nm, S {S:.0f} pN)")
+    f = np.array([r["force_pN"] for r in rows])
+    a.errorbar(f * 0.97, [r["from_straight"] for r in rows], yerr=[r["from_straight_se"] for r in rows], fmt="v",
+               capsize=3, label="Langevin, straight start")
+    a.errorbar(f * 1.03, [r["from_coil"] for r in rows], yerr=[r["from_coil_se"] for r in rows], fmt="^",
+               capsize=3, label="Langevin, equilibrium-coil start")
+    a.set_xlabel("force (pN)")
+    a.set_ylabel("extension / contour length")
+    a.legend(fontsize=8)
+    return save_figure(fig, out_dir, "force_extension.png")

@@ -1,0 +1,141 @@
+"""Writing the validation report folder: ``results.json``, ``report.md`` (plots are written by the checks).
+
+``results.json`` has exactly the form ``{"checks": {NAME: {"passed": true|false, ...}}}``; the other
+entries of a check are its measured values and tolerances (JSON numbers; non-finite values as
+strings). All files are written atomically.
+"""
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import platform
+
+from ..io_utils import write_text_atomic
+from ._common import jsonable
+
+
+def _fmt(x, spec=".3g"):
+    try:
+        return format(float(x), spec)
+    except (TypeError, ValueError):
+        return str(x)
+
+
+def headline(name, r):
+    """``(measured, tolerance)`` one-line strings for the summary table."""
+    if "error" in r:
+        return f"error: {r['error']}", "-"
+    try:
+        if name == "engines":
+            o, s = r["openmm"], r["lax_splitting"]
+            return (f"OpenMM order {_fmt(o['order_positions'], '.2f')}, |dr| {_fmt(o['max_position_difference_nm'][-1])} nm "
+                    f"at dt {r['dt_ps'][-1]} ps (half-step start: order {_fmt(r['openmm_half_step']['order_positions'], '.2f')}, "
+                    f"{_fmt(r['openmm_half_step']['max_position_difference_nm'][-1])} nm); Lax splitting order "
+                    f"{_fmt(s['order_positions'], '.2f')}",
+                    f"order {r['order_min']}-{r['order_max']}, |dr| < {r['small_dt_position_tol_nm']:g} nm")
+        if name == "thermal":
+            eng = [e for e in ("lax", "openmm") if e in r]
+            parts = [f"{e}: max|z| {_fmt(r[e]['max_abs_z'], '.2f')}, lp {_fmt(r[e]['persistence_length']['measured_nm'], '.2f')}"
+                     f"+-{_fmt(r[e]['persistence_length']['standard_error_nm'], '.2f')} nm, T "
+                     f"{_fmt(r[e]['kinetic_temperature']['measured_K'], '.1f')}+-"
+                     f"{_fmt(r[e]['kinetic_temperature']['standard_error_K'], '.1f')} K" for e in eng]
+            lp = r[eng[0]]["persistence_length"]["exact_nm"] if eng else float("nan")
+            return "; ".join(parts) + f" (exact lp {_fmt(lp, '.2f')} nm)", f"|z| <= {r['z_tolerance']}"
+        if name == "dispersion":
+            e = max(r[k]["max_frequency_error"] for k in ("openmm_fast", "openmm_portable"))
+            return (f"max |omega - exact| {_fmt(e)} rad/ps (omega_max {_fmt(r['omega_max_exact'], '.4f')})",
+                    f"< {r['frequency_tol_rad_per_ps']:g} rad/ps")
+        if name == "helix":
+            f = max(v for s in r["systems"].values() for k, v in s.items() if k.endswith("max_force"))
+            t = max(v for s in r["systems"].values() for k, v in s.items() if k.endswith("max_torque"))
+            d = max(v for s in r["systems"].values() for k, v in s.items() if k.endswith("drift_nm"))
+            return (f"max |F| {_fmt(f)} kJ/mol/nm, |tau| {_fmt(t)} kJ/mol, drift {_fmt(d)} nm in {r['run_time_ps']} ps",
+                    f"|F| < {r['force_tol_kJmol_nm']:g}, |tau| < {r['torque_tol_kJmol']:g}, drift < {r['drift_tol_nm']:g} nm")
+        if name == "paper_scheme":
+            o = ", ".join(_fmt(v, ".2f") for v in r["observed_order_last_pair"].values())
+            return (f"orders (Gamma, Omega, p, m) {o}; growth rate {_fmt(r['growth_rate_per_ps'], '.3f')}/ps "
+                    f"(exact {_fmt(r['exact_growth_rate_per_ps'], '.1e')}/ps)",
+                    f"order {r['order_min']}-{r['order_max']}, rate > {r['unstable_rate_min_per_ps']:g}/ps, "
+                    f"exact < {r['exact_rate_max_per_ps']:g}/ps")
+        if name == "force_extension":
+            rows = r["forces"]
+            worst = max(rows, key=lambda q: abs(q["difference"]) - q["tolerance"])
+            return (f"x/L - WLC from {_fmt(min(q['difference'] for q in rows), '.3f')} to "
+                    f"{_fmt(max(q['difference'] for q in rows), '.3f')} (worst at {worst['force_pN']} pN: "
+                    f"{_fmt(worst['difference'], '.3f')} vs tol {_fmt(worst['tolerance'], '.3f')})",
+                    f"|diff| <= {r['z_tolerance']} SE + {r['absolute_allowance']}")
+    except (KeyError, TypeError, ValueError, IndexError):
+        pass
+    return "see results.json", "-"
+
+
+def _scalars(d, prefix=""):
+    """Flatten scalar (and short list) entries of a nested dict for the per-check listing."""
+    out = []
+    for k, v in d.items():
+        if k in ("passed", "plots", "notes", "traceback", "runtime_s"):
+            continue
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out += _scalars(v, key + ".")
+        elif isinstance(v, list) and len(v) <= 8 and all(not isinstance(x, (dict, list)) for x in v):
+            out.append((key, "[" + ", ".join(_fmt(x) if not isinstance(x, str) else x for x in v) + "]"))
+        elif isinstance(v, list):
+            out.append((key, f"({len(v)} entries, see results.json)"))
+        else:
+            out.append((key, v if isinstance(v, str) else _fmt(v, ".6g")))
+    return out
+
+
+def summary_table(results):
+    """Plain-text table: check, PASS/FAIL, runtime, measured headline."""
+    lines = [f"{'check':16s} {'result':6s} {'time (s)':>9s}  measured"]
+    for name, r in results["checks"].items():
+        measured, _ = headline(name, r)
+        lines.append(f"{name:16s} {'PASS' if r['passed'] else 'FAIL':6s} {r.get('runtime_s', float('nan')):9.1f}  {measured}")
+    return "\n".join(lines)
+
+
+def write_report(out_dir, results, quick=False, runtime_s=None):
+    """Write ``results.json`` and ``report.md`` into ``out_dir``; returns the JSON-safe results."""
+    import numpy as np
+
+    try:
+        import openmm
+
+        omm = openmm.__version__
+    except ImportError:  # pragma: no cover - OpenMM is a dependency
+        omm = "not installed"
+    res = jsonable(results)
+    write_text_atomic(os.path.join(out_dir, "results.json"), json.dumps(res, indent=1) + "\n")
+    checks = res["checks"]
+    all_ok = all(r["passed"] for r in checks.values())
+    now = datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    md = [f"# dnarod validation report ({'quick' if quick else 'full'})", "",
+          f"- date: {now}", f"- result: **{'all checks passed' if all_ok else 'SOME CHECKS FAILED'}** "
+          f"({sum(r['passed'] for r in checks.values())}/{len(checks)} passed)",
+          f"- total runtime: {runtime_s:.1f} s" if runtime_s is not None else "- total runtime: n/a",
+          f"- machine: {platform.platform()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, "
+          f"numpy {np.__version__}, OpenMM {omm}", "",
+          "| check | result | runtime (s) | measured | tolerance |", "|---|---|---|---|---|"]
+    for name, r in checks.items():
+        m, t = headline(name, r)
+        m, t = m.replace("|", "\\|"), t.replace("|", "\\|")
+        md.append(f"| {name} | {'PASS' if r['passed'] else '**FAIL**'} | {r.get('runtime_s', float('nan')):.1f} | {m} | {t} |")
+    for name, r in checks.items():
+        md += ["", f"## {name}: {'PASS' if r['passed'] else 'FAIL'}", ""]
+        m, t = headline(name, r)
+        md += [f"Measured: {m}.", "", f"Tolerance: {t}.", ""]
+        for note in r.get("notes", []):
+            md.append(f"> {note}")
+            md.append("")
+        if "error" in r:
+            md += ["```", r.get("traceback", r["error"]).rstrip(), "```", ""]
+        for p in r.get("plots", []):
+            md += [f"![{name}]({p})", ""]
+        md.append("<details><summary>all numbers</summary>\n")
+        md += [f"- `{k}`: {v}" for k, v in _scalars(r)]
+        md.append("\n</details>")
+    write_text_atomic(os.path.join(out_dir, "report.md"), "\n".join(md) + "\n")
+    return res
