@@ -123,7 +123,7 @@ def step_loads(pos, frm, K, xi0, ds, k, j_is_image, j, Q, tvec, out):
 
 
 @njit(cache=True)
-def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
+def chain_loads(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
     """Energy and lab loads of every node (design A2), accumulated into ``F`` and ``tau``.
 
     Parameters
@@ -135,8 +135,10 @@ def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
 
     Returns
     -------
-    float
-        Energy (kJ/mol); NaN if a step rotation is at or beyond the Cayley limit or not finite.
+    E : float
+        Energy, kJ/mol (of the steps before a failing one).
+    bad : int
+        -1, or the first step whose rotation is at or beyond the Cayley limit or not finite.
     """
     n = centres.shape[0]
     m = n if circular else n - 1
@@ -146,7 +148,7 @@ def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
         img = circular and k == n - 1
         j = 0 if img else k + 1
         if not step_loads(centres, frames, K, xi0, ds, k, img, j, Q, t, out):
-            return np.nan
+            return E, k
         E += out[12]
         for a in range(3):
             F[k, a] += out[a]
@@ -159,4 +161,11 @@ def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
             for a in range(3):
                 F[j, a] += out[6 + a]
                 tau[j, a] += out[9 + a]
-    return E
+    return E, -1
+
+
+@njit(cache=True)
+def loads_kernel(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
+    """As :func:`chain_loads`, returning only the energy: NaN if a step is at the Cayley limit."""
+    E, bad = chain_loads(centres, frames, K, xi0, ds, Q, t, circular, F, tau)
+    return np.nan if bad >= 0 else E

@@ -17,6 +17,7 @@ import numpy as np
 from numba import njit
 
 from ..kernels import _DEN_LIMIT, _FM  # noqa: F401 (re-exported for fast_blocked)
+from ..kernels import chain_loads
 from ..kernels import step_loads as _step_loads
 from .splitting_limits import MOMENTUM_LIMIT
 
@@ -116,30 +117,13 @@ def _advance(pos, frm, P, pi, inv_m, invJ, k, dt, langevin, c, sigP, sigpi, nois
 def compute_loads(pos, frm, K, xi0, ds, circular, Q, tvec, Fext, tauext, free, F, tau):
     """Energy and lab loads (in place into F, tau) of a pose; returns (E, bad_step or -1)."""
     n = pos.shape[0]
-    m = K.shape[0]
-    out = np.empty(13)
     for k in range(n):
         for a in range(3):
             F[k, a] = Fext[k, a]
             tau[k, a] = tauext[k, a]
-    E = 0.0
-    for k in range(m):
-        img = circular and k == n - 1
-        j = 0 if img else k + 1
-        if not _step_loads(pos, frm, K, xi0, ds, k, img, j, Q, tvec, out):
-            return E, k
-        E += out[12]
-        for a in range(3):
-            F[k, a] += out[a]
-            tau[k, a] += out[3 + a]
-        if img:
-            for a in range(3):
-                F[0, a] += Q[0, a] * out[6] + Q[1, a] * out[7] + Q[2, a] * out[8]
-                tau[0, a] += Q[0, a] * out[9] + Q[1, a] * out[10] + Q[2, a] * out[11]
-        else:
-            for a in range(3):
-                F[j, a] += out[6 + a]
-                tau[j, a] += out[9 + a]
+    E, bad = chain_loads(pos, frm, K, xi0, ds, Q, tvec, circular, F, tau)
+    if bad >= 0:
+        return E, bad
     for k in range(n):
         for a in range(3):
             F[k, a] *= free[k]
