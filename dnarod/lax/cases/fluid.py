@@ -16,8 +16,8 @@ Invariants for every lam: the energy h and the so(4) Casimirs ``p.p + lam^4 m.m`
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
+from ._ode import dop853
 from ...errors import DnarodError
 from .._checks import as_lambda
 
@@ -74,11 +74,7 @@ class KirchhoffBody:
         """Integrate with DOP853; returns (t (n_out,), y (n_out, 6))."""
         y0 = np.asarray(y0, dtype=float)
         self._split(y0)
-        t_eval = np.linspace(0.0, float(t_end), int(n_out))
-        sol = solve_ivp(self.rhs, (0.0, float(t_end)), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
-        if not sol.success:
-            raise DnarodError(f"Kirchhoff body integration failed: {sol.message}")
-        return sol.t, sol.y.T
+        return dop853(self.rhs, y0, t_end, n_out, rtol, atol, "Kirchhoff body")
 
     def energy(self, y):
         """h(m, p), shape (...)."""

@@ -19,8 +19,8 @@ integrate it over short times only.
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
+from ._ode import dop853
 from ...errors import DnarodError, SimulationError
 from .._checks import as_ds, as_fields, as_reading
 from ..components import _midpoint, _r1, smk_rhs
@@ -196,8 +196,4 @@ class KirchhoffRod:
         """Integrate with DOP853; returns (t (n_out,), y (n_out, 9 n))."""
         y0 = np.asarray(y0, dtype=float)
         self.split(y0)
-        t_eval = np.linspace(0.0, float(t_end), int(n_out))
-        sol = solve_ivp(self.rhs, (0.0, float(t_end)), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=t_eval)
-        if not sol.success:
-            raise SimulationError(f"Kirchhoff rod integration failed: {sol.message}", term="integrator")
-        return sol.t, sol.y.T
+        return dop853(self.rhs, y0, t_end, n_out, rtol, atol, "Kirchhoff rod")

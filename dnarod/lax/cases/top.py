@@ -20,8 +20,8 @@ The time-discrete top is the static-rod map (4.5a,b) with Gamma = chi (:meth:`He
 from __future__ import annotations
 
 import numpy as np
-from scipy.integrate import solve_ivp
 
+from ._ode import dop853
 from ...errors import DnarodError
 from .._checks import as_ds, as_reading
 from .static import static_stress_step
@@ -91,11 +91,7 @@ class HeavyTop:
         """Integrate with DOP853; returns (s (n_out,), y (n_out, 6))."""
         y0 = np.asarray(y0, dtype=float)
         self._split(y0)
-        s_eval = np.linspace(0.0, float(s_end), int(n_out))
-        sol = solve_ivp(self.rhs, (0.0, float(s_end)), y0, method="DOP853", rtol=rtol, atol=atol, t_eval=s_eval)
-        if not sol.success:
-            raise DnarodError(f"heavy top integration failed: {sol.message}")
-        return sol.t, sol.y.T
+        return dop853(self.rhs, y0, s_end, n_out, rtol, atol, "heavy top")
 
     def energy(self, y):
         """E = M.A^{-1}M/2 + M.Omega0 + P.chi, shape (...)."""
