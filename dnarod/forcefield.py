@@ -235,6 +235,33 @@ class ForceField:
                         metadata={"forcefield": self.name})
 
 
+    def ring(self, sequence=None, n_nodes=None, linking_number=None, delta_linking_number=0):
+        """A planar closed ring (see :meth:`RodModel.ring`).
+
+        Parameters
+        ----------
+        sequence : str, optional
+            Strand I, 5'->3'; uniform sets also accept ``n_nodes``.
+        linking_number : int, optional
+            Default: the relaxed ``round(sum of intrinsic twists / 2 pi)`` plus ``delta_linking_number``.
+        delta_linking_number : int
+            Supercoiling relative to the relaxed ring (ignored if ``linking_number`` is given).
+        """
+        if sequence is not None:
+            sequence = normalise_sequence(sequence)
+            n = len(sequence)
+        elif n_nodes is not None:
+            n = int(n_nodes)
+        else:
+            raise ParameterError("give a sequence or n_nodes")
+        params = self.step_parameters(sequence, circular=True, n_steps=n)
+        if linking_number is None:
+            turns = np.sum(2.0 * np.arctan(0.5 * self.ds * params.Omega0[:, 2])) / (2.0 * np.pi)
+            linking_number = int(round(turns)) + int(delta_linking_number)
+        return RodModel.ring(params, self.ds, np.full(n, self.node_mass), np.tile(self.node_inertia, (n, 1)),
+                             linking_number, sequence=sequence)
+
+
 def _node_block(doc, where):
     node = doc.get("node")
     if not isinstance(node, dict):

@@ -138,6 +138,52 @@ class RodModel:
         """An open chain at its intrinsic (zero-force) shape."""
         return cls.from_strains(params.Omega0, params.Gamma0, params, ds, mass, inertia, r0, frame0, sequence)
 
+    @classmethod
+    def ring(cls, params, ds, mass, inertia, linking_number, rise=None, sequence=None):
+        """A planar circular ring (identity closure) with a given integer linking number.
+
+        Nodes lie on a circle whose chords all have length ``rise``; each node's d3 points along
+        its outgoing chord (no shear), d1 starts on the inward normal and turns uniformly about d3
+        by ``2 pi Lk / n`` per step. The centreline is planar, so its writhe is 0 and
+        ``Lk = Tw = linking_number``. A DNA ring at its relaxed linking number has
+        ``Lk = round(n theta0 / 2 pi)``; the difference is the supercoiling.
+
+        Parameters
+        ----------
+        params : StepParameters
+            ``n_nodes`` steps (the last joins node n-1 to node 0).
+        ds : float
+            nm.
+        mass : array (n,), amu;  inertia : array (n, 3), amu nm^2
+        linking_number : int
+        rise : float, optional
+            Chord length, nm (default ``ds`` times the mean intrinsic Gamma3).
+        sequence : str, optional
+
+        Returns
+        -------
+        RodModel
+        """
+        n = params.n_steps
+        if n < 3:
+            raise ParameterError(f"a ring needs at least 3 nodes, got {n}")
+        if int(linking_number) != linking_number:
+            raise ParameterError(f"linking_number must be an integer for a closed ring, got {linking_number}")
+        b = ds * float(np.mean(params.Gamma0[:, 2])) if rise is None else float(rise)
+        radius = b / (2.0 * np.sin(np.pi / n))
+        alpha = 2.0 * np.pi * np.arange(n) / n
+        pos = radius * np.stack([np.cos(alpha), np.sin(alpha), np.zeros(n)], axis=1)
+        d3 = np.roll(pos, -1, axis=0) - pos
+        d3 /= np.linalg.norm(d3, axis=1)[:, None]
+        normal = -np.stack([np.cos(alpha + np.pi / n), np.sin(alpha + np.pi / n), np.zeros(n)], axis=1)
+        phi = 2.0 * np.pi * int(linking_number) * np.arange(n) / n
+        binormal = np.cross(d3, normal)
+        d1 = np.cos(phi)[:, None] * normal + np.sin(phi)[:, None] * binormal
+        d2 = np.cross(d3, d1)
+        frames = np.stack([d1, d2, d3], axis=2)
+        return cls(pos, frames, params, ds, mass, inertia, closure=Closure.identity(), sequence=sequence,
+                   metadata={"linking_number": int(linking_number)})
+
     # --- file format ---------------------------------------------------------------------
     def save(self, path):
         """Write the model to a ``.npz`` file (format documented in README, "Model files").

@@ -41,4 +41,22 @@ def test_simulate_rejects_missing_file_and_circular_structure(tmp_path):
     r = CliRunner().invoke(main, ["simulate", str(tmp_path / "nope.pdb"), "-o", str(tmp_path / "x")])
     assert r.exit_code == 2 and "nope.pdb: file not found" in r.output
     r = CliRunner().invoke(main, ["simulate", str(PDB), "--circular", "-o", str(tmp_path / "x")])
-    assert r.exit_code == 2 and "--circular applies to a sequence" in r.output
+    assert r.exit_code == 2 and "--circular/--ring apply to a sequence" in r.output
+
+
+def test_supercoiled_minicircle_keeps_its_linking_number(tmp_path):
+    """A 105 bp ring with Lk = 10 - 2: the dynamics conserve the (topological) linking number."""
+    from dnarod.analysis import LinkingNumber
+    from dnarod.model import RodModel
+
+    seq = "ACGTTGCA" * 13 + "A"
+    r = CliRunner().invoke(main, ["simulate", seq, "--ring", "--delta-lk", "-2", "--time", "0.05", "-o",
+                                  str(tmp_path / "ring"), "--no-progress", "--seed", "2"])
+    assert r.exit_code == 0, r.output
+    traj = load_trajectory(tmp_path / "ring" / "trajectory.dtraj")
+    model = RodModel.load(tmp_path / "ring" / "final_model.npz")
+    res = LinkingNumber(traj, closure=model.closure).run().results
+    assert set(res.linking_integer) == {8}
+    assert res.max_identity_error < 1e-8
+    r = CliRunner().invoke(main, ["simulate", seq, "--delta-lk", "1", "-o", str(tmp_path / "x")])
+    assert r.exit_code == 2 and "--delta-lk needs --ring" in r.output

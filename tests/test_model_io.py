@@ -76,3 +76,25 @@ def test_partial_record_ignored_and_resume_truncates(tmp_path, model):
     (tmp_path / "x.dtraj").write_bytes(b"garbage")
     with pytest.raises(DnarodError, match="not a dnarod .dtraj"):
         load_trajectory(tmp_path / "x.dtraj")
+
+
+def test_ring_has_the_requested_linking_number_and_no_shear():
+    from dnarod.analysis.writhe import linking_number, twist, writhe
+
+    ff = load_forcefield("dna-default")
+    for n, dlk in ((105, 0), (105, -2), (60, 3)):
+        ring = ff.ring(n_nodes=n, delta_linking_number=dlk)
+        lk0 = round(n / 10.5)
+        assert ring.circular and np.allclose(ring.closure.Q, np.eye(3)) and np.allclose(ring.closure.t, 0)
+        Om, Ga = ring.strains()
+        assert np.allclose(Ga[:, :2], 0, atol=1e-12) and np.allclose(Ga[:, 2], 1.0, rtol=1e-12)
+        # independent geometry: Gauss linking number of the ribbon, writhe and twist of the polygon
+        P = ring.positions
+        lk = linking_number(P, P + 0.05 * ring.frames[:, :, 0])
+        assert abs(lk - (lk0 + dlk)) < 1e-6
+        assert abs(writhe(P)) < 1e-10
+        assert abs(twist(P, ring.frames[:, :, 0]) - (lk0 + dlk)) < 1e-8
+    relaxed, wound = ff.ring(n_nodes=105), ff.ring(n_nodes=105, delta_linking_number=2)
+    assert wound.energy() > relaxed.energy() > 0  # bending a 105 bp ring costs energy; overwinding more
+    with pytest.raises(ParameterError, match="integer"):
+        ff.ring(n_nodes=50, linking_number=4.5)

@@ -10,7 +10,7 @@ import numpy as np
 from ..errors import ParameterError
 
 
-def _load_model(source, forcefield, circular):
+def _load_model(source, forcefield, circular, ring=False, delta_lk=0):
     from ..forcefield import load_forcefield
     from ..model import RodModel
 
@@ -22,9 +22,13 @@ def _load_model(source, forcefield, circular):
             return RodModel.load(source)
         from ..structure import model_from_structure
 
-        if circular:
-            raise ParameterError("--circular applies to a sequence; a structure's duplex is an open chain")
+        if circular or ring:
+            raise ParameterError("--circular/--ring apply to a sequence; a structure's duplex is an open chain")
         return model_from_structure(source, forcefield=forcefield)
+    if ring:
+        return load_forcefield(forcefield).ring(source, delta_linking_number=delta_lk)
+    if delta_lk:
+        raise ParameterError("--delta-lk needs --ring")
     return load_forcefield(forcefield).model_from_sequence(source, circular=circular)
 
 
@@ -39,7 +43,10 @@ def _parse_trap(text, n_nodes):
 @click.command("simulate")
 @click.argument("source")
 @click.option("-f", "--forcefield", default="dna-default", show_default=True, help="Force field (bundled name or .toml).")
-@click.option("--circular", is_flag=True, help="Circular chain (screw-closed) when SOURCE is a sequence.")
+@click.option("--circular", is_flag=True, help="Periodic chain (screw-closed straight helix) when SOURCE is a sequence.")
+@click.option("--ring", is_flag=True, help="Closed planar ring (a minicircle) when SOURCE is a sequence.")
+@click.option("--delta-lk", type=int, default=0, show_default=True,
+              help="With --ring: linking number relative to the relaxed ring (supercoiling).")
 @click.option("--time", "time_ns", type=float, default=1.0, show_default=True, help="Simulated time, ns.")
 @click.option("--dt", type=float, default=None, help="Time step, ps [default: 0.4/omega_max of the model].")
 @click.option("-T", "--temperature", type=float, default=300.0, show_default=True, help="K.")
@@ -67,7 +74,7 @@ def _parse_trap(text, n_nodes):
 @click.option("--seed", type=int, default=None)
 @click.option("--export/--no-export", default=True, show_default=True, help="Also write trajectory.pdb + .dcd.")
 @click.option("--progress/--no-progress", default=True, show_default=True)
-def simulate_cmd(source, forcefield, circular, time_ns, dt, temperature, friction, integrator, platform, threads,
+def simulate_cmd(source, forcefield, circular, ring, delta_lk, time_ns, dt, temperature, friction, integrator, platform, threads,
                  elastic, excluded_volume, electrostatics, salt, pull, torque, rotation_clamp, turns, clamp_first,
                  trap, minimize, outdir, frame_interval, checkpoint_interval, resume, overwrite, seed, export, progress):
     """Simulate SOURCE (a PDB/mmCIF structure, a DNA sequence or a saved model .npz) with the OpenMM engine.
@@ -82,7 +89,7 @@ def simulate_cmd(source, forcefield, circular, time_ns, dt, temperature, frictio
     from .nonbonded import NonbondedSettings
     from .simulation import RodSimulation
 
-    model = _load_model(source, forcefield, circular)
+    model = _load_model(source, forcefield, circular, ring, delta_lk)
     n = model.n_nodes
     axis = model.positions[-1] - model.positions[0]
     if np.linalg.norm(axis) == 0:
