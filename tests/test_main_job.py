@@ -41,7 +41,7 @@ def test_simulate_rejects_missing_file_and_circular_structure(tmp_path):
     r = CliRunner().invoke(main, ["simulate", str(tmp_path / "nope.pdb"), "-o", str(tmp_path / "x")])
     assert r.exit_code == 2 and "nope.pdb: file not found" in r.output
     r = CliRunner().invoke(main, ["simulate", str(PDB), "--circular", "-o", str(tmp_path / "x")])
-    assert r.exit_code == 2 and "--circular/--ring apply to a sequence" in r.output
+    assert r.exit_code == 2 and "--circular/--ring/--delta-lk apply to a sequence" in r.output
 
 
 def test_supercoiled_minicircle_keeps_its_linking_number(tmp_path):

@@ -5,25 +5,17 @@ from pathlib import Path
 
 import click
 
-
-def _model(model_or_sequence, forcefield, circular):
-    from ..forcefield import load_forcefield
-    from ..model import RodModel
-
-    p = Path(model_or_sequence)
-    if p.suffix == ".npz" or p.exists():
-        return RodModel.load(p)
-    ff = load_forcefield(forcefield)
-    if model_or_sequence.isdigit():
-        return ff.model_from_sequence(n_nodes=int(model_or_sequence), circular=circular)
-    return ff.model_from_sequence(model_or_sequence, circular=circular)
+from ..inputs import load_model
 
 
 @click.command("lax-run")
 @click.argument("model_or_sequence")
 @click.option("--forcefield", "-f", default="dna-default", show_default=True,
               help="Force field for a sequence (or a node count, for uniform sets).")
-@click.option("--circular", is_flag=True, help="Build a circular chain from the sequence.")
+@click.option("--circular", is_flag=True, help="Periodic chain (screw-closed straight helix) from the sequence.")
+@click.option("--ring", is_flag=True, help="Closed planar ring (a minicircle) from the sequence.")
+@click.option("--delta-lk", type=int, default=0, show_default=True,
+              help="With --ring: linking number relative to the relaxed ring (supercoiling).")
 @click.option("--dt", type=float, default=0.05, show_default=True, help="Time step, ps.")
 @click.option("--steps", type=int, default=1000, show_default=True, help="Total number of steps.")
 @click.option("--temperature", "-T", type=float, default=300.0, show_default=True, help="K.")
@@ -41,15 +33,17 @@ def _model(model_or_sequence, forcefield, circular):
 @click.option("--rtol", type=float, default=1e-10, show_default=True, help="DOP853 tolerance (with --exact).")
 @click.option("--reference", is_flag=True, help="Use the numpy reference path instead of the numba kernel.")
 @click.option("--progress/--no-progress", default=False)
-def lax_run(model_or_sequence, forcefield, circular, dt, steps, temperature, friction, seed, out, energies,
+def lax_run(model_or_sequence, forcefield, circular, ring, delta_lk, dt, steps, temperature, friction, seed, out, energies,
             report_interval, checkpoint, checkpoint_interval, resume, exact_t, rtol, reference, progress):
-    """Simulate MODEL_OR_SEQUENCE (a model .npz, a DNA sequence or a node count) with the Lax-form engine.
+    """Simulate MODEL_OR_SEQUENCE with the Lax-form engine.
+
+    MODEL_OR_SEQUENCE is a PDB/mmCIF structure, a model .npz, a DNA sequence or a node count.
 
     Default: BAOAB Langevin dynamics with the symplectic splitting; --friction 0 runs NVE.
     """
     from .run import simulate_exact, simulate_langevin, simulate_nve
 
-    model = _model(model_or_sequence, forcefield, circular)
+    model = load_model(model_or_sequence, forcefield, circular, ring, delta_lk)
     if exact_t is not None:
         res = simulate_exact(model, exact_t, temperature=temperature, seed=seed, rtol=rtol, atol=rtol,
                              n_frames=max(2, int(exact_t / (dt * report_interval)) + 1), out=out, energy_csv=energies)

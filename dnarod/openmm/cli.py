@@ -8,28 +8,7 @@ import click
 import numpy as np
 
 from ..errors import ParameterError
-
-
-def _load_model(source, forcefield, circular, ring=False, delta_lk=0):
-    from ..forcefield import load_forcefield
-    from ..model import RodModel
-
-    suffix = Path(source).suffix.lower()
-    if suffix in (".pdb", ".ent", ".cif", ".mmcif") or source.endswith(".npz") or Path(source).is_file():
-        if not Path(source).is_file():
-            raise ParameterError(f"{source}: file not found")
-        if suffix == ".npz":
-            return RodModel.load(source)
-        from ..structure import model_from_structure
-
-        if circular or ring:
-            raise ParameterError("--circular/--ring apply to a sequence; a structure's duplex is an open chain")
-        return model_from_structure(source, forcefield=forcefield)
-    if ring:
-        return load_forcefield(forcefield).ring(source, delta_linking_number=delta_lk)
-    if delta_lk:
-        raise ParameterError("--delta-lk needs --ring")
-    return load_forcefield(forcefield).model_from_sequence(source, circular=circular)
+from ..inputs import load_model
 
 
 def _parse_trap(text, n_nodes):
@@ -89,7 +68,7 @@ def simulate_cmd(source, forcefield, circular, ring, delta_lk, time_ns, dt, temp
     from .nonbonded import NonbondedSettings
     from .simulation import RodSimulation
 
-    model = _load_model(source, forcefield, circular, ring, delta_lk)
+    model = load_model(source, forcefield, circular, ring, delta_lk)
     n = model.n_nodes
     axis = model.positions[-1] - model.positions[0]
     if np.linalg.norm(axis) == 0:
