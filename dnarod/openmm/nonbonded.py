@@ -6,7 +6,8 @@ electrostatics, one interaction site per node (its centre).
   Default ``sigma = 2.0 nm``, the geometric diameter of B-DNA (Saenger, *Principles of
   Nucleic Acid Structure*, 1984; from memory, not verified this session). The larger
   "effective diameter" of knotting and catenation experiments (about 5 nm at 150 mM NaCl,
-  Rybenkov, Cozzarelli & Vologodskii 1993 PNAS 90:5307) includes the electrostatic repulsion,
+  Rybenkov, Cozzarelli & Vologodskii 1993 PNAS 90:5307; from memory, not verified) includes the
+  electrostatic repulsion,
   which is modelled explicitly here.
 * **Electrostatics**: Debye-Hueckel, ``q^2 (e^2/4 pi eps0 eps_r) exp(-r/lambda_D)/r``, shifted
   to zero at the cutoff (default ``5 lambda_D``); ``eps_r = 78.5`` (water, 25 C);
