@@ -7,8 +7,7 @@ electrostatics, one interaction site per node (its centre).
   Nucleic Acid Structure*, 1984; from memory, not verified this session). The larger
   "effective diameter" of knotting and catenation experiments (about 5 nm at 150 mM NaCl,
   Rybenkov, Cozzarelli & Vologodskii 1993 PNAS 90:5307; from memory, not verified) includes the
-  electrostatic repulsion,
-  which is modelled explicitly here.
+  electrostatic repulsion, which is modelled explicitly here.
 * **Electrostatics**: Debye-Hueckel, ``q^2 (e^2/4 pi eps0 eps_r) exp(-r/lambda_D)/r``, shifted
   to zero at the cutoff (default ``5 lambda_D``); ``eps_r = 78.5`` (water, 25 C);
   ``lambda_D = 1/sqrt(8 pi l_B N_A I)`` for monovalent salt of ionic strength I (mol/L), with
