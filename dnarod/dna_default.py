@@ -25,11 +25,10 @@ import csv
 import numpy as np
 from scipy.optimize import brentq
 
-from .forcefield import UNITS, data_dir
+from .forcefield import data_dir
 from .parameters import StepParameters
 from .thermal import kT as kT_of, persistence_length
-
-PN = UNITS["pN"][1]  # kJ/mol/nm per pN
+from .units import PN
 
 TARGETS = dict(
     temperature=300.0, bp_per_turn=10.5, rise=0.34, bending_persistence=50.0, torsional_persistence=100.0,

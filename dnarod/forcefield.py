@@ -35,19 +35,18 @@ from .model import RodModel
 from .parameters import StepParameters, check_stiffness
 from .strains import Closure, chain_from_strains
 from .thermal import kT
+from .units import KG_PER_M3, PA, PN
 
-AVOGADRO = 6.02214076e23
 
 #: unit string -> (dimension, factor to dnarod's internal unit)
 UNITS = {
     "nm": ("length", 1.0), "A": ("length", 0.1), "m": ("length", 1e9),
     "1/nm": ("inverse length", 1.0), "1": ("dimensionless", 1.0),
     "kJ/mol*nm": ("energy*length", 1.0), "kJ/mol": ("energy", 1.0), "kJ/mol/nm": ("energy/length", 1.0),
-    "pN*nm^2": ("energy*length", AVOGADRO * 1e-24), "pN*nm": ("energy", AVOGADRO * 1e-24),
-    "pN": ("energy/length", AVOGADRO * 1e-24),
+    "pN*nm^2": ("energy*length", PN), "pN*nm": ("energy", PN), "pN": ("energy/length", PN),
     "amu": ("mass", 1.0), "amu*nm^2": ("moment of inertia", 1.0),
-    "Pa": ("pressure", AVOGADRO * 1e-30), "GPa": ("pressure", AVOGADRO * 1e-21),
-    "kg/m^3": ("density", 1e-27 / 1.66053906660e-27),  # amu/nm^3
+    "Pa": ("pressure", PA), "GPa": ("pressure", 1e9 * PA),
+    "kg/m^3": ("density", KG_PER_M3),  # amu/nm^3
     "K": ("temperature", 1.0),
 }
 

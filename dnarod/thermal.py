@@ -15,14 +15,35 @@ import numpy as np
 
 from .parameters import StepParameters
 from .rotations import cayley
+from .units import BOLTZMANN
 
-#: Boltzmann constant, kJ/mol/K (CODATA 2018 k_B times N_A; the value OpenMM uses).
-BOLTZMANN_KJ_PER_MOL_K = 0.00831446261815324
 
 
 def kT(temperature):
     """Thermal energy at ``temperature`` (K), kJ/mol."""
-    return BOLTZMANN_KJ_PER_MOL_K * float(temperature)
+    return BOLTZMANN * float(temperature)
+
+
+def node_kinetic_energy(mass, inertia, velocities, angular_velocities):
+    """Kinetic energy of rigid nodes, kJ/mol: ``sum m v^2/2 + sum J_a w_a^2/2``.
+
+    Parameters
+    ----------
+    mass : (n,) amu;  inertia : (n, 3) amu nm^2
+    velocities : (..., n, 3) nm/ps (lab);  angular_velocities : (..., n, 3) rad/ps (body frame)
+
+    Returns
+    -------
+    float or ndarray, shape (...)
+    """
+    v = np.asarray(velocities, float)
+    w = np.asarray(angular_velocities, float)
+    return 0.5 * (np.einsum("k,...ki,...ki->...", mass, v, v) + np.einsum("ki,...ki,...ki->...", inertia, w, w))
+
+
+def kinetic_temperature(kinetic_energy, n_dof):
+    """Temperature (K) of ``n_dof`` degrees of freedom holding ``kinetic_energy`` (kJ/mol); 0 if none."""
+    return 2.0 * np.asarray(kinetic_energy) / (n_dof * BOLTZMANN) if n_dof > 0 else 0.0 * np.asarray(kinetic_energy)
 
 
 def bend_twist_schur(stiffness):

@@ -12,8 +12,6 @@ from scipy.optimize import brentq
 
 BOUCHIAT = (-0.5164228, -2.737418, 16.07497, -38.87607, 39.49944, -14.17718)  # a2..a7
 
-PN_NM_PER_KJ_MOL = 1.0 / 0.602214076  # 1 kJ/mol = 1.6605 pN nm
-
 
 def marko_siggia_force(l, lp, kt):
     """Force (pN) at relative extension ``l`` of the inextensible WLC (Marko-Siggia interpolation)."""

@@ -32,6 +32,7 @@ from ..energy import stresses
 from ..errors import DnarodError, SimulationError
 from ..rotations import cayley
 from ..strains import chain_from_strains
+from ..thermal import node_kinetic_energy
 from ..trajectory import Trajectory
 from .boundary import BoundaryConditions
 
@@ -238,8 +239,7 @@ class ExactSystem:
         """Total energy (elastic + kinetic - work potential of the end forces), kJ/mol."""
         Omega, Gamma, omega, gamma, _, _ = self.unpack(y)
         _, _, H = stresses(Omega, Gamma, self.model.params)
-        E = self.ds * H.sum() + 0.5 * np.sum(self.mass * np.einsum("ki,ki->k", gamma, gamma))
-        E += 0.5 * np.sum(self.inertia * omega**2)
+        E = self.ds * H.sum() + node_kinetic_energy(self.mass, self.inertia, gamma, omega)
         if len(self.loaded):
             pos, _ = self.poses(y)
             E -= np.sum(self.F_ext * pos)

@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import DnarodError, SimulationError
 from ..io_utils import atomic_path
-from ..thermal import BOLTZMANN_KJ_PER_MOL_K
+from ..thermal import kinetic_temperature, node_kinetic_energy
 from ..trajectory import Trajectory, TrajectoryWriter, load_trajectory
 from .splitting import RigidState, SplittingIntegrator, maxwell_state
 
@@ -65,7 +65,7 @@ def _energy_row(integ, n_free_dof):
     ke = integ.kinetic_energy()
     pe = integ.potential_energy
     tot = integ.total_energy()
-    temp = 2 * ke / (max(n_free_dof, 1) * BOLTZMANN_KJ_PER_MOL_K)
+    temp = kinetic_temperature(ke, n_free_dof)
     return [integ.step_count, integ.step_count * integ.dt, pe, ke, tot, temp]
 
 
@@ -275,11 +275,10 @@ def simulate_exact(model, t_end, velocities=None, angular_velocities=None, tempe
         res.trajectory.save(out)
     if energy_csv is not None:
         tr = res.trajectory
-        ke = np.array([0.5 * np.sum(model.mass[:, None] * v**2) + 0.5 * np.sum(model.inertia * w**2)
-                       for v, w in zip(tr.velocities, tr.angular_velocities)])
-        ndof = 6 * model.n_nodes
-        lines = [CSV_HEADER] + [f"{i},{t:.17g},{E - k:.17g},{k:.17g},{E:.17g},{2 * k / (ndof * BOLTZMANN_KJ_PER_MOL_K):.17g}\n"
-                                for i, (t, E, k) in enumerate(zip(tr.time, res.energy, ke))]
+        ke = node_kinetic_energy(model.mass, model.inertia, tr.velocities, tr.angular_velocities)
+        temp = kinetic_temperature(ke, 6 * model.n_nodes)
+        lines = [CSV_HEADER] + [f"{i},{t:.17g},{E - k:.17g},{k:.17g},{E:.17g},{T:.17g}\n"
+                                for i, (t, E, k, T) in enumerate(zip(tr.time, res.energy, ke, temp))]
         with atomic_path(energy_csv) as tmp:
             Path(tmp).write_text("".join(lines))
     return res

@@ -64,7 +64,8 @@ def simulate_cmd(source, forcefield, circular, ring, delta_lk, time_ns, dt, temp
     Writes OUT/trajectory.dtraj, OUT/energies.csv, OUT/checkpoint.npz, OUT/final_model.npz
     (and OUT/trajectory.pdb + .dcd with --export) and prints a summary.
     """
-    from .loads import PN, Clamp, PullingForce, RotationClamp, Torque, Trap
+    from ..units import PN
+    from .loads import Clamp, PullingForce, RotationClamp, Torque, Trap
     from .nonbonded import NonbondedSettings
     from .simulation import RodSimulation
 

@@ -29,7 +29,6 @@ from ..errors import ParameterError
 from .forces import GROUPS
 from .particles import SQRT3
 
-PN = 0.602214076  # kJ/mol/nm per pN (and kJ/mol per pN nm)
 
 _FORCE_UNIT = unit.kilojoule_per_mole / unit.nanometer
 _TORQUE_UNIT = unit.kilojoule_per_mole

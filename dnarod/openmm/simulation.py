@@ -36,14 +36,13 @@ import openmm
 
 from ..errors import DnarodError, ParameterError, SimulationError
 from ..io_utils import atomic_path
-from ..thermal import kT as kT_of
+from ..thermal import kT as kT_of, kinetic_temperature
 from ..trajectory import TrajectoryWriter
 from .forces import GROUPS, loads_kernel
 from .particles import (node_poses, node_velocities, particle_forces_to_loads, particle_positions,
                         particle_velocities)
 from .system import build_system, get_platform
 
-KB = 0.00831446261815324  # kJ/mol/K
 #: Default time step: omega_max * dt (design A4 recommends <= 0.25-0.5; leapfrog is unstable at 2).
 DEFAULT_OMEGA_DT = 0.4
 #: Largest accepted omega_max * dt (90% of the leapfrog limit 2).
@@ -264,7 +263,7 @@ class RodSimulation:
     def thermalize(self, temperature, seed=None):
         """Draw Maxwell-Boltzmann node velocities (6 degrees of freedom per free node)."""
         rng = np.random.default_rng(seed)
-        kt = KB * temperature
+        kt = kT_of(temperature)
         n = self.model.n_nodes
         v = rng.normal(size=(n, 3)) * np.sqrt(kt / self.model.mass)[:, None]
         w = rng.normal(size=(n, 3)) * np.sqrt(kt / self.model.inertia)
@@ -336,7 +335,7 @@ class RodSimulation:
         out["potential"] = pot
         out["kinetic"] = st.getKineticEnergy()._value
         dof = self.rs.degrees_of_freedom
-        out["temperature"] = 2 * out["kinetic"] / (dof * KB) if dof else 0.0
+        out["temperature"] = float(kinetic_temperature(out["kinetic"], dof))
         return out
 
     def current_model(self):

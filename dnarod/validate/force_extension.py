@@ -30,10 +30,10 @@ import time
 
 import numpy as np
 
+from ..units import PN
 from ._common import jackknife, new_figure, save_figure, split_blocks
 
 NAME = "force_extension"
-PN = 0.602214076  # kJ/mol/nm per pN
 Z_TOL = 3.0
 ALLOWANCE = 0.02
 DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)

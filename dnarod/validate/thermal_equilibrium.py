@@ -72,7 +72,7 @@ def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equi
     """Positions, frames (n_samples, n, ...) and kinetic temperatures (n_samples,) from the Lax-form BAOAB engine."""
     from ..integrators import SplittingIntegrator
     from ..integrators.splitting import maxwell_state
-    from ..thermal import BOLTZMANN_KJ_PER_MOL_K
+    from ..thermal import kinetic_temperature
 
     integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed),
                                 temperature=temperature, friction=friction, seed=seed + 1)
@@ -84,7 +84,7 @@ def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equi
     for i in range(n_samples):
         integ.step(stride)
         pos[i], frm[i] = integ.state.positions, integ.state.frames
-        tk[i] = 2 * integ.kinetic_energy() / (6 * n * BOLTZMANN_KJ_PER_MOL_K)
+        tk[i] = kinetic_temperature(integ.kinetic_energy(), 6 * n)
     return pos, frm, tk
 
 
