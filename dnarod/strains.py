@@ -55,8 +55,15 @@ class Closure:
         object.__setattr__(self, "t", t)
 
 
-def _with_image(positions, frames, closure):
-    """Positions and frames of both ends of every step (leading frame axes allowed)."""
+def step_ends(positions, frames, closure=None):
+    """Positions and frames of both ends of every step, vectorised over leading (frame) axes.
+
+    Returns
+    -------
+    r0, L0, r1, L1 : ndarrays, shapes (..., n_steps, 3) and (..., n_steps, 3, 3)
+        Left and right ends; for a circular chain the last right end is the image of node 0
+        under the screw closure.
+    """
     if closure is None:
         return positions[..., :-1, :], frames[..., :-1, :, :], positions[..., 1:, :], frames[..., 1:, :, :]
     r_img = positions[..., 0, :] @ closure.Q.T + closure.t
@@ -85,7 +92,7 @@ def step_geometry(positions, frames, closure=None):
     e : ndarray, shape (..., n_steps, 3)
         Lab chord ``r_{k+1} - r_k``, nm.
     """
-    r0, L0, r1, L1 = _with_image(np.asarray(positions, float), np.asarray(frames, float), closure)
+    r0, L0, r1, L1 = step_ends(np.asarray(positions, float), np.asarray(frames, float), closure)
     R = np.swapaxes(L0, -1, -2) @ L1
     return R, r1 - r0
 

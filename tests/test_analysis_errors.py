@@ -111,3 +111,19 @@ def test_cli_reports_bad_input_in_one_line(tmp_path):
     assert res.exit_code == 2
     assert "dnarod: error: circular analysis of a chain that is not closed" in res.output
     assert "Traceback" not in res.output
+
+
+def test_frame_strains_names_the_frame_with_a_rotation_beyond_pi():
+    from dnarod.analysis.steps import frame_strains
+    from dnarod.errors import GeometryError
+    from dnarod.forcefield import load_forcefield
+    from dnarod.rotations import rotation_about_axis
+
+    m = load_forcefield("dna-default").model_from_sequence(n_nodes=6)
+    pos = np.repeat(m.positions[None], 4, 0)
+    frm = np.repeat(m.frames[None], 4, 0)
+    frm[2, 3] = frm[2, 2] @ rotation_about_axis(np.array([1.0, 0.0, 0.0]), np.pi)
+    with pytest.raises(GeometryError, match=r"trajectory frame 2: step 2"):
+        frame_strains(pos, frm, m.ds)
+    Om, Ga = frame_strains(pos[[0, 1, 3]], frm[[0, 1, 3]], m.ds)
+    assert Om.shape == (3, 5, 3) and np.allclose(Om, m.params.Omega0) and np.allclose(Ga, m.params.Gamma0)

@@ -15,7 +15,7 @@ from ..errors import DnarodError, GeometryError
 from ..forcefield import sequence_steps
 from ..io_utils import atomic_path
 from ..stepparams import STEP_PARAMETER_NAMES, step_parameters, to_angstrom_degrees
-from ..strains import strains
+from ..strains import step_ends, strains
 from .base import AnalysisBase, check_closed, closure_of
 
 STRAIN_COLUMNS = ("Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2", "Gamma3")
@@ -40,37 +40,21 @@ def frame_strains(positions, frames, ds, closure=None):
         1/nm.
     Gamma : ndarray, shape (n_frames, n_steps, 3)
     """
-    # dnarod.strains.strains is vectorised over steps but takes one chain; the loop over frames
-    # keeps a single strain implementation (its cost is one small numpy call per frame).
-    out = []
-    for f in range(positions.shape[0]):
-        try:
-            out.append(strains(positions[f], frames[f], ds, closure))
-        except GeometryError as exc:
-            raise GeometryError(f"trajectory frame {f}: {exc}") from None
-    Om = np.array([o for o, _ in out])
-    Ga = np.array([g for _, g in out])
-    return Om, Ga
-
-
-def step_ends(positions, frames, closure=None):
-    """Frames and origins at both ends of every step, vectorised over frames.
-
-    Returns
-    -------
-    L1, o1, L2, o2 : ndarrays, shapes (n_frames, n_steps, 3, 3) and (n_frames, n_steps, 3)
-    """
-    if closure is None:
-        return frames[:, :-1], positions[:, :-1], frames[:, 1:], positions[:, 1:]
-    img_o = np.einsum("ij,fj->fi", closure.Q, positions[:, 0]) + closure.t
-    img_L = np.einsum("ij,fjk->fik", closure.Q, frames[:, 0])
-    return (frames, positions, np.concatenate([frames[:, 1:], img_L[:, None]], 1),
-            np.concatenate([positions[:, 1:], img_o[:, None]], 1))
+    try:
+        return strains(positions, frames, ds, closure)
+    except GeometryError:
+        for f in range(positions.shape[0]):  # name the frame of the bad step
+            try:
+                strains(positions[f], frames[f], ds, closure)
+            except GeometryError as exc:
+                raise GeometryError(f"trajectory frame {f}: {exc}") from None
+        raise
 
 
 def frame_step_parameters(positions, frames, closure=None):
     """3DNA step parameters of every step in every frame; shape (n_frames, n_steps, 6), nm and rad."""
-    return step_parameters(*step_ends(positions, frames, closure))
+    r0, L0, r1, L1 = step_ends(positions, frames, closure)
+    return step_parameters(L0, r0, L1, r1)
 
 
 def step_names(n_steps, sequence=None, circular=False):
@@ -171,5 +155,5 @@ class StepAnalysis(AnalysisBase):
         return rows
 
 
-__all__ = ["StepAnalysis", "frame_strains", "frame_step_parameters", "step_ends", "step_names",
+__all__ = ["StepAnalysis", "frame_strains", "frame_step_parameters", "step_names",
            "STEP_PARAMETER_NAMES"]

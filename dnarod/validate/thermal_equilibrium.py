@@ -47,24 +47,17 @@ def frame_statistics(model, positions, frames, n_max):
         ``XW`` (n_frames, 6, 6) sum over steps of ``W dxi dxi^T``; ``X`` the same without W;
         ``W`` (n_frames,) sum of W; ``corr`` (n_frames, n_max) mean over k of ``d3(k).d3(k+n)``.
     """
+    from ..analysis.polymer import tangent_correlation_frames
+    from ..analysis.stiffness import haar_weight
     from ..strains import strains
 
-    xi0 = model.params.intrinsic
-    nf = len(positions)
-    XW = np.empty((nf, 6, 6))
-    X = np.empty((nf, 6, 6))
-    Wsum = np.empty(nf)
-    corr = np.empty((nf, n_max))
-    for i in range(nf):
-        Om, Ga = strains(positions[i], frames[i], model.ds, model.closure)
-        d = np.concatenate([Om, Ga], axis=1) - xi0
-        W = (1.0 + 0.25 * model.ds**2 * np.einsum("ki,ki->k", Om, Om)) ** 2
-        XW[i] = np.einsum("k,ki,kj->ij", W, d, d)
-        X[i] = np.einsum("ki,kj->ij", d, d)
-        Wsum[i] = W.sum()
-        t = frames[i][:, :, 2]
-        for n in range(1, n_max + 1):
-            corr[i, n - 1] = np.einsum("ki,ki->k", t[:-n], t[n:]).mean()
+    Om, Ga = strains(positions, frames, model.ds, model.closure)  # (n_frames, n_steps, 3)
+    d = np.concatenate([Om, Ga], axis=-1) - model.params.intrinsic
+    W = haar_weight(Om, model.ds)
+    XW = np.einsum("fk,fki,fkj->fij", W, d, d)
+    X = np.einsum("fki,fkj->fij", d, d)
+    Wsum = W.sum(axis=1)
+    corr = tangent_correlation_frames(np.asarray(frames)[..., 2], n_max)[:, 1:]
     return dict(XW=XW, X=X, W=Wsum, corr=corr)
 
 
@@ -76,16 +69,9 @@ def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equi
 
     integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed),
                                 temperature=temperature, friction=friction, seed=seed + 1)
-    integ.step(n_equil)
-    n = model.n_nodes
-    pos = np.empty((n_samples, n, 3))
-    frm = np.empty((n_samples, n, 3, 3))
-    tk = np.empty(n_samples)
-    for i in range(n_samples):
-        integ.step(stride)
-        pos[i], frm[i] = integ.state.positions, integ.state.frames
-        tk[i] = kinetic_temperature(integ.kinetic_energy(), 6 * n)
-    return pos, frm, tk
+    return _sample(integ.step, lambda: (integ.state.positions, integ.state.frames),
+                   lambda: kinetic_temperature(integ.kinetic_energy(), 6 * model.n_nodes),
+                   model.n_nodes, n_samples, stride, n_equil)
 
 
 def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
@@ -94,15 +80,20 @@ def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_e
 
     sim = RodSimulation(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
                         platform="CPU", nonbonded=False, seed=seed, threads=1)
-    sim.advance(n_equil)
-    n = model.n_nodes
+    return _sample(sim.advance, sim.node_pose, lambda: sim.energies()["temperature"],
+                   model.n_nodes, n_samples, stride, n_equil)
+
+
+def _sample(advance, pose, temperature, n, n_samples, stride, n_equil):
+    """Equilibrate, then record (positions, frames, kinetic temperature) every ``stride`` steps."""
+    advance(n_equil)
     pos = np.empty((n_samples, n, 3))
     frm = np.empty((n_samples, n, 3, 3))
     tk = np.empty(n_samples)
     for i in range(n_samples):
-        sim.advance(stride)
-        pos[i], frm[i] = sim.node_pose()
-        tk[i] = sim.energies()["temperature"]
+        advance(stride)
+        pos[i], frm[i] = pose()
+        tk[i] = temperature()
     return pos, frm, tk
 
 
