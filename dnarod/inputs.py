@@ -5,9 +5,6 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-STRUCTURE_SUFFIXES = (".pdb", ".ent", ".cif", ".mmcif")
-
-
 def load_model(source, forcefield="dna-default", circular=False, ring=False, delta_lk=0):
     """A :class:`~dnarod.model.RodModel` from a command-line SOURCE.
 
@@ -33,13 +30,15 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
     from .forcefield import load_forcefield
     from .model import RodModel
 
+    from .structure.trajectory import is_structure_file
+
     p = Path(source)
-    if p.suffix.lower() in STRUCTURE_SUFFIXES + (".npz",) or p.is_file():
+    if is_structure_file(p) or p.suffix.lower() == ".npz" or p.is_file():
         if not p.is_file():
             raise ParameterError(f"{source}: file not found")
         if circular or ring or delta_lk:
             raise ParameterError("--circular/--ring/--delta-lk apply to a sequence; a file holds its own chain")
-        if p.suffix.lower() == ".npz":
+        if not is_structure_file(p):
             return RodModel.load(p)
         from .structure import model_from_structure
 

@@ -17,7 +17,6 @@ import numpy as np
 
 from ..errors import DnarodError, StructureError
 
-ALLATOM_STRUCTURES = {".pdb", ".ent", ".cif", ".mmcif", ".pdbx", ".gz"}
 
 
 def _write_rows(path, rows):
@@ -77,10 +76,11 @@ def load_input(path, topology=None, duplex=0, start=None, stop=None, step=None):
                                   f"{model.n_nodes}: the trajectory does not match its topology")
         traj = traj[slice(start, stop, step)]
         return traj, model, "dnarod"
+    from ..structure.trajectory import is_structure_file
     from .allatom import load_allatom
 
     if topology is None:
-        if not {s.lower() for s in path.suffixes} & ALLATOM_STRUCTURES:
+        if not is_structure_file(path):
             raise StructureError(f"{path}: an all-atom trajectory needs --topology (PDB, PSF, PRMTOP, GRO, ...)")
         traj, _ = load_allatom(path, None, duplex, start, stop, step)
     else:

@@ -19,7 +19,7 @@ from ..stepparams import step_parameters
 from .bpparams import pair_parameters
 from .frames import base_frames, has_base_atoms, kabsch, ring_atoms_present, standard_bases
 from .pairing import classify_pair, explicit_pairs, fill_helix_gaps, find_pairs, order_duplexes
-from .reader import OLD_NAMES as _OLD, read_structure
+from .reader import read_structure
 
 
 @dataclass
@@ -229,25 +229,7 @@ def analyze_trajectory(topology, trajectory=None, duplex=0, model=1):
     (DuplexAnalysis, step_params (n_frames, n_bp - 1, 6), bp_params (n_frames, n_bp, 6))
         nm and rad.
     """
-    import MDAnalysis as mda
+    from .trajectory import read_duplex_trajectory  # the one all-atom trajectory reader
 
-    ana = analyze_structure(topology, model=model)
-    if not 0 <= duplex < len(ana.duplexes):
-        raise StructureError(f"{topology}: duplex {duplex} does not exist ({len(ana.duplexes)} found, 0-based)")
-    d = ana.duplexes[duplex]
-    try:
-        u = mda.Universe(str(topology), str(trajectory)) if trajectory else mda.Universe(str(topology))
-        X = 0.1 * u.trajectory.timeseries(order="fac")
-    except Exception as exc:  # MDAnalysis raises many types; report them as bad input
-        raise StructureError(f"{trajectory or topology}: cannot read trajectory ({exc})") from None
-    if X.shape[1] != ana.structure.n_atoms:
-        raise StructureError(f"{trajectory}: frames have {X.shape[1]} atoms, {topology} has "
-                             f"{ana.structure.n_atoms}; the atom order must match the topology")
-    names = [str(a).strip().replace("*", "'").upper() for a in u.atoms.names]
-    for nt in d.strand1 + d.strand2:
-        for a, i in nt.atom_index.items():
-            if names[i] != a and _OLD.get(names[i]) != a:
-                raise StructureError(f"{topology}: atom order differs between gemmi and MDAnalysis at atom {i} "
-                                     f"({names[i]} vs {a} of {nt.label}); write the topology in plain file order")
-    sp, bp, _, _ = step_parameters_over_frames(d, X)
-    return d, sp, bp
+    r = read_duplex_trajectory(topology, trajectory, duplex=duplex, model=model)
+    return r.duplex, r.step_params, r.pair_params
