@@ -148,17 +148,19 @@ def test_single_mode_frequency_is_leapfrog_frequency(branch):
     assert abs(w_leap - w) / w > 1e-4   # the test resolves the leapfrog shift
 
 
-CASES = ["open", "open33", "circular", "langevin", "clamped_loads", "sequence"]
+CASES = ["open", "open_2blocks_plus1", "circular", "langevin", "clamped_loads", "sequence"]
 
 
 @pytest.mark.parametrize("kernel", ["blocked", "scalar"])
 @pytest.mark.parametrize("case", CASES)
 def test_numba_equals_numpy_reference(case, kernel):
     from dnarod.forcefield import load_forcefield
+    from dnarod.integrators.fast_blocked import BLOCK
 
-    n = 33 if case == "open33" else 24    # block boundaries: 16 + 8 and 16 + 16 + 1 nodes
+    # chains that cross block boundaries: 1.5 blocks, and 2 blocks + 1 node
+    n = 2 * BLOCK + 1 if case == "open_2blocks_plus1" else BLOCK + BLOCK // 2
     if case == "sequence":                # sequence-dependent parameters (many step types)
-        model = load_forcefield("olson1998").model_from_sequence("ACGTTGCAAGCTTACGGATCCATG")
+        model = load_forcefield("olson1998").model_from_sequence(("ACGTTGCAAGCTTACGGATCCATG" * 8)[:n])
     else:
         model = load_forcefield("dna-default").model_from_sequence(n_nodes=n, circular=(case == "circular"))
     kw, bc = {}, None

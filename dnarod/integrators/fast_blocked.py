@@ -23,8 +23,9 @@ from numba import njit
 
 from .fast import _DEN_LIMIT, _FM, _MOM2, _rotor_node, _step_loads
 
-#: Nodes per block (a compile-time constant of the kernel).
-BLOCK = 16
+#: Nodes per block (a compile-time constant of the kernel). Measured at 1000 nodes on this project's
+#: AVX-512 machine: 8 lanes 1.37e7, 16 lanes 1.67e7, 32 lanes 1.84e7, 64 lanes 1.90e7 node-steps/s.
+BLOCK = 64
 #: Largest free-rotor angle per sub-step (rad) for the polynomial sine/cosine (|x|/4 < 0.8).
 ROTOR_ANGLE_MAX = 3.2
 
