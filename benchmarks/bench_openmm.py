@@ -12,8 +12,8 @@ each size in its own process (clean peak memory):
 node-steps per second (best of interleaved repeats, so machine load hits all alike), the
 ratios to the floor, the time to build a simulation (fastest-mode estimate, system,
 OpenMM Context) and the peak resident memory. Then a 1 kbp duplex at 300 K with the default
-time step through ``RodSimulation.run`` (trajectory every 1 ps, energies, checkpoints): ns/day
-against oxDNA 3.7's ~110 ns/day on one core of this machine (issue 7).
+time step through the run loop (``dnarod.run.simulate_engine``: trajectory every 1 ps, energies,
+checkpoints): ns/day against oxDNA 3.7's ~110 ns/day on one core of this machine (issue 7).
 
 Targets (issue 7): bonded >= 40% of the floor at 10^4 nodes; full <= 2x bonded cost at 10^4;
 1 kbp >= 3300 ns/day; Context creation < 2 s; 10^6 nodes fit in memory.
@@ -109,7 +109,7 @@ def single(n, budget, repeats):
 
 
 def kbp(budget):
-    """1 kbp duplex, 300 K, default dt, full model, through RodSimulation.run with reporters."""
+    """1 kbp duplex, 300 K, default dt, full model, through the run loop with reporters."""
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm.simulation import RodSimulation
 
@@ -125,11 +125,15 @@ def kbp(budget):
     per_step = (time.perf_counter() - t) / 200
     n_steps = max(fi, int(budget / per_step) // fi * fi)
     with tempfile.TemporaryDirectory() as d:
-        s = sim.run(n_steps, d, frame_interval=fi, checkpoint_interval=100 * fi, progress=False)
+        from dnarod.run import simulate_engine
+
+        s = simulate_engine(sim, n_steps, d, frame_interval=fi, checkpoint_interval=100 * fi)
+        ns_day = s["steps_this_run"] * sim.dt * 1e-3 / s["wall_s"] * 86400
+        mean_t = float(np.mean(s["temperatures"]))
     bare = sim.dt * 1e-3 / per_step * 86400
     return dict(n_nodes=1000, dt_ps=sim.dt, setup_s=setup, context_s=sim.context_time, steps=n_steps,
-                ns_per_day_with_reporters=s["ns_per_day"], ns_per_day_bare=bare,
-                mean_temperature=s["mean_temperature"], vs_oxdna=s["ns_per_day"] / OXDNA_NS_PER_DAY)
+                ns_per_day_with_reporters=ns_day, ns_per_day_bare=bare,
+                mean_temperature=mean_t, vs_oxdna=ns_day / OXDNA_NS_PER_DAY)
 
 
 def main():

@@ -5,11 +5,18 @@ file. Errors about bad input are printed as one line and exit with status 2.
 """
 from __future__ import annotations
 
+import errno
 import sys
 
 import click
 
 from .errors import DnarodError
+
+
+#: File-system errors that are the user's to fix (a path under a regular file, a folder where a
+#: file is expected, no permission, a full disk, a name too long): one line, exit status 2.
+USER_OS_ERRORS = {errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.EACCES, errno.EPERM, errno.ENOSPC,
+                  errno.ENAMETOOLONG, errno.ENOENT, errno.EROFS}
 
 
 class DnarodGroup(click.Group):
@@ -19,7 +26,15 @@ class DnarodGroup(click.Group):
         try:
             return super().invoke(ctx)
         except DnarodError as exc:
-            click.echo(f"dnarod: error: {exc}", err=True)
+            click.echo(f"dnarod: error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", err=True)
+            sys.exit(2)
+        except OSError as exc:
+            if exc.errno not in USER_OS_ERRORS:
+                raise
+            where = f"{exc.filename}: " if exc.filename else ""
+            hint = {errno.ENOTDIR: " (a part of the path is a regular file, not a folder)",
+                    errno.EISDIR: " (a folder where a file is expected)"}.get(exc.errno, "")
+            click.echo(f"dnarod: error: {where}{exc.strerror}{hint}; choose another path", err=True)
             sys.exit(2)
 
 
@@ -61,7 +76,10 @@ main.add_command(_structure_steps)
 main.add_command(_structure_pairs)
 main.add_command(_structure_build)
 main.add_command(_structure_rebuild)
-from .openmm.cli import simulate_cmd as _simulate_cmd; main.add_command(_simulate_cmd)  # noqa: E402
-from .integrators.cli import lax_run as _lax_run; main.add_command(_lax_run)  # noqa: E402
+from .run.cli import lax_run as _lax_run, simulate_cmd as _simulate_cmd  # noqa: E402
+main.add_command(_simulate_cmd)
+main.add_command(_lax_run)
 from .analysis.cli import analyze_cmd as _analyze_cmd; main.add_command(_analyze_cmd)  # noqa: E402
 from .validate.cli import validate as _validate; main.add_command(_validate)  # noqa: E402
+from .ensemble.cli import ensemble_cmd as _ensemble_cmd; main.add_command(_ensemble_cmd)  # noqa: E402
+from .protocols.cli import protocol as _protocol_cmd; main.add_command(_protocol_cmd)  # noqa: E402

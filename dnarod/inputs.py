@@ -1,18 +1,72 @@
-"""What the CLI commands accept as a model: a structure, a saved model, a sequence or a node count."""
+"""What the commands accept as a model: a structure, a saved model, a sequence (or a sequence file) or a node count."""
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 from .errors import ParameterError
 
-def load_model(source, forcefield="dna-default", circular=False, ring=False, delta_lk=0):
+#: Letters of a DNA sequence given on the command line or in a sequence file (strand I, 5'->3').
+SEQUENCE_RE = re.compile(r"[ACGTacgt]+")
+#: Suffixes of plain sequence files (FASTA or bare letters).
+SEQUENCE_SUFFIXES = {".fa", ".fasta", ".fna", ".seq", ".txt"}
+
+
+def read_sequence_file(path):
+    """The DNA sequence in a FASTA file (first record) or a plain-text file of letters.
+
+    Whitespace and line breaks are ignored; FASTA header lines (``>``) and comment lines
+    (``;``) are skipped; only the first FASTA record is read.
+
+    Raises
+    ------
+    ParameterError
+        No sequence, or letters other than A, C, G, T (naming the first one and its line).
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text().splitlines()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path}: cannot read the sequence file ({exc})") from None
+    seq = []
+    seen_header = False
+    for i, line in enumerate(lines, 1):
+        s = line.strip()
+        if s.startswith(">"):
+            if seen_header and seq:
+                break  # first record only
+            seen_header = True
+            continue
+        if not s or s.startswith(";"):
+            continue
+        s = "".join(s.split())
+        bad = re.search(r"[^ACGTacgt]", s)
+        if bad:
+            raise ParameterError(f"{path}, line {i}: {bad.group()!r} is not a DNA base (A, C, G, T); "
+                                 f"give a FASTA or plain-text file of the strand-I sequence")
+        seq.append(s.upper())
+    if not seq:
+        raise ParameterError(f"{path}: no sequence found (expected FASTA or plain A/C/G/T letters)")
+    return "".join(seq)
+
+
+def _is_file(p):
+    try:
+        return p.is_file()
+    except OSError:  # e.g. a name longer than the file system allows: not a file
+        return False
+
+
+def load_model(source, forcefield="dna-default", circular=False, ring=False, delta_lk=0, duplex=None):
     """A :class:`~dnarod.model.RodModel` from a command-line SOURCE.
 
     Parameters
     ----------
-    source : str
-        A PDB/mmCIF file (its longest duplex; nodes at the base-pair frames), a saved model
-        ``.npz``, a DNA sequence (strand I, 5'->3'), or a node count (uniform force fields).
+    source : str, Path, int or RodModel
+        A PDB/mmCIF file (a duplex of it; nodes at the base-pair frames), a saved model
+        ``.npz``, a FASTA or plain-text sequence file (``.fa``, ``.fasta``, ``.fna``, ``.seq``,
+        ``.txt``), a DNA sequence of any length (strand I, 5'->3'), a node count (uniform force
+        fields), or a model (returned as is).
     forcefield : str
         Bundled name or ``.toml`` path, used for structures, sequences and node counts.
     circular : bool
@@ -21,34 +75,59 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
         Closed planar ring from a sequence or node count (:meth:`ForceField.ring`).
     delta_lk : int
         With ``ring``: linking number relative to the relaxed ring.
+    duplex : int, optional
+        Which duplex of a structure, 1-based (default the longest).
 
     Raises
     ------
     ParameterError
-        A missing file or options that do not apply to the source.
+        A missing file, an unreadable source or options that do not apply to the source.
     """
     from .forcefield import load_forcefield
     from .model import RodModel
-
     from .structure.trajectory import is_structure_file
 
-    p = Path(source)
-    if is_structure_file(p) or p.suffix.lower() == ".npz" or p.is_file():
-        if not p.is_file():
-            raise ParameterError(f"{source}: file not found")
-        if circular or ring or delta_lk:
-            raise ParameterError("--circular/--ring/--delta-lk apply to a sequence; a file holds its own chain")
-        if not is_structure_file(p):
-            return RodModel.load(p)
-        from .structure import model_from_structure
-
-        return model_from_structure(p, forcefield=forcefield)
+    if isinstance(source, RodModel):
+        return source
+    if isinstance(source, int) and not isinstance(source, bool):
+        source = str(source)
+    source = str(source)
+    if duplex is not None and (int(duplex) < 1):
+        raise ParameterError(f"--duplex {duplex}: duplexes are numbered from 1 (see `dnarod pairs FILE`)")
     if delta_lk and not ring:
         raise ParameterError("--delta-lk needs --ring")
     if circular and ring:
         raise ParameterError("choose --circular (periodic helix) or --ring (closed ring), not both")
+    sequence = None
+    if SEQUENCE_RE.fullmatch(source) and not _is_file(Path(source)):
+        sequence = source.upper()
+    elif not source.isdigit():
+        p = Path(source)
+        suffix = p.suffix.lower()
+        if not _is_file(p):
+            if is_structure_file(p) or suffix in SEQUENCE_SUFFIXES | {".npz"}:
+                raise ParameterError(f"{source}: file not found")
+            raise ParameterError(f"{source[:60]}{'...' if len(source) > 60 else ''}: not a file, a DNA sequence "
+                                 f"(letters A, C, G, T), a FASTA/text sequence file or a node count")
+        if suffix in SEQUENCE_SUFFIXES:
+            sequence = read_sequence_file(p)
+        else:
+            if circular or ring or delta_lk:
+                raise ParameterError("--circular/--ring/--delta-lk apply to a sequence; a model or structure file "
+                                     "holds its own chain")
+            if is_structure_file(p):
+                from .structure import model_from_structure
+
+                return model_from_structure(p, forcefield=forcefield, duplex=None if duplex is None else duplex - 1)
+            if duplex is not None:
+                raise ParameterError("--duplex applies to a structure file (PDB/mmCIF)")
+            return RodModel.load(p)
+    if duplex is not None:
+        raise ParameterError("--duplex applies to a structure file (PDB/mmCIF)")
     ff = load_forcefield(forcefield)
-    kw = dict(n_nodes=int(source)) if source.isdigit() else dict(sequence=source)
+    kw = dict(n_nodes=int(source)) if sequence is None else dict(sequence=sequence)
+    if kw.get("n_nodes", 2) < 2:
+        raise ParameterError(f"node count {source}: a chain needs at least 2 nodes")
     if ring:
         return ff.ring(**kw, delta_linking_number=delta_lk)
     return ff.model_from_sequence(**kw, circular=circular)

@@ -87,8 +87,13 @@ class StepParameters:
         names = list(self.names) if self.names is not None else [f"step {k}" for k in range(K.shape[0])]
         if len(names) != K.shape[0]:
             raise ParameterError(f"got {len(names)} step names for {K.shape[0]} steps")
-        for k in range(K.shape[0]):
-            K[k] = check_stiffness(K[k], name=f"step {k} ({names[k]})")
+        # each distinct matrix is checked once, at its first step (a sequence model has <= 16 of them)
+        _, first, inverse = np.unique(K.reshape(K.shape[0], 36), axis=0, return_index=True, return_inverse=True)
+        checked = np.empty((len(first), 6, 6))
+        for u in np.argsort(first):
+            k = int(first[u])
+            checked[u] = check_stiffness(K[k], name=f"step {k} ({names[k]})")
+        K = checked[inverse.reshape(-1)]
         if not np.isfinite(xi0).all():
             k = int(np.argwhere(~np.isfinite(xi0))[0, 0])
             raise ParameterError(f"step {k} ({names[k]}): intrinsic strain is not finite")

@@ -111,6 +111,40 @@ def tangent_correlation(params: StepParameters, ds, kt, n_max, order=24):
     return out
 
 
+def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
+    """Exact ``<d3(k) . d3(k+n)>`` of a free open chain in equilibrium, averaged over the start node k
+    exactly as :class:`~dnarod.analysis.polymer.TangentCorrelation` averages (design A5 iii:
+    ``<d3(k) . d3(k+n)> = (<R_k> ... <R_{k+n-1}>)_33``).
+
+    Parameters
+    ----------
+    params : StepParameters
+        Per-step stiffness and intrinsic strains (n_steps steps).
+    ds : float
+        nm.
+    kt : float
+        kJ/mol.
+    n_max : int
+        Largest lag, steps.
+    exclude_ends : int
+        Nodes left out at each end (as the analysis does).
+
+    Returns
+    -------
+    ndarray, shape (n_max + 1,)
+    """
+    Rm = mean_rotation(params, ds, kt)
+    e = int(exclude_ends)
+    n_nodes = len(Rm) + 1 - 2 * e
+    out = np.ones(n_max + 1)
+    P = np.broadcast_to(np.eye(3), (n_nodes, 3, 3)).copy()  # products starting at node e + k
+    for n in range(1, n_max + 1):
+        k = np.arange(n_nodes - n)
+        P = P[:n_nodes - n] @ Rm[e + k + n - 1]
+        out[n] = P[:, 2, 2].mean()
+    return out
+
+
 def persistence_length(params: StepParameters, ds, kt, order=24):
     """Bending persistence length of the discrete model, nm: ``-ds / ln c`` (design A5 iii).
 
@@ -132,3 +166,126 @@ def persistence_length(params: StepParameters, ds, kt, order=24):
 def reweighted_covariance_expected(params: StepParameters, ds, kt):
     """The exact identity ``<dxi dxi^T W>/<W> = kT (ds K)^-1`` (design A5 iii); shape (n_steps, 6, 6)."""
     return kt * np.linalg.inv(ds * params.stiffness)
+
+
+# --- exact equilibrium sampling of the free open chain --------------------------------------------------------------
+def sample_step_strains(stiffness, intrinsic, ds, kt, n, rng):
+    """``n`` exact equilibrium samples of one step's strains (design A5 iii).
+
+    The step density is ``exp(-ds H/kT) (1 + ds^2 |Omega|^2/4)^-2``. The Haar factor is at most 1,
+    so drawing from the Gaussian ``N(xi0, kT (ds K)^-1)`` and accepting with probability
+    ``(1 + ds^2 |Omega|^2/4)^-2`` is exact rejection sampling (acceptance ~ 0.99 for DNA).
+
+    Parameters
+    ----------
+    stiffness : ndarray, shape (6, 6)
+        K (A kJ/mol nm, B kJ/mol, C kJ/mol/nm).
+    intrinsic : ndarray, shape (6,)
+        ``(Omega0 1/nm, Gamma0)``.
+    ds : float
+        nm.
+    kt : float
+        kJ/mol.
+    n : int
+    rng : numpy.random.Generator
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        ``(Omega, Gamma)`` per sample.
+    """
+    cov = kt * np.linalg.inv(ds * np.asarray(stiffness, float))
+    L = np.linalg.cholesky(0.5 * (cov + cov.T))
+    xi0 = np.asarray(intrinsic, float)
+    out = np.empty((0, 6))
+    while len(out) < n:
+        m = int(1.3 * (n - len(out))) + 16
+        x = xi0 + rng.standard_normal((m, 6)) @ L.T
+        w2 = ds * ds * np.einsum("ni,ni->n", x[:, :3], x[:, :3])
+        out = np.concatenate([out, x[rng.random(m) < (1.0 + 0.25 * w2) ** -2]])
+    return out[:n]
+
+
+def sample_open_chain_strains(params: StepParameters, ds, kt, rng, n_chains=1):
+    """Exact equilibrium strains of ``n_chains`` free open chains, shape (n_chains, n_steps, 6).
+
+    Steps are independent (design A5 iii); steps sharing ``(K, xi0)`` are drawn together.
+    """
+    m = params.n_steps
+    xi = np.empty((n_chains, m, 6))
+    groups = {}
+    for k in range(m):
+        groups.setdefault((params.stiffness[k].tobytes(), params.intrinsic[k].tobytes()), []).append(k)
+    for steps in groups.values():
+        k0 = steps[0]
+        s = sample_step_strains(params.stiffness[k0], params.intrinsic[k0], ds, kt, n_chains * len(steps), rng)
+        xi[:, steps] = s.reshape(n_chains, len(steps), 6)
+    return xi
+
+
+def equilibrium_sample(model, temperature, seed=None, align=None):
+    """A pose drawn exactly from the free open chain's thermal equilibrium (design A5 iii).
+
+    Used as ``start="equilibrium"`` of a run: an independent sample of the configuration
+    measure ``exp(-E/kT)`` on SE(3)^N of the force-free chain, so no equilibration of the
+    internal degrees of freedom is needed (velocities are drawn separately, Maxwell-Boltzmann).
+
+    Parameters
+    ----------
+    model : RodModel
+        An open chain (any sequence: each step is drawn with its own stiffness and intrinsic strain).
+    temperature : float
+        K.
+    seed : int, optional
+        Seed of the random generator (``None``: fresh entropy).
+    align : array_like, shape (3,), optional
+        If given, the sample is rotated rigidly about node 0 so that its end-to-end vector points
+        along ``align`` (used to start pulled chains on the right side); otherwise node 0 keeps
+        the model's position and frame.
+
+    Returns
+    -------
+    RodModel
+        The model with the sampled pose (same parameters, masses, sequence).
+
+    Raises
+    ------
+    DnarodError
+        For a circular chain (its closure couples all steps; no exact i.i.d. sampler) or a
+        non-positive temperature.
+    """
+    from .errors import DnarodError
+    from .strains import chain_from_strains
+
+    if model.closure is not None:
+        raise DnarodError("start 'equilibrium' samples the free open chain exactly; this model is circular "
+                          "(a ring or a periodic chain): use start 'intrinsic' or 'minimized'")
+    T = float(temperature)
+    if not (np.isfinite(T) and T > 0):
+        raise DnarodError(f"start 'equilibrium' needs a positive temperature, got {temperature} K")
+    rng = np.random.default_rng(seed)
+    xi = sample_open_chain_strains(model.params, model.ds, kT(T), rng)[0]
+    pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds, model.positions[0], model.frames[0])
+    if align is not None:
+        from .rotations import rotation_about_axis
+
+        a = np.asarray(align, float)
+        a = a / np.linalg.norm(a)
+        e = pos[-1] - pos[0]
+        e = e / np.linalg.norm(e)
+        axis = np.cross(e, a)
+        s, c = np.linalg.norm(axis), float(e @ a)
+        if s < 1e-12:
+            R = np.eye(3) if c > 0 else rotation_about_axis(_any_perpendicular(a), np.pi)
+        else:
+            R = rotation_about_axis(axis / s, np.arctan2(s, c))
+        pos = pos[0] + (pos - pos[0]) @ R.T
+        frm = R @ frm
+    return model.with_pose(pos, frm)
+
+
+def _any_perpendicular(a):
+    """A unit vector perpendicular to unit vector ``a``."""
+    b = np.eye(3)[int(np.argmin(np.abs(a)))]
+    v = np.cross(a, b)
+    return v / np.linalg.norm(v)

@@ -9,3 +9,14 @@ PN = AVOGADRO * 1e-24  # kJ/mol/nm per pN, and kJ/mol per pN nm (0.602214076)
 AMU_KG = 1.66053906660e-27  # kg per amu
 PA = AVOGADRO * 1e-30  # kJ/mol/nm^3 per Pa
 KG_PER_M3 = 1e-27 / AMU_KG  # amu/nm^3 per kg/m^3
+NM_PER_ANGSTROM = 0.1  # nm per Angstrom (PDB, DCD, 3DNA lengths)
+ANGSTROM_PER_NM = 10.0  # Angstrom per nm
+
+
+def md_value(quantity):
+    """The value of an ``openmm.unit.Quantity`` in OpenMM's MD units (nm, ps, kJ/mol, ...); plain numbers pass."""
+    if hasattr(quantity, "value_in_unit_system"):
+        from openmm import unit
+
+        return quantity.value_in_unit_system(unit.md_unit_system)
+    return quantity

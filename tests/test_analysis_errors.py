@@ -6,7 +6,7 @@ import pytest
 from click.testing import CliRunner
 
 from dnarod.analysis import StepAnalysis, StiffnessFit, TangentCorrelation
-from dnarod.analysis.cli import load_input
+from dnarod.analysis.report import load_input
 from dnarod.analysis.sampling import sample_chains
 from dnarod.cli import main
 from dnarod.errors import DnarodError, GeometryError, StructureError

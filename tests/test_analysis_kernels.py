@@ -133,7 +133,7 @@ def test_haar_weight_and_weighted_moments_match_loops():
 
 
 def test_exact_tangent_correlation_average_over_starts():
-    from dnarod.analysis.cli import exact_tangent_correlation
+    from dnarod.thermal import exact_tangent_correlation
     from dnarod.forcefield import load_forcefield
     from dnarod.thermal import kT, mean_rotation, tangent_correlation
 

@@ -27,10 +27,10 @@ def test_nve_writes_shared_format(tmp_path, model):
     v, w = res.state.velocities(model.mass, model.inertia)
     assert np.array_equal(tr.velocities[-1], v) and np.array_equal(tr.angular_velocities[-1], w)
     csv = np.loadtxt(tmp_path / "a.csv", delimiter=",", skiprows=1)
-    assert csv.shape == (7, 6)
+    assert csv.shape == (7, 9)  # the run layer's header: step .. temperature, elastic, nonbonded, external
     assert np.allclose(csv[:, 2] + csv[:, 3], csv[:, 4])
     assert np.abs(csv[:, 4] - csv[0, 4]).max() < 0.3 * 2.494   # NVE: bounded energy error at dt = 0.05
-    assert tr.metadata["engine"] == "dnarod-lax-splitting"
+    assert tr.metadata["engine"] == "lax"
 
 
 def test_checkpoint_resume_is_seamless(tmp_path, model):
@@ -83,18 +83,18 @@ def test_exact_run_writes_same_format(tmp_path):
 
 
 def test_cli_lax_run(tmp_path):
+    """``lax-run`` is ``simulate --engine lax``: same options, a run folder, one line and exit 2 on misuse."""
     from dnarod.cli import main
 
     runner = CliRunner()
-    out = tmp_path / "c.dtraj"
-    r = runner.invoke(main, ["lax-run", "ACGTACGTAC", "--steps", "200", "--dt", "0.05", "--seed", "1",
-                             "--out", str(out), "--energies", str(tmp_path / "c.csv"), "--report-interval", "50"])
+    out = tmp_path / "c"
+    r = runner.invoke(main, ["lax-run", "ACGTACGTAC", "--time", "0.01", "--dt", "0.05", "--seed", "1", "-o", str(out),
+                             "--frame-interval", "2.5", "--no-progress"])
     assert r.exit_code == 0, r.output
-    assert "Langevin run: 10 nodes, 200 steps" in r.output
-    assert Trajectory.load(out).n_frames == 5
-    r = runner.invoke(main, ["lax-run", "12", "--friction", "0", "--steps", "100", "--out", str(out)])
-    assert r.exit_code == 0 and "NVE run: 12 nodes" in r.output
-    r = runner.invoke(main, ["lax-run", "ACGTAC", "--exact", "1.0", "--out", str(out)])
-    assert r.exit_code == 0 and "exact DOP853 run" in r.output
-    r = runner.invoke(main, ["lax-run", "ACGTAC", "--dt", "0.9", "--out", str(out)])
+    assert "engine: lax  nodes: 10  ensemble: langevin" in r.output and "steps: 200" in r.output
+    assert Trajectory.load(out / "trajectory.dtraj").n_frames == 5
+    r = runner.invoke(main, ["lax-run", "12", "--friction", "0", "--time", "0.005", "-o", str(tmp_path / "d"),
+                             "--no-progress"])
+    assert r.exit_code == 0 and "ensemble: nve" in r.output
+    r = runner.invoke(main, ["lax-run", "ACGTAC", "--dt", "0.9", "-o", str(tmp_path / "e"), "--no-progress"])
     assert r.exit_code == 2 and "stability limit" in r.output

@@ -17,36 +17,10 @@ from ..trajectory import Trajectory
 
 
 def sample_steps(stiffness, intrinsic, ds, kt, n, rng):
-    """``n`` exact equilibrium samples of one step.
+    """``n`` exact equilibrium samples of one step, shape (n, 6): :func:`dnarod.thermal.sample_step_strains`."""
+    from ..thermal import sample_step_strains
 
-    Parameters
-    ----------
-    stiffness : ndarray (6, 6)
-        kJ/mol units per length.
-    intrinsic : ndarray (6,)
-        ``(Omega0 1/nm, Gamma0)``.
-    ds : float
-        nm.
-    kt : float
-        kJ/mol.
-    n : int
-    rng : numpy.random.Generator
-
-    Returns
-    -------
-    ndarray, shape (n, 6)
-    """
-    cov = kt * np.linalg.inv(ds * np.asarray(stiffness, float))
-    L = np.linalg.cholesky(0.5 * (cov + cov.T))
-    xi0 = np.asarray(intrinsic, float)
-    out = np.empty((0, 6))
-    while len(out) < n:
-        m = int(1.3 * (n - len(out))) + 16
-        x = xi0 + rng.standard_normal((m, 6)) @ L.T
-        w2 = ds * ds * np.einsum("ni,ni->n", x[:, :3], x[:, :3])
-        accept = rng.random(m) < (1.0 + 0.25 * w2) ** -2
-        out = np.concatenate([out, x[accept]])
-    return out[:n]
+    return sample_step_strains(stiffness, intrinsic, ds, kt, n, rng)
 
 
 def sample_chains(params: StepParameters, ds, kt, n_chains, rng, time_step=1.0):
@@ -70,16 +44,10 @@ def sample_chains(params: StepParameters, ds, kt, n_chains, rng, time_step=1.0):
     """
     if n_chains < 1:
         raise DnarodError(f"n_chains must be positive, got {n_chains}")
+    from ..thermal import sample_open_chain_strains
+
     m = params.n_steps
-    xi = np.empty((n_chains, m, 6))
-    cache = {}
-    for k in range(m):
-        key = (params.stiffness[k].tobytes(), params.intrinsic[k].tobytes())
-        cache.setdefault(key, []).append(k)
-    for key, steps in cache.items():
-        k0 = steps[0]
-        s = sample_steps(params.stiffness[k0], params.intrinsic[k0], ds, kt, n_chains * len(steps), rng)
-        xi[:, steps] = s.reshape(n_chains, len(steps), 6)
+    xi = sample_open_chain_strains(params, ds, kt, rng, n_chains)
     pos = np.empty((n_chains, m + 1, 3))
     frm = np.empty((n_chains, m + 1, 3, 3))
     for c in range(n_chains):

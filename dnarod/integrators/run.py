@@ -1,32 +1,32 @@
-"""Running the Lax-form engine: NVE and Langevin runs with trajectories, energies and checkpoints.
+"""Running the Lax-form engine from Python: NVE and Langevin runs with trajectories, energies and checkpoints.
 
-Outputs are the shared formats, so every analysis runs on both engines:
+``simulate_nve``/``simulate_langevin`` are thin wrappers over the run layer's one loop
+(:func:`dnarod.run.run_engine` with :class:`dnarod.run.LaxEngine` and its reporters), writing the
+shared formats, so every analysis runs on both engines:
 
-* ``.dtraj`` trajectory (:class:`dnarod.trajectory.TrajectoryWriter`) with centre velocities
-  (lab, nm/ps) and body angular velocities (rad/ps);
-* energies CSV: ``step, time_ps, potential_kJ_mol, kinetic_kJ_mol, total_kJ_mol, temperature_K``;
-* checkpoint ``.npz`` (written atomically): state, step, time and the random-number state, so a
-  resumed run continues bit-for-bit as if uninterrupted; the trajectory and CSV are cut back to
-  the checkpoint's step on resume (no lost or duplicated frames).
+* ``.dtraj`` trajectory with centre velocities (lab, nm/ps) and body angular velocities (rad/ps),
+  in float64 here (these functions serve the validation, which compares exact numbers; the
+  ``dnarod simulate`` runs store float32);
+* energies CSV with the run layer's header (:data:`dnarod.run.ENERGY_COLUMNS`);
+* checkpoint ``.npz`` (written atomically, every ``checkpoint_interval`` steps and at the end):
+  state, step, time step and the random-number state, so a resumed run continues bit-for-bit as if
+  uninterrupted; the trajectory and CSV are cut back to the checkpoint's step on resume.
 
 A blow-up (NaN, a step rotating to 180 deg) stops the run with :class:`SimulationError` naming the
 step, the node and the quantity; everything written before stays on disk.
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from ..errors import DnarodError, SimulationError
+from ..errors import DnarodError
 from ..io_utils import atomic_path
 from ..thermal import kinetic_temperature, node_kinetic_energy
-from ..trajectory import Trajectory, TrajectoryWriter, load_trajectory
+from ..trajectory import load_trajectory
 from .splitting import RigidState, SplittingIntegrator, maxwell_state
-
-CSV_HEADER = "step,time_ps,potential_kJ_mol,kinetic_kJ_mol,total_kJ_mol,temperature_K\n"
 
 
 @dataclass
@@ -40,7 +40,7 @@ class SimulationResult:
     step : int
         Steps done in total (including those before a resume).
     energies : ndarray, shape (n_reports, 6)
-        Rows of the energies CSV (step, time ps, potential, kinetic, total kJ/mol, temperature K).
+        Reported rows of this call (step, time ps, potential, kinetic, total kJ/mol, temperature K).
     trajectory_path : Path or None
     omega_max : float or None
         rad/ps, of the initial pose (None if not computed).
@@ -61,135 +61,73 @@ class SimulationResult:
         return load_trajectory(self.trajectory_path)
 
 
-def _energy_row(integ, n_free_dof):
-    ke = integ.kinetic_energy()
-    pe = integ.potential_energy
-    tot = integ.total_energy()
-    temp = kinetic_temperature(ke, n_free_dof)
-    return [integ.step_count, integ.step_count * integ.dt, pe, ke, tot, temp]
+class _Rows:
+    """Reporter keeping the energy rows in memory (for :attr:`SimulationResult.energies`)."""
 
+    def __init__(self, interval):
+        self.interval = int(interval)
+        self.rows = []
 
-def save_checkpoint(path, integ):
-    """Write the integrator's state, step and RNG state to ``path`` (npz, atomic)."""
-    s = integ.state
-    meta = dict(format="dnarod-lax-checkpoint", version=1, step=integ.step_count, dt=integ.dt,
-                n_nodes=integ.model.n_nodes, langevin=integ.langevin,
-                rng=integ.rng.bit_generator.state)
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, positions=s.positions, frames=s.frames, momenta=s.momenta,
-                     angular_momenta=s.angular_momenta, meta=np.array(json.dumps(meta)))
+    def describeNextReport(self, engine):  # noqa: N802 - reporter protocol
+        return self.interval - engine.step % self.interval
 
+    def due(self, step):
+        return step % self.interval == 0
 
-def load_checkpoint(path):
-    """Read a checkpoint: ``(RigidState, meta dict)``."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            if meta.get("format") != "dnarod-lax-checkpoint":
-                raise DnarodError(f"{path}: not a dnarod Lax-engine checkpoint")
-            state = RigidState(z["positions"].copy(), z["frames"].copy(), z["momenta"].copy(),
-                               z["angular_momenta"].copy())
-    except (OSError, KeyError, ValueError) as exc:
-        if isinstance(exc, DnarodError):
-            raise
-        raise DnarodError(f"{path}: cannot read checkpoint ({exc})") from None
-    return state, meta
+    def report(self, engine, snap):
+        e = snap.energies
+        self.rows.append([snap.step, snap.time_ps, e["potential"], e["kinetic"], e["potential"] + e["kinetic"],
+                          e["temperature"]])
 
+    def flush(self):
+        pass
 
-def _truncate_csv(path, step):
-    lines = Path(path).read_text().splitlines(keepends=True)
-    keep = [lines[0]] + [ln for ln in lines[1:] if ln.strip() and int(float(ln.split(",")[0])) <= step]
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text("".join(keep))
+    def close(self):
+        pass
 
 
 def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, seed, out, report_interval,
               energy_csv, checkpoint, checkpoint_interval, resume, fast, allow_unstable, check_stability,
               metadata, progress):
+    from ..run.engine import LaxEngine
+    from ..run.loop import run_engine
+    from ..run.reporters import DtrajReporter, EnergyReporter, ProgressReporter
+
     n_steps = int(n_steps)
     if n_steps < 0:
         raise DnarodError(f"n_steps must be >= 0, got {n_steps}")
     report_interval = max(1, int(report_interval))
-    resumed_meta = None
-    if resume:
-        if checkpoint is None:
-            raise DnarodError("resume=True needs the checkpoint path")
-        if Path(checkpoint).exists():
-            state, resumed_meta = load_checkpoint(checkpoint)
-            if resumed_meta["n_nodes"] != model.n_nodes or abs(resumed_meta["dt"] - dt) > 1e-15 * dt:
-                raise DnarodError(f"{checkpoint}: checkpoint of {resumed_meta['n_nodes']} nodes at dt = "
-                                  f"{resumed_meta['dt']} ps does not match this run ({model.n_nodes} nodes, dt = {dt})")
-    integ = SplittingIntegrator(model, dt, state=state, boundary=boundary, temperature=temperature if friction else None,
-                                friction=friction, seed=seed, fast=fast, check_stability=check_stability,
-                                allow_unstable=allow_unstable)
-    n_free_dof = 6 * int(integ.free.sum())
-    start = 0
-    if resumed_meta is not None:
-        start = int(resumed_meta["step"])
-        integ.step_count = start
-        integ.rng.bit_generator.state = resumed_meta["rng"]
-    meta = dict(engine="dnarod-lax-splitting", dt_ps=dt, ensemble="langevin" if friction else "nve",
-                temperature_K=temperature, friction_per_ps=friction, n_nodes=model.n_nodes, **(metadata or {}))
-    writer = None
-    csv = None
-    rows = []
+    if resume and checkpoint is None:
+        raise DnarodError("resume=True needs the checkpoint path")
+    integ = SplittingIntegrator(model, dt, state=state, boundary=boundary,
+                                temperature=temperature if friction else None, friction=friction, seed=seed, fast=fast,
+                                check_stability=check_stability, allow_unstable=allow_unstable)
+    engine = LaxEngine.wrap(integ, temperature=temperature or 0.0, friction=friction or 0.0, seed=seed)
+    resume_step = None
+    if resume and Path(checkpoint).exists():
+        engine.load_checkpoint(checkpoint)
+        resume_step = engine.step
+    meta = dict(engine="lax", dt_ps=dt, ensemble="langevin" if friction else "nve", temperature_K=temperature,
+                friction_per_ps=friction, n_nodes=model.n_nodes, **(metadata or {}))
+    rows = _Rows(report_interval)
+    reporters = [rows]
+    bar = None
     try:
         if out is not None:
-            writer = TrajectoryWriter(out, model.n_nodes, velocities=True, metadata=meta,
-                                      resume_step=start if resumed_meta is not None else None)
+            reporters.append(DtrajReporter(out, model.n_nodes, report_interval, velocities=True, metadata=meta,
+                                           resume_step=resume_step, precision="float64"))
         if energy_csv is not None:
-            if resumed_meta is not None and Path(energy_csv).exists():
-                _truncate_csv(energy_csv, start)
-                csv = open(energy_csv, "a")
-            else:
-                csv = open(energy_csv, "w")
-                csv.write(CSV_HEADER)
-
-        def report():
-            row = _energy_row(integ, n_free_dof)
-            rows.append(row)
-            if writer is not None:
-                v, w = integ.state.velocities(model.mass, model.inertia)
-                writer.write(integ.step_count, integ.step_count * dt, integ.state.positions, integ.state.frames, v, w)
-            if csv is not None:
-                csv.write(",".join(f"{x:.17g}" if isinstance(x, float) else str(x) for x in row) + "\n")
-                csv.flush()
-            if not np.isfinite(row[4]):
-                ke = (np.sum(integ.state.momenta**2, 1) / model.mass
-                      + np.sum(integ.state.angular_momenta**2 / model.inertia, 1))
-                node = int(np.argmax(np.where(np.isfinite(ke), ke, np.inf)))
-                raise SimulationError(f"step {integ.step_count}: total energy is not finite (largest kinetic energy "
-                                      f"at node {node})", step=integ.step_count, node=node, term="energy")
-
-        if resumed_meta is None:
-            report()
-        bar = None
+            reporters.append(EnergyReporter(energy_csv, report_interval, resume_step=resume_step))
         if progress:
-            from tqdm import tqdm
-            bar = tqdm(total=n_steps, initial=start, unit="step")
-        target = n_steps
-        while integ.step_count < target:
-            nxt = min(target, (integ.step_count // report_interval + 1) * report_interval)
-            if checkpoint is not None and checkpoint_interval:
-                nxt = min(nxt, (integ.step_count // checkpoint_interval + 1) * checkpoint_interval)
-            before = integ.step_count
-            integ.step(nxt - integ.step_count)
-            if bar is not None:
-                bar.update(integ.step_count - before)
-            if integ.step_count % report_interval == 0 or integ.step_count == target:
-                report()
-            if checkpoint is not None and (integ.step_count == target or
-                                           (checkpoint_interval and integ.step_count % checkpoint_interval == 0)):
-                save_checkpoint(checkpoint, integ)
+            bar = ProgressReporter(n_steps, engine.step)
+        run_engine(engine, n_steps, reporters, checkpoint, checkpoint_interval if checkpoint is not None else 0,
+                   bar, report_start=resume_step is None)
+    finally:
+        for r in reporters:
+            r.close()
         if bar is not None:
             bar.close()
-    finally:
-        if writer is not None:
-            writer.close()
-        if csv is not None:
-            csv.close()
-    return SimulationResult(integ.state, integ.step_count, np.array(rows), None if out is None else Path(out),
+    return SimulationResult(integ.state, integ.step_count, np.array(rows.rows), None if out is None else Path(out),
                             integ.omega_max, integ)
 
 
@@ -274,11 +212,18 @@ def simulate_exact(model, t_end, velocities=None, angular_velocities=None, tempe
     if out is not None:
         res.trajectory.save(out)
     if energy_csv is not None:
+        from ..run.reporters import ENERGY_COLUMNS
+        from .boundary import BoundaryConditions
+
         tr = res.trajectory
         ke = node_kinetic_energy(model.mass, model.inertia, tr.velocities, tr.angular_velocities)
         temp = kinetic_temperature(ke, 6 * model.n_nodes)
-        lines = [CSV_HEADER] + [f"{i},{t:.17g},{E - k:.17g},{k:.17g},{E:.17g},{T:.17g}\n"
-                                for i, (t, E, k, T) in enumerate(zip(tr.time, res.energy, ke, temp))]
+        F_ext = (boundary or BoundaryConditions()).resolve(model.n_nodes, model.circular)[1]
+        ext = -np.einsum("ki,fki->f", F_ext, tr.positions)  # dead forces; dead torques have no potential
+        lines = [",".join(ENERGY_COLUMNS) + "\n"] + [
+            f"{i},{t:.6f},{E - k!r},{k!r},{E!r},{T:.6f},{E - k - x!r},0.0,{x!r}\n"
+            for i, (t, E, k, T, x) in enumerate(zip(tr.time, map(float, res.energy), map(float, ke),
+                                                    map(float, temp), map(float, ext)))]
         with atomic_path(energy_csv) as tmp:
             Path(tmp).write_text("".join(lines))
     return res

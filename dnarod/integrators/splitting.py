@@ -26,7 +26,7 @@ import numpy as np
 
 from ..energy import loads as _loads
 from ..errors import DnarodError, GeometryError, SimulationError
-from ..rotations import MAX_CAYLEY_ANGLE, rotation_about_axis
+from ..rotations import MAX_CAYLEY_ANGLE
 from ..strains import step_geometry
 from ..thermal import kT as _kT
 from .boundary import BoundaryConditions
@@ -97,7 +97,7 @@ def maxwell_state(model, temperature, seed=None, boundary=None, remove_drift=Tru
     n = model.n_nodes
     P = rng.standard_normal((n, 3)) * np.sqrt(model.mass * kt)[:, None]
     pi = rng.standard_normal((n, 3)) * np.sqrt(model.inertia * kt)
-    clamp = (boundary or BoundaryConditions()).resolve(n, model.circular)[0]
+    clamp = (boundary or BoundaryConditions()).resolve(n, model.circular, any_node=True)[0]
     P[clamp] = 0.0
     pi[clamp] = 0.0
     state = RigidState(model.positions.copy(), model.frames.copy(), P, pi)
@@ -198,14 +198,12 @@ class NumpyKernel:
 # ---------------------------------------------------------------------------------------------
 # stability limit
 # ---------------------------------------------------------------------------------------------
-def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-10, return_vector=False):
-    """Largest normal-mode angular frequency ``omega_max`` (rad/ps) of a pose.
+def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-9):
+    """Largest normal-mode angular frequency ``omega_max`` (rad/ps) of a pose with its boundary conditions.
 
-    ``omega_max^2`` is the largest eigenvalue of ``M^-1/2 H M^-1/2`` (mass matrix M of node masses and
-    lab inertia tensors, potential Hessian H in lab translations and lab rotations). The Hessian is
-    never formed: each product ``H v`` is a central difference of the analytic forces and torques
-    (:func:`dnarod.energy.loads`), and the largest eigenvalue is found by Lanczos iteration
-    (scipy ``eigsh``), the Krylov-accelerated form of power iteration.
+    ``omega_max^2`` is the largest eigenvalue of ``M^-1/2 H M^-1/2``; computed by
+    :func:`dnarod.modes.omega_max` (the one home: banded Hessian, bisection on Cholesky
+    factorisability, exact to ``tol`` relative in ``omega^2``).
 
     Parameters
     ----------
@@ -213,57 +211,19 @@ def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-10, retu
     positions, frames : ndarray, optional
         Pose (default: the model's).
     boundary : BoundaryConditions, optional
-        Clamped nodes are excluded.
+        Clamped nodes are excluded; traps and rotation clamps add stiffness.
     tol : float
         Relative tolerance of the eigenvalue.
 
     Returns
     -------
     float
-        rad/ps (and the mass-weighted eigenvector (n, 6) if ``return_vector``).
+        rad/ps.
     """
-    from scipy.sparse.linalg import LinearOperator, eigsh
+    from ..modes import omega_max as _omega_max
 
-    pos = model.positions if positions is None else np.asarray(positions, float)
-    frm = model.frames if frames is None else np.asarray(frames, float)
-    n = model.n_nodes
-    clamp = (boundary or BoundaryConditions()).resolve(n, model.circular)[0]
-    free = (~clamp).astype(float)
-    sm = 1.0 / np.sqrt(model.mass)
-    sJ = 1.0 / np.sqrt(model.inertia)
-    scale_len = 1e-5 * model.ds
-
-    def Minvhalf(y):  # mass-weighted vector -> lab displacement (dr, dtheta)
-        y = y.reshape(n, 6) * free[:, None]
-        dr = y[:, :3] * sm[:, None]
-        dth = np.einsum("kij,kj->ki", frm, sJ * np.einsum("kji,kj->ki", frm, y[:, 3:]))
-        return dr, dth
-
-    def gen_force(dr, dth, eps):
-        norm = np.linalg.norm(dth, axis=1)
-        axis = np.where(norm[:, None] > 0, dth / np.maximum(norm, 1e-300)[:, None], np.array([0, 0, 1.0]))
-        Rp = rotation_about_axis(axis, eps * norm)
-        _, F, tau = _loads(pos + eps * dr, Rp @ frm, model.params, model.ds, model.closure)
-        return F, tau
-
-    def matvec(y):
-        y = np.asarray(y, float).ravel()
-        dr, dth = Minvhalf(y)
-        size = max(np.abs(dr).max(), np.abs(dth).max() * model.ds, 1e-300)
-        eps = scale_len / size
-        Fp, tp = gen_force(dr, dth, eps)
-        Fm, tm = gen_force(dr, dth, -eps)
-        gF, gt = -(Fp - Fm) / (2 * eps), -(tp - tm) / (2 * eps)
-        out = np.empty((n, 6))
-        out[:, :3] = gF * sm[:, None]
-        out[:, 3:] = np.einsum("kij,kj->ki", frm, sJ * np.einsum("kji,kj->ki", frm, gt))
-        return (out * free[:, None]).ravel()
-
-    op = LinearOperator((6 * n, 6 * n), matvec=matvec, dtype=float)
-    v0 = np.random.default_rng(12345).standard_normal(6 * n)
-    vals, vecs = eigsh(op, k=1, which="LA", tol=tol, v0=v0, ncv=min(6 * n - 1, 40))
-    w = float(np.sqrt(max(vals[0], 0.0)))
-    return (w, vecs[:, 0].reshape(n, 6)) if return_vector else w
+    loads = () if boundary is None else boundary
+    return _omega_max(model, loads, positions, frames, rtol=tol)
 
 
 def stable_time_step(model, positions=None, frames=None, boundary=None):
@@ -313,11 +273,15 @@ class SplittingIntegrator:
         self.model = model
         self.dt = float(dt)
         self.boundary = boundary or BoundaryConditions()
-        clamp, F_ext, tau_ext = self.boundary.resolve(model.n_nodes, model.circular)
+        self.state = RigidState.from_model(model) if state is None else state.copy()
+        # one load vocabulary (dnarod.loads): clamps of any node, dead forces/torques, traps, rotation clamps
+        self.loads = self.boundary.resolved(model, self.state.positions, self.state.frames)
+        clamp = self.loads.clamped
+        self.F_dead, self.tau_dead = self.loads.force.copy(), self.loads.torque.copy()
+        F_ext, tau_ext = self.F_dead.copy(), self.tau_dead.copy()
         self.free = (~clamp).astype(float)
         self.inv_m = self.free / model.mass
         self.inv_J = self.free[:, None] / model.inertia
-        self.state = RigidState.from_model(model) if state is None else state.copy()
         moving = (np.abs(self.state.momenta).sum(1) + np.abs(self.state.angular_momenta).sum(1) > 0) & clamp
         if moving.any():
             k = int(np.flatnonzero(moving)[0])
@@ -337,8 +301,16 @@ class SplittingIntegrator:
         self.noise_chunk = max(1, int(noise_chunk_bytes // (48 * model.n_nodes)))
         self.step_count = 0
         self.omega_max = None
+        self._pd = None
+        if self.loads.position_dependent:  # traps, rotation clamps: re-evaluated every step (see _run_loaded)
+            self._pd = self._position_dependent_loads(0.0)
+            F_ext += self._pd[1]
+            tau_ext += self._pd[2]
         if check_stability:
-            self.omega_max = omega_max(model, self.state.positions, self.state.frames, self.boundary)
+            from ..modes import omega_max as _omega_max
+
+            self.omega_max = _omega_max(model, self.loads, self.state.positions, self.state.frames,
+                                        angles=self.loads.clamp_angles(0.0, self.boundary.duration_ps))
             dt_crit = 2.0 / self.omega_max
             if self.dt >= dt_crit:
                 msg = (f"time step dt = {self.dt:g} ps is at or above the stability limit dt_crit = 2/omega_max = "
@@ -356,6 +328,40 @@ class SplittingIntegrator:
             self.kernel = NumpyKernel(model, F_ext, tau_ext, self.free)
         self.potential_energy, self.F, self.tau = self._initial_loads()
 
+    def _position_dependent_loads(self, time_ps):
+        """Energy (kJ/mol) and lab loads of the traps and rotation clamps (dead loads excluded) at the
+        current state, rotation clamps turned to their angle at ``time_ps``."""
+        s = self.state
+        angles = self.loads.clamp_angles(time_ps, self.boundary.duration_ps)
+        E, F, tau = self.loads.evaluate(s.positions, s.frames, angles)
+        return E + float(np.sum(self.F_dead * s.positions)), F - self.F_dead, tau - self.tau_dead
+
+    def _run_loaded(self, n_steps, extra):
+        """Steps with position-dependent loads: the kernel's closing half kick used the loads of the
+        start of the step; it is corrected by ``dt/2 (f_new - f_old)``, which gives exactly the
+        velocity-Verlet (BAOAB) step with the full loads."""
+        h = 0.5 * self.dt
+        k = self.kernel
+        E = np.nan
+        for i in range(n_steps):
+            ex = dict(extra)
+            if "noise" in ex:
+                ex["noise"] = extra["noise"][i:i + 1]
+            status, ii, node, E = k.run(self.state, self.F, self.tau, self.dt, 1, self.inv_m, self.inv_J, **ex)
+            if status != 0:
+                return status, i + ii, node, E
+            _, F_old, tau_old = self._pd
+            self._pd = self._position_dependent_loads((self.step_count + i + 1) * self.dt)
+            dF = (self._pd[1] - F_old) * self.free[:, None]
+            dtau = (self._pd[2] - tau_old) * self.free[:, None]
+            self.state.momenta += h * dF
+            self.state.angular_momenta += h * np.einsum("kji,kj->ki", self.state.frames, dtau)
+            self.F += dF
+            self.tau += dtau
+            k.F_ext[:] = self.F_dead + self._pd[1]
+            k.tau_ext[:] = self.tau_dead + self._pd[2]
+        return 0, n_steps, -1, E
+
     def _initial_loads(self):
         try:
             return self.kernel.loads(self.state)
@@ -368,8 +374,15 @@ class SplittingIntegrator:
         return self.state.kinetic_energy(self.model.mass, self.model.inertia)
 
     def total_energy(self):
-        """Elastic + kinetic energy minus the work potential of the end forces, kJ/mol."""
-        return self.potential_energy + self.kinetic_energy() - float(np.sum(self.kernel.F_ext * self.state.positions))
+        """Elastic + trap + rotation-clamp + kinetic energy minus the work potential of the dead forces, kJ/mol."""
+        return (self.potential_energy + self.external_energy + self.kinetic_energy()
+                - float(np.sum(self.F_dead * self.state.positions)))
+
+    @property
+    def external_energy(self):
+        """Energy of the traps and rotation clamps at the current state, kJ/mol (``potential_energy`` is
+        the elastic energy only)."""
+        return 0.0 if self._pd is None else self._pd[0]
 
     def step(self, n_steps=1):
         """Advance ``n_steps`` steps (in place).
@@ -388,8 +401,11 @@ class SplittingIntegrator:
             if self.langevin:
                 extra = dict(c=self.c, sig_P=self.sig_P, sig_pi=self.sig_pi,
                              noise=self.rng.standard_normal((chunk, 6, self.model.n_nodes)))
-            status, i, node, E = self.kernel.run(self.state, self.F, self.tau, self.dt, chunk, self.inv_m,
-                                                 self.inv_J, **extra)
+            if self._pd is not None:
+                status, i, node, E = self._run_loaded(chunk, extra)
+            else:
+                status, i, node, E = self.kernel.run(self.state, self.F, self.tau, self.dt, chunk, self.inv_m,
+                                                     self.inv_J, **extra)
             if status != 0:
                 step = self.step_count + i + 1
                 self.step_count += max(i, 0)

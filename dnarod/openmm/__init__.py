@@ -8,16 +8,20 @@ inertia ``J = m l^2 (1/2, 1/2, 1)`` about (d1, d2, d3) (dna-default: 650 amu, l 
 Modules: :mod:`.particles` (node <-> particle maps), :mod:`.forces` (step energy: portable
 CustomCompoundBondForce and fast numba/PythonForce path), :mod:`.nonbonded` (WCA +
 Debye-Hueckel), :mod:`.loads` (external loads), :mod:`.system` (System from a RodModel),
-:mod:`.simulation` (runs, reporters, checkpoints), :mod:`.export` (PDB/DCD for mdtraj and
-MDAnalysis), :mod:`.cli` (``dnarod simulate``).
+:mod:`.simulation` (the engine: advance, node state, energies, checkpoints), :mod:`.export`
+(PDB/DCD/XTC for mdtraj and MDAnalysis). Runs with reporters, checkpoints and resume are the
+run layer's (:mod:`dnarod.run`, ``dnarod simulate``).
 
 Example::
 
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm import RodSimulation, PullingForce
+    from dnarod.run import run_engine, DtrajReporter
     model = load_forcefield("dna-default").model_from_sequence("ACGT" * 250)
     sim = RodSimulation(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])])
-    sim.run(100000, "run1", frame_interval=10)
+    rep = DtrajReporter("run1.dtraj", model.n_nodes, interval=10)
+    run_engine(sim, 100000, [rep], checkpoint="run1.npz", checkpoint_interval=10000)
+    rep.close()
 """
 _EXPORTS = {"RodSimulation": "simulation", "omega_max": "simulation", "load_energies": "simulation",
             "build_system": "system", "NonbondedSettings": "nonbonded", "PullingForce": "loads",

@@ -8,9 +8,13 @@ Coarse-grained topology: one chain, one residue per base pair named by the pair 
 * ``D3``  -- the tip of director d3 at ``centre + a d3`` (``a = 1 nm`` by default),
 
 bonded ``CA-D1``, ``CA-D3`` and ``CA(k)-CA(k+1)``. The first frame goes to a PDB file (the
-topology) and all frames to a DCD file (float32, Angstrom). The frames are recovered from
-the beads by :func:`frames_from_beads` (``d2 = d3 x d1``), to float32 precision; the exact
-float64 frames are in the ``.dtraj`` file (:func:`load_dtraj`).
+topology) and all frames to a DCD file (float32, Angstrom) whose header holds the true time
+between frames (written with MDAnalysis, which reads the frame times back equal to the
+``.dtraj`` times to the header's float32 precision; mdtraj's DCD reader ignores the header's time
+and numbers the frames), and optionally to an XTC file (mdtraj; each frame stores its time, read
+back by both mdtraj and MDAnalysis). The frames are recovered from the beads by
+:func:`frames_from_beads` (``d2 = d3 x d1``), to float32 precision; the ``.dtraj`` file
+(:func:`load_dtraj`) holds them as the run stored them.
 """
 from __future__ import annotations
 
@@ -76,8 +80,36 @@ def mdtraj_topology(n_nodes, residue_names):
     return top
 
 
-def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0):
-    """Write a ``.dtraj`` trajectory (or :class:`Trajectory`) as PDB topology + DCD frames.
+def write_dcd(path, xyz_nm, time_ps):
+    """Write bead coordinates ``(n_frames, n_atoms, 3)`` nm to a DCD file whose header holds the frame spacing.
+
+    The frame times must be evenly spaced and start at a multiple of the spacing (the DCD header
+    stores a start step, a step interval and a time step); MDAnalysis reads ``time = frame * dt``.
+    """
+    import warnings
+
+    import MDAnalysis as mda
+    from MDAnalysis.coordinates.DCD import DCDWriter
+
+    from ..units import ANGSTROM_PER_NM
+
+    t = np.asarray(time_ps, float)
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    if len(t) > 1 and (dt <= 0 or not np.allclose(np.diff(t), dt, rtol=1e-9, atol=1e-12)):
+        raise DnarodError(f"{path}: the frames are not evenly spaced in time, which DCD cannot store; "
+                          f"export to XTC instead")
+    istart = int(round(t[0] / dt)) if len(t) > 1 else 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # MDAnalysis warns about the missing unit cell
+        u = mda.Universe.empty(xyz_nm.shape[1], trajectory=True)
+        with DCDWriter(str(path), xyz_nm.shape[1], dt=dt, istart=istart, nsavc=1) as w:
+            for frame in xyz_nm:
+                u.atoms.positions = frame * ANGSTROM_PER_NM
+                w.write(u.atoms)
+
+
+def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc_path=None):
+    """Write a ``.dtraj`` trajectory (or :class:`Trajectory`) as PDB topology + DCD (+ XTC) frames.
 
     Parameters
     ----------
@@ -85,7 +117,9 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0):
     pdb_path : str or Path
         First frame with the topology (CONECT records for the bonds).
     dcd_path : str or Path or None
-        All frames (skip if None).
+        All frames with the true frame spacing in the header (skip if None).
+    xtc_path : str or Path or None
+        All frames with their times (mdtraj XTC, 0.001 nm precision; skip if None).
     sequence : str or None
         Strand I letters for residue names (default: the trajectory's metadata ``sequence``).
     arm : float
@@ -112,7 +146,7 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0):
     top = mdtraj_topology(n, names)
     xyz = bead_positions(traj.positions, traj.frames, arm).astype(np.float32)
     t = md.Trajectory(xyz, top, time=traj.time)
-    for path, sl in ((pdb_path, slice(0, 1)), (dcd_path, slice(None))):
+    for path, sl in ((pdb_path, slice(0, 1)), (xtc_path, slice(None))):
         if path is None:
             continue
         path = Path(path)
@@ -120,4 +154,7 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0):
             tmp_ext = str(tmp) + path.suffix
             t[sl].save(tmp_ext, force_overwrite=True)
             Path(tmp_ext).replace(tmp)
+    if dcd_path is not None:
+        with atomic_path(dcd_path) as tmp:
+            write_dcd(tmp, xyz, traj.time)
     return t

@@ -1,149 +1,30 @@
-"""External loads on nodes: pulling forces, torques, rotation clamps, clamped nodes, traps.
+"""OpenMM translation of the engine-neutral loads of :mod:`dnarod.loads`.
 
-Plain numbers are in OpenMM MD units (forces kJ/mol/nm, torques kJ/mol, stiffnesses kJ/mol/nm^2
-or kJ/mol/rad^2, positions nm); an ``openmm.unit.Quantity`` in any compatible unit is
-converted (``1 pN = 0.6022 kJ/mol/nm``, ``1 pN nm = 0.6022 kJ/mol``). A value of the wrong
-shape or of an incompatible unit raises :class:`~dnarod.errors.ParameterError`.
+The load dataclasses (:class:`PullingForce`, :class:`Torque`, :class:`RotationClamp`, :class:`Clamp`,
+:class:`Trap`) live in :mod:`dnarod.loads` and are re-exported here, so ``from dnarod.openmm.loads
+import PullingForce`` keeps working. This module turns them into OpenMM forces:
 
-* :class:`PullingForce` -- constant lab force on a node (spread over its three particles).
-* :class:`Torque` -- constant lab torque on a node about its centre (magnetic tweezers in
-  torque mode); the reported energy is ``-|tau| phi`` with phi the unwrapped rotation of the
-  node about the torque axis since the start of the run.
-* :class:`RotationClamp` -- orientation restraint ``E = k (1 - cos theta)`` (theta: angle of
-  the rotation from the node's frame to the target frame; ``k theta^2/2`` for small angles);
-  the target can be turned during a run (:func:`set_clamp_rotation`), magnetic tweezers in
-  rotation mode.
-* :class:`Clamp` -- the node is fixed in space (position and orientation; its particles get
-  zero mass and no constraints).
-* :class:`Trap` -- harmonic trap ``k |c - c0|^2 / 2`` on a node's centre (optical tweezers).
+* pulling force: a ``CustomExternalForce`` ``-F . x`` spread over the node's three particles;
+* torque: a ``PythonForce`` (constant lab torque about the node centre; the reported energy is
+  ``-|tau| phi`` with phi the unwrapped rotation about the torque axis since the start);
+* rotation clamp: a ``CustomCompoundBondForce`` ``k/4 sum_a |d_a - t_a|^2 = k (1 - cos theta)`` whose
+  target frame is a set of global parameters (turned by :func:`set_clamp_rotation`);
+* clamp: zero-mass particles without constraints;
+* trap: a ``CustomCentroidBondForce`` on the node centre.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 import openmm
-from openmm import unit
 
 from ..errors import ParameterError
+from ..loads import (LOAD_TYPES, Clamp, PullingForce, RotationClamp, Torque, Trap, as_md,  # noqa: F401 (re-export)
+                     resolve_node)
 from .forces import GROUPS
 from .particles import SQRT3
 
-
-_FORCE_UNIT = unit.kilojoule_per_mole / unit.nanometer
-_TORQUE_UNIT = unit.kilojoule_per_mole
-_STIFF_UNIT = unit.kilojoule_per_mole / unit.nanometer**2
-_LENGTH_UNIT = unit.nanometer
-
-
-def as_md(value, md_unit, shape, what):
-    """Convert a number/array or Quantity to MD units and check its shape.
-
-    Parameters
-    ----------
-    value : float, array_like or openmm.unit.Quantity
-    md_unit : openmm.unit.Unit
-        The MD unit to convert to.
-    shape : tuple
-        Required shape, e.g. ``(3,)`` or ``()``.
-    what : str
-        Name used in error messages.
-
-    Returns
-    -------
-    ndarray or float
-    """
-    if unit.is_quantity(value):
-        try:
-            value = value.value_in_unit(md_unit)
-        except TypeError:
-            try:  # per-molecule units (pN, pN*nm): times Avogadro's number
-                value = (value * unit.AVOGADRO_CONSTANT_NA).value_in_unit(md_unit)
-            except TypeError:
-                raise ParameterError(f"{what}: unit {value.unit} is not compatible with {md_unit}") from None
-    try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
-        raise ParameterError(f"{what}: expected numbers in {md_unit}, got {value!r}") from None
-    if arr.shape != tuple(shape):
-        raise ParameterError(f"{what}: expected shape {tuple(shape)} ({md_unit}), got shape {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ParameterError(f"{what}: values must be finite, got {arr}")
-    return float(arr) if arr.ndim == 0 else arr
-
-
-@dataclass
-class PullingForce:
-    """Constant lab force (kJ/mol/nm, shape (3,)) on node ``node`` (negative counts from the end)."""
-
-    node: int
-    force: object
-
-    def __post_init__(self):
-        self.force = as_md(self.force, _FORCE_UNIT, (3,), f"pulling force on node {self.node}")
-
-
-@dataclass
-class Torque:
-    """Constant lab torque (kJ/mol, shape (3,)) on node ``node`` about its centre."""
-
-    node: int
-    torque: object
-
-    def __post_init__(self):
-        self.torque = as_md(self.torque, _TORQUE_UNIT, (3,), f"torque on node {self.node}")
-
-
-@dataclass
-class RotationClamp:
-    """Orientation restraint of node ``node``: ``E = k (1 - cos theta)``, k in kJ/mol (per rad^2).
-
-    ``frame`` (3, 3) is the target at angle 0 (default: the node's starting frame); ``axis``
-    (3,) the lab axis about which :func:`set_clamp_rotation` turns the target (default: the
-    target's d3).
-    """
-
-    node: int
-    k: object
-    frame: np.ndarray | None = None
-    axis: np.ndarray | None = None
-
-    def __post_init__(self):
-        self.k = as_md(self.k, _TORQUE_UNIT, (), f"rotation clamp stiffness on node {self.node}")
-        if self.k <= 0:
-            raise ParameterError(f"rotation clamp stiffness on node {self.node} must be positive, got {self.k}")
-
-
-@dataclass
-class Clamp:
-    """Fix node ``node`` in space (position and orientation)."""
-
-    node: int
-
-
-@dataclass
-class Trap:
-    """Harmonic trap on the centre of node ``node``: stiffness k (kJ/mol/nm^2), centre (nm, (3,))
-    (default: the node's starting position)."""
-
-    node: int
-    k: object
-    centre: object = None
-
-    def __post_init__(self):
-        self.k = as_md(self.k, _STIFF_UNIT, (), f"trap stiffness on node {self.node}")
-        if self.k <= 0:
-            raise ParameterError(f"trap stiffness on node {self.node} must be positive, got {self.k}")
-        if self.centre is not None:
-            self.centre = as_md(self.centre, _LENGTH_UNIT, (3,), f"trap centre of node {self.node}")
-
-
-def resolve_node(node, n_nodes, what="load"):
-    """A node index in range (negative indices count from the end)."""
-    k = int(node)
-    if not -n_nodes <= k < n_nodes:
-        raise ParameterError(f"{what}: node {node} does not exist (the model has {n_nodes} nodes)")
-    return k % n_nodes
+__all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "as_md", "resolve_node", "TorqueCallback",
+           "build_load_forces", "set_clamp_rotation"]
 
 
 class TorqueCallback:
@@ -203,12 +84,15 @@ def build_load_forces(loads, model, radius, system):
         ``clamped`` (sorted node list), ``rotation_clamps`` (list of (node, parameter prefix,
         frame, axis)), ``torque_callback`` (or None).
     """
+    from ..loads import resolve_loads
+
+    resolve_loads(loads, model)  # the same validation as the Lax-form engine (one line per misuse)
     n = model.n_nodes
     out = dict(clamped=[], rotation_clamps=[], torque_callback=None)
     pulls, torques, traps, rclamps = [], [], [], []
     for load in loads:
         kind = type(load).__name__
-        if not isinstance(load, (PullingForce, Torque, RotationClamp, Clamp, Trap)):
+        if not isinstance(load, LOAD_TYPES):
             raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp or Trap")
         k = resolve_node(load.node, n, kind)
         if isinstance(load, Clamp):

@@ -14,8 +14,11 @@ electrostatics, one interaction site per node (its centre).
   the Bjerrum length ``l_B = e^2/(4 pi eps0 eps_r kT)`` (0.71 nm at 300 K, 0.79 nm Debye
   length at 150 mM). Effective charge per base pair from Manning counter-ion condensation: the
   line charge is renormalised to one elementary charge per Bjerrum length, i.e.
-  ``q = ds / l_B`` e per bp (0.48 e at 300 K; G. S. Manning, Q. Rev. Biophys. 11:179, 1978;
-  from memory, not verified this session).
+  ``q = ds / l_B`` e per bp (0.48 e at 300 K): with charge spacing b = 0.17 nm (two phosphates per
+  0.34 nm) and Manning parameter ``xi = l_B / b > 1``, a fraction ``1 - 1/xi`` of the counter-ions
+  condenses, leaving ``2/xi = 2 b / l_B = ds / l_B`` e per bp (G. S. Manning, Q. Rev. Biophys.
+  11:179-246, 1978; the title, journal, b = 0.17 nm and the condensed fraction ``1 - 1/xi`` were
+  checked against secondary sources, the paper itself was not read).
 * **Exclusions along the chain**: pairs ``|i - j| <= n_exclude`` (chain distance, circular
   chains wrap) do not interact; by default ``n_exclude = ceil(cutoff / ds)``, so nodes that
   are within the cutoff in a straight duplex never interact: their interactions are already

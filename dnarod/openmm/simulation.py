@@ -1,4 +1,4 @@
-"""Simulations of a rod model with OpenMM: minimisation, NVE, Langevin, reporters, checkpoints.
+"""Simulations of a rod model with OpenMM: minimisation, NVE, Langevin, node state, checkpoints.
 
 Conventions shared with the Lax-form integrator (so the two engines can be compared):
 
@@ -16,136 +16,34 @@ Conventions shared with the Lax-form integrator (so the two engines can be compa
   the default omega dt = 0.4 and +1.2% at 0.2 (on-step velocities read -1.5% and -0.4%), while
   the configurations are sampled correctly (strain variances within 0.5% of the exact density).
 
-Outputs of :meth:`RodSimulation.run` in ``outdir``: ``trajectory.dtraj`` (frames with
-velocities), ``energies.csv``, ``checkpoint.npz`` (every ``checkpoint_interval`` steps) and
-``final_model.npz``. ``resume=True`` continues from the checkpoint, truncating the trajectory
-and the CSV to the checkpointed step, so no frame is lost or duplicated.
+:class:`RodSimulation` is the OpenMM engine of the run layer (:mod:`dnarod.run`): it advances,
+reports its node state and energies by term, and writes/restores checkpoints; trajectories,
+energies CSV, checkpoints on a schedule and the run directory are the run layer's reporters.
 """
 from __future__ import annotations
 
-import csv
-import hashlib
-import io
 import json
 import math
 import time
-from pathlib import Path
 
 import numpy as np
 import openmm
 
-from ..errors import DnarodError, ParameterError, SimulationError
+from ..errors import ParameterError, SimulationError
 from ..io_utils import atomic_path
+from .. import modes
+from ..modes import DEFAULT_OMEGA_DT, omega_max  # noqa: F401 - dnarod.openmm.omega_max (older imports)
+from ..run.api import MAX_OMEGA_DT
+from ..run.spec import model_fingerprint
 from ..thermal import kT as kT_of, kinetic_temperature
-from ..trajectory import TrajectoryWriter
+from ..units import md_value
 from .forces import GROUPS, loads_kernel
 from .particles import (node_poses, node_velocities, particle_forces_to_loads, particle_positions,
                         particle_velocities)
 from .system import build_system, get_platform
 
-#: Default time step: omega_max * dt (design A4 recommends <= 0.25-0.5; leapfrog is unstable at 2).
-DEFAULT_OMEGA_DT = 0.4
-#: Largest accepted omega_max * dt (90% of the leapfrog limit 2).
-MAX_OMEGA_DT = 1.8
-CSV_COLUMNS = ["step", "time_ps", "potential_kJmol", "kinetic_kJmol", "total_kJmol", "temperature_K",
-               "elastic_kJmol", "nonbonded_kJmol", "external_kJmol"]
-
-
-def model_fingerprint(model):
-    """SHA-256 of everything that defines the mechanical system (not the pose)."""
-    h = hashlib.sha256()
-    for a in (model.params.stiffness, model.params.intrinsic, model.mass, model.inertia, np.array([model.ds])):
-        h.update(np.ascontiguousarray(a, float).tobytes())
-    if model.closure is not None:
-        h.update(model.closure.Q.tobytes())
-        h.update(model.closure.t.tobytes())
-    h.update(str(model.n_nodes).encode())
-    return h.hexdigest()
-
-
-def _window_omega_max(pos, frm, K, xi0, ds, mass, inertia, Q, t, circ, h=1e-6):
-    """Largest frequency of one (sub)chain from its dense mass-weighted Hessian."""
-    from ..rotations import cayley
-
-    n = pos.shape[0]
-    sm = 1 / np.sqrt(mass)
-    Jis = np.einsum("kab,kb,kcb->kac", frm, 1 / np.sqrt(inertia), frm)  # lab L J^-1/2 L^T
-    H = np.empty((6 * n, 6 * n))
-    F = np.zeros((n, 3))
-    tau = np.zeros((n, 3))
-    for col in range(6 * n):
-        kind, node, a = col // (3 * n), (col % (3 * n)) // 3, col % 3  # same order as the rows
-        res = []
-        for sgn in (1.0, -1.0):
-            p2, f2 = pos.copy(), frm.copy()
-            if kind == 0:
-                p2[node, a] += sgn * h * sm[node]
-            else:
-                f2[node] = cayley(sgn * h * Jis[node][:, a]) @ frm[node]
-            F[:] = 0.0
-            tau[:] = 0.0
-            loads_kernel(p2, f2, K, xi0, ds, Q, t, circ, F, tau)
-            res.append(np.concatenate([F * sm[:, None], np.einsum("kab,kb->ka", Jis, tau)]).reshape(-1))
-        H[:, col] = -(res[0] - res[1]) / (2 * h)
-    return float(np.sqrt(max(np.linalg.eigvalsh(0.5 * (H + H.T)).max(), 0.0)))
-
-
-def omega_max(model, positions=None, frames=None, window=32, n_windows=8):
-    """Largest normal-mode frequency of the elastic energy, rad/ps (design A4).
-
-    The eigenvalues of the mass-weighted Hessian ``M^{-1/2} H M^{-1/2}`` in node coordinates
-    (lab translations, lab rotation vectors), with the Hessian from central differences of the
-    analytic loads (numba kernel). The fastest modes are zone-boundary modes, local on the
-    scale of a few steps, so chains longer than ``window`` nodes are evaluated on open
-    windows: both ends, the windows centred on the ``n_windows`` stiffest steps (largest
-    eigenvalue of K) and evenly spaced ones; the result is the maximum. A free window
-    underestimates the infinite chain's band edge by about 0.3% at 20 nodes (design A4).
-
-    Parameters
-    ----------
-    model : RodModel
-    positions, frames : ndarray, optional
-        Pose (default: the model's).
-    window : int
-        Window length, nodes.
-    n_windows : int
-        Stiffest-step and evenly spaced windows (each).
-
-    Returns
-    -------
-    float
-    """
-    pos = np.ascontiguousarray(model.positions if positions is None else positions, float)
-    frm = np.ascontiguousarray(model.frames if frames is None else frames, float)
-    n = pos.shape[0]
-    K = np.ascontiguousarray(model.params.stiffness, float)
-    xi0 = np.ascontiguousarray(model.params.intrinsic, float)
-    if n <= window:
-        circ = model.closure is not None
-        Q = model.closure.Q if circ else np.eye(3)
-        t = model.closure.t if circ else np.zeros(3)
-        return _window_omega_max(pos, frm, K, xi0, model.ds, model.mass, model.inertia, Q, t, circ)
-    n_steps = K.shape[0]
-    stiff = np.linalg.eigvalsh(K).max(axis=1)
-    centres = set(np.argsort(stiff)[::-1][:n_windows].tolist())
-    centres |= set(np.linspace(0, n_steps - 1, n_windows).astype(int).tolist())
-    starts = {0, n - window} | {int(min(max(c - window // 2, 0), n - window)) for c in centres}
-    best = 0.0
-    Om, Ga = model.strains(pos, frm)
-    xi = np.round(np.concatenate([Om, Ga], axis=1), 9)
-    seen = set()
-    for s0 in sorted(starts):
-        sl = slice(s0, s0 + window)
-        # identical windows (e.g. a uniform rod at its intrinsic shape) have identical spectra
-        key = (K[s0:s0 + window - 1].tobytes(), xi0[s0:s0 + window - 1].tobytes(), xi[s0:s0 + window - 1].tobytes(),
-               model.mass[sl].tobytes(), model.inertia[sl].tobytes())
-        if key in seen:
-            continue
-        seen.add(key)
-        best = max(best, _window_omega_max(pos[sl], frm[sl], K[s0:s0 + window - 1], xi0[s0:s0 + window - 1],
-                                           model.ds, model.mass[sl], model.inertia[sl], np.eye(3), np.zeros(3),
-                                           False))
-    return best
+#: Temperature (K) that sets the non-bonded energy scales (WCA kT, Bjerrum length) of a run started at 0 K.
+NONBONDED_REFERENCE_T = 300.0
 
 
 class RodSimulation:
@@ -179,9 +77,11 @@ class RodSimulation:
     initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
     """
 
+    name = "openmm"
+
     def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform="CPU",
                  elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
-                 initial_velocities=None):
+                 initial_velocities=None, omega_max=None):
         self.model = model
         self.temperature = float(temperature)
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -189,9 +89,10 @@ class RodSimulation:
         if integrator not in ("langevin", "verlet"):
             raise ParameterError(f"integrator must be 'langevin' or 'verlet', got {integrator!r}")
         self.integrator_name = integrator
+        self.loads = tuple(loads)
         self.platform_name = platform
         plat = get_platform(platform)
-        self.omega_max = omega_max(model)
+        self.omega_max = float(omega_max) if omega_max is not None else modes.omega_max(model, loads=tuple(loads))
         limit = MAX_OMEGA_DT / self.omega_max
         if dt is None:
             dt = DEFAULT_OMEGA_DT / self.omega_max
@@ -204,8 +105,13 @@ class RodSimulation:
                                  f"use dt <= {DEFAULT_OMEGA_DT / self.omega_max:.3g} ps (the default)")
         self.dt = dt
         self.friction = float(friction)
+        if integrator == "langevin" and not (np.isfinite(self.friction) and self.friction >= 0):
+            raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
         self.seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
-        self.rs = build_system(model, platform, elastic, nonbonded, loads, self.temperature)
+        # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
+        # at rest (0 K) uses the reference one, so the potential does not depend on the start
+        self.rs = build_system(model, platform, elastic, nonbonded, loads,
+                               self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
         if integrator == "langevin":
             integ = openmm.LangevinMiddleIntegrator(self.temperature, self.friction, dt)
             integ.setRandomNumberSeed(self.seed)
@@ -225,8 +131,10 @@ class RodSimulation:
             self.set_node_velocities(*initial_velocities)
         elif self.temperature > 0:
             self.thermalize(self.temperature, self.seed)
+        else:  # at rest on-step: the leapfrog velocities start half a kick back (else the run is first order)
+            self.set_node_velocities(np.zeros((model.n_nodes, 3)), np.zeros((model.n_nodes, 3)))
         self.step = 0
-        self.fingerprint = model_fingerprint(model)
+        self.fingerprint = model_fingerprint(model, pose=False)
 
     # --- node state -------------------------------------------------------------------
     def set_node_velocities(self, velocities, angular_velocities):
@@ -249,9 +157,9 @@ class RodSimulation:
                 raise ParameterError(f"{name} must have shape ({n}, 3), got {np.shape(a)}")
         self._state_cache = None
         st = self.context.getState(getPositions=True, getForces=True)
-        p = st.getPositions(asNumpy=True)._value
+        p = md_value(st.getPositions(asNumpy=True))
         _, frames = node_poses(p)
-        F, tau = particle_forces_to_loads(p, st.getForces(asNumpy=True)._value)
+        F, tau = particle_forces_to_loads(p, md_value(st.getForces(asNumpy=True)))
         h = 0.5 * self.dt
         v = np.asarray(velocities, float) - h * F / self.model.mass[:, None]
         w = np.asarray(angular_velocities, float) - h * np.einsum("kab,ka->kb", frames, tau) / self.model.inertia
@@ -272,7 +180,7 @@ class RodSimulation:
     def node_pose(self, state=None):
         """``(centres (n,3) nm, frames (n,3,3))`` of the current (or given) state."""
         state = state or self._full_state()
-        return node_poses(state.getPositions(asNumpy=True)._value)
+        return node_poses(md_value(state.getPositions(asNumpy=True)))
 
     def node_state(self, state=None, on_step=True):
         """``(centres, frames, velocities (lab, nm/ps), angular velocities (body, rad/ps))``.
@@ -284,12 +192,12 @@ class RodSimulation:
         the Lax-form engine reports; ``on_step=False`` gives OpenMM's raw half-step velocities.
         """
         state = state or self._full_state()
-        p = state.getPositions(asNumpy=True)._value
-        u = state.getVelocities(asNumpy=True)._value
+        p = md_value(state.getPositions(asNumpy=True))
+        u = md_value(state.getVelocities(asNumpy=True))
         c, f = node_poses(p)
         v, w = node_velocities(p, u)
         if on_step:
-            F, tau = particle_forces_to_loads(p, state.getForces(asNumpy=True)._value)
+            F, tau = particle_forces_to_loads(p, md_value(state.getForces(asNumpy=True)))
             free = np.ones(self.model.n_nodes)
             free[self.rs.clamped] = 0.0
             h = 0.5 * self.dt * free[:, None]
@@ -325,15 +233,15 @@ class RodSimulation:
         """
         st = self._full_state()
         out = {}
-        pot = st.getPotentialEnergy()._value
+        pot = md_value(st.getPotentialEnergy())
         if self._terms_cache is not None:
             out.update(self._terms_cache)
             out["external"] = pot - out["elastic"] - out["nonbonded"]
         else:
             for name, g in GROUPS.items():
-                out[name] = self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy()._value
+                out[name] = md_value(self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy())
         out["potential"] = pot
-        out["kinetic"] = st.getKineticEnergy()._value
+        out["kinetic"] = md_value(st.getKineticEnergy())
         dof = self.rs.degrees_of_freedom
         out["temperature"] = float(kinetic_temperature(out["kinetic"], dof))
         return out
@@ -350,10 +258,10 @@ class RodSimulation:
         is restarted until the energy stops decreasing (at most ``max_rounds`` rounds).
         """
         self._state_cache = None
-        E = self.context.getState(getEnergy=True).getPotentialEnergy()._value
+        E = md_value(self.context.getState(getEnergy=True).getPotentialEnergy())
         for _ in range(max_rounds):
             openmm.LocalEnergyMinimizer.minimize(self.context, tolerance, max_iterations)
-            E_new = self.context.getState(getEnergy=True).getPotentialEnergy()._value
+            E_new = md_value(self.context.getState(getEnergy=True).getPotentialEnergy())
             if not E_new < E - 1e-9 * max(1.0, abs(E)):
                 return E_new
             E = E_new
@@ -366,11 +274,25 @@ class RodSimulation:
         set_clamp_rotation(self.context, self.rs.load_info["rotation_clamps"][index], angle)
         self._state_cache = None
 
+    def update_loads(self, time_ps, duration_ps=None):
+        """Turn every rotation clamp with ``turns``/``turns_per_ns`` to its angle at ``time_ps`` (run layer hook)."""
+        clamps = self.rs.load_info.get("rotation_clamps") or []
+        if not clamps:
+            return
+        from ..loads import RotationClamp, clamp_angle
+        from .loads import set_clamp_rotation
+
+        # build_load_forces lists the rotation clamps in the order of the loads
+        for info, load in zip(clamps, [x for x in self.loads if isinstance(x, RotationClamp)]):
+            if load.turns or load.turns_per_ns is not None:
+                set_clamp_rotation(self.context, info, clamp_angle(load, time_ps, duration_ps))
+        self._state_cache = None
+
     # --- checks -----------------------------------------------------------------------
     def _healthy(self, st):
-        E = st.getPotentialEnergy()._value
-        K = st.getKineticEnergy()._value
-        p = st.getPositions(asNumpy=True)._value
+        E = md_value(st.getPotentialEnergy())
+        K = md_value(st.getKineticEnergy())
+        p = md_value(st.getPositions(asNumpy=True))
         limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
         return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < limit
 
@@ -379,12 +301,12 @@ class RodSimulation:
         terms = {}
         for name, g in GROUPS.items():
             try:
-                terms[name] = self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy()._value
+                terms[name] = md_value(self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy())
             except Exception:  # noqa: BLE001 - a NaN can make OpenMM raise
                 terms[name] = float("nan")
         bad = [k for k, v in terms.items() if not np.isfinite(v)]
         term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))
-        p = self.context.getState(getPositions=True).getPositions(asNumpy=True)._value.reshape(-1, 3, 3)
+        p = md_value(self.context.getState(getPositions=True).getPositions(asNumpy=True)).reshape(-1, 3, 3)
         nonfinite = np.argwhere(~np.isfinite(p).all(axis=(1, 2)))
         if len(nonfinite):
             node = int(nonfinite[0, 0])
@@ -444,18 +366,14 @@ class RodSimulation:
 
     def load_checkpoint(self, path):
         """Restore a checkpoint written by :meth:`save_checkpoint` for this model; returns its metadata."""
-        try:
-            with np.load(path, allow_pickle=False) as z:
-                meta = json.loads(str(z["meta"]))
-                blob = z["openmm"].tobytes()
-        except (OSError, KeyError, ValueError) as exc:
-            raise ParameterError(f"{path}: not a readable dnarod checkpoint ({exc})") from None
-        if meta.get("format") != "dnarod-openmm-checkpoint":
-            raise ParameterError(f"{path}: not a dnarod OpenMM checkpoint")
-        if meta["fingerprint"] != self.fingerprint:
+        from ..run.engine import read_checkpoint
+
+        meta, arrays = read_checkpoint(path, "dnarod-openmm-checkpoint", ("openmm",))
+        blob = arrays["openmm"].tobytes()
+        if meta.get("fingerprint") != self.fingerprint or meta.get("n_nodes") != self.model.n_nodes:
             raise ParameterError(f"{path}: checkpoint belongs to another model ({meta['n_nodes']} nodes, different "
                                  f"parameters, masses or closure); resume with the model it was written for")
-        if meta["integrator"] != self.integrator_name or not math.isclose(meta["dt"], self.dt, rel_tol=1e-12):
+        if meta.get("integrator") != self.integrator_name or not math.isclose(meta["dt"], self.dt, rel_tol=1e-12):
             raise ParameterError(f"{path}: checkpoint was written with integrator {meta['integrator']} and "
                                  f"dt {meta['dt']} ps, this run uses {self.integrator_name} and dt {self.dt} ps")
         try:
@@ -470,144 +388,8 @@ class RodSimulation:
             cb.last_angle[:] = meta["torque_last"]
         return meta
 
-    # --- production run -----------------------------------------------------------------
-    def run(self, n_steps, outdir, frame_interval=100, energy_interval=None, checkpoint_interval=None,
-            resume=False, progress=True, overwrite=False, on_advance=None):
-        """Run to a total of ``n_steps`` steps, writing trajectory, energies, checkpoints and final model.
-
-        Parameters
-        ----------
-        n_steps : int
-            Total steps of the run (counted from its start, also when resuming).
-        outdir : str or Path
-        frame_interval : int
-            Steps between trajectory frames (frame 0 is the start).
-        energy_interval : int or None
-            Steps between CSV rows (default ``frame_interval``).
-        checkpoint_interval : int or None
-            Steps between checkpoints (default: ten frame intervals); ``0`` for none.
-        resume : bool
-            Continue from ``outdir/checkpoint.npz``.
-        progress : bool
-            Show a tqdm progress bar with ETA.
-        overwrite : bool
-            Start a new run in a directory that already holds a trajectory (it is replaced);
-            without it that is an error, so no finished run is lost by accident.
-        on_advance : callable or None
-            Called as ``on_advance(self)`` after every integration chunk (at most one frame or
-            energy interval long), e.g. to turn a rotation clamp gradually.
-
-        Returns
-        -------
-        dict
-            Summary: steps, simulated time (ps), wall time (s), ns/day, mean temperature, files.
-        """
-        from tqdm import tqdm
-
-        outdir = Path(outdir)
-        outdir.mkdir(parents=True, exist_ok=True)
-        n_steps = int(n_steps)
-        fi = int(frame_interval)
-        ei = int(energy_interval or fi)
-        ci = 10 * fi if checkpoint_interval is None else int(checkpoint_interval)
-        if fi <= 0 or ei <= 0 or ci < 0:
-            raise ParameterError("frame_interval and energy_interval must be positive, checkpoint_interval >= 0")
-        traj_path, csv_path, chk_path = outdir / "trajectory.dtraj", outdir / "energies.csv", outdir / "checkpoint.npz"
-        meta = dict(engine="openmm", dt_ps=self.dt, temperature_K=self.temperature, integrator=self.integrator_name,
-                    friction_per_ps=self.friction, platform=self.platform_name, elastic=self.rs.elastic,
-                    sequence=(self.model.sequence or "")[:2000], fingerprint=self.fingerprint,
-                    inertia_convention="J = m l^2 (1/2, 1/2, 1) about d1,d2,d3; omega body frame")
-        if resume:
-            if not chk_path.exists():
-                raise ParameterError(f"cannot resume: {chk_path} does not exist")
-            self.load_checkpoint(chk_path)
-            writer = TrajectoryWriter(traj_path, self.model.n_nodes, velocities=True, metadata=meta,
-                                      resume_step=self.step)
-            rows = _read_csv_rows(csv_path, self.step)
-            csv_fh = _open_csv(csv_path, rows)
-        else:
-            if traj_path.exists() and not overwrite:
-                raise ParameterError(f"{traj_path} already exists: resume the run (resume=True, --resume), "
-                                     f"choose another output directory, or pass overwrite=True (--overwrite)")
-            writer = TrajectoryWriter(traj_path, self.model.n_nodes, velocities=True, metadata=meta)
-            csv_fh = _open_csv(csv_path, [])
-        csv_w = csv.writer(csv_fh)
-        temps = []
-        start_step = self.step
-        t0 = time.perf_counter()
-        bar = tqdm(total=n_steps, initial=self.step, disable=not progress, unit="step", dynamic_ncols=True)
-        try:
-            if not resume:
-                self._report(writer, csv_w, csv_fh, temps, frame=True, energy=True)
-            while self.step < n_steps:
-                nxt = min(_next_multiple(self.step, fi), _next_multiple(self.step, ei), n_steps)
-                if ci:
-                    nxt = min(nxt, _next_multiple(self.step, ci))
-                before = self.step
-                self.advance(nxt - self.step)
-                bar.update(self.step - before)
-                if on_advance is not None:
-                    on_advance(self)
-                self._report(writer, csv_w, csv_fh, temps, frame=self.step % fi == 0,
-                             energy=self.step % ei == 0)
-                if ci and self.step % ci == 0:
-                    writer._fh.flush()
-                    self.save_checkpoint(chk_path)
-        finally:
-            bar.close()
-            writer.close()
-            csv_fh.close()
-        wall = time.perf_counter() - t0
-        self.current_model().save(outdir / "final_model.npz")
-        done = self.step - start_step
-        sim_ns = done * self.dt * 1e-3
-        return dict(steps=self.step, steps_this_run=done, simulated_ps=self.step * self.dt, wall_s=wall,
-                    ns_per_day=sim_ns / wall * 86400 if wall > 0 else float("nan"),
-                    mean_temperature=float(np.mean(temps)) if temps else float("nan"), dt_ps=self.dt,
-                    omega_max=self.omega_max, trajectory=str(traj_path), energies=str(csv_path),
-                    final_model=str(outdir / "final_model.npz"))
-
-    def _report(self, writer, csv_w, csv_fh, temps, frame, energy):
-        if frame:
-            c, f, v, w = self.node_state()
-            writer.write(self.step, self.step * self.dt, c, f, v, w)
-        if energy:
-            e = self.energies()
-            temps.append(e["temperature"])
-            csv_w.writerow([self.step, f"{self.step * self.dt:.6f}", repr(e["potential"]), repr(e["kinetic"]),
-                            repr(e["potential"] + e["kinetic"]), f"{e['temperature']:.6f}", repr(e["elastic"]),
-                            repr(e["nonbonded"]), repr(e["external"])])
-            csv_fh.flush()
-
-
-def _next_multiple(step, interval):
-    return (step // interval + 1) * interval
-
-
-def _read_csv_rows(path, max_step):
-    if not Path(path).exists():
-        return []
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
-    return [r for r in rows[1:] if r and int(r[0]) <= max_step]
-
-
-def _open_csv(path, rows):
-    """(Re)write the CSV header and kept rows atomically, then open it for appending."""
-    buf = io.StringIO()
-    w = csv.writer(buf)
-    w.writerow(CSV_COLUMNS)
-    w.writerows(rows)
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(buf.getvalue())
-    return open(path, "a", newline="")
-
-
 def load_energies(path):
-    """Read ``energies.csv`` into a dict of arrays (column name -> ndarray)."""
-    with open(path, newline="") as fh:
-        rows = list(csv.reader(fh))
-    if not rows or rows[0] != CSV_COLUMNS:
-        raise DnarodError(f"{path}: not a dnarod energies CSV")
-    data = np.array([[float(x) for x in r] for r in rows[1:]]).reshape(-1, len(CSV_COLUMNS))
-    return {name: data[:, i] for i, name in enumerate(CSV_COLUMNS)}
+    """Read ``energies.csv`` into a dict of arrays (:func:`dnarod.run.reporters.load_energies`)."""
+    from ..run.reporters import load_energies as _load
+
+    return _load(path)

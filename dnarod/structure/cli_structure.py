@@ -86,7 +86,7 @@ def _emit(rows, columns, csv_path, title_lines, notes, fmt):
         write_text_atomic(csv_path, buf.getvalue())
         for n in notes:
             click.echo(f"note: {n}", err=True)
-        click.echo(f"wrote {len(rows)} rows to {csv_path}", err=True)
+        click.echo(f"wrote {len(rows)} rows to {csv_path}")
         return
     for t in title_lines + [f"note: {n}" for n in notes]:
         click.echo(f"# {t}")
@@ -140,7 +140,8 @@ def pair_rows(ana):
 @click.command("steps")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write CSV here instead of a table.")
-@click.option("--forcefield", default="dna-default", show_default=True, help="Force field whose ds scales the strains.")
+@click.option("-f", "--forcefield", default="dna-default", show_default=True,
+              help="Force field whose ds scales the strains.")
 @structure_options
 def steps(input_path, csv_path, forcefield, model, altloc, pairs_file, maps, ignore):
     """Step parameters (3DNA convention) and SMK strains of every base-pair step of INPUT (PDB/mmCIF)."""
@@ -175,7 +176,7 @@ def pairs(input_path, csv_path, model, altloc, pairs_file, maps, ignore):
 @click.argument("input_path", metavar="INPUT", required=False, type=click.Path(dir_okay=False))
 @click.option("--sequence", help="Build the intrinsic shape of this sequence instead of reading INPUT.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Model file (.npz).")
-@click.option("--forcefield", default="dna-default", show_default=True)
+@click.option("-f", "--forcefield", default="dna-default", show_default=True, help="Force field (name or .toml).")
 @click.option("--duplex", type=int, default=None, help="Duplex number (1-based; default the longest).")
 @structure_options
 def build(input_path, sequence, output, forcefield, duplex, model, altloc, pairs_file, maps, ignore):
@@ -190,7 +191,7 @@ def build(input_path, sequence, output, forcefield, duplex, model, altloc, pairs
         ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
         m = model_from_structure(analysis=ana, forcefield=forcefield, duplex=None if duplex is None else duplex - 1)
     m.save(output)
-    click.echo(f"wrote {output}: {m.n_nodes} nodes, ds = {m.ds:g} nm, force field {forcefield}", err=True)
+    click.echo(f"wrote {output}: {m.n_nodes} nodes, ds = {m.ds:g} nm, force field {forcefield}")
 
 
 @click.command("rebuild")
@@ -203,7 +204,7 @@ def rebuild(model_path, output):
 
     m = RodModel.load(model_path)
     xyz, atoms = rebuild_model(m, output)
-    click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides", err=True)
+    click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides")
 
 
 COMMANDS = (steps, pairs, build, rebuild)

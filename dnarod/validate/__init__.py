@@ -9,7 +9,11 @@ Checks (by name; each module states its system, reference and tolerances):
 * ``helix`` -- the intrinsic helix is a zero-force state in both engines (:mod:`.helix`);
 * ``paper_scheme`` -- the printed (3.13) is O(ds) from the exact system and unstable (:mod:`.paper_scheme`);
 * ``force_extension`` -- a 1 kbp chain against the extensible WLC (slow; not in ``quick``)
-  (:mod:`.force_extension`).
+  (:mod:`.force_extension`);
+* ``torsion`` -- C_eff(F) of a stretched chain from the torque-turns slope and from twist fluctuations,
+  against each other and Moroz & Nelson (:mod:`.torsion`);
+* ``buckling`` -- the torque plateau of a plectonemic chain (Marko's two-phase model; slow, not in ``quick``)
+  (:mod:`.buckling`).
 
 :func:`run_validation` runs a selection and writes ``report.md``, PNG plots and ``results.json``
 (``{"checks": {NAME: {"passed": bool, ...}}}``) to a folder.
@@ -31,9 +35,11 @@ CHECKS = {
     "helix": ("helix", "check_helix"),
     "paper_scheme": ("paper_scheme", "check_paper_scheme"),
     "force_extension": ("force_extension", "check_force_extension"),
+    "torsion": ("torsion", "check_torsion"),
+    "buckling": ("buckling", "check_buckling"),
 }
 #: Checks of ``--quick`` (everything but the slow force-extension runs).
-QUICK_CHECKS = ("engines", "thermal", "dispersion", "helix", "paper_scheme")
+QUICK_CHECKS = ("engines", "thermal", "dispersion", "helix", "paper_scheme", "torsion")
 
 
 def check_function(name):

@@ -12,24 +12,12 @@ import math
 import numpy as np
 
 from ..io_utils import atomic_path
+from ..io_utils import jsonable as _jsonable
 
 
 def jsonable(obj):
-    """Convert numpy scalars/arrays (recursively) to JSON-serialisable Python objects; NaN/inf to strings."""
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    if isinstance(obj, (np.bool_, bool)):
-        return bool(obj)
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.floating, float)):
-        x = float(obj)
-        return x if math.isfinite(x) else repr(x)
-    return obj
+    """JSON-safe results (:func:`dnarod.io_utils.jsonable`; NaN/inf as strings)."""
+    return _jsonable(obj, nonfinite="repr")
 
 
 def observed_order(h, err):

@@ -11,7 +11,7 @@ from . import CHECKS
 
 @click.command("validate")
 @click.option("--quick", is_flag=True, help="Short runs, without the slow force-extension check (a few minutes).")
-@click.option("--out", "out_dir", default="validation", show_default=True, type=click.Path(file_okay=False),
+@click.option("-o", "--out", "out_dir", default="validation", show_default=True, type=click.Path(file_okay=False),
               help="Report folder: report.md, results.json and PNG plots.")
 @click.option("--only", "only", multiple=True, type=click.Choice(list(CHECKS)),
               help="Run only this check (repeatable).")
@@ -20,9 +20,11 @@ def validate(quick, out_dir, only):
 
     Exit status 0 if every check passed, 1 otherwise.
     """
+    from ..io_utils import check_dir_path
     from . import run_validation
     from .report import summary_table
 
+    check_dir_path(out_dir, what="report folder")  # before the checks run, not after
     t0 = time.perf_counter()
     res = run_validation(out_dir, quick=quick, checks=list(only) or None, echo=lambda m: click.echo(m, err=True))
     wall = time.perf_counter() - t0

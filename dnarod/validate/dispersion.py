@@ -17,6 +17,8 @@ from __future__ import annotations
 import time
 
 import numpy as np
+
+from ..units import md_value
 import scipy.linalg
 
 from ._common import new_figure, save_figure
@@ -29,52 +31,39 @@ EPS = 1e-5
 def openmm_hessian(model, elastic="fast", eps=EPS):
     """Hessian (6n, 6n) of the OpenMM engine's energy in lab node coordinates (central differences of forces).
 
+    The differences are taken by :func:`dnarod.modes.hessian_blocks` (one method for every Hessian of
+    the package) with the OpenMM engine's node loads as the load function.
+
     Returns
     -------
-    ndarray
+    H : ndarray
         kJ/mol per (nm^2, nm rad, rad^2), symmetrised.
+    asym : float
+        Relative asymmetry of the raw differences before symmetrisation.
     """
+    from ..modes import hessian_blocks
     from ..openmm.particles import particle_forces_to_loads, particle_positions
     from ..openmm.simulation import RodSimulation
-    from ..rotations import rotation_about_axis
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                         elastic=elastic, nonbonded=False, seed=0)
     radius = sim.rs.radius
-    n = model.n_nodes
-    H = np.empty((6 * n, 6 * n))
 
     def loads(pos, frm):
         x = particle_positions(pos, frm, radius)
         sim.context.setPositions(x)
-        f = sim.context.getState(getForces=True).getForces(asNumpy=True)._value
-        F, tau = particle_forces_to_loads(x, f)
-        return np.concatenate([F, tau], axis=1).ravel()
+        f = md_value(sim.context.getState(getForces=True).getForces(asNumpy=True))
+        return particle_forces_to_loads(x, f)
 
-    for dof in range(6 * n):
-        k, a = divmod(dof, 6)
-        cols = []
-        for s in (eps, -eps):
-            pos, frm = model.positions.copy(), model.frames.copy()
-            if a < 3:
-                pos[k, a] += s
-            else:
-                frm[k] = rotation_about_axis(np.eye(3)[a - 3], s) @ frm[k]
-            cols.append(loads(pos, frm))
-        H[:, dof] = -(cols[0] - cols[1]) / (2 * eps)
-    asym = float(np.abs(H - H.T).max() / np.abs(H).max())
-    return 0.5 * (H + H.T), asym
+    B = hessian_blocks(model, mass_weighted=False, load_fn=loads, rel_step=eps)
+    return B.to_sparse().toarray(), B.asymmetry
 
 
 def mass_matrix(model):
-    """``diag(m_k I, L_k diag(J_k) L_k^T)``, shape (6n, 6n)."""
-    n = model.n_nodes
-    M = np.zeros((6 * n, 6 * n))
-    for k in range(n):
-        M[6 * k:6 * k + 3, 6 * k:6 * k + 3] = model.mass[k] * np.eye(3)
-        L = model.frames[k]
-        M[6 * k + 3:6 * k + 6, 6 * k + 3:6 * k + 6] = L @ np.diag(model.inertia[k]) @ L.T
-    return M
+    """``diag(m_k I, L_k diag(J_k) L_k^T)``, shape (6n, 6n) (dense; :func:`dnarod.modes.mass_matrix`)."""
+    from ..modes import mass_matrix as sparse_mass
+
+    return sparse_mass(model).toarray()
 
 
 def labelled_spectrum(rod):

@@ -31,6 +31,8 @@ import time
 
 import numpy as np
 
+from ..units import md_value
+
 from ..errors import DnarodError
 from ._common import new_figure, observed_order, pairwise_orders, rotation_angle, save_figure
 
@@ -84,12 +86,12 @@ def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
         if s > sim.step:
             sim.advance(s - sim.step)
         st = sim.context.getState(getPositions=True, getVelocities=True, getEnergy=True)
-        x = st.getPositions(asNumpy=True)._value
-        u = st.getVelocities(asNumpy=True)._value
+        x = md_value(st.getPositions(asNumpy=True))
+        u = md_value(st.getVelocities(asNumpy=True))
         c, f = sim.node_pose(st)
         out["positions"].append(c)
         out["frames"].append(f)
-        out["energy"].append(st.getPotentialEnergy()._value + st.getKineticEnergy()._value)
+        out["energy"].append(md_value(st.getPotentialEnergy()) + md_value(st.getKineticEnergy()))
         out["momentum"].append((pm * u).sum(0))
         out["angular_momentum"].append(np.cross(x, pm * u).sum(0))
     return {k: np.array(a) for k, a in out.items()}

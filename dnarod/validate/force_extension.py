@@ -52,39 +52,13 @@ def model_constants(model, temperature):
 
 
 def equilibrium_coil(model, temperature, seed):
-    """A pose drawn from the exact force-free equilibrium of a uniform open chain (design A5 iii).
+    """A pose drawn from the exact force-free equilibrium of an open chain, end-to-end vector along z.
 
-    Steps are i.i.d.: ``w = ds Omega`` is Gaussian about ``ds Omega0`` with covariance ``kT ds S^-1``
-    (``S = A - B C^-1 B^T``) times the Haar factor ``(1 + |w|^2/4)^-2`` (rejection sampling, the
-    factor is <= 1); ``Gamma | Omega`` is Gaussian with mean ``Gamma0 - C^-1 B^T (Omega - Omega0)`` and
-    covariance ``kT (ds C)^-1``. The pose is rotated so that its end-to-end vector is along z.
+    :func:`dnarod.thermal.equilibrium_sample` (the one home of the sampler) with ``align = z``.
     """
-    from ..rotations import rotation_about_axis
-    from ..strains import chain_from_strains
-    from ..thermal import bend_twist_schur, kT
+    from ..thermal import equilibrium_sample
 
-    rng = np.random.default_rng(seed)
-    kt, ds, m = kT(temperature), model.ds, model.n_steps
-    K = model.params.stiffness[0]
-    xi0 = model.params.intrinsic[0]
-    A, B, C = K[:3, :3], K[:3, 3:], K[3:, 3:]
-    Lw = np.linalg.cholesky(kt * ds * np.linalg.inv(bend_twist_schur(K)))
-    w = np.empty((0, 3))
-    while len(w) < m:
-        cand = ds * xi0[:3] + rng.standard_normal((2 * m, 3)) @ Lw.T
-        keep = rng.random(2 * m) < (1.0 + 0.25 * np.einsum("ki,ki->k", cand, cand)) ** -2
-        w = np.concatenate([w, cand[keep]])
-    Omega = w[:m] / ds
-    Ci = np.linalg.inv(C)
-    Gamma = xi0[3:] - (Omega - xi0[:3]) @ (Ci @ B.T).T
-    Gamma += rng.standard_normal((m, 3)) @ np.linalg.cholesky(kt * Ci / ds).T
-    pos, frm = chain_from_strains(Omega, Gamma, ds)
-    e = pos[-1] - pos[0]
-    e /= np.linalg.norm(e)
-    axis = np.cross(e, [0.0, 0.0, 1.0])
-    angle = np.arctan2(np.linalg.norm(axis), e[2])
-    R = rotation_about_axis(axis / max(np.linalg.norm(axis), 1e-300), angle) if angle > 0 else np.eye(3)
-    return model.with_pose(pos @ R.T, R @ frm)
+    return equilibrium_sample(model, temperature, seed, align=(0.0, 0.0, 1.0))
 
 
 def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_every, seed, start="straight"):

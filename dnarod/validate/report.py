@@ -65,6 +65,21 @@ def headline(name, r):
                     f"{_fmt(max(q['difference'] for q in rows), '.3f')} (worst at {worst['force_pN']} pN: "
                     f"{_fmt(worst['difference'], '.3f')} vs tol {_fmt(worst['tolerance'], '.3f')})",
                     f"|diff| <= {r['z_tolerance']} SE + {r['absolute_allowance']}")
+        if name == "torsion":
+            sl, fl = r["slope"], r["fluctuation"]
+            return (f"C_eff slope {_fmt(sl['C_eff_nm'], '.1f')}+-{_fmt(sl['standard_error_nm'], '.1f')} nm, "
+                    f"fluctuations {_fmt(fl['C_eff_nm'], '.1f')}+-{_fmt(fl['standard_error_nm'], '.1f')} nm, "
+                    f"Moroz-Nelson {_fmt(r['moroz_nelson_C_eff_nm'], '.1f')} nm",
+                    f"agree within {r['z_tolerance']} SE; theory {r['z_tolerance']} SE + "
+                    f"{100 * r['theory_allowance_relative']:.0f}%")
+        if name == "buckling":
+            pl = r["plateau"]
+            return (f"plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}+-"
+                    f"{_fmt(pl['standard_error'], '.2f')} pN nm at {_fmt(pl['mean_torque_pN_nm'], '.1f')} pN nm; "
+                    f"extension drop {_fmt(r['extension_drop']['difference'], '.3f')}; pre-buckling torque "
+                    f"{_fmt(r['pre_buckling']['torque_pN_nm'], '.1f')} vs linear law "
+                    f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm",
+                    f"|dtau| <= {r['z_tolerance']} SE + {pl['allowance_pN_nm']} pN nm")
     except (KeyError, TypeError, ValueError, IndexError):
         pass
     return "see results.json", "-"

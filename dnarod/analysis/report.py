@@ -1,0 +1,292 @@
+"""The analysis report of a trajectory (the API of ``dnarod analyze``): step parameters, strains,
+stiffness, persistence length, Lk/Tw/Wr, written to a report folder.
+
+Input is a dnarod ``.dtraj`` trajectory (model from ``topology=MODEL.npz``, or the
+``final_model.npz`` written beside it by ``dnarod simulate``) or an all-atom trajectory in any
+format MDAnalysis reads (a topology PDB/PSF/PRMTOP/...; a PDB/mmCIF alone is analysed as its
+own frames). Outputs: CSV tables, the fitted stiffness as force-field TOML files, PNG plots and
+``summary.json`` (:data:`REPORT_FILES`); an existing report is replaced only with ``overwrite``,
+which first removes the report's own files (no stale plot survives).
+"""
+from __future__ import annotations
+
+import csv
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DnarodError, StructureError
+from ..io_utils import jsonable
+
+#: Files ``analyze`` may write in its report folder (``overwrite`` removes exactly these).
+REPORT_FILES = ("summary.json", "step_parameters.csv", "step_parameters_mean.csv", "stiffness_table.csv",
+                "stiffness.toml", "sequence_stiffness.toml", "tangent_correlation.csv", "end_to_end.csv",
+                "linking.csv", "strain_distributions.png", "tangent_correlation.png", "step_parameters.png")
+
+
+def prepare_report_folder(out, overwrite=False):
+    """Create the report folder; refuse to replace an earlier report unless ``overwrite`` (then remove it).
+
+    Raises
+    ------
+    DnarodError
+        ``out`` (or a parent) is a regular file, or it holds a report and ``overwrite`` is false.
+    """
+    from ..io_utils import check_dir_path, ensure_dir
+
+    out = check_dir_path(Path(out), what="report folder")
+    present = [out / f for f in REPORT_FILES if (out / f).exists()]
+    if present and not overwrite:
+        raise DnarodError(f"{out} already holds an analysis report ({present[0].name}); pass --overwrite to replace "
+                          f"it or choose another folder with -o")
+    ensure_dir(out, what="report folder")
+    return out, present
+
+
+def _write_rows(path, rows):
+    from ..io_utils import atomic_path
+
+    if not rows:
+        return
+    with atomic_path(path) as tmp, open(tmp, "w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def load_input(path, topology=None, duplex=1, start=None, stop=None, step=None):
+    """Read the input trajectory (``duplex``: which duplex of an all-atom system, from 1).
+
+    Returns
+    -------
+    traj : Trajectory
+    model : RodModel or None
+        The dnarod model (``--topology`` or ``final_model.npz`` next to a ``.dtraj``).
+    kind : str
+        ``"dnarod"`` or ``"all-atom"``.
+    """
+    from ..model import RodModel
+    from ..trajectory import Trajectory
+
+    path = Path(path)
+    if not path.exists():
+        raise DnarodError(f"{path}: no such file")
+    if path.suffix == ".dtraj":
+        traj = Trajectory.load(path)
+        model = None
+        top = Path(topology) if topology else (path.parent / "final_model.npz")
+        if topology or top.exists():
+            if top.suffix != ".npz":
+                raise DnarodError(f"{top}: the topology of a .dtraj trajectory is a dnarod model file (.npz)")
+            model = RodModel.load(top)
+            if model.n_nodes != traj.n_nodes:
+                raise DnarodError(f"{path} has {traj.n_nodes} nodes per frame but its topology {top} has "
+                                  f"{model.n_nodes}: the trajectory does not match its topology")
+        traj = traj[slice(start, stop, step)]
+        return traj, model, "dnarod"
+    from ..structure.trajectory import is_structure_file
+    from .allatom import load_allatom
+
+    duplex = int(duplex)
+    if duplex < 1:
+        raise DnarodError(f"--duplex {duplex}: duplexes are numbered from 1 (see `dnarod pairs TOPOLOGY`)")
+    duplex -= 1
+    if topology is None:
+        if not is_structure_file(path):
+            raise StructureError(f"{path}: an all-atom trajectory needs --topology (PDB, PSF, PRMTOP, GRO, ...)")
+        traj, _ = load_allatom(path, None, duplex, start, stop, step)
+    else:
+        traj, _ = load_allatom(topology, path, duplex, start, stop, step)
+    return traj, None, "all-atom"
+
+
+def analyze(input_path, topology=None, forcefield=None, out=None, circular=False, temperature=None,
+            start=None, stop=None, step=None, exclude_ends=None, n_blocks=10, allow_gaps=False, duplex=1,
+            plots=True, echo=print, overwrite=False):
+    """Run every analysis on a trajectory and write the report folder (the API of ``dnarod analyze``).
+
+    ``duplex`` numbers the duplexes of an all-atom system from 1; ``overwrite`` replaces an earlier
+    report in ``out`` (default ``INPUT_analysis/``).
+
+    Returns
+    -------
+    dict
+        The summary written to ``OUT/summary.json``.
+    """
+    from ..forcefield import load_forcefield
+    from ..stepparams import to_angstrom_degrees
+    from ..thermal import exact_tangent_correlation, kT as thermal_kT
+    from .polymer import EndToEnd, LinkingNumber, TangentCorrelation
+    from .steps import StepAnalysis
+    from .stiffness import StiffnessFit
+
+    out = Path(out) if out else Path(input_path).with_name(Path(input_path).stem + "_analysis")
+    out, stale = prepare_report_folder(out, overwrite)
+    traj, model, kind = load_input(input_path, topology, duplex, start, stop, step)
+    for p in stale:  # overwrite: the old report's files go once the input has been read
+        p.unlink(missing_ok=True)
+    ff = load_forcefield(forcefield or "dna-default")
+    closure = model.closure if model is not None else None
+    circular = circular or bool(traj.metadata.get("circular"))
+    if circular and closure is None:
+        from ..strains import Closure
+        closure = Closure.identity()
+    is_ring = closure is not None
+    ds = model.ds if model is not None else ff.ds
+    seq = (model.sequence if model is not None else None) or traj.metadata.get("sequence") or None
+    if seq is not None and len(seq) != traj.n_nodes:
+        seq = None
+    T = float(temperature or traj.metadata.get("temperature_K") or ff.temperature)
+    ends = (1 if kind == "all-atom" else 0) if exclude_ends is None else int(exclude_ends)
+    if is_ring:
+        ends = 0
+    check = not allow_gaps
+    summary = {"input": str(input_path), "kind": kind, "n_frames": traj.n_frames, "n_nodes": traj.n_nodes,
+               "sequence": seq, "ds_nm": ds, "temperature_K": T, "circular": is_ring, "exclude_ends": ends,
+               "forcefield": ff.name, "model": "from topology" if model is not None else None, "files": {}}
+    echo(f"{input_path}: {kind} trajectory, {traj.n_frames} frames, {traj.n_nodes} nodes"
+         + (f", sequence {seq[:40]}{'...' if len(seq) > 40 else ''}" if seq else ""))
+
+    steps = StepAnalysis(traj, ds, sequence=seq, closure=closure, check_spacing=check).run()
+    steps.write_csv(out / "step_parameters.csv")
+    rows = steps.summary_rows()
+    _write_rows(out / "step_parameters_mean.csv", rows)
+    m = len(steps.names)
+    keep = slice(ends, m - ends) if ends and not is_ring else slice(None)
+    mean_ad = to_angstrom_degrees(steps.results.step_parameters[:, keep].reshape(-1, 6)).mean(axis=0)
+    summary["mean_step_parameters"] = dict(zip(["shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg"],
+                                               mean_ad))
+    summary["files"].update(step_parameters="step_parameters.csv", step_parameters_mean="step_parameters_mean.csv")
+
+    fit = StiffnessFit(traj, ds, T, sequence=seq, exclude_ends=ends, closure=closure, n_blocks=n_blocks,
+                       check_spacing=check).run()
+    _write_rows(out / "stiffness_table.csv", fit.table_rows())
+    fit.write_forcefield(out / "stiffness.toml", "*", ff_name=f"fitted-{Path(input_path).stem}",
+                         node_mass=ff.node_mass, node_inertia=ff.node_inertia,
+                         sources=[f"dnarod analyze {Path(input_path).name}"])
+    pooled = fit.results.types["*"]
+    summary["stiffness"] = {"file": "stiffness.toml", "n_samples": pooled["n_samples"],
+                            "intrinsic": pooled["mean"], "stiffness": pooled["stiffness"],
+                            "stiffness_err": pooled["stiffness_err"],
+                            "units": "Omega 1/nm, Gamma 1; A kJ/mol nm, B kJ/mol, C kJ/mol/nm",
+                            "note": "all steps pooled; with a sequence the per-step-type fits are in "
+                                    "stiffness_table.csv and sequence_stiffness.toml",
+                            "skipped_step_types": fit.results.skipped_types}
+    summary["files"].update(stiffness_table="stiffness_table.csv", stiffness="stiffness.toml")
+    types = [t for t in fit.results.types if t != "*"]
+    if types and all(len(t) == 2 for t in types):
+        p = fit.write_sequence_forcefield(out / "sequence_stiffness.toml", ff_name="fitted-sequence",
+                                          node_mass=ff.node_mass, node_inertia=ff.node_inertia)
+        summary["files"]["sequence_forcefield"] = str(p.relative_to(out))
+
+    tc = TangentCorrelation(traj, ds, exclude_ends=ends, n_blocks=n_blocks, circular=is_ring,
+                            check_spacing=check).run()
+    r = tc.results
+    params = model.params if model is not None else None
+    exact = None
+    if not is_ring:
+        if params is None and forcefield is not None:
+            try:
+                params = ff.step_parameters(seq, n_steps=traj.n_nodes - 1)
+            except DnarodError:
+                params = None
+        if params is not None:
+            exact = exact_tangent_correlation(params, ds, thermal_kT(T), tc.n_max, ends)
+    _write_rows(out / "tangent_correlation.csv",
+                [{"lag": int(n), "s_nm": float(n * ds), "correlation": float(r.correlation[n]),
+                  "error": float(r.correlation_err[n]),
+                  **({"exact": float(exact[n])} if exact is not None else {})} for n in r.lags])
+    summary["persistence_length_nm"] = {"one_step": r.persistence_length_one_step,
+                                        "one_step_error": r.persistence_length_one_step_err,
+                                        "fit": r.persistence_length, "error": r.persistence_length_err,
+                                        "n_lags_fitted": r.n_fit,
+                                        "headline": "one_step (lag 1); the long-lag fit needs runs much longer "
+                                                    "than the slowest bending relaxation time"}
+    summary["warnings"] = []
+    if not is_ring and model is not None and kind != "all-atom":
+        summary["relaxation"] = _relaxation(traj, model, T, r.persistence_length_one_step)
+        if summary["relaxation"].get("warning"):
+            summary["warnings"].append(summary["relaxation"]["warning"])
+    if exact is not None and len(exact) > 1:
+        summary["persistence_length_nm"]["exact_one_step"] = float(-ds / np.log(exact[1]))
+    summary["files"]["tangent_correlation"] = "tangent_correlation.csv"
+    if not is_ring:
+        ee = EndToEnd(traj, n_blocks=n_blocks, check_spacing=check).run()
+        summary["end_to_end_nm"] = {"mean": ee.results.mean, "error": ee.results.mean_err,
+                                    "mean_square_nm2": ee.results.mean_square,
+                                    "mean_square_error": ee.results.mean_square_err,
+                                    "contour_nm": (traj.n_nodes - 1) * ds}
+        _write_rows(out / "end_to_end.csv", [{"frame": int(f), "time_ps": float(t), "distance_nm": float(d)}
+                                             for f, t, d in zip(ee.frame_indices, ee.times, ee.results.distance)])
+        summary["files"]["end_to_end"] = "end_to_end.csv"
+    elif np.allclose(closure.Q, np.eye(3)) and np.allclose(closure.t, 0):
+        lk = LinkingNumber(traj, closure=closure, check_spacing=check).run()
+        L = lk.results
+        summary["linking"] = {"Lk": L.linking_integer, "mean_twist": L.mean_twist, "mean_writhe": L.mean_writhe,
+                              "max_identity_error": L.max_identity_error, "max_integer_error": L.max_integer_error,
+                              "check_Lk_equals_Tw_plus_Wr": L.passed}
+        _write_rows(out / "linking.csv", [{"frame": int(f), "time_ps": float(t), "Tw": float(a), "Wr": float(b),
+                                           "Lk": float(c)} for f, t, a, b, c in
+                                          zip(lk.frame_indices, lk.times, L.twist, L.writhe, L.linking)])
+        summary["files"]["linking"] = "linking.csv"
+        echo(f"linking number {sorted(set(L.linking_integer.tolist()))}, <Tw> = {L.mean_twist:.4f}, "
+             f"<Wr> = {L.mean_writhe:.4f}, Lk = Tw + Wr to {L.max_identity_error:.1e}")
+    else:
+        summary["linking"] = "not defined: the chain has a screw closure (a periodic chain, not a ring in space)"
+
+    if plots:
+        from .plots import plot_step_parameters, plot_strain_distributions, plot_tangent_correlation
+
+        xi = fit.results.xi[:, fit.keep].reshape(-1, 6)
+        plot_strain_distributions(xi, out / "strain_distributions.png", pooled["mean"], pooled["cov"],
+                                  title=f"strains of {Path(input_path).name} (all steps pooled)")
+        plot_tangent_correlation(r.lags, r.correlation, r.correlation_err, ds, out / "tangent_correlation.png",
+                                 None if is_ring else r.persistence_length, exact,
+                                 title=f"tangent correlation, {Path(input_path).name}")
+        plot_step_parameters(to_angstrom_degrees(steps.results.mean_step_parameters),
+                             to_angstrom_degrees(steps.results.std_step_parameters), steps.names,
+                             out / "step_parameters.png", title=f"step parameters, {Path(input_path).name}")
+        summary["files"].update(plot_strains="strain_distributions.png", plot_tangent="tangent_correlation.png",
+                                plot_steps="step_parameters.png")
+    from ..io_utils import write_text_atomic
+
+    write_text_atomic(out / "summary.json", json.dumps(jsonable(summary), indent=2) + "\n")
+    lp = summary["persistence_length_nm"]
+    line = f"mean rise {mean_ad[2]:.3f} A, twist {mean_ad[5]:.2f} deg"
+    if lp["one_step"] is not None and np.isfinite(lp["one_step"] or np.nan):
+        line += f"; persistence length (lag 1) {lp['one_step']:.2f} +- {lp['one_step_error']:.2f} nm"
+        if lp.get("exact_one_step") is not None:
+            line += f" (model exact {lp['exact_one_step']:.2f} nm)"
+    echo(line)
+    if lp["fit"] is not None and np.isfinite(lp["fit"] or np.nan):
+        echo(f"long-lag fit {lp['fit']:.1f} +- {lp['error']:.1f} nm ({lp['n_lags_fitted']} lags; converged only for "
+             f"runs of many slowest bending relaxation times"
+             + (f", here {summary['relaxation']['run_over_tau']:.3g} of them)"
+                if summary.get("relaxation", {}).get("run_over_tau") is not None else ")"))
+    for w in summary["warnings"]:
+        echo(f"warning: {w}")
+    echo(f"wrote {out}/ (summary.json, CSV tables, stiffness.toml, plots)")
+    return summary
+
+
+def _relaxation(traj, model, temperature, lp):
+    """Slowest bending relaxation time of the analysed chain and the run-length warning (summary entry)."""
+    from .polymer import RELAXATION_TIMES_REQUIRED, bending_relaxation_time, relaxation_warning
+
+    friction = traj.metadata.get("friction_per_ps")
+    run_time = float(traj.time[-1] - traj.time[0]) if traj.n_frames > 1 else 0.0
+    L = model.ds * (traj.n_nodes - 1)
+    rho = float(np.mean(model.mass)) / model.ds
+    out = {"formula": "tau_1 = 1/(zeta/2 - sqrt(zeta^2/4 - omega_1^2)), omega_1^2 = A beta_1^4/rho, beta_1 L = 4.730 "
+                      "(free ends), A = kT lp; overdamped: zeta rho L^4/(A 4.730^4)",
+           "contour_length_nm": L, "mass_per_length_amu_per_nm": rho, "run_time_ps": run_time,
+           "required_relaxation_times": RELAXATION_TIMES_REQUIRED}
+    if friction is None or not np.isfinite(lp or np.nan):
+        out["tau_ps"] = None
+        out["note"] = "no friction in the trajectory metadata: relaxation time not estimated"
+        return out
+    tau = bending_relaxation_time(L, lp, temperature, rho, float(friction))
+    out.update(friction_per_ps=float(friction), tau_ps=tau, run_over_tau=run_time / tau if np.isfinite(tau) else 0.0,
+               warning=relaxation_warning(run_time, tau))
+    return out

@@ -1,0 +1,171 @@
+"""What a member does: build its run, and reduce the run to a row of observables.
+
+A *protocol* is any object (a module, a class instance, a namespace) with some of:
+
+``build(settings) -> dnarod.run.RunSpec``
+    The run of one member from its settings (default :func:`build_runspec`).
+``reduce(member_dir, settings, analysis) -> dict``
+    Scalars (float, int, str, bool) of the finished run in ``member_dir``; they become the
+    member's columns in the results table (default :func:`dnarod.ensemble.reduce.reduce_run`).
+``execute(settings, member_dir, analysis) -> dict``
+    Optional: do everything (several runs, say) and return the row; then ``build`` and
+    ``reduce`` are not used. It must resume from what ``member_dir`` holds.
+``keys`` / ``analysis_keys``
+    Optional dicts name -> :class:`dnarod.ensemble.schema.Key` of extra settings it reads.
+
+They run on dask workers, so they must be importable (module-level) and picklable. A spec names
+a protocol as ``"package.module:attribute"`` or by a name registered in :data:`PROTOCOLS`.
+"""
+from __future__ import annotations
+
+import importlib
+from types import SimpleNamespace
+
+import numpy as np
+
+from .schema import SpecError
+
+#: Registered protocol names -> "module:attribute".
+PROTOCOLS = {}
+
+
+def register_protocol(name, target):
+    """Register ``name`` for ``target`` (a "module:attribute" string)."""
+    PROTOCOLS[name] = target
+
+
+def _run_api():
+    """``(RunSpec, run)`` of the run layer."""
+    from ..run import RunSpec, run
+
+    return RunSpec, run
+
+
+def _loads_module():
+    try:
+        return importlib.import_module("dnarod.loads")
+    except ImportError:
+        return importlib.import_module("dnarod.openmm.loads")
+
+
+def build_runspec(settings):
+    """The :class:`dnarod.run.RunSpec` of a member's settings (keys with units -> MD units).
+
+    Loads: ``clamp_first`` -> ``Clamp(0)``; ``force_pN`` -> ``PullingForce`` on the last node
+    along the initial end-to-end axis (and the opposite force on node 0 unless clamped);
+    ``torque_pN_nm`` -> ``Torque`` on the last node about that axis; ``rotation_clamp_kJ_mol``
+    with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run.
+    """
+    from ..inputs import load_model
+    from ..units import PN
+
+    RunSpec, _ = _run_api()
+    s = settings
+    L = _loads_module()
+    loads = []
+    force, torque, rclamp = s.get("force_pN", 0.0), s.get("torque_pN_nm", 0.0), s.get("rotation_clamp_kJ_mol")
+    if s.get("clamp_first") or force or torque or rclamp is not None:
+        model = load_model(s["source"], s.get("forcefield", "dna-default"), s.get("circular", False),
+                           s.get("ring", False), s.get("delta_lk", 0))
+        n = model.n_nodes
+        axis = model.positions[-1] - model.positions[0]
+        if np.linalg.norm(axis) == 0:
+            axis = model.frames[0][:, 2]
+        axis = axis / np.linalg.norm(axis)
+        if s.get("clamp_first"):
+            loads.append(L.Clamp(0))
+        if force:
+            loads.append(L.PullingForce(n - 1, force * PN * axis))
+            if not s.get("clamp_first"):
+                loads.append(L.PullingForce(0, -force * PN * axis))
+        if torque:
+            loads.append(L.Torque(n - 1, torque * PN * axis))
+        if rclamp is not None:
+            loads.append(L.RotationClamp(n - 1, rclamp, axis=axis, turns=s.get("turns", 0.0)))
+    kw = dict(source=s["source"], forcefield=s.get("forcefield", "dna-default"), engine=s.get("engine", "openmm"),
+              time_ns=s.get("time_ns", 1.0), temperature=s.get("temperature_K", 300.0),
+              friction=s.get("friction_per_ps", 1.0), dt=s.get("dt_ps"), seed=s.get("seed"), loads=tuple(loads),
+              salt=s.get("salt_M", 0.15), excluded_volume=s.get("excluded_volume", True),
+              electrostatics=s.get("electrostatics", True), platform=s.get("platform"),
+              circular=s.get("circular", False), ring=s.get("ring", False), delta_lk=s.get("delta_lk", 0),
+              start=s.get("start", "intrinsic"), frame_interval_ps=s.get("frame_interval_ps", 1.0),
+              velocities=s.get("velocities", False), export=s.get("export", False))
+    if s.get("checkpoint_interval_ps") is not None:
+        kw["checkpoint_interval_ps"] = s["checkpoint_interval_ps"]
+    return RunSpec(**kw)
+
+
+def _default_reduce(member_dir, settings, analysis):
+    from .reduce import reduce_run
+
+    return reduce_run(member_dir, settings, analysis)
+
+
+#: The protocol used when a spec names none.
+DEFAULT = SimpleNamespace(build=build_runspec, reduce=_default_reduce)
+
+
+def resolve_protocol(protocol):
+    """A protocol object from None (the default), an object, a registered name or "module:attribute"."""
+    if protocol is None:
+        return DEFAULT
+    if not isinstance(protocol, str):
+        return protocol
+    target = PROTOCOLS.get(protocol, protocol)
+    if ":" not in target:
+        names = ", ".join(sorted(PROTOCOLS)) or "none"
+        raise SpecError(f"[ensemble] protocol {protocol!r}: not a registered name ({names}) nor "
+                        f"'package.module:attribute'")
+    mod, _, attr = target.partition(":")
+    try:
+        obj = importlib.import_module(mod)
+        for part in attr.split("."):
+            obj = getattr(obj, part)
+    except (ImportError, AttributeError) as exc:
+        raise SpecError(f"[ensemble] protocol {protocol!r}: cannot import {target}: {exc}") from None
+    return obj
+
+
+def _as_keys(keys):
+    from .schema import Key
+
+    out = {}
+    for name, k in dict(keys or {}).items():
+        out[name] = k if isinstance(k, Key) else Key(name, k, None, "protocol setting")
+    return out
+
+
+def protocol_keys(protocol):
+    """Extra keys a protocol accepts: ``{"run": {...}, "analysis": {...}}`` of :class:`Key`.
+
+    A protocol's ``keys`` / ``analysis_keys`` map names to :class:`~dnarod.ensemble.schema.Key`
+    or simply to a type (float, int, bool, str).
+    """
+    return {"run": _as_keys(getattr(protocol, "keys", None)),
+            "analysis": _as_keys(getattr(protocol, "analysis_keys", None)),
+            "needs_source": not hasattr(protocol, "execute")}
+
+
+def call_hook(fn, *args):
+    """Call a protocol hook with ``(settings, member_dir, analysis)``-style arguments, dropping the
+    trailing ``analysis`` for hooks written with two parameters."""
+    import inspect
+
+    try:
+        params = inspect.signature(fn).parameters.values()
+    except (TypeError, ValueError):
+        return fn(*args)
+    if any(p.kind is p.VAR_POSITIONAL for p in params):
+        return fn(*args)
+    n = sum(1 for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD))
+    return fn(*args[:max(n, 1)])
+
+
+def _null_execute(settings, member_dir, analysis):
+    """No simulation: echo the numeric settings (for measuring the ensemble machinery itself)."""
+    return {f"echo_{k}": v for k, v in settings.items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
+
+
+#: A protocol that runs nothing: its members measure scheduling overhead and client memory.
+NULL = SimpleNamespace(execute=_null_execute)
+register_protocol("null", "dnarod.ensemble.protocol:NULL")

@@ -1,0 +1,120 @@
+"""``dnarod protocol``: force-extension, magnetic-tweezers hat curves, torque-turns and supercoiled rings.
+
+Each subcommand is a thin shell over :func:`dnarod.protocols.run_protocol`: it runs one member per value
+of its axes (dask local workers) and writes ``OUT/curve.csv`` and ``OUT/curve.png``. Bad input exits with
+status 2 and one line, before anything runs.
+"""
+from __future__ import annotations
+
+import click
+
+from ..errors import DnarodError
+
+
+def _floats(text, what):
+    try:
+        vals = [float(v) for v in str(text).replace(" ", "").split(",") if v != ""]
+    except ValueError:
+        raise DnarodError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if not vals:
+        raise DnarodError(f"{what}: give at least one value")
+    return vals
+
+
+def _common(f):
+    opts = [
+        click.option("--source", "-s", default="600", show_default=True,
+                     help="Node count (uniform force field) or DNA sequence."),
+        click.option("--forcefield", default="dna-default", show_default=True),
+        click.option("--time", "time_ns", type=float, default=2.0, show_default=True,
+                     help="Production time per member, ns."),
+        click.option("--equilibration", "equilibration_ns", type=float, default=None,
+                     help="Equilibration per member, ns (default: 5 slowest bending relaxation times)."),
+        click.option("--temperature", "temperature_K", type=float, default=300.0, show_default=True, help="K."),
+        click.option("--salt", "salt_M", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L."),
+        click.option("--seed", type=int, default=1, show_default=True),
+        click.option("--workers", type=int, default=2, show_default=True,
+                     help="Dask local workers (0: run members one after another in this process)."),
+        click.option("--out", "-o", type=click.Path(file_okay=False), required=True, help="Output folder."),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, seed, **extra):
+    b = dict(source=str(source), forcefield=forcefield, time_ns=time_ns, temperature_K=temperature_K, salt_M=salt_M,
+             seed=seed, **extra)
+    if equilibration_ns is not None:
+        b["equilibration_ns"] = equilibration_ns
+    return b
+
+
+def _report(curve, x, ys):
+    for r in curve.rows:
+        parts = [f"{x} {r.get(x)}"] + [f"{y} {r.get(y):.4g} +- {r.get(y + '_err') or 0:.2g}" for y in ys
+                                      if r.get(y) is not None]
+        click.echo("  " + ", ".join(parts))
+    click.echo(f"wrote {curve.files.get('csv')} and {curve.files.get('png')}")
+
+
+@click.group("protocol")
+def protocol():
+    """Single-molecule protocols: force-extension, hat curves, torque-turns, supercoiled rings."""
+
+
+@protocol.command("force-extension")
+@click.option("--force", "forces", required=True, help="Forces, pN, comma-separated (e.g. 0.1,0.3,1,3,10).")
+@click.option("--turns", default=None, help="Refused: the force-extension bead end is torsionally free.")
+@_common
+def force_extension_cmd(forces, turns, workers, out, **kw):
+    """Extension vs force with a torsionally free bead end."""
+    from .curves import run_protocol
+
+    if turns not in (None, "", "0"):
+        raise DnarodError(f"--turns {turns}: turns need a rotation clamp; the force-extension bead end is "
+                          f"torsionally free: use `dnarod protocol hat` or `dnarod protocol torque-turns`")
+    c = run_protocol("force_extension", {"force_pN": _floats(forces, "--force")}, _base(**kw), out, workers=workers)
+    _report(c, "force_pN", ["relative_extension"])
+
+
+@protocol.command("hat")
+@click.option("--force", "forces", default="0.5", show_default=True, help="Force(s), pN, comma-separated.")
+@click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6).")
+@click.option("--clamp-k", type=float, default=250.0, show_default=True, help="Rotation clamp stiffness, kJ/mol.")
+@_common
+def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
+    """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
+    from .curves import run_protocol
+
+    c = run_protocol("magnetic_tweezers", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
+                     _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
+    _report(c, "turns", ["relative_extension", "Wr", "plectoneme_fraction"])
+
+
+@protocol.command("torque-turns")
+@click.option("--force", "forces", default="1.0", show_default=True, help="Force(s), pN, comma-separated.")
+@click.option("--turns", required=True, help="Turns, comma-separated.")
+@click.option("--clamp-k", type=float, default=250.0, show_default=True, help="Rotation clamp stiffness, kJ/mol.")
+@_common
+def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
+    """Torque on the rotation clamp vs turns at constant force."""
+    from .curves import run_protocol
+
+    c = run_protocol("torque_turns", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
+                     _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
+    _report(c, "turns", ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"])
+
+
+@protocol.command("rings")
+@click.option("--delta-lk", required=True, help="Linking differences, comma-separated integers.")
+@_common
+def rings_cmd(delta_lk, workers, out, **kw):
+    """Closed rings: Tw, Wr and plectonemes vs linking difference."""
+    from .curves import run_protocol
+
+    vals = _floats(delta_lk, "--delta-lk")
+    if any(v != int(v) for v in vals):
+        raise DnarodError(f"--delta-lk {delta_lk}: the linking number of a closed ring is an integer")
+    c = run_protocol("rings", {"delta_lk": [int(v) for v in vals]}, _base(**kw), out, workers=workers)
+    _report(c, "delta_lk", ["Wr", "Tw", "writhe_fraction", "plectoneme_fraction"])

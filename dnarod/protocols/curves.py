@@ -1,0 +1,275 @@
+"""Protocol curves: run a protocol's members (an ensemble over its axes) and write ``curve.csv`` + ``curve.png``.
+
+Members run on :class:`dnarod.ensemble.Ensemble` (dask ``LocalCluster``; ``workers=0`` runs them one after
+the other in this process, which the tests use). Bad input is refused before anything runs, with one line
+(:class:`~dnarod.errors.DnarodError`). Finished members are reused (same settings -> same folder).
+"""
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DnarodError
+
+#: x, y columns and labels of each protocol's curve.
+PLOTS = {
+    "force_extension": ("force_pN", ["relative_extension"], "force (pN)", "extension / contour length"),
+    "magnetic_tweezers": ("turns", ["relative_extension"], "turns", "extension / contour length"),
+    "torque_turns": ("turns", ["twist_torque_pN_nm", "clamp_torque_pN_nm"], "turns", "torque (pN nm)"),
+    "rings": ("delta_lk", ["Wr", "Tw_minus_Tw0"], "linking difference", "turns"),
+}
+#: experimental tables (data/experimental/) drawn beside each protocol's curve, when present.
+EXPERIMENTS = {
+    "force_extension": ["force_extension_parameters.csv"],
+    "magnetic_tweezers": [],
+    "torque_turns": ["torsional_stiffness.csv"],
+    "rings": ["ring_writhe_fraction.csv"],  # not bundled: no writhe fraction could be verified (data/README.md)
+}
+
+
+@dataclass
+class Curve:
+    """A protocol's result: ``rows`` (one dict per member, sorted along the x axis) and written ``files``."""
+
+    kind: str
+    rows: list
+    files: dict = field(default_factory=dict)
+
+
+def experimental_dir():
+    """``data/experimental`` of the source tree."""
+    return Path(__file__).resolve().parents[2] / "data" / "experimental"
+
+
+def _members(kind, axes, base):
+    """Expand the axes (cross product) into member settings, checking every member before any runs."""
+    from itertools import product
+
+    from .rings import check_ring, relaxed_twist
+    from .tweezers import check_tweezers, intrinsic_turns
+
+    names = list(axes)
+    values = [list(np.atleast_1d(axes[n]).tolist()) for n in names]
+    for n, v in zip(names, values):
+        if not v:
+            raise DnarodError(f"{n}: give at least one value")
+    members = [dict(base, **dict(zip(names, combo))) for combo in product(*values)]
+    from ..forcefield import load_forcefield
+
+    ff = load_forcefield(base.get("forcefield", "dna-default"))
+    src = str(base.get("source", "")).strip()
+    if not src:
+        raise DnarodError("source: give a node count (e.g. 600) or a sequence")
+    if kind == "rings":
+        ring = ff.ring(None if src.isdigit() else src, n_nodes=int(src) if src.isdigit() else None)
+        tw0 = relaxed_twist(ring)
+        for m in members:
+            check_ring(m.get("delta_lk", 0), tw0)
+    else:
+        model = ff.model_from_sequence(None if src.isdigit() else src, n_nodes=int(src) if src.isdigit() else None)
+        lk0 = intrinsic_turns(model)
+        for m in members:
+            check_tweezers(m.get("force_pN", 0.0), m.get("turns"), rotation_clamp=kind != "force_extension",
+                           lk0=lk0, torque_pN_nm=m.get("torque_pN_nm"))
+    return members
+
+
+def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True):
+    """Run a protocol over its axes and write its curve.
+
+    Parameters
+    ----------
+    kind : {"force_extension", "magnetic_tweezers", "torque_turns", "rings"}
+    axes : dict
+        Axis name -> list of values (``force_pN``, ``turns``, ``delta_lk``, ``seed``); crossed.
+    base : dict
+        Settings shared by all members (ensemble keys: ``source``, ``time_ns``, ``equilibration_ns``,
+        ``temperature_K``, ``salt_M``, ``rotation_clamp_kJ_mol``, ...).
+    outdir : path
+    workers : int
+        Dask local workers; 0 runs the members serially in this process.
+
+    Returns
+    -------
+    Curve
+    """
+    from ..io_utils import ensure_dir
+    from . import ensemble_hooks as hooks
+
+    proto = {"force_extension": hooks.FORCE_EXTENSION, "magnetic_tweezers": hooks.MAGNETIC_TWEEZERS,
+             "torque_turns": hooks.TORQUE_TURNS, "rings": hooks.RINGS}.get(kind)
+    if proto is None:
+        raise DnarodError(f"unknown protocol {kind!r}; choose force_extension, magnetic_tweezers, torque_turns, rings")
+    base = dict(base)
+    if kind in ("magnetic_tweezers", "torque_turns"):
+        base.setdefault("rotation_clamp_kJ_mol", 250.0)
+    if kind == "rings":
+        base["ring"] = True  # the ensemble's model check builds a closed ring for delta_lk
+    members = _members(kind, axes, base)
+    outdir = ensure_dir(Path(outdir))
+    if workers:
+        rows = _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client)
+    else:
+        rows = []
+        for i, m in enumerate(members):
+            mdir = outdir / "members" / _member_name(m, axes)
+            row = proto.execute(m, mdir)
+            rows.append(dict(row, **{k: m[k] for k in axes}))
+    x = PLOTS[kind][0]
+    rows.sort(key=lambda r: (r.get(x) if r.get(x) is not None else 0.0))
+    for r in rows:
+        if kind == "rings" and "Tw" in r:
+            r["Tw_minus_Tw0"] = r["Tw"] - r["relaxed_twist"]
+    curve = Curve(kind, rows)
+    curve.files["csv"] = _write_csv(rows, outdir / "curve.csv")
+    if plots:
+        curve.files["png"] = plot_curve(kind, rows, outdir / "curve.png")
+    return curve
+
+
+def _member_name(m, axes):
+    return "_".join(f"{k}{m[k]:+g}" if isinstance(m[k], (int, float)) else f"{k}{m[k]}" for k in axes) or "member"
+
+
+def _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client):
+    """Run the members through :mod:`dnarod.ensemble`; returns their observables rows (settings merged)."""
+    from ..ensemble import Ensemble
+
+    protocol_ref = {"force_extension": "dnarod.protocols:FORCE_EXTENSION",
+                    "magnetic_tweezers": "dnarod.protocols:MAGNETIC_TWEEZERS",
+                    "torque_turns": "dnarod.protocols:TORQUE_TURNS", "rings": "dnarod.protocols:RINGS"}[kind]
+    doc = {"ensemble": {"name": kind, "protocol": protocol_ref},
+           "base": {k: v for k, v in base.items()},
+           "axes": {k: list(np.atleast_1d(v).tolist()) for k, v in axes.items()}}
+    ens = Ensemble.from_dict(doc, outdir / "ensemble", overwrite=False)
+    ens.run(client=client, workers=workers, progress=progress)
+    rows = []
+    from ..ensemble.member import member_dir, read_result
+
+    for m in ens.members:
+        r = read_result(member_dir(ens.outdir, m.id)) or {}
+        if r.get("status") != "ok":
+            raise DnarodError(f"member {m.index} ({', '.join(f'{k}={m.settings.get(k)}' for k in axes)}) failed: "
+                              f"{r.get('error', 'no result')}; see {member_dir(ens.outdir, m.id)}/member.log")
+        rows.append(dict(r["observables"], **{k: m.settings.get(k) for k in axes}))
+    return rows
+
+
+def _write_csv(rows, path):
+    from ..io_utils import write_text_atomic
+
+    keys = []
+    for r in rows:
+        for k in r:
+            if k not in keys:
+                keys.append(k)
+    buf = io.StringIO()
+    w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
+    w.writeheader()
+    for r in rows:
+        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in keys})
+    write_text_atomic(path, buf.getvalue())
+    return Path(path)
+
+
+def read_experimental(name):
+    """Rows of ``data/experimental/NAME`` (``#`` comment lines skipped), or [] if the table does not exist."""
+    p = experimental_dir() / name
+    if not p.exists():
+        return []
+    lines = [ln for ln in p.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    return list(csv.DictReader(lines))
+
+
+def plot_curve(kind, rows, path):
+    """Plot a protocol's curve (mean +- block standard error per member) with the experimental tables beside."""
+    from ..validate._common import new_figure, save_figure
+
+    xk, yks, xl, yl = PLOTS[kind]
+    fig, ax = new_figure(1, 1, width=6.0, height=4.2)
+    a = ax[0, 0]
+    x = np.array([float(r.get(xk) or 0.0) for r in rows])
+    for yk in yks:
+        y = np.array([np.nan if r.get(yk) is None else float(r[yk]) for r in rows])
+        e = np.array([np.nan if r.get(yk + "_err") is None else float(r[yk + "_err"]) for r in rows])
+        if kind == "force_extension":
+            a.set_xscale("log")
+        a.errorbar(x, y, yerr=np.where(np.isfinite(e), e, 0.0), fmt="o-", capsize=3, label=f"dnarod: {yk}")
+    for name in EXPERIMENTS.get(kind, []):
+        _draw_experiment(a, kind, name, rows)
+    a.set_xlabel(xl)
+    a.set_ylabel(yl)
+    if rows:
+        r0 = rows[0]
+        a.set_title(f"{kind.replace('_', ' ')}: {r0.get('n_bp')} bp"
+                    + (f", {r0.get('force_pN')} pN" if kind in ("magnetic_tweezers", "torque_turns") else ""),
+                    fontsize=10)
+    a.legend(fontsize=7)
+    out = Path(path)
+    save_figure(fig, out.parent, out.name)
+    return out
+
+
+def _draw_experiment(a, kind, name, rows):
+    """Experimental points beside the curve (converted to the curve's axes where a conversion is defined)."""
+    from ..thermal import kT
+    from ..units import PN
+
+    data = read_experimental(name)
+    if not data or not rows:
+        return
+    if kind == "torque_turns" and name == "torsional_stiffness.csv":
+        # a measured torsional stiffness C (pN nm^2) at a force gives the pre-buckling slope
+        # torque = C 2 pi turns / L of this chain
+        L = float(rows[0]["contour_length_nm"])
+        t = np.array([float(r.get("turns") or 0.0) for r in rows])
+        tt = np.linspace(min(t.min(), 0.0), max(t.max(), 0.0), 20)
+        for d in data:
+            C = float(d["C_pN_nm2"])
+            a.plot(tt, C * 2 * np.pi * tt / L, "--", lw=1,
+                   label=f"slope from C = {C:g} pN nm² ({d['source']}, {d['force_pN']} pN)")
+    if kind == "force_extension" and name == "force_extension_parameters.csv":
+        from ..wlc import extensible_wlc_extension
+
+        F = np.array([float(r["force_pN"]) for r in rows])
+        FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
+        kt_pn = kT(float(rows[0].get("temperature_K") or 300.0)) / PN
+        for d in data:
+            lp = float(d["persistence_length_nm"])
+            a.plot(FF, extensible_wlc_extension(FF, lp, 1e12, kt_pn), ":", lw=1,
+                   label=f"WLC (Bouchiat) with measured lp {lp:g} nm "
+                         f"({d['source'].split(' Bio')[0]}, {d['conditions']})")
+    if kind == "rings" and name == "ring_writhe_fraction.csv":
+        dl = np.array([float(r.get("delta_lk") or 0.0) for r in rows])
+        xx = np.linspace(min(dl.min(), 0.0), max(dl.max(), 0.0), 20)
+        for d in data:
+            f = float(d["writhe_fraction"])
+            a.plot(xx, f * xx, ":", lw=1, label=f"Wr = {f:g} ΔLk ({d['source']}, σ {d['sigma']})")
+
+
+def force_extension(forces_pN, outdir, source="600", **kw):
+    """Force-extension curve (torsionally free bead end): one member per force (pN). See :func:`run_protocol`."""
+    return run_protocol("force_extension", {"force_pN": list(forces_pN)}, dict(kw.pop("base", {}), source=str(source)),
+                        outdir, **kw)
+
+
+def hat_curve(turns, outdir, force_pN=0.5, source="600", **kw):
+    """Magnetic-tweezers hat curve: extension vs turns at constant force (one or several forces, pN)."""
+    return run_protocol("magnetic_tweezers", {"force_pN": list(np.atleast_1d(force_pN)), "turns": list(turns)},
+                        dict(kw.pop("base", {}), source=str(source)), outdir, **kw)
+
+
+def torque_turns(turns, outdir, force_pN=1.0, source="600", **kw):
+    """Torque-turns curve with a rotation clamp at constant force (pN)."""
+    return run_protocol("torque_turns", {"force_pN": list(np.atleast_1d(force_pN)), "turns": list(turns)},
+                        dict(kw.pop("base", {}), source=str(source)), outdir, **kw)
+
+
+def ring_supercoiling(delta_lk, outdir, source="600", **kw):
+    """Closed rings over a list of linking differences: Tw, Wr, writhe fraction, plectonemes."""
+    return run_protocol("rings", {"delta_lk": [int(d) for d in delta_lk]}, dict(kw.pop("base", {}), source=str(source)),
+                        outdir, **kw)

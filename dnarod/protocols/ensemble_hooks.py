@@ -1,0 +1,113 @@
+"""Protocol objects for :mod:`dnarod.ensemble` (the ``execute`` hook: one member = one equilibrium sample).
+
+A spec names one as ``protocol = "dnarod.protocols:MAGNETIC_TWEEZERS"``. Settings read from the
+ensemble's canonical keys: ``source`` (a node count or a sequence), ``forcefield``, ``force_pN``,
+``turns``, ``rotation_clamp_kJ_mol`` (clamp stiffness), ``time_ns`` (production), ``temperature_K``,
+``salt_M``, ``seed``, ``excluded_volume``, ``electrostatics``, ``platform``, ``delta_lk`` (rings);
+plus the protocol keys ``equilibration_ns``, ``sample_ps`` and ``friction_mode`` ("auto": critical
+damping of the slowest bending mode; "fixed": the spec's ``friction_per_ps``).
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+
+from ..errors import DnarodError
+
+
+def _source(settings):
+    src = settings.get("source")
+    if src is None:
+        raise DnarodError("source: give a node count or a sequence")
+    s = str(src).strip()
+    if s.isdigit():
+        return {"n_bp": int(s)}
+    return {"sequence": s}
+
+
+def _threads():
+    t = os.environ.get("OPENMM_CPU_THREADS")
+    return int(t) if t else 1
+
+
+def protocol_keys():
+    from ..ensemble.schema import Key
+
+    return {k.name: k for k in [
+        Key("equilibration_ns", float, None, "equilibration before sampling, ns (default 5 slowest bending "
+            "relaxation times)", ">0"),
+        Key("sample_ps", float, None, "time between samples, ps (default min(tau_1/10, time/200) in [1, 200] ps)",
+            ">0"),
+        Key("friction_mode", str, "auto", "auto: critical damping of the slowest bending mode; fixed: "
+            "friction_per_ps", "auto|fixed"),
+    ]}
+
+
+@dataclass(frozen=True)
+class TweezersProtocol:
+    """``kind``: "force_extension" (torsionally free end), "magnetic_tweezers" or "torque_turns" (rotation clamp)."""
+
+    kind: str
+
+    @property
+    def keys(self):
+        return protocol_keys()
+
+    def member_settings(self, settings):
+        clamp = self.kind != "force_extension"
+        turns = settings.get("turns") or 0.0
+        if not clamp and turns:
+            raise DnarodError(f"turns = {turns} without a rotation clamp: the force-extension protocol leaves the bead "
+                              f"end torsionally free; use the magnetic-tweezers or torque-turns protocol")
+        out = dict(_source(settings), forcefield=settings.get("forcefield") or "dna-default",
+                   force_pN=settings.get("force_pN"), turns=float(turns) if clamp else None,
+                   time_ns=settings.get("time_ns"), equilibration_ns=settings.get("equilibration_ns"),
+                   temperature_K=settings.get("temperature_K"), salt_M=settings.get("salt_M"),
+                   seed=settings.get("seed") if settings.get("seed") is not None else 1,
+                   excluded_volume=settings.get("excluded_volume", True),
+                   electrostatics=settings.get("electrostatics", True),
+                   platform=settings.get("platform") or "CPU", threads=_threads(), sample_ps=settings.get("sample_ps"))
+        if clamp and settings.get("rotation_clamp_kJ_mol"):
+            out["clamp_k_kJ_mol"] = settings["rotation_clamp_kJ_mol"]
+        if settings.get("friction_mode", "auto") == "fixed":
+            out["friction_per_ps"] = settings.get("friction_per_ps")
+        return out
+
+    def execute(self, settings, member_dir, analysis=None):
+        from .tweezers import run_member
+
+        return run_member(self.member_settings(settings), member_dir)
+
+
+@dataclass(frozen=True)
+class RingProtocol:
+    """Closed rings with a linking difference ``delta_lk``."""
+
+    kind: str = "rings"
+
+    @property
+    def keys(self):
+        return protocol_keys()
+
+    def member_settings(self, settings):
+        out = dict(_source(settings), forcefield=settings.get("forcefield") or "dna-default",
+                   delta_lk=int(settings.get("delta_lk") or 0), time_ns=settings.get("time_ns"),
+                   equilibration_ns=settings.get("equilibration_ns"), temperature_K=settings.get("temperature_K"),
+                   salt_M=settings.get("salt_M"), seed=settings.get("seed") if settings.get("seed") is not None else 1,
+                   excluded_volume=settings.get("excluded_volume", True),
+                   electrostatics=settings.get("electrostatics", True), platform=settings.get("platform") or "CPU",
+                   threads=_threads(), sample_ps=settings.get("sample_ps"))
+        if settings.get("friction_mode", "auto") == "fixed":
+            out["friction_per_ps"] = settings.get("friction_per_ps")
+        return out
+
+    def execute(self, settings, member_dir, analysis=None):
+        from .rings import run_ring_member
+
+        return run_ring_member(self.member_settings(settings), member_dir)
+
+
+FORCE_EXTENSION = TweezersProtocol("force_extension")
+MAGNETIC_TWEEZERS = TweezersProtocol("magnetic_tweezers")
+TORQUE_TURNS = TweezersProtocol("torque_turns")
+RINGS = RingProtocol()

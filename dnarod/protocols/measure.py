@@ -1,0 +1,223 @@
+"""Per-frame observables of tweezers chains and rings: extension, end rotation, clamp torque, Tw, Wr, Lk and a
+plectoneme detector.
+
+Conventions (open chains in tweezers): node 0 is fixed at the surface, the pulling force and the rotation
+clamp act on the last node, both along the lab z axis.
+
+* **Extension**: ``z_last - z_0``, nm.
+* **End rotation** (turns): rotation of the last node's frame about z since the start, unwrapped between
+  samples (samples must be closer than half a turn apart).
+* **Clamp torque** (pN nm): the z component of the torque the rotation clamp ``E = k (1 - cos theta)``
+  exerts on the last node, ``k sin(theta) n_z`` (theta, n: angle and axis of the rotation from the node's
+  frame to the clamp target). In equilibrium its mean is the torque the DNA exerts on the bead.
+* **Tw, Wr, Lk** (turns) of an open chain whose end tangents are held along z (Fuller-White with a closure):
+  the centreline is extended by straight segments along -z below node 0 and +z above the last node and
+  closed far away in the plane of those two vertical lines (:func:`closed_polygon`); ``Wr`` is the writhe
+  of that closed polygon;
+  ``Tw`` is the twist of the ribbon d1 along the chain including the corners onto the vertical extensions
+  (:func:`open_twist`). ``Lk = Tw + Wr`` then changes exactly by the rotation of the last node about z
+  when the chain deforms with its end tangents vertical and does not pass through the closure (checked in
+  the tests), so ``Lk - Lk0`` is the number of turns applied.
+* **Plectoneme detector** (:func:`plectoneme_state`): a node is *in a plectoneme* if some node at least
+  ``min_separation_nm`` away along the chain is closer than ``contact_distance_nm`` in space (a
+  self-contact of the interwound superhelix; a stretched or coiled chain has essentially none at these
+  distances). The plectoneme fraction is the fraction of such nodes; the plectoneme length is the span of
+  the largest cluster of them (gaps up to twice the minimum separation, the end loop, are bridged); a
+  frame is *plectonemic* when the fraction is at least ``min_fraction``.
+  Defaults (a documented choice, not a calibration): 25 nm separation (longer than a tight end loop,
+  ~2 pi x 3 nm), ``contact_distance_nm = 6`` (three WCA diameters: the two duplexes of a superhelix sit a few
+  nm apart at 0.15 M), ``min_fraction = 0.05``.
+
+Units: nm, turns, pN nm.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..analysis.writhe import _perp, _signed_angle, _transport, writhe
+from ..units import PN
+
+Z = np.array([0.0, 0.0, 1.0])
+
+
+def rotation_about_z(frame_now, frame_ref):
+    """Angle (rad, in (-pi, pi]) of the rotation ``frame_now frame_ref^T`` about z (swing-twist decomposition).
+
+    Parameters
+    ----------
+    frame_now, frame_ref : ndarray, shape (..., 3, 3)
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    R = np.asarray(frame_now) @ np.swapaxes(np.asarray(frame_ref), -1, -2)
+    return 2.0 * np.arctan2(R[..., 1, 0] - R[..., 0, 1], 1.0 + np.trace(R, axis1=-2, axis2=-1))
+
+
+def unwrap_turns(angles):
+    """Unwrapped cumulative rotation (turns) from a series of angles in (-pi, pi] (rad), shape (n,)."""
+    return np.unwrap(np.asarray(angles, float)) / (2.0 * np.pi)
+
+
+def clamp_torque_z(frame, target, k):
+    """z torque (pN nm) of the clamp ``E = k (1 - cos theta)`` (k kJ/mol) on a node with ``frame`` (..., 3, 3)."""
+    R = np.asarray(target) @ np.swapaxes(np.asarray(frame), -1, -2)  # lab rotation from the node to the target
+    ax = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
+    # ax = sin(theta) n, so k sin(theta) n_z = k ax_z
+    return k * ax[..., 2] / PN
+
+
+def closed_polygon(positions, margin=None):
+    """The open chain (n, 3) extended vertically at both ends and closed far away, shape (n + 4, 3).
+
+    The closure lies in the vertical plane through the two vertical extensions (two vertical lines are
+    always coplanar), so it is planar: it adds no writhe of its own and no twist holonomy. ``margin``
+    (nm, default ``1000 x`` the chain's extent + 1000 nm) is the height of the vertical extensions and
+    the horizontal reach of the return path; the chain-closure cross terms fall off as extent/margin.
+    """
+    P = np.asarray(positions, float)
+    ext = float(np.ptp(P, axis=0).max())
+    h = 1000.0 * ext + 1000.0 if margin is None else float(margin)
+    u = P[-1, :2] - P[0, :2]
+    nu = np.linalg.norm(u)
+    u = np.array([1.0, 0.0]) if nu < 1e-9 * max(ext, 1.0) else u / nu
+    top = P[:, 2].max() + h
+    bottom = P[:, 2].min() - h
+    far = P[-1, :2] + h * u
+    return np.vstack([P, [P[-1, 0], P[-1, 1], top], [far[0], far[1], top], [far[0], far[1], bottom],
+                      [P[0, 0], P[0, 1], bottom]])
+
+
+def open_twist(positions, ribbon):
+    """Twist (turns) of the open polygonal ribbon with vertical (z) extensions at both ends.
+
+    Along each chain edge: rotation of the ribbon about the edge; at each node: rotation about the next
+    edge relative to parallel transport, where the edge before node 0 and the edge after the last node
+    point along +z.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+    ribbon : ndarray, shape (n, 3)
+        Ribbon vector at each node (d1), not parallel to the adjacent edges.
+
+    Returns
+    -------
+    float
+    """
+    P = np.asarray(positions, float)
+    U = np.asarray(ribbon, float)
+    e = np.diff(P, axis=0)
+    t = e / np.linalg.norm(e, axis=1)[:, None]
+    a0 = _perp(U[:-1], t)
+    a1 = _perp(U[1:], t)
+    along = _signed_angle(a0, a1, t).sum()
+    tz = np.broadcast_to(Z, (1, 3))
+    # corners: at node 0 from +z to t_0, at interior nodes from t_{k-1} to t_k, at the last node from t_{-1} to +z
+    t_in = np.vstack([tz, t])
+    t_out = np.vstack([t, tz])
+    u_in = np.vstack([_perp(U[:1], tz), a1])     # ribbon arriving at each node, perpendicular to the incoming edge
+    u_out = np.vstack([a0, _perp(U[-1:], tz)])   # ribbon leaving each node, perpendicular to the outgoing edge
+    corner = _signed_angle(_transport(u_in, t_in, t_out), u_out, t_out).sum()
+    return float((along + corner) / (2.0 * np.pi))
+
+
+def twist_writhe_open(positions, frames):
+    """``(Tw, Wr)`` (turns) of one open-chain pose with vertical end tangents (see the module docstring)."""
+    P = np.asarray(positions, float)
+    return open_twist(P, np.asarray(frames)[:, :, 0]), float(writhe(closed_polygon(P)))
+
+
+def plectoneme_state(positions, ds, min_separation_nm=25.0, contact_distance_nm=6.0, min_fraction=0.05,
+                     circular=False, return_mask=False):
+    """Self-contact plectoneme detector for one pose (see the module docstring).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+        nm.
+    ds : float
+        nm per step.
+    circular : bool
+        Chain separations wrap around (rings).
+
+    Returns
+    -------
+    fraction : float
+        Fraction of nodes in a self-contact.
+    length_nm : float
+        Span of the largest cluster of contact nodes (ds per node), nm.
+    plectonemic : bool
+    mask : ndarray of bool, shape (n,)
+        Only with ``return_mask``: nodes in a self-contact.
+    """
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(positions, float)
+    n = len(P)
+    sep_min = int(np.ceil(min_separation_nm / ds))
+    pairs = cKDTree(P).query_pairs(contact_distance_nm, output_type="ndarray")
+    inside = np.zeros(n, bool)
+    if len(pairs):
+        sep = np.abs(pairs[:, 1] - pairs[:, 0])
+        if circular:
+            sep = np.minimum(sep, n - sep)
+        far = pairs[sep >= sep_min]
+        inside[far[:, 0]] = True
+        inside[far[:, 1]] = True
+    frac = float(inside.mean())
+    # plectoneme length: contact nodes grouped into clusters, bridging gaps up to 2 sep_min nodes (the end
+    # loop of a plectoneme has no partner at sep_min or more); the largest cluster's span
+    idx = np.flatnonzero(inside)
+    best = 0
+    if len(idx):
+        if circular:
+            idx = np.concatenate([idx, idx + n])
+        start = prev = idx[0]
+        for i in idx[1:]:
+            if i - prev > 2 * sep_min:
+                best = max(best, prev - start + 1)
+                start = i
+            prev = i
+        best = min(max(best, prev - start + 1), n)
+    if return_mask:
+        return frac, float(best * ds), bool(frac >= min_fraction), inside
+    return frac, float(best * ds), bool(frac >= min_fraction)
+
+
+def twisting_moment(positions, frames, params, ds, exclude=None):
+    """Mean twisting moment (pN nm) carried by the steps: a low-noise torque estimator.
+
+    Per step, the body stress conjugate to the Cayley twist, ``m3 = (K dxi)_3``, times
+    ``dOmega3/dtheta = sec^2(theta/2)/ds`` per unit ds, is the moment about d3 for a twist rotation
+    theta; in a straight (unbuckled) stretch of chain with d3 along z it is the torque transmitted
+    along z, which in equilibrium equals the torque on the clamp. Averaged over the steps outside a
+    plectoneme (``exclude``: boolean per node, True inside), it estimates the clamp torque with about
+    ``n_steps`` times less variance than the clamp angle.
+
+    Parameters
+    ----------
+    positions, frames : (n, 3), (n, 3, 3)
+    params : StepParameters
+    ds : float
+    exclude : ndarray of bool, shape (n,), optional
+
+    Returns
+    -------
+    float
+        pN nm (NaN if every step is excluded).
+    """
+    from ..strains import strains
+
+    Om, Ga = strains(positions, frames, ds)
+    dxi = np.concatenate([Om, Ga], axis=1) - params.intrinsic
+    m3 = np.einsum("kj,kj->k", params.stiffness[:, 2, :], dxi)
+    m3 = m3 * (1.0 + 0.25 * (ds * Om[:, 2]) ** 2)
+    # the projection of d3 on z tells which steps are straight along z
+    d3z = np.asarray(frames)[:-1, 2, 2]
+    use = d3z > 0.9
+    if exclude is not None:
+        ex = np.asarray(exclude, bool)
+        use &= ~(ex[:-1] | ex[1:])
+    return float(m3[use].mean() / PN) if use.any() else float("nan")

@@ -1,0 +1,136 @@
+"""Ring members: a closed DNA ring with a chosen linking number, sampled at equilibrium.
+
+The ring is :meth:`dnarod.forcefield.ForceField.ring` (a planar circle with ``Lk = Lk0 + delta_lk``, the
+relaxed ``Lk0 = round(intrinsic twist / 2 pi)``), run with Langevin dynamics (the dynamics conserve Lk);
+each sample reports Tw (ribbon twist of d1), Wr (exact polygon writhe), Lk = Tw + Wr (checked to be the
+integer set), the writhe fraction ``Wr / (Lk - Tw0)`` with ``Tw0`` the relaxed twist, and the plectoneme
+detector of :mod:`dnarod.protocols.measure` with chain separations wrapping around.
+
+Nicked rings (free linking number) are not sampled by this module: a nick with zero twist stiffness
+still cannot let the strand pass 180 degrees of step rotation in the Cayley coordinates (the energy
+diverges there), so the linking number cannot change; the nicked-ring free energy needs a sum over
+topoisomers (not implemented).
+
+Units: nm, turns, ps.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DnarodError
+
+COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_length_nm", "plectonemic",
+           "radius_of_gyration_nm")
+
+
+def _settings(s):
+    out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
+               temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform="CPU",
+               threads=1, electrostatics=True, excluded_volume=True)
+    unknown = set(s) - set(out)
+    if unknown:
+        raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
+    out.update({k: v for k, v in s.items() if v is not None})
+    return out
+
+
+def relaxed_twist(model):
+    """Relaxed twist Tw0 (turns) of a ring: the sum of intrinsic twist angles / 2 pi."""
+    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
+
+
+def check_ring(delta_lk, lk0):
+    """Refuse linking differences the model cannot represent (|sigma| > 0.1), one line."""
+    from .tweezers import MAX_SIGMA
+
+    d = float(delta_lk)
+    if d != int(d):
+        raise DnarodError(f"delta_lk {delta_lk}: the linking number of a closed ring is an integer")
+    if abs(d / lk0) > MAX_SIGMA:
+        raise DnarodError(f"delta_lk {int(d)} is sigma = {d / lk0:+.3f} for Lk0 = {lk0:.1f}: beyond |sigma| = "
+                          f"{MAX_SIGMA:g} real DNA denatures or changes structure and the elastic rod is outside its "
+                          f"calibration; use |delta_lk| <= {int(MAX_SIGMA * lk0)}")
+
+
+def run_ring_member(settings, member_dir, progress=None):
+    """Run (or reuse) one ring member; writes ``samples.csv`` and ``protocol_result.json``, returns the row."""
+    from ..analysis.polymer import bending_relaxation_time, integrated_autocorrelation_time
+    from ..analysis.writhe import twist, writhe
+    from ..forcefield import load_forcefield
+    from ..io_utils import ensure_dir, jsonable, write_text_atomic
+    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.simulation import RodSimulation
+    from ..thermal import kT, persistence_length
+    from .measure import plectoneme_state
+    from .tweezers import auto_friction
+
+    s = _settings(settings)
+    member_dir = ensure_dir(Path(member_dir), "member folder")
+    done = member_dir / "protocol_result.json"
+    key = jsonable(s)
+    if done.exists():
+        old = json.loads(done.read_text())
+        if old.get("settings") == key:
+            return old["result"]
+    ff = load_forcefield(s["forcefield"])
+    tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
+    tw0 = relaxed_twist(tw0_model)
+    check_ring(s["delta_lk"], tw0)
+    model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
+                    delta_linking_number=int(s["delta_lk"]))
+    T = float(s["temperature_K"])
+    lp = persistence_length(model.params, model.ds, kT(T))
+    fr = auto_friction(model, 0.0, T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
+    L = model.ds * model.n_nodes
+    tau = bending_relaxation_time(L, lp, T, float(np.mean(model.mass)) / model.ds, fr)
+    eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
+    sample = float(np.clip(min(tau / 10.0, 1000.0 * float(s["time_ns"]) / 200.0), 1.0, 200.0)) \
+        if s["sample_ps"] is None else float(s["sample_ps"])
+    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
+                           salt=float(s["salt_M"]))
+    t0, c0 = time.perf_counter(), time.process_time()
+    sim = RodSimulation(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
+                        threads=s["threads"])
+    dt = sim.dt
+    stride = max(1, int(round(sample / dt)))
+    n_eq = int(round(eq / dt))
+    n_samp = max(4, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
+    sim.advance(n_eq)
+    out = {c: np.empty(n_samp) for c in COLUMNS}
+    for i in range(n_samp):
+        sim.advance(stride)
+        pos, frm = sim.node_pose()
+        tw, wr = twist(pos, frm[:, :, 0]), writhe(pos)
+        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
+        out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
+        f, length, plec = plectoneme_state(pos, model.ds, circular=True)
+        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
+        out["radius_of_gyration_nm"][i] = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
+        if progress:
+            progress(i + 1, n_samp)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    steps = n_eq + n_samp * stride
+    res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
+               seed=int(s["seed"]), contour_length_nm=L, relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0,
+               friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq, production_ps=n_samp * stride * dt,
+               wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps, n_samples=n_samp, sample_ps=stride * dt,
+               ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
+    for c in COLUMNS[1:]:
+        x = out[c]
+        res[c] = float(x.mean())
+        b = np.array([v.mean() for v in np.array_split(x, 10 if len(x) >= 20 else max(2, len(x) // 2))])
+        res[c + "_err"] = float(b.std(ddof=1) / np.sqrt(len(b)))
+        t = integrated_autocorrelation_time(x)
+        res[c + "_tau_ps"] = float(t * stride * dt) if np.isfinite(t) else None
+    res["lk_integer"] = int(np.rint(out["Lk"]).min()) if np.ptp(np.rint(out["Lk"])) == 0 else None
+    res["delta_lk_measured"] = res["Lk"] - round(tw0)
+    d = res["Lk"] - tw0
+    res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
+    lines = [",".join(COLUMNS)] + [",".join(f"{out[c][i]:.10g}" for c in COLUMNS) for i in range(n_samp)]
+    write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")
+    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+    return jsonable(res)

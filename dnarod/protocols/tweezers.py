@@ -1,0 +1,369 @@
+"""Tweezers members: one chain, one force and one number of turns, sampled at equilibrium.
+
+Geometry (magnetic tweezers): node 0 is clamped (position and orientation: the surface), the last node
+carries a constant pulling force F along +z (the bead), walls keep the chain above the surface plane and
+below the bead (:func:`add_tweezers_walls`; without them the chain unwinds around its ends) and, for
+rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` whose target is the last
+node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free (force-extension).
+
+Start ("relaxed under load"): the uniformly strained straight helix that is the static equilibrium of a
+uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), refined by
+:func:`dnarod.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
+per step carries the turns, and the other strains follow the linear constitutive law ``K dxi = (0, 0, tau, 0, 0, F)``
+(twist-stretch coupling included). Past buckling this state is unstable and thermal noise takes the chain
+into its plectonemic state during equilibration.
+
+Friction (:func:`auto_friction`): the equilibrium does not depend on it, so it is chosen to decorrelate
+fast: ``zeta = 2 omega_1``, critical damping of the slowest bending mode of the chain under tension
+(``omega_1^2 = (A q^4 + F q^2)/rho``, ``q = 4.730/L``); the slowest linear relaxation time is then
+``~1/omega_1`` instead of ``zeta rho/(A q^4)`` at the default 1/ps (see
+:func:`dnarod.analysis.polymer.bending_relaxation_time`). The *measured* integrated autocorrelation times of
+extension and torque are reported with every member and set the statistical errors.
+
+Units: pN, pN nm and nm at this interface (converted to MD units inside), ps, K.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DnarodError
+from ..units import PN
+
+#: Largest pulling force (pN) a member accepts: real DNA overstretches near 65 pN (a structural transition
+#: the elastic rod does not have), and its stretch modulus is calibrated at low force.
+MAX_FORCE_PN = 50.0
+#: Largest |sigma| = |turns| / Lk0: beyond a few percent real DNA denatures (underwinding) or forms other
+#: structures (overwinding) under tension; the rod's quadratic twist energy is far outside its calibration at
+#: 10 % and its Cayley twist coordinate stays regular only below 180 degrees per step.
+MAX_SIGMA = 0.1
+DEFAULT_CLAMP_K = 250.0  # kJ/mol: ~100 kT, clamp angle fluctuations ~0.1 rad
+
+#: Observables sampled per frame (column names of ``samples.csv``).
+COLUMNS = ("time_ps", "extension_nm", "end_turns", "clamp_torque_pN_nm", "twist_torque_pN_nm", "Tw", "Wr", "Lk",
+           "plectoneme_fraction", "plectoneme_length_nm", "plectonemic")
+
+
+def intrinsic_turns(model):
+    """Relaxed linking number Lk0 of an open chain: its intrinsic twist in turns (Cayley twist angles)."""
+    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
+
+
+def check_tweezers(force_pN, turns=None, rotation_clamp=True, n_bp=None, lk0=None, torque_pN_nm=None):
+    """Refuse loads the protocol or the model cannot represent (one-line :class:`DnarodError`).
+
+    Parameters
+    ----------
+    force_pN : float
+    turns : float or None
+    rotation_clamp : bool
+        Whether the bead end is rotation-clamped.
+    lk0 : float, optional
+        Relaxed linking number (for the |sigma| limit).
+    torque_pN_nm : float, optional
+        A constant torque on the bead end.
+    """
+    F = float(force_pN)
+    if not math.isfinite(F) or F < 0:
+        raise DnarodError(f"force {force_pN} pN: give a pulling force >= 0 pN")
+    if torque_pN_nm not in (None, 0, 0.0) and F <= 0:
+        raise DnarodError(f"a torque of {torque_pN_nm} pN nm on a free end with no pulling force has no "
+                          f"equilibrium (the end rotates and wanders away): add a pulling force (--force)")
+    if F <= 0:
+        raise DnarodError("tweezers need a pulling force > 0 pN (at zero force the bead end has no equilibrium "
+                          "position): give --force")
+    if F > MAX_FORCE_PN:
+        raise DnarodError(f"force {F:g} pN is above {MAX_FORCE_PN:g} pN: DNA overstretches near 65 pN, a transition "
+                          f"the elastic rod model does not have; use forces up to {MAX_FORCE_PN:g} pN")
+    if turns not in (None, 0, 0.0):
+        if not rotation_clamp:
+            raise DnarodError(f"turns = {turns} without a rotation clamp: the bead end is torsionally free and "
+                              f"turns cannot be imposed; use a rotation-clamped protocol (hat, torque-turns)")
+        t = float(turns)
+        if not math.isfinite(t):
+            raise DnarodError(f"turns must be finite, got {turns}")
+        if lk0:
+            sigma = t / lk0
+            if abs(sigma) > MAX_SIGMA:
+                raise DnarodError(f"turns {t:g} is a supercoiling density sigma = {sigma:+.3f} for Lk0 = {lk0:.1f}: "
+                                  f"beyond |sigma| = {MAX_SIGMA:g} real DNA denatures or changes structure and "
+                                  f"the elastic rod is outside its calibration; use |turns| <= "
+                                  f"{MAX_SIGMA * lk0:.1f}")
+
+
+def strained_helix(model, force_pN, turns):
+    """The straight helix uniformly strained by tension and turns (start "relaxed under load").
+
+    Parameters
+    ----------
+    model : RodModel
+        Open chain at its intrinsic straight shape along z (node 0 at the origin, identity frame).
+    force_pN : float
+    turns : float
+        Extra turns spread evenly over the steps.
+
+    Returns
+    -------
+    RodModel
+    """
+    from ..strains import chain_from_strains
+
+    n = model.n_steps
+    K = model.params.stiffness
+    xi0 = model.params.intrinsic
+    F = float(force_pN) * PN
+    th0 = 2.0 * np.arctan(0.5 * model.ds * xi0[:, 2])
+    th = th0 + 2.0 * np.pi * float(turns) / n
+    if np.abs(th).max() >= 0.9 * np.pi:
+        raise DnarodError(f"turns {turns}: the twist per step would reach {np.degrees(np.abs(th).max()):.0f} "
+                          f"degrees; the model represents steps only well below 180 degrees")
+    d3 = 2.0 / model.ds * np.tan(0.5 * th) - xi0[:, 2]
+    Ci = np.linalg.inv(K)
+    tau = (d3 - Ci[:, 2, 5] * F) / Ci[:, 2, 2]
+    s = np.zeros((n, 6))
+    s[:, 2], s[:, 5] = tau, F
+    xi = xi0 + np.einsum("kij,kj->ki", Ci, s)
+    pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds, model.positions[0], model.frames[0])
+    return model.with_pose(pos, frm)
+
+
+def auto_friction(model, force_pN, temperature, lp=None):
+    """Collision rate (1/ps) critically damping the slowest bending mode under tension, in [1e-4, 1]."""
+    from ..analysis.polymer import FREE_FREE_BETA1_L
+    from ..thermal import kT, persistence_length
+
+    lp = persistence_length(model.params, model.ds, kT(temperature)) if lp is None else lp
+    L = model.ds * model.n_steps
+    q = FREE_FREE_BETA1_L / L
+    rho = float(np.mean(model.mass)) / model.ds
+    w1 = math.sqrt((kT(temperature) * lp * q ** 4 + float(force_pN) * PN * q * q) / rho)
+    return float(np.clip(2.0 * w1, 1e-4, 1.0))
+
+
+def _settings(s):
+    out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
+               equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
+               friction_per_ps=None, sample_ps=None, platform="CPU", threads=1, electrostatics=True,
+               excluded_volume=True)
+    unknown = set(s) - set(out)
+    if unknown:
+        raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
+    out.update({k: v for k, v in s.items() if v is not None or k == "turns"})
+    return out
+
+
+def build_member(settings):
+    """Model, start pose, loads and run parameters of one tweezers member (validated).
+
+    Returns
+    -------
+    dict
+        ``model`` (start pose), ``loads``, ``clamp_target`` (3, 3) or None, ``friction``, ``tau_ps``,
+        ``equilibration_ps``, ``production_ps``, ``sample_ps``, ``lk0`` and the resolved settings.
+    """
+    from ..analysis.polymer import bending_relaxation_time
+    from ..forcefield import load_forcefield
+    from ..openmm.loads import Clamp, PullingForce, RotationClamp
+    from ..thermal import kT, persistence_length
+
+    s = _settings(settings)
+    ff = load_forcefield(s["forcefield"])
+    model = ff.model_from_sequence(s["sequence"]) if s["sequence"] else ff.model_from_sequence(n_nodes=int(s["n_bp"]))
+    lk0 = intrinsic_turns(model)
+    clamp = s["turns"] is not None
+    check_tweezers(s["force_pN"], s["turns"], rotation_clamp=clamp, lk0=lk0)
+    turns = float(s["turns"] or 0.0)
+    T = float(s["temperature_K"])
+    start = strained_helix(model, s["force_pN"], turns)
+    F = float(s["force_pN"]) * PN
+    loads = [Clamp(0), PullingForce(-1, [0.0, 0.0, F])]
+    target = None
+    if clamp:
+        target = start.frames[-1].copy()
+        loads.append(RotationClamp(-1, float(s["clamp_k_kJ_mol"]), frame=target, axis=np.array([0.0, 0.0, 1.0])))
+    ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
+    start_info = "strained helix (linear constitutive law)"
+    try:  # refine to the exact static equilibrium under the loads (a few Newton steps from the helix)
+        from ..statics import solve_static
+
+        start, info = solve_static(start, loads)
+        start_info = f"static equilibrium under the loads (dnarod.statics, {info['iterations']} Newton steps)"
+    except ImportError:
+        pass
+    lp = persistence_length(model.params, model.ds, kT(T))
+    fr = auto_friction(model, s["force_pN"], T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
+    tau = bending_relaxation_time(model.ds * model.n_steps, lp, T, float(np.mean(model.mass)) / model.ds, fr, F)
+    eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
+    prod = 1000.0 * float(s["time_ns"])
+    # at least ~200 samples per member (the autocorrelation time is measured from them), at most 10 per tau_1
+    sample = float(np.clip(min(tau / 10.0, prod / 200.0), 1.0, 200.0)) if s["sample_ps"] is None \
+        else float(s["sample_ps"])
+    return dict(settings=s, model=start, loads=loads, clamp_target=target, friction=fr, tau_ps=tau, start=start_info,
+                ref_frame=ref_frame,
+                equilibration_ps=eq, production_ps=prod, sample_ps=sample, lk0=lk0,
+                persistence_length_nm=lp, turns=turns)
+
+
+#: Stiffness (kJ/mol/nm^2) of the surface and bead walls (penetration ~ sqrt(kT/k) = 0.16 nm at 300 K).
+WALL_K = 100.0
+#: Nodes next to each end that the walls leave alone (they sit at the wall by construction).
+WALL_SKIP = 3
+
+
+def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
+    """Add the surface and the bead to an OpenMM tweezers simulation (node 0 clamped, last node pulled along +z).
+
+    Without them the chain could swing below its anchor or around the free end and change its linking
+    number through the closure (a real surface and a micron bead forbid both). Surface: every node but the
+    first ``skip`` stays above the plane ``z = z_0`` (``E = k/2 min(0, z - z_0)^2`` on its particles).
+    Bead (a plane, the large-bead limit): every node but the last ``skip`` stays below the last node
+    (``E = k/2 max(0, z_i - z_last)^2`` between one particle of each node and the last node's centroid).
+    Both in the "external" force group; the context is reinitialised with its state preserved.
+    """
+    import openmm
+
+    from ..openmm.forces import GROUPS
+
+    n = model.n_nodes
+    z0 = float(model.positions[0, 2])
+    wall = openmm.CustomExternalForce("0.5*dnarod_wall_k*min(0, z - dnarod_surface_z)^2")
+    wall.addGlobalParameter("dnarod_wall_k", float(k))
+    wall.addGlobalParameter("dnarod_surface_z", z0)
+    for i in range(3 * skip, 3 * n):
+        wall.addParticle(i, [])
+    wall.setForceGroup(GROUPS["external"])
+    wall.setName("dnarod tweezers surface")
+    bead = openmm.CustomCentroidBondForce(2, "0.5*dnarod_bead_k*max(0, z1 - z2)^2")
+    bead.addGlobalParameter("dnarod_bead_k", float(k))
+    last = bead.addGroup([3 * (n - 1), 3 * (n - 1) + 1, 3 * (n - 1) + 2], [1.0, 1.0, 1.0])
+    for i in range(n - skip):
+        g = bead.addGroup([3 * i], [1.0])
+        bead.addBond([g, last], [])
+    bead.setForceGroup(GROUPS["external"])
+    bead.setName("dnarod tweezers bead plane")
+    sim.rs.system.addForce(wall)
+    sim.rs.system.addForce(bead)
+    sim.context.reinitialize(preserveState=True)
+    sim.invalidate()
+
+
+def sample_member(m, progress=None):
+    """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs."""
+    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.simulation import RodSimulation
+    from .measure import clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
+
+    s = m["settings"]
+    model = m["model"]
+    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
+                           salt=float(s["salt_M"]))
+    t0, c0 = time.perf_counter(), time.process_time()
+    sim = RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
+                        nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"])
+    add_tweezers_walls(sim, model)
+    dt = sim.dt
+    stride = max(1, int(round(m["sample_ps"] / dt)))
+    n_eq = int(round(m["equilibration_ps"] / dt))
+    n_samp = max(4, int(round(m["production_ps"] / (stride * dt))))
+    # equilibrate in chunks (end rotation must be followed to unwrap it)
+    f_ref = m["ref_frame"]
+    last_angle = 0.0
+    turns_acc = 0.0
+
+    def end_rotation(frm):
+        nonlocal last_angle, turns_acc
+        a = float(rotation_about_z(frm[-1], f_ref))
+        turns_acc += ((a - last_angle + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
+        last_angle = a
+        return turns_acc
+
+    done = 0
+    while done < n_eq:
+        k = min(stride, n_eq - done)
+        sim.advance(k)
+        done += k
+        end_rotation(sim.node_pose()[1])
+    t_eq = time.perf_counter() - t0
+    out = {c: np.empty(n_samp) for c in COLUMNS}
+    k_clamp = float(s["clamp_k_kJ_mol"])
+    for i in range(n_samp):
+        sim.advance(stride)
+        pos, frm = sim.node_pose()
+        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
+        out["extension_nm"][i] = pos[-1, 2] - pos[0, 2]
+        out["end_turns"][i] = m["turns"] + end_rotation(frm)  # the start frame already carries the turns
+        out["clamp_torque_pN_nm"][i] = (clamp_torque_z(frm[-1], m["clamp_target"], k_clamp)
+                                        if m["clamp_target"] is not None else 0.0)
+        tw, wr = twist_writhe_open(pos, frm)
+        out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
+        f, length, plec, mask = plectoneme_state(pos, model.ds, return_mask=True)
+        out["twist_torque_pN_nm"][i] = twisting_moment(pos, frm, model.params, model.ds, mask)
+        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
+        if progress:
+            progress(i + 1, n_samp)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    steps = n_eq + n_samp * stride
+    cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
+                sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
+    return out, cost
+
+
+def summarize(samples, m, cost):
+    """Means, block standard errors and integrated autocorrelation times of a member's samples."""
+    from ..analysis.polymer import integrated_autocorrelation_time
+
+    s = m["settings"]
+    L0 = m["model"].ds * m["model"].n_steps
+    res = {k: s[k] for k in ("n_bp", "force_pN", "turns", "temperature_K", "salt_M", "seed")}
+    res["turns"] = m["turns"] if s["turns"] is not None else None
+    res.update(start=m["start"], contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
+               tau_bend_estimate_ps=m["tau_ps"],
+               equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
+    dt_s = cost["sample_ps"]
+    for c in COLUMNS[1:]:
+        x = np.asarray(samples[c], float)
+        res[c] = float(x.mean())
+        nb = 10 if len(x) >= 20 else max(2, len(x) // 2)
+        b = np.array([v.mean() for v in np.array_split(x, nb)])
+        res[c + "_err"] = float(b.std(ddof=1) / np.sqrt(nb))
+        tau = integrated_autocorrelation_time(x)
+        res[c + "_tau_ps"] = float(tau * dt_s) if np.isfinite(tau) else None
+        if np.isfinite(tau):
+            res[c + "_err_tau"] = float(x.std(ddof=1) * np.sqrt(2.0 * tau / len(x)))
+    slips = np.rint(np.asarray(samples["Lk"]) - m["lk0"] - np.asarray(samples["end_turns"]))
+    res["lk_slips"] = int(np.abs(slips).max())  # nonzero: the chain passed through the closure (see measure)
+    res["relative_extension"] = res["extension_nm"] / L0
+    res["relative_extension_err"] = res["extension_nm_err"] / L0
+    res["delta_lk"] = res["Lk"] - m["lk0"]
+    res["writhe_fraction"] = res["Wr"] / res["delta_lk"] if abs(res["delta_lk"]) > 0.25 else None
+    res["n_effective_extension"] = (len(samples["extension_nm"]) * dt_s / (2.0 * res["extension_nm_tau_ps"])
+                                    if res.get("extension_nm_tau_ps") else None)
+    return res
+
+
+def run_member(settings, member_dir, progress=None):
+    """Run (or reuse) one tweezers member in ``member_dir``: writes ``samples.csv`` and ``protocol_result.json``.
+
+    A finished member (``protocol_result.json`` present with the same settings) is returned without rerunning.
+    """
+    from ..io_utils import ensure_dir, jsonable, write_text_atomic
+
+    member_dir = ensure_dir(Path(member_dir), "member folder")
+    m = build_member(settings)
+    done = member_dir / "protocol_result.json"
+    key = jsonable(m["settings"])
+    if done.exists():
+        old = json.loads(done.read_text())
+        if old.get("settings") == key:
+            return old["result"]
+    samples, cost = sample_member(m, progress)
+    res = summarize(samples, m, cost)
+    lines = [",".join(COLUMNS)] + [",".join(f"{samples[c][i]:.10g}" for c in COLUMNS)
+                                   for i in range(len(samples["time_ps"]))]
+    write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")
+    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+    return jsonable(res)

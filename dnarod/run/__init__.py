@@ -1,0 +1,21 @@
+"""The run layer: one engine-neutral way to run, report, checkpoint and resume a simulation.
+
+Example::
+
+    from dnarod.run import RunSpec, run
+    result = run(RunSpec(source="ACGT" * 50, engine="lax", time_ns=0.1, excluded_volume=False,
+                         electrostatics=False), "run1")
+    result.files["trajectory"], result.summary["ns_per_day"]
+
+Modules: :mod:`.spec` (:class:`RunSpec`, fingerprint), :mod:`.engine` (engine protocol, Lax-form
+adapter, checkpoint files), :mod:`.reporters` (``.dtraj``, energies CSV, progress), :mod:`.loop`
+(:func:`run_engine`, the one run loop), :mod:`.api` (:func:`run`, :class:`RunResult`).
+"""
+from .api import RUN_FILES, RunResult, run
+from .engine import LaxEngine
+from .loop import run_engine, simulate_engine
+from .reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter, load_energies
+from .spec import RunSpec
+
+__all__ = ["RunSpec", "run", "RunResult", "RUN_FILES", "run_engine", "simulate_engine", "LaxEngine", "DtrajReporter",
+           "EnergyReporter", "ProgressReporter", "ENERGY_COLUMNS", "load_energies"]

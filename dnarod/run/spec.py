@@ -1,0 +1,254 @@
+"""What defines a run: :class:`RunSpec`, its checks, and the fingerprint a resume must match.
+
+Units: time ns (``time_ns``) or ps (``dt``, intervals), temperature K, friction 1/ps, salt mol/L.
+"""
+from __future__ import annotations
+
+import hashlib
+import math
+from dataclasses import asdict, dataclass, field, fields, replace
+
+import numpy as np
+
+from ..errors import ParameterError
+
+ENGINES = ("openmm", "lax")
+STARTS = ("intrinsic", "equilibrium", "minimized")
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """Everything that defines a simulation run, for both engines.
+
+    Parameters
+    ----------
+    source : str, Path, int or RodModel
+        PDB/mmCIF path, model ``.npz``, DNA sequence, FASTA/text sequence file, node count, or a model.
+    forcefield : str
+        Bundled force-field name or ``.toml`` path.
+    engine : {"openmm", "lax"}
+        OpenMM engine or the direct Lax-form integrator.
+    time_ns : float
+        Total simulated time of the run, ns (a resumed run continues up to it).
+    temperature : float
+        K (thermostat and initial Maxwell velocities; 0 starts at rest).
+    friction : float
+        Langevin collision rate, 1/ps; ``0`` runs NVE (constant energy) from Maxwell velocities.
+    dt : float or None
+        Time step, ps; default ``0.4 / omega_max`` of the loaded model.
+    seed : int or None
+        Seed of the initial velocities and the noise; None draws one (recorded in ``run.json``).
+    loads : tuple
+        External loads (:mod:`dnarod.loads` dataclasses), MD units.
+    salt, excluded_volume, electrostatics
+        Non-bonded interactions (OpenMM engine; the Lax engine has none and refuses them on).
+    platform : str or None
+        OpenMM platform (default CPU).
+    circular, ring, delta_lk
+        Closed chains from a sequence (periodic helix; planar ring with linking-number change).
+    duplex : int or None
+        Duplex of a structure file, 1-based (default the longest).
+    start : {"intrinsic", "equilibrium", "minimized"}
+        Initial pose: the source's, an exact equilibrium sample of the free chain at ``temperature``
+        (:func:`dnarod.thermal.equilibrium_sample`), or the static minimum of the elastic energy under
+        the loads (:func:`dnarod.statics.solve_static`; non-bonded terms are not included).
+    frame_interval_ps : float
+        Time between trajectory frames (and energy rows), ps; rounded to whole steps.
+    checkpoint_interval_ps : float or None
+        Time between checkpoints, ps (default 10 frame intervals); a checkpoint is always
+        written at the end.
+    velocities : bool
+        Also store velocities in the trajectory (doubles its size; checkpoints always keep them).
+    export : bool
+        Also write ``trajectory.pdb`` + ``trajectory.dcd`` (and ``.xtc`` with ``xtc``).
+    xtc : bool
+        Also write ``trajectory.xtc`` (mdtraj).
+    elastic : {"auto", "fast", "portable"}
+        OpenMM elastic path.
+    threads : int or None
+        OpenMM CPU threads.
+    """
+
+    source: object = None
+    forcefield: str = "dna-default"
+    engine: str = "openmm"
+    time_ns: float = 1.0
+    temperature: float = 300.0
+    friction: float = 1.0
+    dt: float | None = None
+    seed: int | None = None
+    loads: tuple = ()
+    salt: float = 0.15
+    excluded_volume: bool = True
+    electrostatics: bool = True
+    platform: str | None = None
+    circular: bool = False
+    ring: bool = False
+    delta_lk: int = 0
+    duplex: int | None = None
+    start: str = "intrinsic"
+    frame_interval_ps: float = 1.0
+    checkpoint_interval_ps: float | None = None
+    velocities: bool = False
+    export: bool = True
+    xtc: bool = False
+    elastic: str = "auto"
+    threads: int | None = None
+    extra: dict = field(default_factory=dict, compare=False)
+
+    # ------------------------------------------------------------------------------------
+    @property
+    def ensemble(self):
+        """``"langevin"`` (friction > 0) or ``"nve"`` (friction 0)."""
+        return "langevin" if self.friction > 0 else "nve"
+
+    @property
+    def nonbonded(self):
+        return bool(self.excluded_volume or self.electrostatics)
+
+    def replace(self, **kw):
+        return replace(self, **kw)
+
+    def check(self):
+        """Refuse absurd values with one line naming the option (:class:`ParameterError`); returns self."""
+        def finite(name, v, cond, what, option=None):
+            opt = option or "--" + name.replace("_", "-")
+            try:
+                x = float(v)
+            except (TypeError, ValueError):
+                raise ParameterError(f"{opt} {v!r}: must be a number ({what})") from None
+            if not (math.isfinite(x) and cond(x)):
+                raise ParameterError(f"{opt} {v:g}: must be {what}")
+            return x
+
+        if self.source is None:
+            raise ParameterError("no source: give a structure, model, sequence, sequence file or node count")
+        if self.engine not in ENGINES:
+            raise ParameterError(f"--engine {self.engine!r}: choose one of {', '.join(ENGINES)}")
+        if self.start not in STARTS:
+            raise ParameterError(f"start {self.start!r}: choose one of {', '.join(STARTS)}")
+        finite("time_ns", self.time_ns, lambda x: x > 0, "a positive simulated time in ns", "--time")
+        finite("temperature", self.temperature, lambda x: x >= 0, ">= 0 K", "--temperature")
+        finite("friction", self.friction, lambda x: x >= 0,
+               ">= 0 1/ps (0 runs NVE; a negative friction would pump energy in)")
+        if self.dt is not None:
+            finite("dt", self.dt, lambda x: x > 0, "a positive time step in ps")
+        finite("frame_interval_ps", self.frame_interval_ps, lambda x: x > 0, "a positive time in ps",
+               "--frame-interval")
+        if self.checkpoint_interval_ps is not None:
+            finite("checkpoint_interval_ps", self.checkpoint_interval_ps, lambda x: x >= 0,
+                   ">= 0 ps (0: only at the end)", "--checkpoint-interval")
+        finite("salt", self.salt, lambda x: x > 0, "a positive salt concentration in mol/L")
+        if self.engine == "lax":
+            if self.nonbonded:
+                raise ParameterError("the lax engine has no excluded volume or electrostatics: pass "
+                                     "--no-excluded-volume --no-electrostatics (or use --engine openmm)")
+            if self.platform not in (None, "CPU"):
+                raise ParameterError(f"--platform {self.platform}: the lax engine runs on the CPU (numba)")
+        if self.duplex is not None and int(self.duplex) < 1:
+            raise ParameterError(f"--duplex {self.duplex}: duplexes are numbered from 1")
+        if self.threads is not None and int(self.threads) < 1:
+            raise ParameterError(f"--threads {self.threads}: must be >= 1")
+        if self.seed is not None and not (0 <= int(self.seed) < 2**31):
+            raise ParameterError(f"--seed {self.seed}: must be an integer in [0, 2^31)")
+        return self
+
+    def to_json(self):
+        """JSON-safe dict of the spec (loads as ``{"type": ..., fields...}``; a model source as its name)."""
+        from ..io_utils import jsonable
+
+        d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("loads", "extra", "source")}
+        d["source"] = _source_text(self.source)
+        d["loads"] = [load_json(x) for x in self.loads]
+        d["extra"] = dict(self.extra)
+        return jsonable(d)
+
+
+def _source_text(source):
+    from ..model import RodModel
+
+    if isinstance(source, RodModel):
+        return f"<RodModel {source.n_nodes} nodes>"
+    return str(source)
+
+
+def load_json(load):
+    """A load dataclass as a JSON-safe dict ``{"type": class name, field: value}``."""
+    from ..io_utils import jsonable
+
+    try:
+        d = asdict(load)
+    except TypeError:
+        d = dict(vars(load))
+    return jsonable({"type": type(load).__name__, **d})
+
+
+def model_fingerprint(model, pose=True):
+    """SHA-256 of everything that defines the mechanical system: sizes, sequence, parameters,
+    masses, inertias, closure, and (with ``pose``) the pose."""
+    h = hashlib.sha256()
+    h.update(f"{model.n_nodes}|{model.sequence or ''}|{float(model.ds)!r}".encode())
+    arrays = [model.params.stiffness, model.params.intrinsic, model.mass, model.inertia]
+    if pose:
+        arrays += [model.positions, model.frames]
+    for a in arrays:
+        h.update(np.ascontiguousarray(a, float).tobytes())
+    if model.closure is not None:
+        h.update(np.ascontiguousarray(model.closure.Q, float).tobytes())
+        h.update(np.ascontiguousarray(model.closure.t, float).tobytes())
+    return h.hexdigest()
+
+
+def fingerprint(spec, model, dt, seed):
+    """Everything a resumed run must share with the run it continues (name -> JSON value).
+
+    Model (sequence, parameters, masses, starting pose via :func:`model_fingerprint`), engine,
+    ensemble, temperature, friction, time step, loads, seed, non-bonded settings, start and
+    frame interval. The total time may grow on resume, except when a load turns with the run
+    (``RotationClamp(turns=...)``), whose rate depends on it.
+    """
+    loads = [load_json(x) for x in spec.loads]
+    fp = {
+        "sequence": model.sequence or None, "n_nodes": int(model.n_nodes), "model": model_fingerprint(model),
+        "engine": spec.engine, "ensemble": spec.ensemble,
+        "temperature_K": float(spec.temperature), "friction_per_ps": float(spec.friction),
+        "dt_ps": float(dt), "loads": loads, "seed": int(seed),
+        "nonbonded": dict(excluded_volume=bool(spec.excluded_volume), electrostatics=bool(spec.electrostatics),
+                          salt_mol_L=float(spec.salt) if spec.nonbonded else None),
+        "frame_interval_ps": float(spec.frame_interval_ps), "velocities": bool(spec.velocities),
+    }
+    if any(float(getattr(x, "turns", 0.0) or 0.0) != 0.0 for x in spec.loads):
+        fp["time_ns"] = float(spec.time_ns)
+    return fp
+
+
+def compare_fingerprints(old, new, where):
+    """Raise :class:`ParameterError` naming the first entry that differs (``where``: the run.json path)."""
+    names = {"model": "model (sequence, parameters, masses or starting pose)", "dt_ps": "time step (--dt)",
+             "temperature_K": "temperature (-T)", "friction_per_ps": "friction (--friction)",
+             "seed": "seed (--seed)", "loads": "loads", "engine": "engine (--engine)",
+             "frame_interval_ps": "frame interval (--frame-interval)", "velocities": "velocities (--velocities)",
+             "nonbonded": "non-bonded settings (--salt/--excluded-volume/--electrostatics)",
+             "sequence": "sequence", "n_nodes": "number of nodes", "ensemble": "ensemble (--friction 0 = NVE)",
+             "time_ns": "total time (--time), over which the rotation clamp spreads its --turns"}
+    for key in list(old) + [k for k in new if k not in old]:
+        a, b = old.get(key), new.get(key)
+        if not _same(a, b):
+            what = names.get(key, key)
+            show = lambda v: (str(v)[:60] + "...") if len(str(v)) > 60 else str(v)  # noqa: E731
+            raise ParameterError(f"cannot resume: the {what} changed since the run in {where} "
+                                 f"(was {show(a)}, now {show(b)}); resume with the same settings or start a new "
+                                 f"run (-o NEWDIR, or --overwrite)")
+
+
+def _same(a, b):
+    if isinstance(a, float) or isinstance(b, float):
+        try:
+            return math.isclose(float(a), float(b), rel_tol=1e-12, abs_tol=0.0)
+        except (TypeError, ValueError):
+            return False
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, list) and isinstance(b, list):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    return a == b

@@ -1,0 +1,200 @@
+"""Tweezers and ring protocols: observables (Lk = Tw + Wr with a closure, clamp torque, plectoneme detector),
+the relaxed start under load, short members against theory, curves and bad input (exit 2)."""
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dnarod.cli import main
+from dnarod.errors import DnarodError
+from dnarod.forcefield import load_forcefield
+from dnarod.protocols.measure import (clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open,
+                                      twisting_moment)
+from dnarod.protocols.tweezers import check_tweezers, intrinsic_turns, strained_helix
+from dnarod.rotations import rotation_about_axis
+from dnarod.strains import chain_from_strains
+from dnarod.thermal import kT, sample_open_chain_strains
+from dnarod.units import PN
+
+FF = load_forcefield("dna-default")
+
+
+def vertical_ended_chain(n, temperature_factor, rng):
+    """A thermal chain whose first and last 20 steps are straight and whose last part is turned back to +z."""
+    m = FF.model_from_sequence(n_nodes=n)
+    xi = sample_open_chain_strains(m.params, m.ds, kT(300) * temperature_factor, rng)[0]
+    xi[:20] = m.params.intrinsic[:20]
+    xi[-20:] = m.params.intrinsic[-20:]
+    pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], m.ds)
+    k = n - 21
+    d = frm[k][:, 2]
+    ax = np.cross(d, [0, 0, 1.0])
+    R = rotation_about_axis(ax / np.linalg.norm(ax), np.arctan2(np.linalg.norm(ax), d[2]))
+    pos[k:] = pos[k] + (pos[k:] - pos[k]) @ R.T
+    frm[k:] = R @ frm[k:]
+    return pos, frm
+
+
+def test_open_chain_linking_number_equals_end_rotation_mod_one():
+    rng = np.random.default_rng(1)
+    for factor in (1.0, 4.0, 10.0):
+        pos, frm = vertical_ended_chain(300, factor, rng)
+        tw, wr = twist_writhe_open(pos, frm)
+        phi = rotation_about_z(frm[-1], frm[0]) / (2 * np.pi)
+        assert abs(wr) > 0.05  # a genuinely non-planar chain
+        assert abs(((tw + wr - phi) + 0.5) % 1.0 - 0.5) < 1e-6
+
+
+def test_straight_and_strained_helix_twist():
+    m = FF.model_from_sequence(n_nodes=200)
+    tw, wr = twist_writhe_open(m.positions, m.frames)
+    assert wr == pytest.approx(0.0, abs=1e-12)
+    assert tw == pytest.approx(intrinsic_turns(m), abs=1e-9)
+    s = strained_helix(m, 2.0, 1.5)
+    tw, wr = twist_writhe_open(s.positions, s.frames)
+    assert tw + wr - intrinsic_turns(m) == pytest.approx(1.5, abs=1e-9)
+    # the linear constitutive law: the twisting moment of the start equals the torque that holds it
+    t = twisting_moment(s.positions, s.frames, s.params, s.ds)
+    K = m.params.stiffness[0]
+    Ci = np.linalg.inv(K)
+    th0 = 2 * np.arctan(0.5 * m.ds * m.params.Omega0[0, 2])
+    w3 = 2 / m.ds * np.tan(0.5 * (th0 + 2 * np.pi * 1.5 / m.n_steps)) - m.params.Omega0[0, 2]
+    tau = (w3 - Ci[2, 5] * 2.0 * PN) / Ci[2, 2]
+    assert t == pytest.approx(tau * (1 + (0.5 * m.ds * (m.params.Omega0[0, 2] + w3)) ** 2) / PN, rel=1e-6)
+    # stretched: longer than the intrinsic helix by about F/S
+    assert s.positions[-1, 2] > m.positions[-1, 2]
+
+
+def test_clamp_torque_is_k_sin_theta():
+    target = np.eye(3)
+    k = 100.0
+    for ang in (-0.3, 0.05, 0.4):
+        frame = rotation_about_axis(np.array([0, 0, 1.0]), ang)
+        assert clamp_torque_z(frame, target, k) == pytest.approx(-k * np.sin(ang) / PN, rel=1e-12)
+
+
+def test_plectoneme_detector():
+    ds = 0.34
+    straight = np.column_stack([np.zeros(400), np.zeros(400), ds * np.arange(400)])
+    assert plectoneme_state(straight, ds)[2] is False
+    # an interwound pair: two strands 4 nm apart wound about each other, joined by an end loop
+    s = np.arange(200) * ds
+    r, pitch = 2.0, 20.0
+    up = np.column_stack([r * np.cos(2 * np.pi * s / pitch), r * np.sin(2 * np.pi * s / pitch), s])
+    down = np.column_stack([-r * np.cos(2 * np.pi * s / pitch), -r * np.sin(2 * np.pi * s / pitch), s])[::-1]
+    plec = np.vstack([up, down])
+    frac, length, is_plec = plectoneme_state(plec, ds)
+    assert is_plec and frac > 0.8 and length > 100
+
+
+def test_bad_tweezers_input_is_refused():
+    with pytest.raises(DnarodError, match="rotation clamp"):
+        check_tweezers(1.0, 2.0, rotation_clamp=False)
+    with pytest.raises(DnarodError, match="no pulling force"):
+        check_tweezers(0.0, None, torque_pN_nm=10.0)
+    with pytest.raises(DnarodError, match="overstretches"):
+        check_tweezers(80.0)
+    with pytest.raises(DnarodError, match="sigma"):
+        check_tweezers(1.0, 10.0, lk0=57.0)
+
+
+@pytest.mark.parametrize("args, words", [
+    (["force-extension", "--force", "1", "--turns", "2"], "rotation clamp"),
+    (["hat", "--turns", "1", "--force", "0"], "pulling force"),
+    (["hat", "--turns", "30"], "sigma"),
+    (["torque-turns", "--turns", "1", "--force", "70"], "overstretches"),
+    (["rings", "--delta-lk", "0.5"], "integer"),
+    (["rings", "--delta-lk", "-20"], "sigma"),
+    (["hat", "--turns", "one"], "comma-separated numbers"),
+])
+def test_protocol_cli_misuse_exits_2(tmp_path, args, words):
+    res = CliRunner().invoke(main, ["protocol", *args, "-o", str(tmp_path / "out")])
+    assert res.exit_code == 2, res.output
+    assert words in res.output and "Traceback" not in res.output
+    assert not (tmp_path / "out").exists()  # nothing written
+
+
+def test_torque_turns_curve_short_chain(tmp_path):
+    """100 bp at 3 pN, +-0.5 turns: the slope gives C_eff near Moroz-Nelson; Lk tracks the clamp; files written."""
+    from dnarod.protocols import torque_turns
+    from dnarod.validate.torsion import bare_twist_persistence, moroz_nelson
+
+    c = torque_turns([-0.5, 0.5], tmp_path / "tt", force_pN=3.0, source="100", workers=0,
+                     base=dict(time_ns=0.3, equilibration_ns=0.1, seed=3))
+    assert c.files["csv"].exists() and c.files["png"].stat().st_size > 1000
+    lo, hi = c.rows
+    for r, t in ((lo, -0.5), (hi, 0.5)):
+        # the clamp lags by torque / k (a few hundredths of a turn); Lk = Tw + Wr follows the end rotation
+        assert r["delta_lk"] == pytest.approx(r["end_turns"], abs=0.01)
+        assert abs(r["end_turns"] - t) < 0.05
+        assert r["twist_torque_pN_nm_tau_ps"] is not None and r["n_samples"] >= 10
+        assert r["lk_slips"] == 0  # the surface and bead walls keep the linking number topological
+    m = FF.model_from_sequence(n_nodes=100)
+    L = m.ds * m.n_steps
+    kt_pn = kT(300) / PN
+    C = L * (hi["twist_torque_pN_nm"] - lo["twist_torque_pN_nm"]) / (kt_pn * 2 * np.pi * (hi["delta_lk"] - lo["delta_lk"]))
+    theory = moroz_nelson(bare_twist_persistence(m, 300.0), 50.0, 3.0, kt_pn)
+    assert C == pytest.approx(theory, rel=0.12)
+    rows = (tmp_path / "tt" / "curve.csv").read_text().splitlines()
+    assert len(rows) == 3 and "twist_torque_pN_nm" in rows[0]
+    # a second call reuses the finished members (same settings)
+    again = torque_turns([-0.5, 0.5], tmp_path / "tt", force_pN=3.0, source="100", workers=0,
+                         base=dict(time_ns=0.3, equilibration_ns=0.1, seed=3))
+    assert again.rows[0]["wall_s"] == lo["wall_s"]
+
+
+def test_ring_member_conserves_linking_number(tmp_path):
+    from dnarod.protocols.rings import run_ring_member
+
+    r = run_ring_member(dict(n_bp=150, delta_lk=-1, time_ns=0.1, equilibration_ns=0.05, seed=2), tmp_path / "ring")
+    assert r["lk_integer"] is not None
+    assert r["delta_lk_measured"] == pytest.approx(-1.0, abs=1e-6)
+    assert r["Tw"] + r["Wr"] == pytest.approx(r["Lk"], abs=1e-6)
+    res = json.loads((tmp_path / "ring" / "protocol_result.json").read_text())
+    assert res["result"]["n_samples"] >= 4
+
+
+def test_torsion_check_passes_and_fails_with_a_wrong_twist_stiffness(tmp_path):
+    from dnarod.validate.torsion import check_torsion
+
+    opts = dict(n_bp=100, slope_ns=0.3, fluct_ns=4.0, plots=False, member_root=tmp_path / "members")
+    good = check_torsion(tmp_path, quick=True, **opts)
+    assert good["passed"], good
+    bad = check_torsion(tmp_path, quick=True, c_override=60.0, **opts)  # reuses the members
+    assert not bad["passed"]
+
+
+def test_buckling_check_fails_without_plectonemes(tmp_path):
+    """Fast: unbuckled 'post-buckling' members (too few turns) must fail the plateau check."""
+    from dnarod.validate.buckling import check_buckling
+
+    r = check_buckling(tmp_path, n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.2, plots=False,
+                       member_root=tmp_path / "m")
+    assert not r["plateau"]["both_plectonemic"] and not r["passed"]
+    assert r["pre_buckling"]["passed"]  # the linear torque law holds before buckling
+
+
+@pytest.mark.slow
+def test_buckling_check_passes_on_a_plectonemic_chain_and_fails_before_buckling(tmp_path):
+    from dnarod.validate.buckling import check_buckling
+
+    opts = dict(n_bp=200, time_ns=1.0, plots=False, member_root=tmp_path / "m")
+    good = check_buckling(tmp_path, **opts)
+    assert good["passed"], good
+    bad = check_buckling(tmp_path, post_turns=(0.379, 0.76), **opts)
+    assert not bad["passed"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind, axes", [("magnetic_tweezers", {"turns": [-0.3, 0.3]}), ("rings", {"delta_lk": [-1, 0]})])
+def test_protocols_through_the_ensemble_layer(tmp_path, kind, axes):
+    """The same members through dnarod.ensemble (dask LocalCluster, one worker)."""
+    from dnarod.protocols import run_protocol
+
+    base = dict(source="100" if kind != "rings" else "150", time_ns=0.1, equilibration_ns=0.05, seed=4)
+    if kind != "rings":
+        base["force_pN"] = 2.0
+    c = run_protocol(kind, axes, base, tmp_path / kind, workers=1, progress=False)
+    assert len(c.rows) == 2 and c.files["png"].exists()
+    assert (tmp_path / kind / "ensemble" / "results.csv").exists()

@@ -1,0 +1,123 @@
+"""The run layer: both engines through one ``run()``, resume bit-for-bit, exported times, storage format."""
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from dnarod.errors import ParameterError
+from dnarod.forcefield import load_forcefield
+from dnarod.loads import PullingForce
+from dnarod.run import ENERGY_COLUMNS, RunSpec, load_energies, run
+from dnarod.trajectory import HEADER_SIZE, MAGIC, bytes_per_node_frame, load_trajectory
+
+SEQ = "ACGTTGCAACGTTGCA"
+BASE = dict(source=SEQ, excluded_volume=False, electrostatics=False, platform="Reference", dt=0.02,
+            frame_interval_ps=0.2, checkpoint_interval_ps=0.8, seed=5)
+
+
+@pytest.mark.parametrize("engine", ["openmm", "lax"])
+def test_resume_is_bit_for_bit(tmp_path, engine):
+    spec = RunSpec(engine=engine, time_ns=0.004, temperature=300.0, friction=1.0, velocities=True, **BASE)
+    platform = dict(platform=None) if engine == "lax" else {}
+    spec = spec.replace(**platform)
+    run(spec, tmp_path / "full", progress=False)
+    half = run(spec.replace(time_ns=0.002), tmp_path / "part", progress=False)
+    assert half.summary["steps"] == 100 and half.resumed_from is None
+    res = run(spec, tmp_path / "part", resume=True, progress=False)
+    assert res.resumed_from == 100 and res.summary["steps"] == 200
+    a, b = (load_trajectory(tmp_path / d / "trajectory.dtraj") for d in ("full", "part"))
+    assert list(b.step) == list(range(0, 201, 10))
+    for name in ("positions", "frames", "velocities", "angular_velocities"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert (tmp_path / "full" / "energies.csv").read_bytes() == (tmp_path / "part" / "energies.csv").read_bytes()
+    meta = json.loads((tmp_path / "part" / "run.json").read_text())
+    assert [s["to_step"] for s in meta["segments"]] == [100, 200]
+
+
+def test_both_engines_give_the_same_loaded_nve_run(tmp_path):
+    """A chain pulled at both ends, NVE from rest: OpenMM (Reference, constrained particles) and the
+    Lax-form splitting integrate the same equations, through the same run layer and reporters."""
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence(SEQ)
+    axis = m.positions[-1] - m.positions[0]
+    axis /= np.linalg.norm(axis)
+    loads = (PullingForce(-1, 30.0 * axis), PullingForce(0, -30.0 * axis))
+    out = {}
+    for engine in ("openmm", "lax"):
+        spec = RunSpec(engine=engine, time_ns=0.002, temperature=0.0, friction=0.0, loads=loads,
+                       **{**BASE, "platform": "Reference" if engine == "openmm" else None})
+        res = run(spec, tmp_path / engine, progress=False)
+        out[engine] = (load_trajectory(res.files["trajectory"]), load_energies(res.files["energies"]))
+    (ta, ea), (tb, eb) = out["openmm"], out["lax"]
+    assert np.array_equal(ta.step, tb.step) and ta.n_frames == 11
+    moved = np.abs(ta.positions[-1] - ta.positions[0]).max()
+    assert moved > 0.04  # nm: the ends really moved
+    # measured 4.8e-7 nm at 2 ps (float32 storage, OpenMM's constraint tolerance); before OpenMM's
+    # start at rest took off the half kick, the two differed by 3e-4 nm (a first-order start)
+    assert np.abs(ta.positions - tb.positions).max() < 2e-6
+    assert np.abs(ta.frames - tb.frames).max() < 2e-6
+    for col in ("elastic_kJ_mol", "external_kJ_mol", "kinetic_kJ_mol"):
+        assert np.allclose(ea[col], eb[col], rtol=1e-4, atol=1e-4), col
+    assert list(ea) == ENERGY_COLUMNS[:len(ea)] + list(ea)[len(ENERGY_COLUMNS):]
+
+
+def test_exported_times_read_back_by_mdanalysis_and_mdtraj(tmp_path):
+    import MDAnalysis as mda
+    import mdtraj as md
+
+    spec = RunSpec(engine="lax", time_ns=0.003, xtc=True, frame_interval_ps=0.37,
+                   **{k: v for k, v in BASE.items() if k not in ("platform", "frame_interval_ps")})
+    res = run(spec, tmp_path / "r", progress=False)
+    tr = load_trajectory(res.files["trajectory"])
+    assert tr.n_frames > 5 and tr.time[1] == pytest.approx(0.36, rel=1e-12)  # 18 steps of 0.02 ps
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        u = mda.Universe(str(res.files["pdb"]), str(res.files["dcd"]))
+        t_dcd = np.array([ts.time for ts in u.trajectory])
+        u = mda.Universe(str(res.files["pdb"]), str(res.files["xtc"]))
+        t_xtc_mda = np.array([ts.time for ts in u.trajectory])
+    t_xtc_md = md.load(str(res.files["xtc"]), top=str(res.files["pdb"])).time
+    # DCD stores the frame spacing as a float32 in AKMA units, XTC each time as float32
+    for t in (t_dcd, t_xtc_mda, t_xtc_md):
+        assert len(t) == tr.n_frames
+        assert np.allclose(t, tr.time, rtol=1e-6, atol=1e-9), (t, tr.time)
+
+
+def test_trajectory_size_and_old_float64_files(tmp_path):
+    spec = RunSpec(engine="lax", time_ns=0.002, export=False,
+                   **{k: v for k, v in BASE.items() if k != "platform"})
+    res = run(spec, tmp_path / "r", progress=False)
+    path = res.files["trajectory"]
+    tr = load_trajectory(path)
+    n = tr.n_nodes
+    assert bytes_per_node_frame() == 48 and bytes_per_node_frame(velocities=True) == 72
+    assert path.stat().st_size == HEADER_SIZE + tr.n_frames * (16 + 48 * n)
+    assert tr.velocities is None  # velocities only when asked
+    # a version-1 file (all float64, written by earlier dnarod) still reads
+    old = tmp_path / "old.dtraj"
+    header = dict(format="dnarod-trajectory", version=1, n_nodes=n, velocities=False, metadata={"x": 1})
+    rec = np.concatenate([np.array([7.0, 0.35]), tr.positions[1].ravel(), tr.frames[1].ravel()])
+    old.write_bytes((MAGIC + json.dumps(header).encode()).ljust(HEADER_SIZE - 1) + b"\n" + rec.astype("<f8").tobytes())
+    back = load_trajectory(old)
+    assert back.step.tolist() == [7] and back.time.tolist() == [0.35] and back.metadata == {"x": 1}
+    assert np.array_equal(back.positions[0], tr.positions[1]) and np.array_equal(back.frames[0], tr.frames[1])
+
+
+def test_zero_temperature_and_checks_through_the_api(tmp_path):
+    from dnarod.openmm.simulation import RodSimulation
+
+    m = load_forcefield("dna-default").model_from_sequence(SEQ)
+    sim = RodSimulation(m, temperature=0)  # at rest; non-bonded scales from the reference temperature
+    sim.advance(3)
+    e = sim.energies()
+    assert e["kinetic"] == pytest.approx(0.0, abs=1e-6) and np.isfinite(e["nonbonded"])
+    with pytest.raises(ParameterError, match="--friction -1"):
+        run(RunSpec(source=SEQ, friction=-1), tmp_path / "x")
+    with pytest.raises(ParameterError, match="--time 0"):
+        run(RunSpec(source=SEQ, time_ns=0), tmp_path / "x")
+    assert not (tmp_path / "x").exists()
+    spec = RunSpec(engine="lax", time_ns=0.002, export=False, **{k: v for k, v in BASE.items() if k != "platform"})
+    run(spec, tmp_path / "r", progress=False)
+    done = run(spec, tmp_path / "r", resume=True, progress=False)
+    assert done.summary["already_done"] and "nothing to do" in done.summary["message"]
