@@ -10,8 +10,8 @@ Two stages:
 2. **Backbone closure**: the duplex is parametrised with OpenMM's Amber14 DNA force field
    (``amber14/DNA.OL15.xml``: OL15 on parmbsc0/parm99) in OBC2 implicit solvent (Amber igb=5
    radii and screening, OpenMM's native ``GBSAOBCForce`` with the parameters of
-   ``implicit/obc2.xml``), hydrogens are added by ``Modeller.addHydrogens``, every base heavy
-   atom (and C1') is held to its placed position by a harmonic restraint, and the energy is
+   ``implicit/obc2.xml``), hydrogens are added by ``Modeller.addHydrogens``, every base ring
+   atom (the atoms the base frame is fitted to) is held to its placed position by a harmonic restraint, and the energy is
    minimised: first with the covalent terms only (the stretched links close without steric
    barriers), then with the full force field (1.2 nm non-periodic cut-off: the closure is a
    local fit, and a cut-off keeps it linear in length). The bases -- hence the base-pair frames -- stay
@@ -39,8 +39,9 @@ from .frames import standard_bases
 from .rebuild import rebuild_coordinates
 
 FORCEFIELD_FILES = ("amber14/DNA.OL15.xml",)
-RESTRAINT_K = 5.0e4        # kJ/mol/nm^2 on each base heavy atom
+RESTRAINT_K = 2.0e5        # kJ/mol/nm^2 on each base ring atom
 MIN_CUTOFF = 1.2           # nm, non-bonded cut-off during the closure (local geometry only)
+EXTRA_ROUNDS = 3           # minimiser restarts while a bond is still off
 CHIRAL_K = 1.0e3           # kJ/mol/rad^2, flat-bottom restraint on sugar stereocentres
 BOND_TOLERANCE = 0.005     # nm: largest accepted deviation of a bond from its Amber14 equilibrium
 MIN_NONBONDED = 0.22       # nm: shortest accepted heavy-atom distance beyond 1-3 neighbours
@@ -208,8 +209,8 @@ def _atom_name(atom):
 def _restrain(system, topology, positions, k):
     import openmm
 
-    std, _ = standard_bases()
-    base_names = {n for letter in std.values() for n in letter}
+    _, ring = standard_bases()
+    base_names = {n for names in ring.values() for n in names}  # the atoms that define the base frame
     f = openmm.CustomExternalForce("0.5*kr*((x-x0)^2+(y-y0)^2+(z-z0)^2)")
     f.addGlobalParameter("kr", k)
     for name in ("x0", "y0", "z0"):
@@ -431,6 +432,11 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     _restrain(system, top, heavy_ref, restraint_k)
     _hold_chirality(system, top, heavy_ref)
     pos, energy = _minimise(system, pos, 0.1, max_iterations, platform)
+    for _ in range(EXTRA_ROUNDS):  # L-BFGS can stop early on large systems: restart while a bond is off
+        d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
+        if d.max() <= bond_tolerance:
+            break
+        pos, energy = _minimise(system, pos, 0.01, max_iterations, platform)
     seconds = time.perf_counter() - t0
     cpu = resource.getrusage(resource.RUSAGE_SELF).ru_utime - c0
     # checks
@@ -444,7 +450,8 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
         o3p.append((lengths[k], r0[k]))
     o3p = np.array(o3p)
-    for a, b in links:
+    link_dev = [dev[bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))] for a, b in links]
+    for a, b in [links[int(np.argmax(link_dev))]] if links else []:  # the worst link
         k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
         if dev[k] > bond_tolerance:
             r1, r2 = a.residue, b.residue

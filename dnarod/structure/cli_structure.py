@@ -22,6 +22,7 @@ import csv
 import io
 
 import click
+import numpy as np
 
 from ..errors import StructureError
 
@@ -238,15 +239,37 @@ def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, al
 
 @click.command("rebuild")
 @click.argument("model_path", metavar="MODEL", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="All-atom PDB to write.")
-def rebuild(model_path, output):
-    """An all-atom PDB from a dnarod model file (.npz): standard bases in the node frames, B-DNA backbone."""
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="All-atom file to write: .pdb or .cif (PDBx/mmCIF).")
+@click.option("--hydrogens/--no-hydrogens", default=True, show_default=True, help="Write hydrogens.")
+@click.option("--minimize/--no-minimize", default=True, show_default=True,
+              help="Close the backbone with Amber14 (default); --no-minimize writes the rigid placement only "
+                   "(standard bases in the frames, fibre backbone; O3'-P links not closed).")
+def rebuild(model_path, output, hydrogens, minimize):
+    """An all-atom PDB/mmCIF from a dnarod model file (.npz): standard bases in the node frames and a
+    backbone closed by restrained Amber14 minimisation (OBC2), checked bond by bond."""
     from ..model import RodModel
     from .rebuild import rebuild_model
 
     m = RodModel.load(model_path)
-    xyz, atoms = rebuild_model(m, output)
-    click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides", err=True)
+    if not minimize:
+        if output.lower().endswith((".cif", ".mmcif")):
+            raise StructureError("rebuild --no-minimize writes PDB only; give -o FILE.pdb")
+        xyz, atoms = rebuild_model(m, output)
+        click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides (rigid placement, backbone "
+                   f"not closed)", err=True)
+        return
+    from .allatom import rebuild_allatom
+
+    if not m.sequence:
+        raise StructureError("rebuild: the model has no sequence; build it from a sequence or a structure")
+    bp = np.asarray(m.metadata["bp_params"], float) if "bp_params" in m.metadata else None
+    res = rebuild_allatom(m.frames, m.positions, m.sequence, bp, m.metadata.get("sequence2"))
+    res.write(output, hydrogens=hydrogens)
+    n_atoms = sum(1 for a in res.topology.atoms() if hydrogens or a.element.symbol != "H")
+    click.echo(f"wrote {output}: {n_atoms} atoms, {2 * m.n_nodes} nucleotides", err=True)
+    for line in res.report.summary():
+        click.echo(f"  {line}", err=True)
 
 
 COMMANDS = (steps, pairs, build, rebuild)
