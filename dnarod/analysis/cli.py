@@ -76,8 +76,12 @@ def load_input(path, topology=None, duplex=0, start=None, stop=None, step=None):
                                   f"{model.n_nodes}: the trajectory does not match its topology")
         traj = traj[slice(start, stop, step)]
         return traj, model, "dnarod"
-    from ..structure.trajectory import is_structure_file
+    from ..structure.trajectory import is_structure_file, read_node_trajectory
     from .allatom import load_allatom
+
+    nodes = read_node_trajectory(path, topology)  # oxDNA (--topology X.top) or a dnarod CG export (PDB/DCD)
+    if nodes is not None:
+        return nodes[slice(start, stop, step)], None, "dnarod"
 
     if topology is None:
         if not is_structure_file(path):
