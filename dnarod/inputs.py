@@ -57,7 +57,8 @@ def _is_file(p):
         return False
 
 
-def load_model(source, forcefield="dna-default", circular=False, ring=False, delta_lk=0, duplex=None):
+def load_model(source, forcefield="dna-default", circular=False, ring=False, delta_lk=0, duplex=None,
+               intrinsic="sequence"):
     """A :class:`~dnarod.model.RodModel` from a command-line SOURCE.
 
     Parameters
@@ -77,6 +78,9 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
         With ``ring``: linking number relative to the relaxed ring.
     duplex : int, optional
         Which duplex of a structure, 1-based (default the longest).
+    intrinsic : {"sequence", "structure"}
+        Intrinsic shape of a structure's model: the force field's for its sequence (default) or
+        the structure's own step parameters (stiffness still from ``forcefield``).
 
     Raises
     ------
@@ -118,12 +122,17 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
             if is_structure_file(p):
                 from .structure import model_from_structure
 
-                return model_from_structure(p, forcefield=forcefield, duplex=None if duplex is None else duplex - 1)
+                return model_from_structure(p, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
+                                            intrinsic=intrinsic)
             if duplex is not None:
                 raise ParameterError("--duplex applies to a structure file (PDB/mmCIF)")
+            if intrinsic != "sequence":
+                raise ParameterError("--intrinsic structure applies to a structure file (PDB/mmCIF)")
             return RodModel.load(p)
     if duplex is not None:
         raise ParameterError("--duplex applies to a structure file (PDB/mmCIF)")
+    if intrinsic != "sequence":
+        raise ParameterError("--intrinsic structure applies to a structure file (PDB/mmCIF)")
     ff = load_forcefield(forcefield)
     kw = dict(n_nodes=int(source)) if sequence is None else dict(sequence=sequence)
     if kw.get("n_nodes", 2) < 2:

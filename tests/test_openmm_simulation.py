@@ -230,11 +230,11 @@ def test_export_opens_in_mdtraj_and_mdanalysis(dna40, tmp_path):
     export_trajectory(tr, tmp_path / "t.pdb", tmp_path / "t.dcd", sequence=dna40.sequence)
     t = md.load(str(tmp_path / "t.dcd"), top=str(tmp_path / "t.pdb"))
     assert t.n_frames == 5 and t.n_residues == 40 and t.n_atoms == 120
-    assert [r.name for r in t.topology.residues][:4] == ["AT", "CG", "GC", "TA"]
+    assert [r.name for r in t.topology.residues][:4] == ["DA", "DC", "DG", "DT"]  # strand-I base of each pair
     c2, f2 = frames_from_beads(t.xyz)
     assert np.abs(f2 - tr.frames).max() < 1e-5 and np.abs(c2 - tr.positions).max() < 1e-4
     u = mda.Universe(str(tmp_path / "t.pdb"), str(tmp_path / "t.dcd"))
-    assert len(u.trajectory) == 5 and u.atoms.n_atoms == 120 and list(u.residues.resnames[:2]) == ["AT", "CG"]
+    assert len(u.trajectory) == 5 and u.atoms.n_atoms == 120 and list(u.residues.resnames[:2]) == ["DA", "DC"]
     u.trajectory[-1]
     assert np.allclose(u.atoms.positions[0::3] / 10, tr.positions[-1], atol=1e-4)
 

@@ -73,7 +73,7 @@ def test_cli_steps_csv_matches_3dna_and_strains(tmp_path, pdb):
     rows = list(csv.DictReader(open(out)))
     assert list(rows[0]) == ["step", "bp1", "bp2", "shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg",
                              "twist_deg", "Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2",
-                             "Gamma3"]
+                             "Gamma3", "gap"]
     ref = _table(f"{REFS[pdb]}_step.csv")
     assert [int(r["step"]) for r in rows] == list(range(1, len(ref) + 1))
     assert [f"{r['bp1']}/{r['bp2']}" for r in rows] == [

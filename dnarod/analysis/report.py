@@ -85,9 +85,12 @@ def load_input(path, topology=None, duplex=1, start=None, stop=None, step=None):
                                   f"{model.n_nodes}: the trajectory does not match its topology")
         traj = traj[slice(start, stop, step)]
         return traj, model, "dnarod"
-    from ..structure.trajectory import is_structure_file
+    from ..structure.trajectory import is_structure_file, read_node_trajectory
     from .allatom import load_allatom
 
+    nodes = read_node_trajectory(path, topology)  # oxDNA (--topology X.top) or a dnarod CG export (PDB/DCD)
+    if nodes is not None:
+        return nodes[slice(start, stop, step)], None, "dnarod"
     duplex = int(duplex)
     if duplex < 1:
         raise DnarodError(f"--duplex {duplex}: duplexes are numbered from 1 (see `dnarod pairs TOPOLOGY`)")

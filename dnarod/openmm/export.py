@@ -1,15 +1,10 @@
 """Export trajectories of node centres and frames for MD tools (mdtraj, MDAnalysis, VMD).
 
-Coarse-grained topology: one chain, one residue per base pair named by the pair (``AT``,
-``GC``, ...; ``BP`` without a sequence), three beads per residue:
-
-* ``CA``  -- the node centre;
-* ``D1``  -- the tip of director d1 at ``centre + a d1``;
-* ``D3``  -- the tip of director d3 at ``centre + a d3`` (``a = 1 nm`` by default),
-
-bonded ``CA-D1``, ``CA-D3`` and ``CA(k)-CA(k+1)``. The first frame goes to a PDB file (the
-topology) and all frames to a DCD file (float32, Angstrom) whose header holds the true time
-between frames (written with MDAnalysis, which reads the frame times back equal to the
+Coarse-grained topology (names, elements, residues, chains and the REMARK that documents
+them): :mod:`dnarod.structure.cg_topology` -- beads ``BPC`` (node centre), ``BPX`` (tip of
+d1 at ``centre + a d1``), ``BPZ`` (tip of d3), ``a = 1 nm`` by default. The first frame goes to
+a PDB file (the topology) and all frames to a DCD file (float32, Angstrom) whose header holds the
+true time between frames (written with MDAnalysis, which reads the frame times back equal to the
 ``.dtraj`` times to the header's float32 precision; mdtraj's DCD reader ignores the header's time
 and numbers the frames), and optionally to an XTC file (mdtraj; each frame stores its time, read
 back by both mdtraj and MDAnalysis). The frames are recovered from the beads by
@@ -25,7 +20,7 @@ import numpy as np
 from ..errors import DnarodError
 from ..trajectory import Trajectory, load_trajectory
 
-BEADS = ("CA", "D1", "D3")
+from ..structure.cg_topology import BEADS, cg_pdb_text  # noqa: E402  (one home for the CG naming)
 
 
 def load_dtraj(path):
@@ -62,22 +57,11 @@ def frames_from_beads(xyz):
     return c, np.stack([d1, d2, d3], axis=-1)
 
 
-def mdtraj_topology(n_nodes, residue_names):
-    """An ``mdtraj.Topology`` with the coarse-grained beads."""
-    import mdtraj as md
+def mdtraj_topology(n_nodes, residue_names=None, sequence=None):
+    """An ``mdtraj.Topology`` with the coarse-grained beads (:mod:`dnarod.structure.cg_topology`)."""
+    from ..structure.cg_topology import mdtraj_topology as _top
 
-    top = md.Topology()
-    chain = top.add_chain()
-    prev = None
-    for k in range(n_nodes):
-        res = top.add_residue(residue_names[k], chain, resSeq=k + 1)
-        atoms = [top.add_atom(name, md.element.carbon, res) for name in BEADS]
-        top.add_bond(atoms[0], atoms[1])
-        top.add_bond(atoms[0], atoms[2])
-        if prev is not None:
-            top.add_bond(prev, atoms[0])
-        prev = atoms[0]
-    return top
+    return _top(n_nodes, sequence)
 
 
 def write_dcd(path, xyz_nm, time_ps):
@@ -132,7 +116,6 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc
     import mdtraj as md
 
     from ..io_utils import atomic_path
-    from .system import base_pair_names
 
     if not isinstance(traj, Trajectory):
         traj = load_trajectory(traj)
@@ -142,11 +125,13 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc
     seq = sequence if sequence is not None else traj.metadata.get("sequence") or None
     if seq is not None and len(seq) != n:
         seq = None
-    names = base_pair_names(type("M", (), dict(sequence=seq, n_nodes=n))())
-    top = mdtraj_topology(n, names)
+    top = mdtraj_topology(n, sequence=seq)
     xyz = bead_positions(traj.positions, traj.frames, arm).astype(np.float32)
     t = md.Trajectory(xyz, top, time=traj.time)
-    for path, sl in ((pdb_path, slice(0, 1)), (xtc_path, slice(None))):
+    if pdb_path is not None:
+        with atomic_path(Path(pdb_path)) as tmp:
+            Path(tmp).write_text(cg_pdb_text(traj.positions[0], traj.frames[0], seq, arm))
+    for path, sl in ((xtc_path, slice(None)),):
         if path is None:
             continue
         path = Path(path)

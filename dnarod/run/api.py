@@ -64,7 +64,8 @@ def source_model(spec):
     """The model named by ``spec.source`` (structure, model file, sequence, sequence file, node count)."""
     from ..inputs import load_model
 
-    return load_model(spec.source, spec.forcefield, spec.circular, spec.ring, spec.delta_lk, spec.duplex)
+    return load_model(spec.source, spec.forcefield, spec.circular, spec.ring, spec.delta_lk, spec.duplex,
+                      spec.intrinsic)
 
 
 def start_model(spec, model, seed):
@@ -323,7 +324,7 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                    frame_interval_steps=fi, wall_s=wall, cpu_s=out["cpu_s"],
                    ns_per_day=done * dt * 1e-3 / wall * 86400 if wall > 0 else float("nan"),
                    mean_temperature_K=float(np.mean(temps)) if temps else float("nan"), seed=meta["seed"],
-                   already_done=False, message=None)
+                   already_done=False, message=None, selection=(model.metadata or {}).get("selection"))
     if spec.engine == "openmm":
         summary.update(elastic_path=engine.rs.elastic, platform=spec.platform or "CPU",
                        nonbonded=engine.rs.nonbonded or None, context_s=engine.context_time)

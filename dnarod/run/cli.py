@@ -20,6 +20,9 @@ _OPTIONS = [
                  help="With --ring: linking number relative to the relaxed ring (supercoiling)."),
     click.option("--duplex", type=int, default=None,
                  help="Duplex of a structure file, numbered from 1 as `dnarod pairs` lists them [default: longest]."),
+    click.option("--intrinsic", type=click.Choice(["sequence", "structure"]), default="sequence", show_default=True,
+                 help="Intrinsic shape of a structure's model: the force field's for its sequence, or the "
+                      "structure's own step parameters (a protein-bent DNA keeps its bend)."),
     click.option("--time", "time_ns", type=float, default=1.0, show_default=True,
                  help="Total simulated time, ns (with --resume: the new total)."),
     click.option("--dt", type=float, default=None, help="Time step, ps [default: 0.4/omega_max of the model]."),
@@ -75,7 +78,7 @@ def _simulate_options(f):
     return f
 
 
-def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, duplex, time_ns, dt, temperature,
+def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, duplex, intrinsic, time_ns, dt, temperature,
                       friction, integrator, platform, threads, elastic, excluded_volume, electrostatics, salt, pull,
                       torque, rotation_clamp, turns, clamp_first, trap, minimize, equilibrium, frame_interval,
                       checkpoint_interval, seed, velocities, export, xtc):
@@ -93,7 +96,7 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                    friction=friction, dt=dt, seed=seed, salt=salt,
                    excluded_volume=nb_default if excluded_volume is None else excluded_volume,
                    electrostatics=nb_default if electrostatics is None else electrostatics, platform=platform,
-                   circular=circular, ring=ring, delta_lk=delta_lk, duplex=duplex,
+                   circular=circular, ring=ring, delta_lk=delta_lk, duplex=duplex, intrinsic=intrinsic,
                    start="minimized" if minimize else "equilibrium" if equilibrium else "intrinsic",
                    frame_interval_ps=frame_interval, checkpoint_interval_ps=checkpoint_interval, velocities=velocities,
                    export=export, xtc=xtc, elastic=elastic, threads=threads)
@@ -112,6 +115,8 @@ def _report(result, spec):
         return
     if result.resumed_from is not None:
         echo(f"resumed from step {result.resumed_from} ({result.resumed_from * s['dt_ps'] / 1000:.6g} ns)")
+    if s.get("selection"):
+        echo(f"input: {s['selection']}")
     head = f"engine: {s['engine']}  nodes: {s['n_nodes']}  ensemble: {spec.ensemble}"
     if s["engine"] == "openmm":
         head += f"  elastic path: {s['elastic_path']}  platform: {s['platform']}"

@@ -48,6 +48,9 @@ class RunSpec:
         Closed chains from a sequence (periodic helix; planar ring with linking-number change).
     duplex : int or None
         Duplex of a structure file, 1-based (default the longest).
+    intrinsic : {"sequence", "structure"}
+        Intrinsic shape of a structure's model: the force field's for its sequence, or the
+        structure's own step parameters (stiffness still from ``forcefield``).
     start : {"intrinsic", "equilibrium", "minimized"}
         Initial pose: the source's, an exact equilibrium sample of the free chain at ``temperature``
         (:func:`dnarod.thermal.equilibrium_sample`), or the static minimum of the elastic energy under
@@ -86,6 +89,7 @@ class RunSpec:
     ring: bool = False
     delta_lk: int = 0
     duplex: int | None = None
+    intrinsic: str = "sequence"
     start: str = "intrinsic"
     frame_interval_ps: float = 1.0
     checkpoint_interval_ps: float | None = None
@@ -147,6 +151,8 @@ class RunSpec:
                 raise ParameterError(f"--platform {self.platform}: the lax engine runs on the CPU (numba)")
         if self.duplex is not None and int(self.duplex) < 1:
             raise ParameterError(f"--duplex {self.duplex}: duplexes are numbered from 1")
+        if self.intrinsic not in ("sequence", "structure"):
+            raise ParameterError(f"--intrinsic {self.intrinsic!r}: choose 'sequence' or 'structure'")
         if self.threads is not None and int(self.threads) < 1:
             raise ParameterError(f"--threads {self.threads}: must be >= 1")
         if self.seed is not None and not (0 <= int(self.seed) < 2**31):

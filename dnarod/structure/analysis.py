@@ -18,7 +18,7 @@ from ..errors import StructureError
 from ..stepparams import step_parameters
 from .bpparams import pair_parameters
 from .frames import base_frames, has_base_atoms, kabsch, ring_atoms_present, standard_bases
-from .pairing import classify_pair, explicit_pairs, fill_helix_gaps, find_pairs, order_duplexes
+from .pairing import classify_pair, explicit_pairs, fill_helix_gaps, find_pairs, is_mismatch, multiplets, order_duplexes
 from .reader import read_structure
 
 
@@ -40,6 +40,11 @@ class DuplexAnalysis:
     step_params : ndarray, shape (n_bp - 1, 6)
         shift, slide, rise (nm); tilt, roll, twist (rad).
     circular : bool
+    notes : list of str
+        Steps across unpaired bases, non-Watson-Crick pairs, circularity.
+    gaps : list of str
+        Per step: residue ids of the unpaired nucleotides the step crosses ("" for a regular
+        step). Such a step is computed between the flanking pairs, as 3DNA does.
     """
 
     strand1: list
@@ -51,6 +56,7 @@ class DuplexAnalysis:
     step_params: np.ndarray
     circular: bool = False
     notes: list = field(default_factory=list)
+    gaps: list = field(default_factory=list)
 
     @property
     def n_bp(self):
@@ -131,6 +137,7 @@ def analyze_structure(path=None, text=None, model=1, altloc=None, pairs=None, ex
     if pairs is None:
         pair_idx = find_pairs(nts, frames, origins, st.source)
         pair_idx, gap_notes = fill_helix_gaps(nts, frames, origins, pair_idx, st.source)
+        gap_notes += multiplets(nts, frames, origins, pair_idx, st.source)
     else:
         pair_idx, gap_notes = explicit_pairs(nts, pairs, st.source), []
     if not pair_idx:
@@ -140,7 +147,7 @@ def analyze_structure(path=None, text=None, model=1, altloc=None, pairs=None, ex
         desc = ", ".join(f"chain {c} ({n} nt)" for c, n in chains.items())
         raise StructureError(f"{st.source}: no base pairs found among {len(nts)} nucleotides in {desc}: a single "
                              f"strand? dnarod needs a double-stranded region")
-    ordered, skipped = order_duplexes(nts, origins, pair_idx, st.source)
+    ordered, skipped = order_duplexes(nts, origins, pair_idx, st.source, frames=frames)
     duplexes = []
     for dup in ordered:
         i1 = np.array([a for a, _ in dup.pairs])
@@ -149,8 +156,16 @@ def analyze_structure(path=None, text=None, model=1, altloc=None, pairs=None, ex
         sp = step_parameters(mid[:-1], morg[:-1], mid[1:], morg[1:])
         s1 = [nts[k] for k in i1]
         s2 = [nts[k] for k in i2]
-        names = [classify_pair(a.base, b.base, p) for a, b, p in zip(s1, s2, bp)]
-        duplexes.append(DuplexAnalysis(s1, s2, names, mid, morg, bp, sp, dup.circular, dup.notes))
+        names = [classify_pair(a.base, b.base, p, a, b) for a, b, p in zip(s1, s2, bp)]
+        notes = list(dup.notes)
+        odd = [f"{a.rid}/{b.rid} {a.letter}-{b.letter} ({'mismatch, ' if is_mismatch(a.base, b.base) else ''}{n})"
+               for a, b, n in zip(s1, s2, names) if n != "WC"]
+        if odd:
+            notes.append(f"pairs that are not Watson-Crick (kept in the helix, check them): {'; '.join(odd)}")
+        gaps = [" ".join(nts[i].rid for i in g) for g in (dup.gaps or [[]] * (len(s1) - 1))]
+        duplexes.append(DuplexAnalysis(s1, s2, names, mid, morg, bp, sp, dup.circular, notes, gaps))
+    for k, d in enumerate(duplexes):
+        gap_notes += [f"duplex {k + 1}: {n}" for n in d.notes]
     return StructureAnalysis(st, duplexes, list(st.skipped) + gap_notes + skipped)
 
 

@@ -4,7 +4,8 @@
 origin with the base-pair frame as its directors (d1 = x toward the major groove, d2 = y
 toward strand I, d3 = z along the helix), step parameters from a force field for the
 detected strand-I sequence, ds, node masses and inertias from the same force field. The
-pose is the structure's; the intrinsic shape is the force field's.
+pose is the structure's; the intrinsic shape is the force field's (``intrinsic="sequence"``,
+the default) or the structure's own (``intrinsic="structure"``).
 
 :func:`model_from_sequence`: the force field's intrinsic shape
 (:meth:`dnarod.forcefield.ForceField.model_from_sequence`).
@@ -22,6 +23,9 @@ import numpy as np
 from ..errors import StructureError
 from ..model import RodModel
 from .analysis import analyze_structure
+from .selection import choose_duplex
+
+INTRINSIC = ("sequence", "structure")
 
 
 def _forcefield(forcefield):
@@ -31,28 +35,13 @@ def _forcefield(forcefield):
 
 
 def select_duplex(analysis, duplex=None):
-    """The duplex to model: index ``duplex`` (0-based) or, by default, the longest.
-
-    Raises
-    ------
-    StructureError
-        If the index does not exist or the duplex has fewer than 2 base pairs.
-    """
-    dups = analysis.duplexes
-    if duplex is None:
-        duplex = int(np.argmax([d.n_bp for d in dups]))
-    if not 0 <= duplex < len(dups):
-        raise StructureError(f"{analysis.source}: duplex {duplex + 1} does not exist; found {len(dups)} "
-                             f"({', '.join(str(d.n_bp) + ' bp' for d in dups)}), numbered from 1 "
-                             f"(from 0 in the Python API)")
-    d = dups[duplex]
-    if d.n_bp < 2:
-        raise StructureError(f"{analysis.source}: duplex {duplex} has {d.n_bp} base pair; a model needs at least 2")
-    return duplex, d
+    """``(index, DuplexAnalysis)`` of :func:`dnarod.structure.selection.choose_duplex` (0-based)."""
+    sel = choose_duplex(analysis, duplex)
+    return sel.index, sel.duplex
 
 
 def model_from_structure(path=None, forcefield="dna-default", duplex=None, model=1, altloc=None, analysis=None,
-                         **read_options):
+                         intrinsic="sequence", **read_options):
     """A RodModel whose nodes are the base pairs of a duplex of a structure file.
 
     Parameters
@@ -60,33 +49,53 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
     path : str or Path
         PDB or mmCIF file.
     forcefield : str, Path or ForceField
-        Parameter set for the detected sequence (default ``"dna-default"``).
+        Parameter set: stiffness, ds, masses and (with ``intrinsic="sequence"``) the intrinsic
+        shape of the detected sequence (default ``"dna-default"``).
     duplex : int, optional
         Which duplex (0-based, in :func:`analyze_structure` order); default the longest.
     model, altloc, read_options
         Passed to :func:`analyze_structure`.
     analysis : StructureAnalysis, optional
         A ready analysis instead of reading ``path``.
+    intrinsic : {"sequence", "structure"}
+        ``"sequence"`` (default): the force field's intrinsic strains for the sequence.
+        ``"structure"``: the structure's own step strains (:func:`dnarod.strains.strains` of the
+        base-pair frames with the force field's ds) become the intrinsic shape, so the model's
+        zero-energy shape is the input's (a protein-bent DNA keeps its bend); the stiffness is
+        still the force field's.
 
     Returns
     -------
     RodModel
         positions (n, 3) nm at the base-pair origins, frames (n, 3, 3) the base-pair frames.
+        ``metadata["selection"]`` is the one-line report of the duplex taken and what was
+        dropped (:meth:`DuplexSelection.report`).
     """
+    from ..parameters import StepParameters
+    from ..strains import strains
+
+    if intrinsic not in INTRINSIC:
+        raise StructureError(f"intrinsic={intrinsic!r}: use 'sequence' (the force field's shape for the sequence) "
+                             f"or 'structure' (the input's own step parameters)")
     ana = analysis if analysis is not None else analyze_structure(path, model=model, altloc=altloc, **read_options)
-    k, d = select_duplex(ana, duplex)
+    sel = choose_duplex(ana, duplex)
+    k, d = sel.index, sel.duplex
     ff = _forcefield(forcefield)
     seq = d.sequence
     if any(c not in "ACGT" for c in seq):
-        raise StructureError(f"{ana.source}: duplex {k} strand I {seq!r} has bases other than A, C, G, T "
+        raise StructureError(f"{ana.source}: duplex {k + 1} strand I {seq!r} has bases other than A, C, G, T "
                              f"(RNA or inosine); the DNA force fields cannot parametrise it")
     params = ff.step_parameters(seq)
+    if intrinsic == "structure":
+        Om, Ga = strains(d.bp_origins, d.bp_frames, ff.ds)
+        params = StepParameters(params.stiffness, np.hstack([Om, Ga]), params.names)
     n = d.n_bp
     meta = {
         "source": str(ana.source), "model": ana.structure.model, "duplex": k, "forcefield": ff.name,
         "strand1": [nt.rid for nt in d.strand1], "strand2": [nt.rid for nt in d.strand2],
         "sequence2": "".join(nt.base for nt in d.strand2) if all(nt.base in "ACGT" for nt in d.strand2) else None,
-        "bp_params": d.bp_params.tolist(), "pair_names": list(d.names),
+        "bp_params": d.bp_params.tolist(), "pair_names": list(d.names), "intrinsic": intrinsic,
+        "selection": sel.report(), "gaps": list(d.gaps),
     }
     return RodModel(d.bp_origins.copy(), d.bp_frames.copy(), params, ff.ds, np.full(n, ff.node_mass),
                     np.tile(ff.node_inertia, (n, 1)), sequence=seq, metadata=meta)

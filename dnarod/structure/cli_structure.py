@@ -3,9 +3,12 @@
 CSV contracts (scripts parse them; do not change the columns):
 
 * ``dnarod steps INPUT --csv OUT``: ``step,bp1,bp2,shift_A,slide_A,rise_A,tilt_deg,roll_deg,
-  twist_deg,Omega1_per_nm,Omega2_per_nm,Omega3_per_nm,Gamma1,Gamma2,Gamma3``; one row per
+  twist_deg,Omega1_per_nm,Omega2_per_nm,Omega3_per_nm,Gamma1,Gamma2,Gamma3,gap``; one row per
   step, ``step`` counting from 1 along strand I (continuing across duplexes), ``bp1``/``bp2``
   like ``C-G``. Strains from :func:`dnarod.strains.strains` with the force field's ds.
+  ``gap`` is empty for a regular step and lists the residue ids of the unpaired (extruded,
+  bulged) nucleotides a step crosses (the step is then computed between the flanking pairs,
+  as 3DNA reports it).
 * ``dnarod pairs INPUT --csv OUT``: ``bp,name,shear_A,stretch_A,stagger_A,buckle_deg,
   propeller_deg,opening_deg``; ``bp`` counts from 1 along strand I, ``name`` like ``C-G``.
 
@@ -19,11 +22,12 @@ import csv
 import io
 
 import click
+import numpy as np
 
 from ..errors import StructureError
 
 STEP_COLUMNS = ("step", "bp1", "bp2", "shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg",
-                "Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2", "Gamma3")
+                "Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2", "Gamma3", "gap")
 PAIR_COLUMNS = ("bp", "name", "shear_A", "stretch_A", "stagger_A", "buckle_deg", "propeller_deg", "opening_deg")
 
 
@@ -97,7 +101,34 @@ def _emit(rows, columns, csv_path, title_lines, notes, fmt):
         click.echo(" ".join(cells))
 
 
+def duplex_option(f):
+    """``--duplex N`` (1-based), shared by every structure command."""
+    return click.option("--duplex", type=int, default=None, metavar="N",
+                        help="Duplex number (1-based, as listed by 'dnarod pairs'); default all for steps/pairs, "
+                             "the longest for build.")(f)
+
+
+def _only_duplex(ana, duplex):
+    """Restrict an analysis to duplex ``duplex`` (1-based) for the tables."""
+    if duplex is None:
+        return ana
+    from .selection import choose_duplex
+
+    if duplex < 1:
+        raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
+    sel = choose_duplex(ana, duplex - 1)
+    import copy
+
+    out = copy.copy(ana)
+    out.duplexes = [sel.duplex]
+    out.selected = sel
+    return out
+
+
 def _titles(ana):
+    sel = getattr(ana, "selected", None)
+    if sel is not None:
+        return [sel.report()]
     out = [f"{ana.source}: model {ana.structure.model} of {ana.structure.n_models}, "
            f"{len(ana.structure.nucleotides)} nucleotides, {len(ana.duplexes)} duplex(es)"]
     for k, d in enumerate(ana.duplexes):
@@ -118,9 +149,11 @@ def step_rows(ana, ds):
         sp = to_angstrom_degrees(d.step_params)
         Om, Ga = strains(d.bp_origins, d.bp_frames, ds)
         labels = d.bp_labels
+        gaps = d.gaps or [""] * (d.n_bp - 1)
         for i in range(d.n_bp - 1):
             k += 1
-            rows.append((k, labels[i], labels[i + 1], *map(float, sp[i]), *map(float, Om[i]), *map(float, Ga[i])))
+            rows.append((k, labels[i], labels[i + 1], *map(float, sp[i]), *map(float, Om[i]), *map(float, Ga[i]),
+                         gaps[i].replace(" ", ";")))
     return rows
 
 
@@ -142,25 +175,27 @@ def pair_rows(ana):
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write CSV here instead of a table.")
 @click.option("-f", "--forcefield", default="dna-default", show_default=True,
               help="Force field whose ds scales the strains.")
+@duplex_option
 @structure_options
-def steps(input_path, csv_path, forcefield, model, altloc, pairs_file, maps, ignore):
+def steps(input_path, csv_path, forcefield, duplex, model, altloc, pairs_file, maps, ignore):
     """Step parameters (3DNA convention) and SMK strains of every base-pair step of INPUT (PDB/mmCIF)."""
     from ..forcefield import load_forcefield
 
     ff = load_forcefield(forcefield)
-    ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
+    ana = _only_duplex(_analyze(input_path, model, altloc, pairs_file, maps, ignore), duplex)
     rows = step_rows(ana, ff.ds)
     title = _titles(ana) + [f"strains with ds = {ff.ds:g} nm ({ff.name}); Omega in 1/nm, Gamma dimensionless"]
-    _emit(rows, STEP_COLUMNS, csv_path, title, ana.skipped, (4, 5, 5) + (8,) * 6 + (13,) * 3 + (7,) * 3)
+    _emit(rows, STEP_COLUMNS, csv_path, title, ana.skipped, (4, 5, 5) + (8,) * 6 + (13,) * 3 + (7,) * 3 + (4,))
 
 
 @click.command("pairs")
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
 @click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Write CSV here instead of a table.")
+@duplex_option
 @structure_options
-def pairs(input_path, csv_path, model, altloc, pairs_file, maps, ignore):
+def pairs(input_path, csv_path, duplex, model, altloc, pairs_file, maps, ignore):
     """Base pairs of INPUT (PDB/mmCIF) and their six parameters (3DNA convention)."""
-    ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
+    ana = _only_duplex(_analyze(input_path, model, altloc, pairs_file, maps, ignore), duplex)
     rows = pair_rows(ana)
     if not csv_path:  # the readable table also names the residues and the pair class
         ids = [f"{a.rid}/{b.rid}" for d in ana.duplexes for a, b in zip(d.strand1, d.strand2)]
@@ -177,34 +212,66 @@ def pairs(input_path, csv_path, model, altloc, pairs_file, maps, ignore):
 @click.option("--sequence", help="Build the intrinsic shape of this sequence instead of reading INPUT.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="Model file (.npz).")
 @click.option("-f", "--forcefield", default="dna-default", show_default=True, help="Force field (name or .toml).")
-@click.option("--duplex", type=int, default=None, help="Duplex number (1-based; default the longest).")
+@click.option("--intrinsic", type=click.Choice(["sequence", "structure"]), default="sequence", show_default=True,
+              help="Intrinsic shape: the force field's for the sequence, or the structure's own step parameters "
+                   "(stiffness still from --forcefield).")
+@duplex_option
 @structure_options
-def build(input_path, sequence, output, forcefield, duplex, model, altloc, pairs_file, maps, ignore):
+def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, altloc, pairs_file, maps, ignore):
     """A dnarod model (.npz) from a structure INPUT (nodes at its base-pair frames) or from --sequence."""
     from .builders import model_from_sequence, model_from_structure
 
     if (input_path is None) == (sequence is None):
         raise StructureError("build: give either INPUT (a PDB/mmCIF file) or --sequence, not both or neither")
     if sequence is not None:
+        if intrinsic == "structure" or duplex is not None:
+            raise StructureError("build: --intrinsic structure and --duplex need a structure INPUT, not --sequence")
         m = model_from_sequence(sequence, forcefield)
     else:
+        if duplex is not None and duplex < 1:
+            raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
         ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
-        m = model_from_structure(analysis=ana, forcefield=forcefield, duplex=None if duplex is None else duplex - 1)
+        m = model_from_structure(analysis=ana, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
+                                 intrinsic=intrinsic)
     m.save(output)
+    if m.metadata.get("selection"):
+        click.echo(f"input: {m.metadata['selection']}")
     click.echo(f"wrote {output}: {m.n_nodes} nodes, ds = {m.ds:g} nm, force field {forcefield}")
 
 
 @click.command("rebuild")
 @click.argument("model_path", metavar="MODEL", type=click.Path(exists=True, dir_okay=False))
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False), help="All-atom PDB to write.")
-def rebuild(model_path, output):
-    """An all-atom PDB from a dnarod model file (.npz): standard bases in the node frames, B-DNA backbone."""
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="All-atom file to write: .pdb or .cif (PDBx/mmCIF).")
+@click.option("--hydrogens/--no-hydrogens", default=True, show_default=True, help="Write hydrogens.")
+@click.option("--minimize/--no-minimize", default=True, show_default=True,
+              help="Close the backbone with Amber14 (default); --no-minimize writes the rigid placement only "
+                   "(standard bases in the frames, fibre backbone; O3'-P links not closed).")
+def rebuild(model_path, output, hydrogens, minimize):
+    """An all-atom PDB/mmCIF from a dnarod model file (.npz): standard bases in the node frames and a
+    backbone closed by restrained Amber14 minimisation (OBC2), checked bond by bond."""
     from ..model import RodModel
     from .rebuild import rebuild_model
 
     m = RodModel.load(model_path)
-    xyz, atoms = rebuild_model(m, output)
-    click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides")
+    if not minimize:
+        if output.lower().endswith((".cif", ".mmcif")):
+            raise StructureError("rebuild --no-minimize writes PDB only; give -o FILE.pdb")
+        xyz, atoms = rebuild_model(m, output)
+        click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides (rigid placement, backbone "
+                   f"not closed)")
+        return
+    from .allatom import rebuild_allatom
+
+    if not m.sequence:
+        raise StructureError("rebuild: the model has no sequence; build it from a sequence or a structure")
+    bp = np.asarray(m.metadata["bp_params"], float) if "bp_params" in m.metadata else None
+    res = rebuild_allatom(m.frames, m.positions, m.sequence, bp, m.metadata.get("sequence2"))
+    res.write(output, hydrogens=hydrogens)
+    n_atoms = sum(1 for a in res.topology.atoms() if hydrogens or a.element.symbol != "H")
+    click.echo(f"wrote {output}: {n_atoms} atoms, {2 * m.n_nodes} nucleotides")
+    for line in res.report.summary():
+        click.echo(f"  {line}", err=True)
 
 
 COMMANDS = (steps, pairs, build, rebuild)

@@ -34,6 +34,9 @@ MIN_GLYCOSIDIC = 0.45   # nm
 MAX_HBOND = 0.40        # nm
 LINK = 0.25             # nm, O3'-P bond cut-off
 OVERLAP = 0.10          # nm: two bases with origins this close overlap (atoms closer than 1 A)
+HELIX_BREAK = 0.75      # nm: 3DNA's helix_break, largest origin distance of neighbouring pairs in a helix
+HOOGSTEEN_CONTACT = 0.33  # nm: an N7...N/O hydrogen bond, with no N1 contact, marks a Hoogsteen pair
+MAX_GAP = 3             # unpaired nucleotides a helix may step across on a strand
 COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
 
 
@@ -47,11 +50,16 @@ class Duplex:
         Nucleotide indices (strand I, strand II), 5'->3' along strand I.
     circular : bool
         True if the pairs close into a ring (the ring is opened at the first pair).
+    notes : list of str
+    gaps : list of list of int
+        Per step: unpaired nucleotides (indices) between its two pairs (3DNA's helix continues
+        across them); empty for a regular step.
     """
 
     pairs: list
     circular: bool = False
     notes: list = field(default_factory=list)
+    gaps: list = field(default_factory=list)
 
 
 def _glycosidic(nt):
@@ -155,41 +163,163 @@ def find_pairs(nucleotides, frames, origins, source="<structure>"):
     return pairs
 
 
-def fill_helix_gaps(nucleotides, frames, origins, pairs, source="<structure>"):
-    """Pair two unpaired bases that sit between consecutive pairs on both strands.
+def _pair_axis(frames, origins, a, b):
+    """Approximate base-pair origin (nm) and helix axis of bases ``a`` (strand I) and ``b``."""
+    za, zb = frames[a][:, 2], frames[b][:, 2]
+    z = za - zb if za @ zb < 0 else za + zb
+    return 0.5 * (origins[a] + origins[b]), z / np.linalg.norm(z)
 
-    A base pair inside a helix sometimes misses the N/O contact criterion only just (1KX5
-    I:53/J:-53, 0.42 nm; 3DNA 2.0 left it out, 3DNA 2.4 pairs it). If nucleotide ``a`` lies
-    between the strand-I bases of two pairs and ``b`` between their strand-II bases, ``a`` and
-    ``b`` are paired when they pass every criterion with the contact cut-off relaxed to 0.45 nm.
+
+def _stacks(frames, origins, p, q):
+    """True if pair ``q`` stacks on pair ``p`` in 3DNA's helix sense: pair origins within
+    ``HELIX_BREAK`` and helix axes within ``MAX_ANGLE`` of each other."""
+    op, zp = _pair_axis(frames, origins, *p)
+    oq, zq = _pair_axis(frames, origins, *q)
+    return (np.linalg.norm(oq - op) <= HELIX_BREAK
+            and np.degrees(np.arccos(min(1.0, abs(float(zp @ zq))))) <= MAX_ANGLE)
+
+
+def _closest_contact(ni, nj):
+    pi, pj = _base_polar_atoms(ni), _base_polar_atoms(nj)
+    if len(pi) == 0 or len(pj) == 0:
+        return float("inf")
+    return float(np.linalg.norm(pi[:, None, :] - pj[None, :, :], axis=-1).min())
+
+
+def fill_helix_gaps(nucleotides, frames, origins, pairs, source="<structure>"):
+    """Pair bases that sit between stacked pairs on both strands (3DNA's helix context).
+
+    A base pair inside a helix sometimes misses the N/O contact criterion (1KX5 I:53/J:-53,
+    0.42 nm; a stretched pair in a distorted or thermal structure). If strand I has a run of
+    ``k`` unpaired nucleotides between the strand-I bases of two pairs and strand II a run of
+    the same length between their strand-II bases (backbone-linked), the runs are paired in
+    order when every new pair passes all the pairing criteria except the N/O contact (origins,
+    vertical separation, normals, glycosidic distance) and stacks on its neighbours (pair
+    origins within 3DNA's ``helix_break`` 0.75 nm, axes within 65 degrees). Iterated until
+    nothing changes.
 
     Returns
     -------
     pairs : list of (int, int)
         ``pairs`` plus the added ones.
     notes : list of str
+        One per added pair, naming the residues and their closest N/O contact.
     """
     next3, prev5 = backbone_links(nucleotides, origins)
     partner = {}
     for i, j in pairs:
         partner[i], partner[j] = j, i
     added, notes = [], []
-    for a in range(len(nucleotides)):
-        x, x3 = prev5[a], next3[a]
-        if a in partner or x is None or x3 is None or x not in partner or x3 not in partner:
-            continue
-        y, y3 = partner[x], partner[x3]
-        b = prev5[y]
-        if b is None or b in partner or next3[y3] != b or b == a:
-            continue
-        if _pair_geometry(nucleotides[a], nucleotides[b], frames[a], frames[b], origins[a], origins[b],
-                          max_hbond=MAX_HBOND + 0.05) is None:
-            continue
-        partner[a], partner[b] = b, a
-        added.append((min(a, b), max(a, b)))
-        notes.append(f"paired {nucleotides[a].rid}/{nucleotides[b].rid} by helix context (their closest N/O "
-                     f"contact is over {10 * MAX_HBOND:.1f} A)")
+
+    def run_after(x, limit=MAX_GAP):
+        out, k = [], next3[x]
+        while k is not None and k not in partner and len(out) <= limit:
+            out.append(k)
+            k = next3[k]
+        return out, k
+
+    changed = True
+    while changed:
+        changed = False
+        for x in range(len(nucleotides)):
+            if x not in partner or next3[x] is None or next3[x] in partner:
+                continue
+            run1, x3 = run_after(x)
+            if x3 is None or not run1 or len(run1) > MAX_GAP:
+                continue
+            y, y3 = partner[x], partner[x3]
+            run2, end = run_after(y3)
+            if end != y or len(run2) != len(run1):
+                continue
+            new = list(zip(run1, reversed(run2)))
+            ok = all(_pair_geometry(nucleotides[a], nucleotides[b], frames[a], frames[b], origins[a], origins[b],
+                                    max_hbond=np.inf) is not None for a, b in new)
+            chain = [(x, y)] + new + [(x3, y3)]
+            if not ok or not all(_stacks(frames, origins, p, q) for p, q in zip(chain[:-1], chain[1:])):
+                continue
+            for a, b in new:
+                partner[a], partner[b] = b, a
+                added.append((min(a, b), max(a, b)))
+                notes.append(f"paired {nucleotides[a].rid}/{nucleotides[b].rid} by helix context: stacked between "
+                             f"paired neighbours, closest N/O contact "
+                             f"{10 * _closest_contact(nucleotides[a], nucleotides[b]):.2f} A (cut-off "
+                             f"{10 * MAX_HBOND:.1f} A)")
+            changed = True
     return sorted(pairs + added), notes
+
+
+def multiplets(nucleotides, frames, origins, pairs, source="<structure>"):
+    """Bases that pair with more than one base: base triples, G-tetrads, bifurcated pairs.
+
+    Every candidate pair (all criteria of :func:`candidates`) that involves a base of a chosen
+    pair and a third base is collected; the connected groups of such bases are the multiplets.
+
+    Returns
+    -------
+    notes : list of str
+        One per multiplet, naming its residues.
+
+    Raises
+    ------
+    StructureError
+        For a G-tetrad (four guanines each pairing with two others, as in G-quadruplexes):
+        dnarod's pairing would build a wrong double helix out of it.
+    """
+    cand = candidates(nucleotides, frames, origins)
+    chosen = {frozenset(p) for p in pairs}
+    partner = {}
+    for i, j in pairs:
+        partner[i], partner[j] = j, i
+    next3, prev5 = backbone_links(nucleotides, origins)
+
+    def neighbours(k):
+        return {m for m in (next3[k], prev5[k]) if m is not None}
+
+    adj = {}
+    for (i, j) in cand:
+        if frozenset((i, j)) in chosen:
+            continue
+        for a, b in ((i, j), (j, i)):  # b would be a third base on the pair of a
+            if a not in partner:
+                continue
+            pair = (a, partner[a])
+            near = neighbours(a) | neighbours(partner[a])
+            if b in near or (b in partner and partner[b] in near):
+                continue  # a cross-strand contact with a stacked neighbour pair, not a multiplet
+            o, z = _pair_axis(frames, origins, *pair)
+            if abs(float((origins[b] - o) @ z)) > MAX_VERTICAL / 2:
+                continue  # not in the plane of the pair
+            adj.setdefault(a, set()).add(b)
+            adj.setdefault(b, set()).add(a)
+    seen, groups = set(), []
+    for start in sorted(adj):
+        if start in seen:
+            continue
+        stack, comp = [start], set()
+        while stack:
+            k = stack.pop()
+            if k in comp:
+                continue
+            comp.add(k)
+            stack.extend(adj.get(k, ()))
+            if k in partner:
+                stack.append(partner[k])
+        seen |= comp
+        groups.append(sorted(comp))
+    notes = []
+    for g in groups:
+        ids = " ".join(nucleotides[k].rid for k in g)
+        letters = "".join(nucleotides[k].base for k in g)
+        ring = all(len(adj.get(k, ())) + (k in partner) >= 2 for k in g)
+        if len(g) >= 4 and set(letters) == {"G"} and ring:
+            raise StructureError(f"{source}: G-tetrad {ids}: each guanine pairs with two others (a G-quadruplex); "
+                                 f"dnarod models double helices only. Give the pairs explicitly (--pairs) to force "
+                                 f"a duplex, or remove the quadruplex")
+        kind = "base triple (triplex or major-groove base?)" if len(g) == 3 else f"{len(g)}-base multiplet"
+        notes.append(f"{kind}: {ids} ({letters}) pair with more than one base; the helix keeps the pairs "
+                     f"{', '.join(f'{nucleotides[a].rid}/{nucleotides[b].rid}' for a, b in pairs if a in g and b in g) or 'none of them'}, "
+                     f"the other contacts are left out")
+    return notes
 
 
 def explicit_pairs(nucleotides, pairs, source="<structure>"):
@@ -249,7 +379,7 @@ def backbone_links(nucleotides, origins):
     return next3, prev5
 
 
-def order_duplexes(nucleotides, origins, pairs, source="<structure>"):
+def order_duplexes(nucleotides, origins, pairs, source="<structure>", frames=None):
     """Chain pairs into duplexes ordered 5'->3' along strand I.
 
     Parameters
@@ -259,10 +389,15 @@ def order_duplexes(nucleotides, origins, pairs, source="<structure>"):
         Base origins, nm (used for links without backbone atoms).
     pairs : list of (int, int)
     source : str
+    frames : ndarray, shape (n, 3, 3), optional
+        Base frames; with them a duplex continues across up to ``MAX_GAP`` unpaired
+        nucleotides on each strand when the flanking pairs stack (3DNA's helix definition).
 
     Returns
     -------
     duplexes : list of Duplex
+        ``Duplex.gaps[k]`` lists the unpaired nucleotides (indices) the step from pair ``k`` to
+        ``k + 1`` steps across (empty for a regular step).
         Ordered by the file position of strand I's first base.
     skipped : list of str
         Unpaired nucleotides and other notes.
@@ -272,6 +407,35 @@ def order_duplexes(nucleotides, origins, pairs, source="<structure>"):
     for i, j in pairs:
         partner[i], partner[j] = j, i
 
+    def path(a, b, links=next3):
+        """Unpaired nucleotides strictly between ``a`` and ``b`` along ``links`` (None if not reached)."""
+        out, k = [], links[a]
+        while k is not None and k != b and k not in partner and len(out) < MAX_GAP:
+            out.append(k)
+            k = links[k]
+        return out if k == b else None
+
+    def across_gap(x, y):
+        # 3DNA's helix continues across extruded or unpaired bases when the flanking pairs stack;
+        # here the strands must also lead there (at most MAX_GAP unpaired nucleotides on each strand).
+        for start, links, strand1 in ((x, next3, True), (y, prev5, False)):
+            k, skipped = links[start], 0
+            while k is not None and k not in partner and skipped < MAX_GAP:
+                k, skipped = links[k], skipped + 1
+            if k is None or k not in partner or skipped == 0:
+                continue
+            nxt = (k, partner[k]) if strand1 else (partner[k], k)
+            if frames is None or nxt[0] in (x, y) or nxt[1] in (x, y):
+                continue
+            other = path(nxt[1], y) if strand1 else path(x, nxt[0])
+            nicked = (prev5[y] is None or next3[nxt[1]] is None) if strand1 else \
+                (next3[x] is None or prev5[nxt[0]] is None)
+            if other is None and not nicked:
+                continue  # the other strand runs elsewhere (not a nick, not a short gap)
+            if _stacks(frames, origins, (x, y), nxt):
+                return nxt
+        return None
+
     def succ(node):
         x, y = node
         x3 = next3[x]
@@ -280,7 +444,7 @@ def order_duplexes(nucleotides, origins, pairs, source="<structure>"):
         y5 = prev5[y]
         if y5 is not None and y5 in partner and partner[y5] != y:
             return (partner[y5], y5)
-        return None
+        return across_gap(x, y)
 
     nodes = [(i, j) for i, j in pairs] + [(j, i) for i, j in pairs]
     nxt = {nd: succ(nd) for nd in nodes}
@@ -318,7 +482,16 @@ def order_duplexes(nucleotides, origins, pairs, source="<structure>"):
             notes.append("part of this duplex was already assigned (branched pairing)")
         if circular:
             notes.append(f"circular: the ring of pairs is opened at {nucleotides[kept[0][0]].rid}")
-        duplexes.append(Duplex(kept, circular=circular, notes=notes))
+        gaps = []
+        for (x, y), (x2, y2) in zip(kept[:-1], kept[1:]):
+            g = (path(x, x2) or []) + (path(y2, y) or [])
+            gaps.append(sorted(g))
+        for k, g in enumerate(gaps):
+            if g:
+                notes.append(f"step {k + 1} ({nucleotides[kept[k][0]].rid}/{nucleotides[kept[k][1]].rid} to "
+                             f"{nucleotides[kept[k + 1][0]].rid}/{nucleotides[kept[k + 1][1]].rid}) steps across "
+                             f"unpaired {' '.join(nucleotides[i].rid for i in g)} (flagged in the gap column)")
+        duplexes.append(Duplex(kept, circular=circular, notes=notes, gaps=gaps))
     paired = set(partner)
     unpaired = [nt for k, nt in enumerate(nucleotides) if k not in paired]
     skipped = []
@@ -332,18 +505,44 @@ def order_duplexes(nucleotides, origins, pairs, source="<structure>"):
     return duplexes, skipped
 
 
-def classify_pair(letter1, letter2, params):
+def _hoogsteen(nt1, nt2):
+    """True if a purine of the pair faces its partner with its N7 (Hoogsteen) edge, not N1."""
+    for pur, other in ((nt1, nt2), (nt2, nt1)):
+        if pur is None or other is None or pur.base not in ("A", "G", "I"):
+            continue
+        if "N1" not in pur.atoms or "N7" not in pur.atoms:
+            continue
+        polar = _base_polar_atoms(other)
+        if len(polar) == 0:
+            continue
+        d1 = np.linalg.norm(polar - pur.atoms["N1"], axis=-1).min()
+        d7 = np.linalg.norm(polar - pur.atoms["N7"], axis=-1).min()
+        if d7 <= HOOGSTEEN_CONTACT < d1:
+            return True
+    return False
+
+
+def classify_pair(letter1, letter2, params, nt1=None, nt2=None):
     """Name of a base pair from its letters and parameters (nm, rad).
 
-    ``"WC"`` (Watson-Crick: complementary, |shear| < 0.18 nm, |stretch| < 0.2 nm,
+    ``"Hoogsteen"`` (given the nucleotides: a purine's N7 edge, not its N1, faces the
+    partner), ``"WC"`` (Watson-Crick: complementary, |shear| < 0.18 nm, |stretch| < 0.2 nm,
     |opening| < 60 deg), ``"wobble"`` (G-T/G-U with 0.1 < |shear| < 0.3 nm), else
-    ``"non-WC"`` (mismatches, Hoogsteen and other geometries).
+    ``"non-WC"`` (mismatches and other geometries).
     """
     a, b = letter1.upper(), letter2.upper()
     shear, stretch, opening = params[0], params[1], params[5]
+    if _hoogsteen(nt1, nt2):
+        return "Hoogsteen"
     if COMPLEMENT.get(a) == b or (a, b) in (("A", "U"), ("U", "A")):
         if abs(shear) < 0.18 and abs(stretch) < 0.2 and abs(np.degrees(opening)) < 60:
             return "WC"
     if {a, b} in ({"G", "T"}, {"G", "U"}) and 0.1 < abs(shear) < 0.3:
         return "wobble"
     return "non-WC"
+
+
+def is_mismatch(letter1, letter2):
+    """True if two parent letters are not a Watson-Crick (or A-U) complement."""
+    a, b = letter1.upper(), letter2.upper()
+    return not (COMPLEMENT.get(a) == b or (a, b) in (("A", "U"), ("U", "A")))

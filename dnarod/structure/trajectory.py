@@ -112,6 +112,12 @@ def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop
         raise StructureError(f"{topology}: no such topology file")
     if trajectory is not None and not Path(trajectory).exists():
         raise StructureError(f"{trajectory}: no such trajectory file")
+    from .cg_topology import is_cg_export
+
+    if is_cg_export(topology):
+        raise StructureError(f"{topology}: a dnarod coarse-grained export (beads BPC/BPX/BPZ), not an all-atom "
+                             f"structure; read it with dnarod.structure.cg_topology.load_cg_trajectory, or analyse "
+                             f"the run's exact trajectory.dtraj (dnarod analyze RUNDIR/trajectory.dtraj)")
     u = _universe(topology, trajectory)
     if is_structure_file(topology):
         ana = analyze_structure(topology, model=model)
@@ -167,3 +173,30 @@ def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop
         times.append(t)
     return DuplexTrajectory(d, idx, np.concatenate(times), np.concatenate(sp), np.concatenate(bp),
                             np.concatenate(frames), np.concatenate(origins))
+
+
+def read_node_trajectory(path, topology=None):
+    """Node trajectories that are not all-atom: an oxDNA trajectory or a dnarod coarse-grained export.
+
+    Parameters
+    ----------
+    path : str or Path
+        oxDNA configuration/trajectory (with ``topology`` an oxDNA topology), or an exported
+        coarse-grained PDB/DCD/XTC (with ``topology`` its PDB, or the PDB alone).
+    topology : str or Path, optional
+
+    Returns
+    -------
+    dnarod.trajectory.Trajectory or None
+        None if the input is neither (an all-atom trajectory).
+    """
+    from .cg_topology import is_cg_export, load_cg_trajectory
+    from .oxdna import looks_like_oxdna_topology, read_oxdna
+
+    if topology is not None and looks_like_oxdna_topology(topology):
+        return read_oxdna(topology, path)
+    if topology is not None and is_cg_export(topology):
+        return load_cg_trajectory(topology, path)
+    if topology is None and is_cg_export(path):
+        return load_cg_trajectory(path)
+    return None

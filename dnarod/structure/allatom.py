@@ -1,0 +1,541 @@
+"""A chemically valid all-atom duplex from base-pair (node) frames, ready for MD.
+
+Two stages:
+
+1. **Placement** (:func:`dnarod.structure.rebuild.rebuild_coordinates`): each base is the
+   standard base (Olson et al. 2001) in the base frame that the pair frame and the six pair
+   parameters give; each nucleotide's sugar-phosphate is the B-DNA fibre template carried
+   rigidly with its base. Exact for ideal B-DNA; elsewhere the O3'(i)-P(i+1) links are
+   stretched or compressed (0.2-3.9 A on crystal frames).
+2. **Backbone closure**: the duplex is parametrised with OpenMM's Amber14 DNA force field
+   (``amber14/DNA.OL15.xml``: OL15 on parmbsc0/parm99) in OBC2 implicit solvent (Amber igb=5
+   radii and screening, OpenMM's native ``GBSAOBCForce`` with the parameters of
+   ``implicit/obc2.xml``), hydrogens are added by ``Modeller.addHydrogens``, every base ring
+   atom (the atoms the base frame is fitted to) is held to its placed position by a harmonic restraint, and the energy is
+   minimised: first with the covalent terms only (the stretched links close without steric
+   barriers), then with the full force field (1.2 nm non-periodic cut-off: the closure is a
+   local fit, and a cut-off keeps it linear in length). The bases -- hence the base-pair frames -- stay
+   where the frames put them; the backbone takes Amber's geometry.
+
+Checked after the closure (:class:`RebuildReport`): every covalent bond's deviation from its
+Amber14 equilibrium length, the shortest distance between heavy atoms that are neither bonded
+nor share a bonded neighbour, the base-pair frames refitted from the atoms against the input
+(origin distance and rotation angle), and sugar chirality (C1', C3', C4' as in the template).
+A backbone that does not close (a bond still more than ``bond_tolerance`` off, e.g. when two
+frames are too far apart) raises :class:`~dnarod.errors.StructureError` naming the step and
+the length.
+
+Units: nm, kJ/mol inside; files in Angstrom (PDB) through OpenMM's writers.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import StructureError
+from .frames import standard_bases
+from .rebuild import rebuild_coordinates
+
+FORCEFIELD_FILES = ("amber14/DNA.OL15.xml",)
+RESTRAINT_K = 2.0e5        # kJ/mol/nm^2 on each base ring atom
+MIN_CUTOFF = 1.2           # nm, non-bonded cut-off during the closure (local geometry only)
+EXTRA_ROUNDS = 3           # minimiser restarts while a bond is still off
+CHIRAL_K = 1.0e3           # kJ/mol/rad^2, flat-bottom restraint on sugar stereocentres
+BOND_TOLERANCE = 0.005     # nm: largest accepted deviation of a bond from its Amber14 equilibrium
+MIN_NONBONDED = 0.22       # nm: shortest accepted heavy-atom distance beyond 1-3 neighbours
+SUGAR_CHIRAL = (("C1'", "O4'", "C2'", "N"), ("C3'", "C4'", "C2'", "O3'"), ("C4'", "O4'", "C3'", "C5'"))
+
+
+@dataclass
+class RebuildReport:
+    """Geometry of a rebuilt duplex (lengths in nm, angles in degrees).
+
+    Attributes
+    ----------
+    max_bond_deviation : float
+        Largest |length - Amber14 equilibrium| over all covalent bonds, nm.
+    worst_bond : str
+        That bond, named by residues and atoms.
+    o3p_range : tuple of float
+        Shortest and longest O3'(i)-P(i+1) link, nm.
+    o3p_equilibrium : float
+        Amber14's O3'-P equilibrium length, nm.
+    min_nonbonded : float
+        Shortest heavy-atom distance between atoms neither bonded nor sharing a neighbour, nm.
+    min_nonbonded_pair : str
+    frame_origin_error : float
+        Largest distance between input and refitted base-pair origins, nm.
+    frame_angle_error : float
+        Largest rotation between input and refitted base-pair frames, degrees.
+    placement_o3p_range : tuple of float
+        O3'-P link lengths before the closure, nm.
+    energy : float
+        Final potential energy (restraints excluded), kJ/mol.
+    seconds : float
+        Wall time of the closure.
+    cpu_seconds : float
+    """
+
+    max_bond_deviation: float
+    worst_bond: str
+    o3p_range: tuple
+    o3p_equilibrium: float
+    min_nonbonded: float
+    min_nonbonded_pair: str
+    frame_origin_error: float
+    frame_angle_error: float
+    placement_o3p_range: tuple
+    energy: float
+    seconds: float
+    cpu_seconds: float
+
+    def summary(self):
+        """Readable lines (Angstrom and degrees)."""
+        return [
+            f"bonds: largest deviation from Amber14 equilibrium {10 * self.max_bond_deviation:.3f} A "
+            f"({self.worst_bond})",
+            f"O3'-P: {10 * self.o3p_range[0]:.3f}-{10 * self.o3p_range[1]:.3f} A (Amber14 "
+            f"{10 * self.o3p_equilibrium:.3f} A; before closure {10 * self.placement_o3p_range[0]:.2f}-"
+            f"{10 * self.placement_o3p_range[1]:.2f} A)",
+            f"closest non-bonded heavy atoms: {10 * self.min_nonbonded:.2f} A ({self.min_nonbonded_pair})",
+            f"base-pair frames kept within {10 * self.frame_origin_error:.4f} A and {self.frame_angle_error:.4f} deg",
+            f"energy {self.energy:.1f} kJ/mol; closure {self.seconds:.2f} s wall, {self.cpu_seconds:.2f} s CPU",
+        ]
+
+
+@dataclass
+class AllAtomDuplex:
+    """A rebuilt duplex: OpenMM topology and positions (with or without hydrogens).
+
+    Attributes
+    ----------
+    topology : openmm.app.Topology
+    positions : ndarray, shape (n_atoms, 3)
+        nm.
+    report : RebuildReport
+    """
+
+    topology: object
+    positions: np.ndarray
+    report: RebuildReport
+    notes: list = field(default_factory=list)
+
+    def write(self, path, hydrogens=True):
+        """Write PDB (``.pdb``) or PDBx/mmCIF (``.cif``) atomically; hydrogens optional."""
+        write_allatom(path, self.topology, self.positions, hydrogens=hydrogens)
+
+
+def _topology(atoms, xyz):
+    """OpenMM topology with standard (residues.xml) bonds from the placement's atom list."""
+    import openmm.app as app
+
+    top = app.Topology()
+    chains, res, key = {}, None, None
+    for chain, num, rname, aname, el in atoms:
+        if chain not in chains:
+            chains[chain] = top.addChain(chain)
+        if (chain, num) != key:
+            res = top.addResidue(rname, chains[chain], id=str(num))
+            key = (chain, num)
+        top.addAtom(aname, app.Element.getBySymbol(el), res)
+    top.createStandardBonds()
+    return top
+
+
+def _add_obc2(system, topology):
+    """OBC2 implicit solvent as OpenMM's native GBSAOBCForce (Amber igb=5 parameters).
+
+    ``implicit/obc2.xml`` builds the same model as a CustomGBForce, tens of times slower on
+    the CPU platform; the parameters are OpenMM's own (``GBSAOBC2Force.getStandardParameters``).
+    """
+    import openmm
+    from openmm.app.internal.customgbforces import GBSAOBC2Force
+
+    nb = [f for f in system.getForces() if isinstance(f, openmm.NonbondedForce)][0]
+    gb = openmm.GBSAOBCForce()
+    gb.setSolventDielectric(78.5)
+    gb.setSoluteDielectric(1.0)
+    if nb.getNonbondedMethod() == openmm.NonbondedForce.NoCutoff:
+        gb.setNonbondedMethod(openmm.GBSAOBCForce.NoCutoff)
+    else:
+        gb.setNonbondedMethod(openmm.GBSAOBCForce.CutoffNonPeriodic)
+        gb.setCutoffDistance(nb.getCutoffDistance())
+    for i, (radius, scale) in enumerate(GBSAOBC2Force.getStandardParameters(topology)):
+        gb.addParticle(nb.getParticleParameters(i)[0], radius, scale)
+    system.addForce(gb)
+    return gb
+
+
+def amber_system(topology, constraints=None, cutoff=None):
+    """Amber14 (OL15) DNA in OBC2 implicit solvent: ``(openmm.System, ForceField)``.
+
+    ``cutoff`` (nm): None for no cut-off, else a non-periodic cut-off (reaction field) for
+    the Coulomb, Lennard-Jones and GB terms.
+    """
+    import openmm
+    import openmm.app as app
+
+    ff = app.ForceField(*FORCEFIELD_FILES)
+    try:
+        if cutoff is None:
+            system = ff.createSystem(topology, nonbondedMethod=app.NoCutoff, constraints=constraints)
+        else:
+            system = ff.createSystem(topology, nonbondedMethod=app.CutoffNonPeriodic, constraints=constraints,
+                                     nonbondedCutoff=cutoff * openmm.unit.nanometer)
+    except ValueError as exc:
+        raise StructureError(f"rebuild: Amber14 does not accept the rebuilt topology: {exc}") from None
+    _add_obc2(system, topology)
+    return system, ff
+
+
+def _bond_table(system, topology):
+    import openmm
+
+    hb = [f for f in system.getForces() if isinstance(f, openmm.HarmonicBondForce)][0]
+    out = []
+    for k in range(hb.getNumBonds()):
+        i, j, r0, _ = hb.getBondParameters(k)
+        out.append((i, j, r0.value_in_unit(r0.unit)))
+    return np.array([(i, j) for i, j, _ in out], int), np.array([r for *_, r in out])
+
+
+def _atom_name(atom):
+    r = atom.residue
+    return f"{r.chain.id}:{r.id}{r.name[-1]} {atom.name}"
+
+
+def _restrain(system, topology, positions, k):
+    import openmm
+
+    _, ring = standard_bases()
+    base_names = {n for names in ring.values() for n in names}  # the atoms that define the base frame
+    f = openmm.CustomExternalForce("0.5*kr*((x-x0)^2+(y-y0)^2+(z-z0)^2)")
+    f.addGlobalParameter("kr", k)
+    for name in ("x0", "y0", "z0"):
+        f.addPerParticleParameter(name)
+    held = []
+    for atom in topology.atoms():
+        if atom.element.symbol != "H" and atom.name in base_names:
+            f.addParticle(atom.index, list(map(float, positions[atom.index])))
+            held.append(atom.index)
+    f.setForceGroup(31)
+    system.addForce(f)
+    return np.array(held)
+
+
+def _hold_chirality(system, topology, positions, k=CHIRAL_K):
+    """Flat-bottom restraints that keep each sugar stereocentre's improper dihedral on its side.
+
+    Zero energy while the improper keeps the sign it has in the template (so no bias on the
+    geometry); ``k * theta^2`` once it crosses. Without them a steep start (overlapping atoms
+    from the rigid placement) can invert a sugar during minimisation.
+    """
+    import openmm
+
+    f = openmm.CustomTorsionForce("kc*min(0, s*theta)^2")
+    f.addGlobalParameter("kc", k)
+    f.addPerTorsionParameter("s")
+    for res in topology.residues():
+        idx = {a.name: a.index for a in res.atoms()}
+        for centre, a, b, c in SUGAR_CHIRAL:
+            if c == "N":
+                c = "N9" if "N9" in idx else "N1"
+            if all(x in idx for x in (centre, a, b, c)):
+                q = [idx[a], idx[b], idx[centre], idx[c]]
+                x = positions[q]
+                b0, b1, b2 = x[1] - x[0], x[2] - x[1], x[3] - x[2]
+                n1, n2 = np.cross(b0, b1), np.cross(b1, b2)
+                sign = np.sign(np.dot(np.cross(n1, n2), b1)) or 1.0
+                f.addTorsion(*q, [float(sign)])
+    f.setForceGroup(31)
+    system.addForce(f)
+
+
+def _soft_repulsion(system, topology, bonds):
+    """A capped repulsion between atoms beyond 1-4 neighbours, for the covalent-only stage."""
+    import openmm
+
+    f = openmm.CustomNonbondedForce("ks*step(rc-r)*(rc-r)^2")
+    f.addGlobalParameter("ks", 1.0e4)
+    f.addGlobalParameter("rc", 0.25)
+    for _ in range(system.getNumParticles()):
+        f.addParticle([])
+    f.createExclusionsFromBonds([(int(i), int(j)) for i, j in bonds], 3)
+    f.setNonbondedMethod(openmm.CustomNonbondedForce.CutoffNonPeriodic)
+    f.setCutoffDistance(0.3)
+    system.addForce(f)
+
+
+def _minimise(system, positions, tolerance, iterations, platform):
+    import openmm
+    import openmm.unit as u
+
+    integ = openmm.VerletIntegrator(0.001)
+    plat = openmm.Platform.getPlatformByName(platform) if platform else openmm.Platform.getPlatformByName("CPU")
+    ctx = openmm.Context(system, integ, plat)
+    ctx.setPositions(positions)
+    openmm.LocalEnergyMinimizer.minimize(ctx, tolerance, iterations)
+    st = ctx.getState(getPositions=True, getEnergy=True, groups={g for g in range(31)})
+    pos = st.getPositions(asNumpy=True).value_in_unit(u.nanometer)
+    energy = st.getPotentialEnergy().value_in_unit(u.kilojoule_per_mole)
+    del ctx
+    return np.array(pos), energy
+
+
+def _exclusion_pairs(n, bonds):
+    nbr = [set() for _ in range(n)]
+    for i, j in bonds:
+        nbr[i].add(j)
+        nbr[j].add(i)
+    excl = set()
+    for i in range(n):
+        for j in nbr[i]:
+            excl.add((min(i, j), max(i, j)))
+            for k in nbr[j]:
+                if k != i:
+                    excl.add((min(i, k), max(i, k)))
+    return excl
+
+
+def _chirality(topology, xyz):
+    """Signed volumes at the sugar stereocentres: {(residue index, centre): sign}."""
+    out = {}
+    for res in topology.residues():
+        idx = {a.name: a.index for a in res.atoms()}
+        for centre, a, b, c in SUGAR_CHIRAL:
+            if c == "N":
+                c = "N9" if "N9" in idx else "N1"
+            if all(x in idx for x in (centre, a, b, c)):
+                o = xyz[idx[centre]]
+                v = np.linalg.det(np.array([xyz[idx[a]] - o, xyz[idx[b]] - o, xyz[idx[c]] - o]))
+                out[(res.index, centre)] = np.sign(v)
+    return out
+
+
+def _links(topology):
+    """(strand, step, O3' index, P index) of the inter-residue backbone bonds."""
+    out = []
+    for b in topology.bonds():
+        a1, a2 = b.atom1, b.atom2
+        if a1.residue is a2.residue:
+            continue
+        if a1.name == "P":
+            a1, a2 = a2, a1
+        if a1.name == "O3'" and a2.name == "P":
+            out.append((a1, a2))
+    return out
+
+
+def _pair_frames_of(topology, xyz, n, sequence, sequence2):
+    """Base-pair frames refitted from the rebuilt atoms (nm, as the analysis computes them)."""
+    from .bpparams import pair_parameters
+    from .frames import kabsch
+
+    std, ring = standard_bases()
+    res = list(topology.residues())
+    F, O = np.zeros((2, n, 3, 3)), np.zeros((2, n, 3))
+    for k in range(n):
+        for s, r, letter in ((0, res[k], sequence[k]), (1, res[2 * n - 1 - k], sequence2[k])):
+            idx = {a.name: a.index for a in r.atoms()}
+            names = ring[letter]
+            R, o, _ = kabsch(np.array([std[letter][a] for a in names]), xyz[[idx[a] for a in names]])
+            F[s, k], O[s, k] = R, o
+    _, mid, morg = pair_parameters(F[0], O[0], F[1], O[1])
+    return mid, morg
+
+
+def _rotation_angle(A, B):
+    c = (np.einsum("...ij,...ij->...", A, B) - 1.0) / 2.0
+    return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
+
+
+def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=None, restraint_k=RESTRAINT_K,
+                    bond_tolerance=BOND_TOLERANCE, max_iterations=0, platform=None):
+    """All-atom duplex with a closed, Amber14-valid backbone from base-pair frames.
+
+    Parameters
+    ----------
+    bp_frames : ndarray, shape (n, 3, 3)
+        Base-pair (node) frames, directors as columns.
+    bp_origins : ndarray, shape (n, 3)
+        nm.
+    sequence : str
+        Strand I, 5'->3' (A, C, G, T).
+    bp_params : ndarray, shape (n, 6) or (6,), optional
+        Pair parameters (shear, stretch, stagger nm; buckle, propeller, opening rad); default
+        the B-DNA fibre's.
+    sequence2 : str, optional
+        Strand II bases pairing positions 1..n (default the complement).
+    restraint_k : float
+        Harmonic restraint on each base heavy atom, kJ/mol/nm^2.
+    bond_tolerance : float
+        Largest accepted deviation of a covalent bond from Amber14's equilibrium, nm.
+    max_iterations : int
+        Minimiser iteration cap per stage (0: until converged).
+    platform : str, optional
+        OpenMM platform name (default CPU).
+
+    Returns
+    -------
+    AllAtomDuplex
+        Topology and positions with hydrogens (write without them with ``hydrogens=False``).
+
+    Raises
+    ------
+    StructureError
+        Bad frames or sequence, or a backbone that cannot be closed (naming the step, the
+        link length after closure and before it).
+    """
+    import resource
+
+    import openmm
+    import openmm.app as app
+
+    F = np.asarray(bp_frames, float)
+    O = np.asarray(bp_origins, float)
+    if F.ndim != 3:
+        raise StructureError(f"rebuild: bp_frames must have shape (n, 3, 3), got {F.shape}")
+    xyz, atoms = rebuild_coordinates(F, O, sequence, bp_params, sequence2)
+    seq1 = "".join(str(sequence).split()).upper()
+    comp = {"A": "T", "T": "A", "G": "C", "C": "G"}
+    seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
+    n = len(seq1)
+    t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_utime
+    top = _topology(atoms, xyz)
+    modeller = app.Modeller(top, xyz * openmm.unit.nanometer)
+    ff = app.ForceField(*FORCEFIELD_FILES)
+    modeller.addHydrogens(ff, platform=openmm.Platform.getPlatformByName(platform or "CPU"))
+    top = modeller.topology
+    pos = np.array(modeller.getPositions().value_in_unit(openmm.unit.nanometer))
+    links = _links(top)
+    if len(links) != 2 * (n - 1):
+        raise StructureError(f"rebuild: expected {2 * (n - 1)} O3'-P links, the topology has {len(links)}")
+    place = np.array([np.linalg.norm(pos[a.index] - pos[b.index]) for a, b in links])
+    chiral0 = _chirality(top, pos)
+    heavy_ref = pos.copy()
+    # stage 1: covalent terms only (HarmonicBond/Angle, PeriodicTorsion) + restraints
+    system, _ = amber_system(top, cutoff=MIN_CUTOFF)
+    bonds, r0 = _bond_table(system, top)
+    covalent = openmm.System()
+    for i in range(system.getNumParticles()):
+        covalent.addParticle(system.getParticleMass(i))
+    for f in system.getForces():
+        if isinstance(f, (openmm.HarmonicBondForce, openmm.HarmonicAngleForce, openmm.PeriodicTorsionForce)):
+            covalent.addForce(openmm.XmlSerializer.deserialize(openmm.XmlSerializer.serialize(f)))
+    _restrain(covalent, top, heavy_ref, restraint_k)
+    _hold_chirality(covalent, top, pos)
+    _soft_repulsion(covalent, top, bonds)
+    pos, _ = _minimise(covalent, pos, 1.0, max_iterations, platform)
+    # stage 2: the full force field + restraints
+    _restrain(system, top, heavy_ref, restraint_k)
+    _hold_chirality(system, top, heavy_ref)
+    pos, energy = _minimise(system, pos, 0.1, max_iterations, platform)
+    for _ in range(EXTRA_ROUNDS):  # L-BFGS can stop early on large systems: restart while a bond is off
+        d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
+        if d.max() <= bond_tolerance:
+            break
+        pos, energy = _minimise(system, pos, 0.01, max_iterations, platform)
+    seconds = time.perf_counter() - t0
+    cpu = resource.getrusage(resource.RUSAGE_SELF).ru_utime - c0
+    # checks
+    lengths = np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1)
+    dev = np.abs(lengths - r0)
+    atoms_list = list(top.atoms())
+    lk = {(a.index, b.index): k for k, (a, b) in enumerate(links)}
+    bond_index = {(int(i), int(j)): k for k, (i, j) in enumerate(bonds)}
+    o3p = []
+    for (a, b) in links:
+        k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
+        o3p.append((lengths[k], r0[k]))
+    o3p = np.array(o3p)
+    link_dev = [dev[bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))] for a, b in links]
+    for a, b in [links[int(np.argmax(link_dev))]] if links else []:  # the worst link
+        k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
+        if dev[k] > bond_tolerance:
+            r1, r2 = a.residue, b.residue
+            j = lk[(a.index, b.index)]
+            step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
+            raise StructureError(
+                f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
+                f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
+                f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A); the two "
+                f"base-pair frames are too far apart or too distorted for a DNA backbone")
+    worst = int(np.argmax(dev))
+    if dev[worst] > bond_tolerance:
+        a, b = atoms_list[bonds[worst, 0]], atoms_list[bonds[worst, 1]]
+        raise StructureError(f"rebuild: bond {_atom_name(a)}-{b.name} is {10 * lengths[worst]:.3f} A after "
+                             f"minimisation, Amber14 {10 * r0[worst]:.3f} A; the frames are too distorted")
+    chiral1 = _chirality(top, pos)
+    flipped = [key for key, s in chiral0.items() if chiral1.get(key) != s]
+    if flipped:
+        r, centre = flipped[0]
+        res = list(top.residues())[r]
+        raise StructureError(f"rebuild: the sugar of {res.chain.id}:{res.id} changed chirality at {centre} while "
+                             f"closing the backbone; the frames are too distorted")
+    heavy = np.array([a.element.symbol != "H" for a in atoms_list])
+    excl = _exclusion_pairs(len(atoms_list), bonds)
+    from scipy.spatial import cKDTree
+
+    hidx = np.flatnonzero(heavy)
+    tree = cKDTree(pos[hidx])
+    close = [(d, hidx[i], hidx[j]) for i, j in tree.query_pairs(0.3)
+             if (min(hidx[i], hidx[j]), max(hidx[i], hidx[j])) not in excl
+             for d in [np.linalg.norm(pos[hidx[i]] - pos[hidx[j]])]]
+    dmin, pair = np.inf, None
+    if close:
+        d, i, j = min(close)
+        dmin, pair = d, f"{_atom_name(atoms_list[i])} - {_atom_name(atoms_list[j])}"
+    if dmin < MIN_NONBONDED:
+        raise StructureError(f"rebuild: atoms {pair} are {10 * dmin:.2f} A apart after minimisation (under "
+                             f"{10 * MIN_NONBONDED:.1f} A); the frames put two nucleotides into each other")
+    mid, morg = _pair_frames_of(top, pos, n, seq1, seq2)
+    report = RebuildReport(
+        max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"
+                                                         f"{atoms_list[bonds[worst, 1]].name}",
+        o3p_range=(float(o3p[:, 0].min()), float(o3p[:, 0].max())) if len(o3p) else (np.nan, np.nan),
+        o3p_equilibrium=float(o3p[0, 1]) if len(o3p) else np.nan,
+        min_nonbonded=float(dmin), min_nonbonded_pair=str(pair),
+        frame_origin_error=float(np.linalg.norm(morg - O, axis=-1).max()),
+        frame_angle_error=float(_rotation_angle(mid, F).max()),
+        placement_o3p_range=(float(place.min()), float(place.max())) if len(place) else (np.nan, np.nan),
+        energy=float(energy), seconds=seconds, cpu_seconds=cpu)
+    return AllAtomDuplex(top, pos, report)
+
+
+def write_allatom(path, topology, positions, hydrogens=True, remarks=()):
+    """Write an all-atom structure as PDB or PDBx/mmCIF (by suffix), atomically.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.pdb`` or ``.cif``/``.mmcif``.
+    topology : openmm.app.Topology
+    positions : ndarray, shape (n_atoms, 3)
+        nm.
+    hydrogens : bool
+        Keep hydrogens (default) or write heavy atoms only.
+    """
+    from pathlib import Path
+
+    import openmm.app as app
+    import openmm.unit as u
+
+    from ..io_utils import atomic_path
+
+    path = Path(path)
+    top, pos = topology, np.asarray(positions, float)
+    if not hydrogens:
+        m = app.Modeller(top, pos * u.nanometer)
+        m.delete([a for a in top.atoms() if a.element.symbol == "H"])
+        top, pos = m.topology, np.array(m.getPositions().value_in_unit(u.nanometer))
+    cif = path.suffix.lower() in (".cif", ".mmcif")
+    with atomic_path(path) as tmp:
+        with open(tmp, "w") as fh:
+            if cif:
+                app.PDBxFile.writeFile(top, pos * u.nanometer, fh, keepIds=True)
+            else:
+                for line in remarks:
+                    fh.write(f"REMARK   1 {line}\n")
+                app.PDBFile.writeFile(top, pos * u.nanometer, fh, keepIds=True)

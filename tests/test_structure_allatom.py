@@ -1,0 +1,149 @@
+"""All-atom rebuild with a closed backbone: Amber14 bond geometry, clashes, frames, createSystem, 10 ps MD."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dnarod.cli import main
+from dnarod.errors import StructureError
+from dnarod.forcefield import load_forcefield
+from dnarod.structure import model_from_structure
+from dnarod.structure.allatom import rebuild_allatom
+from dnarod.structure.analysis import analyze_structure
+
+DATA = Path(__file__).resolve().parents[1] / "data" / "structures"
+
+
+def _amber_bonds(topology, xyz):
+    """Independent check: Amber14 (amber14-all.xml + implicit/obc2.xml) accepts the topology; bond deviations."""
+    import openmm
+    import openmm.app as app
+
+    ff = app.ForceField("amber14-all.xml", "implicit/obc2.xml")
+    system = ff.createSystem(topology, nonbondedMethod=app.NoCutoff)
+    hb = [f for f in system.getForces() if isinstance(f, openmm.HarmonicBondForce)][0]
+    dev, o3p = [], []
+    names = [a.name for a in topology.atoms()]
+    for k in range(hb.getNumBonds()):
+        i, j, r0, _ = hb.getBondParameters(k)
+        d = np.linalg.norm(xyz[i] - xyz[j])
+        dev.append(abs(d - r0.value_in_unit(openmm.unit.nanometer)))
+        if {names[i], names[j]} == {"O3'", "P"}:
+            o3p.append(d)
+    return np.array(dev), np.array(o3p)
+
+
+def _check(res, frames, origins, n):
+    rep = res.report
+    dev, o3p = _amber_bonds(res.topology, res.positions)
+    assert dev.max() < 0.005 and abs(rep.max_bond_deviation - dev.max()) < 1e-9  # within 0.05 A, all bonds
+    assert len(o3p) == 2 * (n - 1) and 0.155 <= o3p.min() and o3p.max() <= 0.165
+    assert rep.min_nonbonded > 0.22
+    assert rep.frame_origin_error < 0.005 and rep.frame_angle_error < 1.0
+    # the pairs found again in the written file are the input frames
+    return rep
+
+
+def _md(path, n_steps):
+    """Langevin MD (300 K, 2 fs, H bonds constrained) of a written file in OBC2: (x0, x1, topology)."""
+    import openmm
+    import openmm.app as app
+    import openmm.unit as u
+
+    from dnarod.structure.allatom import _add_obc2
+
+    pdb = app.PDBFile(str(path))
+    ff = app.ForceField("amber14-all.xml", "implicit/obc2.xml")
+    system = ff.createSystem(pdb.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds)
+    for k in reversed(range(system.getNumForces())):  # the native GBSAOBCForce: same model, much faster
+        if isinstance(system.getForce(k), openmm.CustomGBForce):
+            system.removeForce(k)
+    _add_obc2(system, pdb.topology)
+    integ = openmm.LangevinMiddleIntegrator(300 * u.kelvin, 1 / u.picosecond, 2 * u.femtosecond)
+    integ.setRandomNumberSeed(7)
+    sim = app.Simulation(pdb.topology, system, integ, openmm.Platform.getPlatformByName("CPU"))
+    sim.context.setPositions(pdb.positions)
+    sim.context.setVelocitiesToTemperature(300 * u.kelvin, 7)
+    x0 = np.array(pdb.positions.value_in_unit(u.nanometer))
+    sim.step(n_steps)
+    st = sim.context.getState(getPositions=True, getEnergy=True)
+    assert np.isfinite(st.getPotentialEnergy().value_in_unit(u.kilojoule_per_mole))
+    return x0, st.getPositions(asNumpy=True).value_in_unit(u.nanometer), pdb.topology
+
+
+def _stable(x0, x1, topology):
+    heavy = np.array([a.element.symbol != "H" for a in topology.atoms()])
+    assert np.sqrt(np.mean(np.sum((x1 - x0)[heavy] ** 2, axis=1))) < 0.3  # no blow-up: < 3 A heavy-atom RMSD
+    _, o3p = _amber_bonds(topology, x1)
+    assert o3p.max() < 0.18
+
+
+def _rebuild_355d():
+    m = model_from_structure(DATA / "355D.pdb")
+    return m, rebuild_allatom(m.frames, m.positions, m.sequence, np.array(m.metadata["bp_params"]),
+                              m.metadata["sequence2"])
+
+
+@pytest.mark.slow
+def test_355d_rebuild_stable_for_10ps(tmp_path):
+    _, res = _rebuild_355d()
+    res.write(tmp_path / "r.pdb")
+    _stable(*_md(tmp_path / "r.pdb", 5000))
+
+
+def test_355d_rebuild_closes_the_backbone_and_runs_1ps(tmp_path):
+    m, res = _rebuild_355d()
+    rep = _check(res, m.frames, m.positions, m.n_nodes)
+    assert rep.placement_o3p_range[0] < 0.1 and rep.placement_o3p_range[1] > 0.25  # the rigid placement was broken
+    out = tmp_path / "r.pdb"
+    res.write(out)
+    d = analyze_structure(out).duplexes[0]
+    assert d.n_bp == 12 and np.abs(d.bp_origins - m.positions).max() < 0.005
+    _stable(*_md(out, 500))  # 1 ps here; 10 ps in the slow test
+
+
+@pytest.mark.parametrize("kind", ["ideal", "thermal"])
+def test_rebuild_ideal_and_thermal_snapshot(kind):
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCGTAGC")
+    if kind == "thermal":
+        from dnarod.openmm.simulation import RodSimulation
+
+        sim = RodSimulation(m, temperature=300, nonbonded=False, seed=11)
+        sim.advance(400)
+        c, f, _, _ = sim.node_state()
+        m = m.with_pose(c, f)
+    res = rebuild_allatom(m.frames, m.positions, m.sequence)
+    _check(res, m.frames, m.positions, m.n_nodes)
+
+
+@pytest.mark.slow
+def test_1kx5_rebuild():
+    m = model_from_structure(DATA / "1KX5.pdb")
+    res = rebuild_allatom(m.frames, m.positions, m.sequence, np.array(m.metadata["bp_params"]),
+                          m.metadata["sequence2"])
+    _check(res, m.frames, m.positions, m.n_nodes)
+
+
+def test_rebuild_that_cannot_close_names_the_step():
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCG")
+    pos = m.positions.copy()
+    pos[3:] += 2.0 * m.frames[2][:, 2]  # pull the helix apart between pairs 3 and 4
+    with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
+                                             r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
+        rebuild_allatom(m.frames, pos, m.sequence)
+
+
+def test_cli_rebuild_writes_pdb_and_cif(tmp_path):
+    npz = tmp_path / "m.npz"
+    assert CliRunner().invoke(main, ["build", str(DATA / "355D.pdb"), "-o", str(npz)]).exit_code == 0
+    r = CliRunner().invoke(main, ["rebuild", str(npz), "-o", str(tmp_path / "r.cif"), "--no-hydrogens"])
+    assert r.exit_code == 0, r.output
+    assert "O3'-P: 1.6" in r.output and "base-pair frames kept within" in r.output
+    import gemmi
+
+    st = gemmi.read_structure(str(tmp_path / "r.cif"))
+    assert not any(a.element.name == "H" for res in st[0][0] for a in res)
+    assert sum(len(ch) for ch in st[0]) == 24
