@@ -198,6 +198,11 @@ def test_protocol_hooks_and_keys(tmp_path):
     three = lambda settings, member_dir, analysis: ("three", analysis)                    # noqa: E731
     assert call_hook(two, {"a": 1}, "d", {"blocks": 3}) == ("two", {"a": 1}, "d")
     assert call_hook(three, {"a": 1}, "d", {"blocks": 3}) == ("three", {"blocks": 3})
+    from dnarod.ensemble.protocol import resolve_protocol
+    for name in ("force-extension", "magnetic-tweezers", "torque-turns", "rings", "null"):
+        assert callable(resolve_protocol(name).execute)
+    with pytest.raises(SpecError, match=r"protocol 'nope': not a registered name"):
+        resolve_protocol("nope")
 
     class Proto:                      # a protocol with its own keys and no source
         keys = {"n_bp": int, "equilibration_ns": Key("equilibration_ns", float, None, "ns", ">0")}

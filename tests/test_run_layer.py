@@ -121,3 +121,21 @@ def test_zero_temperature_and_checks_through_the_api(tmp_path):
     run(spec, tmp_path / "r", progress=False)
     done = run(spec, tmp_path / "r", resume=True, progress=False)
     assert done.summary["already_done"] and "nothing to do" in done.summary["message"]
+
+
+def test_equilibrium_start_of_a_pulled_chain_points_along_the_force():
+    """start='equilibrium' turns the exact sample so that its end-to-end vector follows the pull."""
+    from dnarod.run.api import source_model, start_model
+
+    spec = RunSpec(source="ACGT" * 15, engine="lax", excluded_volume=False, electrostatics=False,
+                   start="equilibrium")
+    model = source_model(spec)
+    for direction in ([1.0, 0, 0], [0, -1.0, 0], [0, 0.6, -0.8]):
+        f = 10.0 * np.asarray(direction)
+        pulled = spec.replace(loads=(PullingForce(model.n_nodes - 1, f),))
+        m = start_model(pulled, model, seed=5)
+        e = m.positions[-1] - m.positions[0]
+        assert np.dot(e, f) / (np.linalg.norm(e) * np.linalg.norm(f)) > 1 - 1e-9
+        assert np.allclose(m.positions[0], model.positions[0])
+    free = start_model(spec, model, seed=5)  # no pull: node 0 keeps the model's pose
+    assert np.allclose(free.frames[0], model.frames[0])

@@ -169,3 +169,7 @@ def _null_execute(settings, member_dir, analysis):
 #: A protocol that runs nothing: its members measure scheduling overhead and client memory.
 NULL = SimpleNamespace(execute=_null_execute)
 register_protocol("null", "dnarod.ensemble.protocol:NULL")
+# the single-molecule protocols of dnarod.protocols, by name (imported only when a spec names them)
+for _name, _attr in (("force-extension", "FORCE_EXTENSION"), ("magnetic-tweezers", "MAGNETIC_TWEEZERS"),
+                     ("torque-turns", "TORQUE_TURNS"), ("rings", "RINGS")):
+    register_protocol(_name, f"dnarod.protocols:{_attr}")

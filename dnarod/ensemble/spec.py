@@ -40,7 +40,7 @@ import numpy as np
 from ..errors import DnarodError
 from .schema import ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, coerce, unknown_key
 
-#: Keys the default protocol reads; a protocol may accept more (its ``keys``).
+#: Seed of the first replica when the spec gives none (members must be reproducible to resume).
 DEFAULT_SEED = 1
 
 

@@ -78,7 +78,8 @@ def start_model(spec, model, seed):
         except ImportError:
             raise ParameterError("start='equilibrium' needs dnarod.thermal.equilibrium_sample, not in this "
                                  "version") from None
-        return equilibrium_sample(model, spec.temperature if spec.temperature > 0 else 300.0, seed=seed)
+        return equilibrium_sample(model, spec.temperature if spec.temperature > 0 else 300.0, seed=seed,
+                                  align=_pull_direction(spec.loads, model.n_nodes))
     try:
         from ..statics import solve_static
     except ImportError:
@@ -88,6 +89,17 @@ def start_model(spec, model, seed):
         return None  # the OpenMM engine minimises its context
     solved, _ = solve_static(model, tuple(spec.loads))
     return solved
+
+
+def _pull_direction(loads, n_nodes):
+    """Net pulling force on the last node (kJ/mol/nm, (3,)) or None: an equilibrium start of a pulled
+    chain is turned so that its end-to-end vector points along it (else a long chain may start
+    pointing away from the force)."""
+    from ..loads import PullingForce
+
+    f = sum((np.asarray(ld.force, float) for ld in loads
+             if isinstance(ld, PullingForce) and int(ld.node) % n_nodes == n_nodes - 1), np.zeros(3))
+    return f if np.linalg.norm(f) > 0 else None
 
 
 def default_omega_max(model, loads=()):
