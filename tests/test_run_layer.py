@@ -66,7 +66,7 @@ def test_exported_times_read_back_by_mdanalysis_and_mdtraj(tmp_path):
     import MDAnalysis as mda
     import mdtraj as md
 
-    spec = RunSpec(engine="lax", time_ns=0.003, xtc=True, frame_interval_ps=0.37,
+    spec = RunSpec(engine="lax", time_ns=0.003, frame_interval_ps=0.37,  # the default export: PDB + DCD + XTC
                    **{k: v for k, v in BASE.items() if k not in ("platform", "frame_interval_ps")})
     res = run(spec, tmp_path / "r", progress=False)
     tr = load_trajectory(res.files["trajectory"])

@@ -3,7 +3,7 @@
 A run folder holds ``run.json`` (the spec and its fingerprint, written atomically at the start),
 ``trajectory.dtraj``, ``energies.csv``, ``checkpoint.npz`` (always written at the end),
 ``final_model.npz`` and, with ``export``, ``trajectory.pdb`` + ``trajectory.dcd`` (and
-``trajectory.xtc`` with ``xtc``), re-exported from the ``.dtraj`` at the end of every run.
+``trajectory.xtc`` unless ``xtc=False``), re-exported from the ``.dtraj`` at the end of every run.
 
 Nothing is lost or silently changed: a new run refuses a folder holding a run unless
 ``overwrite`` (which removes only this layer's own files); ``resume`` refuses any change of what

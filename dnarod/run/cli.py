@@ -67,7 +67,8 @@ _OPTIONS = [
     click.option("--velocities", is_flag=True, help="Also store velocities in the trajectory (1.5x its size)."),
     click.option("--export/--no-export", default=True, show_default=True,
                  help="Also write trajectory.pdb + trajectory.dcd for VMD, mdtraj and MDAnalysis."),
-    click.option("--xtc", is_flag=True, help="Also write trajectory.xtc (frame times readable by mdtraj)."),
+    click.option("--xtc/--no-xtc", default=True, show_default=True,
+                 help="With --export, also write trajectory.xtc (frame times that mdtraj reads; its DCD reader has none)."),
     click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on stderr."),
 ]
 
@@ -158,7 +159,7 @@ def simulate_cmd(engine, **kw):
     .seq, .txt) or a node count.
 
     Writes OUT/run.json, OUT/trajectory.dtraj, OUT/energies.csv, OUT/checkpoint.npz,
-    OUT/final_model.npz (and OUT/trajectory.pdb + .dcd with --export, .xtc with --xtc) and prints a
+    OUT/final_model.npz (and OUT/trajectory.pdb + .dcd + .xtc with --export) and prints a
     summary. --resume continues up to --time, refusing any change of the run's settings.
     """
     _run_command(engine, kw)

@@ -65,7 +65,8 @@ class RunSpec:
     export : bool
         Also write ``trajectory.pdb`` + ``trajectory.dcd`` (and ``.xtc`` with ``xtc``).
     xtc : bool
-        Also write ``trajectory.xtc`` (mdtraj).
+        With ``export``, also write ``trajectory.xtc`` (default; mdtraj reads frame times from XTC,
+        not from DCD).
     elastic : {"auto", "fast", "portable"}
         OpenMM elastic path.
     threads : int or None
@@ -95,7 +96,7 @@ class RunSpec:
     checkpoint_interval_ps: float | None = None
     velocities: bool = False
     export: bool = True
-    xtc: bool = False
+    xtc: bool = True
     elastic: str = "auto"
     threads: int | None = None
     extra: dict = field(default_factory=dict, compare=False)
