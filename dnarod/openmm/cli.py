@@ -33,7 +33,7 @@ def _parse_trap(text, n_nodes):
 @click.option("--integrator", type=click.Choice(["langevin", "verlet"]), default="langevin", show_default=True)
 @click.option("--platform", default="CPU", show_default=True, help="OpenMM platform (CPU, Reference, CUDA, OpenCL).")
 @click.option("--threads", type=int, default=None, help="CPU platform threads.")
-@click.option("--elastic", type=click.Choice(["auto", "fast", "portable"]), default="auto", show_default=True)
+@click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto", show_default=True)
 @click.option("--excluded-volume/--no-excluded-volume", default=True, show_default=True)
 @click.option("--electrostatics/--no-electrostatics", default=True, show_default=True)
 @click.option("--salt", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L (Debye length).")

@@ -214,6 +214,8 @@ public:
     const SMKForce& getOwner() const { return owner; }
     double computeForce(ContextImpl& context, const vector<Vec3>& positions, vector<Vec3>& forces) {
         const size_t n = nodes.size();
+        // OpenMM hands over the same force buffer every call without clearing it.
+        std::fill(forces.begin(), forces.end(), Vec3());
         nodePoses(nodes, positions, c.data(), L.data());
         std::fill(F.begin(), F.end(), 0.0);
         std::fill(tau.begin(), tau.end(), 0.0);
