@@ -164,3 +164,48 @@ def smk_force(model, radius, particles=None):
     f.setForceGroup(GROUPS["elastic"])
     f.setName("dnarod elastic (plugin)")
     return f
+
+
+def rigid_body_integrator(radius, dt, temperature=300.0, friction=1.0, seed=0, particles=None):
+    """The compiled constraint-free integrator of rigid three-particle nodes.
+
+    Symplectic splitting of :mod:`dnarod.integrators.splitting` (kick, drift, exact free-rotor sub-flows
+    R1(h/2) R2(h/2) R3(h) R2(h/2) R1(h/2)) in the leapfrog form of OpenMM's LangevinMiddleIntegrator:
+    stored velocities are half a step behind the positions, ``V(dt) A(dt)`` for NVE (``friction=0``) and
+    ``V(dt) A(dt/2) O(dt) A(dt/2)`` for Langevin (BAOAB). Triangles stay exactly rigid without constraints;
+    zero-mass (clamped) nodes stay put. The SMK loads of an ``SMKForce`` on the same nodes are evaluated
+    inside the integrator; other forces through OpenMM. Its random-number state is checkpointed with the
+    Context.
+
+    Parameters
+    ----------
+    radius : ndarray, shape (n_nodes,)
+        Triangle circumradius, nm.
+    dt : float
+        ps.
+    temperature : float
+        K.
+    friction : float
+        1/ps; 0 gives NVE.
+    seed : int
+        Random-number seed (0: from the operating system).
+    particles : ndarray of int, shape (n_nodes, 3), optional
+        Particle indices of every node (default ``3k, 3k+1, 3k+2``).
+
+    Returns
+    -------
+    RigidBodyIntegrator
+        An ``openmm.Integrator``.
+    """
+    mod = module()
+    if mod is None:
+        raise ParameterError(f"the rigid-body integrator needs the compiled OpenMM plugin, which is not usable "
+                             f"here ({status().reason})")
+    radius = np.asarray(radius, float)
+    n = radius.size
+    idx = np.arange(3 * n).reshape(n, 3) if particles is None else np.asarray(particles, int).reshape(n, 3)
+    integ = mod.RigidBodyIntegrator(float(dt), float(temperature), float(friction))
+    for k in range(n):
+        integ.addNode(int(idx[k, 0]), int(idx[k, 1]), int(idx[k, 2]), float(radius[k]))
+    integ.setRandomNumberSeed(int(seed) % 2**31)
+    return integ

@@ -206,7 +206,13 @@ class RodSimulation:
         self.friction = float(friction)
         self.seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
         self.rs = build_system(model, platform, elastic, nonbonded, loads, self.temperature)
-        if integrator == "langevin":
+        if self.rs.elastic == "plugin":
+            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied).
+            from .plugin import rigid_body_integrator
+
+            integ = rigid_body_integrator(self.rs.radius, dt, self.temperature,
+                                          self.friction if integrator == "langevin" else 0.0, self.seed)
+        elif integrator == "langevin":
             integ = openmm.LangevinMiddleIntegrator(self.temperature, self.friction, dt)
             integ.setRandomNumberSeed(self.seed)
         else:
