@@ -111,8 +111,15 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     L.resize(9 * n);
     F.resize(3 * n);
     tau.resize(3 * n);
-    rng.seed(seed != 0 ? (unsigned long long) seed : (unsigned long long) std::random_device()());
-    normal.reset();
+    normal.seed(seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()());
+    sigP.resize(n);
+    sigPi.resize(3 * n);
+    for (int k = 0; k < n; k++) {
+        const double l2 = nodeR[k] * nodeR[k];
+        sigP[k] = sqrt(mass[k]);
+        sigPi[3 * k] = sigPi[3 * k + 1] = sqrt(0.5 * mass[k] * l2);
+        sigPi[3 * k + 2] = sqrt(mass[k] * l2);
+    }
 }
 
 // Node loads (lab force F, torque tau about the centre) at the current positions, c and L already set.
@@ -151,30 +158,76 @@ void RigidBodyIntegrator::loads(bool needOther) {
     }
 }
 
-// Exact free-rotor sub-flow by angle phi about body axis a: rotates frame columns b, d and momenta pb, pd.
-static inline void sub(double* Lk, int b, int d, double& pb, double& pd, double phi) {
-    const double s = sin(phi), co = cos(phi);
-    for (int r = 0; r < 3; r++) {
-        const double xb = Lk[3 * r + b], xd = Lk[3 * r + d];
-        Lk[3 * r + b] = co * xb + s * xd;
-        Lk[3 * r + d] = co * xd - s * xb;
+// sin and cos: Taylor polynomials for |x| < 0.8 (truncation < 1e-19, as dnarod.integrators.fast._sincos; rotor
+// angles per sub-step are ~0.05 rad at the default step), libm beyond.
+static inline void sinCosPoly(double x, double& s, double& c) {
+    const double x2 = x * x;
+    s = x * (1.0 + x2 * (-1.0 / 6 + x2 * (1.0 / 120 + x2 * (-1.0 / 5040 + x2 * (1.0 / 362880 + x2 * (
+            -1.0 / 39916800 + x2 * (1.0 / 6227020800 + x2 * (-1.0 / 1307674368000 + x2 * (
+            1.0 / 355687428096000)))))))));
+    c = 1.0 + x2 * (-0.5 + x2 * (1.0 / 24 + x2 * (-1.0 / 720 + x2 * (1.0 / 40320 + x2 * (
+            -1.0 / 3628800 + x2 * (1.0 / 479001600 + x2 * (-1.0 / 87178291200 + x2 * (
+            1.0 / 20922789888000 + x2 * (-1.0 / 6402373705728000)))))))));
+}
+
+static inline void sinCos(double x, double& s, double& c) {
+    if (std::fabs(x) < 0.8) {
+        sinCosPoly(x, s, c);
+        return;
     }
-    const double qb = pb, qd = pd;
-    pb = co * qb + s * qd;
-    pd = co * qd - s * qb;
+    s = std::sin(x);
+    c = std::cos(x);
+}
+
+// Exact free-rotor sub-flow of every lane by angle scale * pi_a / J_a about body axis a: rotates frame columns
+// b, d and body momenta pi_b, pi_d. poly: all angles are below 0.8 rad (then the polynomial sin/cos).
+static inline void subBlock(RigidBodyIntegrator::Block& B, int a, int b, int d, double scale, bool poly) {
+    if (poly) {
+        for (int j = 0; j < RigidBodyIntegrator::BLOCK; j++) {
+            const double x = scale * B.pi[a][j] * B.iJ[a][j];
+            double s, co;
+            sinCosPoly(x, s, co);
+            for (int r = 0; r < 3; r++) {
+                const double xb = B.L[3 * r + b][j], xd = B.L[3 * r + d][j];
+                B.L[3 * r + b][j] = co * xb + s * xd;
+                B.L[3 * r + d][j] = co * xd - s * xb;
+            }
+            const double qb = B.pi[b][j], qd = B.pi[d][j];
+            B.pi[b][j] = co * qb + s * qd;
+            B.pi[d][j] = co * qd - s * qb;
+        }
+    } else {
+        for (int j = 0; j < RigidBodyIntegrator::BLOCK; j++) {
+            const double x = scale * B.pi[a][j] * B.iJ[a][j];
+            double s, co;
+            sinCos(x, s, co);
+            for (int r = 0; r < 3; r++) {
+                const double xb = B.L[3 * r + b][j], xd = B.L[3 * r + d][j];
+                B.L[3 * r + b][j] = co * xb + s * xd;
+                B.L[3 * r + d][j] = co * xd - s * xb;
+            }
+            const double qb = B.pi[b][j], qd = B.pi[d][j];
+            B.pi[b][j] = co * qb + s * qd;
+            B.pi[d][j] = co * qd - s * qb;
+        }
+    }
 }
 
 // Free rotor for time h: R1(h/2) R2(h/2) R3(h) R2(h/2) R1(h/2) (dnarod.integrators.splitting.rotor_flow).
-static inline void rotor(double* Lk, double* pi, const double* invJ, double h) {
+static inline void rotorBlock(RigidBodyIntegrator::Block& B, double h, bool poly) {
     const double hh = 0.5 * h;
-    sub(Lk, 1, 2, pi[1], pi[2], hh * pi[0] * invJ[0]);
-    sub(Lk, 2, 0, pi[2], pi[0], hh * pi[1] * invJ[1]);
-    sub(Lk, 0, 1, pi[0], pi[1], h * pi[2] * invJ[2]);
-    sub(Lk, 2, 0, pi[2], pi[0], hh * pi[1] * invJ[1]);
-    sub(Lk, 1, 2, pi[1], pi[2], hh * pi[0] * invJ[0]);
+    subBlock(B, 0, 1, 2, hh, poly);
+    subBlock(B, 1, 2, 0, hh, poly);
+    subBlock(B, 2, 0, 1, h, poly);
+    subBlock(B, 1, 2, 0, hh, poly);
+    subBlock(B, 0, 1, 2, hh, poly);
 }
 
 void RigidBodyIntegrator::step(int steps) {
+    run(steps);
+}
+
+DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
     const int n = getNumNodes();
     const double dt = getStepSize();
@@ -198,68 +251,99 @@ void RigidBodyIntegrator::step(int steps) {
         }
         nodePoses(n, pos);
         loads(other);
-        for (int k = 0; k < n; k++) {
-            if (mass[k] == 0.0) continue;
-            double* ck = &c[3 * k];
-            double* Lk = &L[9 * k];
-            const double m = mass[k], l = nodeR[k], l2 = l * l;
-            const double J[3] = {0.5 * m * l2, 0.5 * m * l2, m * l2};
-            const double invJ[3] = {1.0 / J[0], 1.0 / J[1], 1.0 / J[2]};
-            // Node velocity and body angular momentum from the particle velocities.
-            double v[3] = {0, 0, 0}, h[3] = {0, 0, 0};
-            for (int i = 0; i < 3; i++) {
-                const Vec3& u = (*vel)[nodeP[3 * k + i]];
-                v[0] += u[0] / 3.0; v[1] += u[1] / 3.0; v[2] += u[2] / 3.0;
+        // Nodes in blocks of BLOCK lanes: the rotor's sub-flows are long dependent chains per node, so each
+        // sub-flow runs over all lanes of a block at once (independent work the compiler vectorises).
+        for (int b0 = 0; b0 < n; b0 += BLOCK) {
+            const int nb = std::min(BLOCK, n - b0);
+            Block& B = blk;
+            double bound = 0.0;
+            for (int j = 0; j < BLOCK; j++) {
+                const int k = b0 + j;
+                if (j >= nb || mass[k] == 0.0) {  // padding lane or clamped node: nothing moves
+                    for (int a = 0; a < 9; a++) B.L[a][j] = a % 4 == 0 ? 1.0 : 0.0;
+                    for (int a = 0; a < 3; a++) B.c[a][j] = B.P[a][j] = B.pi[a][j] = B.iJ[a][j] = B.sPi[a][j] = 0.0;
+                    B.im[j] = B.sP[j] = 0.0;
+                    continue;
+                }
+                const double* ck = &c[3 * k];
+                const double* Lk = &L[9 * k];
+                const double m = mass[k], l2 = nodeR[k] * nodeR[k];
+                // Node velocity and body angular momentum from the particle velocities.
+                double v[3] = {0, 0, 0}, h[3] = {0, 0, 0};
+                for (int i = 0; i < 3; i++) {
+                    const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                    v[0] += u[0] / 3.0; v[1] += u[1] / 3.0; v[2] += u[2] / 3.0;
+                }
+                for (int i = 0; i < 3; i++) {
+                    const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                    const Vec3& p = (*pos)[nodeP[3 * k + i]];
+                    const double x0 = p[0] - ck[0], x1 = p[1] - ck[1], x2 = p[2] - ck[2];
+                    const double u0 = u[0] - v[0], u1 = u[1] - v[1], u2 = u[2] - v[2];
+                    h[0] += x1 * u2 - x2 * u1;
+                    h[1] += x2 * u0 - x0 * u2;
+                    h[2] += x0 * u1 - x1 * u0;
+                }
+                // sum_i x_i x du_i = l^2 L diag(3/2, 3/2, 3) L^T omega_lab, so pi = J omega_body = m/3 L^T sum(..).
+                // V: kick by dt (lab momentum by F, body angular momentum by L^T tau).
+                const double* Fk = &F[3 * k];
+                const double* tk = &tau[3 * k];
+                double p2 = 0.0;
+                for (int a = 0; a < 3; a++) {
+                    B.P[a][j] = m * v[a] + dt * Fk[a];
+                    B.pi[a][j] = (m / 3.0) * (Lk[a] * h[0] + Lk[3 + a] * h[1] + Lk[6 + a] * h[2])
+                                 + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
+                    B.c[a][j] = ck[a];
+                    p2 += B.pi[a][j] * B.pi[a][j];
+                }
+                for (int a = 0; a < 9; a++) B.L[a][j] = Lk[a];
+                B.im[j] = 1.0 / m;
+                B.iJ[0][j] = B.iJ[1][j] = 2.0 / (m * l2);
+                B.iJ[2][j] = 1.0 / (m * l2);
+                B.sP[j] = noise * sigP[k];
+                for (int a = 0; a < 3; a++) B.sPi[a][j] = noise * sigPi[3 * k + a];
+                // |pi| is invariant under the rotor, so this bounds every sub-flow angle of the step.
+                bound = std::max(bound, sqrt(p2) * B.iJ[0][j] * (langevin ? 0.5 * dt : dt));
             }
-            for (int i = 0; i < 3; i++) {
-                const Vec3& u = (*vel)[nodeP[3 * k + i]];
-                const Vec3& p = (*pos)[nodeP[3 * k + i]];
-                const double x0 = p[0] - ck[0], x1 = p[1] - ck[1], x2 = p[2] - ck[2];
-                const double u0 = u[0] - v[0], u1 = u[1] - v[1], u2 = u[2] - v[2];
-                h[0] += x1 * u2 - x2 * u1;
-                h[1] += x2 * u0 - x0 * u2;
-                h[2] += x0 * u1 - x1 * u0;
-            }
-            // sum_i x_i x du_i = L diag(3/2, 3/2, 3) l^2 L^T omega_lab, and pi = J omega_body = m/3 L^T sum(...)
-            double P[3], pi[3];
-            for (int a = 0; a < 3; a++) {
-                P[a] = m * v[a];
-                pi[a] = (m / 3.0) * (Lk[a] * h[0] + Lk[3 + a] * h[1] + Lk[6 + a] * h[2]);
-            }
-            // V: kick by dt.
-            const double* Fk = &F[3 * k];
-            const double* tk = &tau[3 * k];
-            for (int a = 0; a < 3; a++) {
-                P[a] += dt * Fk[a];
-                pi[a] += dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
-            }
+            const bool poly = bound < 0.8;
             if (!langevin) {
-                for (int a = 0; a < 3; a++) ck[a] += dt * P[a] / m;
-                rotor(Lk, pi, invJ, dt);
+                for (int a = 0; a < 3; a++)
+                    for (int j = 0; j < BLOCK; j++) B.c[a][j] += dt * B.P[a][j] * B.im[j];
+                rotorBlock(B, dt, poly);
             } else {
                 const double hdt = 0.5 * dt;
-                for (int a = 0; a < 3; a++) ck[a] += hdt * P[a] / m;
-                rotor(Lk, pi, invJ, hdt);
-                const double sm = noise * sqrt(m);
-                for (int a = 0; a < 3; a++) P[a] = cfric * P[a] + sm * normal(rng);
-                for (int a = 0; a < 3; a++) pi[a] = cfric * pi[a] + noise * sqrt(J[a]) * normal(rng);
-                for (int a = 0; a < 3; a++) ck[a] += hdt * P[a] / m;
-                rotor(Lk, pi, invJ, hdt);
+                for (int a = 0; a < 3; a++)
+                    for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
+                rotorBlock(B, hdt, poly);
+                for (int a = 0; a < 3; a++)
+                    for (int j = 0; j < nb; j++) {
+                        B.P[a][j] = cfric * B.P[a][j] + B.sP[j] * normal();
+                        B.pi[a][j] = cfric * B.pi[a][j] + B.sPi[a][j] * normal();
+                    }
+                for (int a = 0; a < 3; a++)
+                    for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
+                rotorBlock(B, hdt, poly);
             }
-            // Write the rigid triangle: p_i = c + l L b_i, u_i = v + (L omega) x (p_i - c).
-            double w[3];
-            for (int a = 0; a < 3; a++) w[a] = pi[a] * invJ[a];
-            const double wl0 = Lk[0] * w[0] + Lk[1] * w[1] + Lk[2] * w[2];
-            const double wl1 = Lk[3] * w[0] + Lk[4] * w[1] + Lk[5] * w[2];
-            const double wl2 = Lk[6] * w[0] + Lk[7] * w[1] + Lk[8] * w[2];
-            for (int i = 0; i < 3; i++) {
-                const double x0 = l * (Lk[0] * OFF[i][0] + Lk[1] * OFF[i][1]);
-                const double x1 = l * (Lk[3] * OFF[i][0] + Lk[4] * OFF[i][1]);
-                const double x2 = l * (Lk[6] * OFF[i][0] + Lk[7] * OFF[i][1]);
-                Vec3& p = (*pos)[nodeP[3 * k + i]];
-                Vec3& u = (*vel)[nodeP[3 * k + i]];
-                p = Vec3(ck[0] + x0, ck[1] + x1, ck[2] + x2);
-                u = Vec3(P[0] / m + wl1 * x2 - wl2 * x1, P[1] / m + wl2 * x0 - wl0 * x2, P[2] / m + wl0 * x1 - wl1 * x0);
+            // Write the rigid triangles: p_i = c + l L b_i, u_i = v + (L omega) x (p_i - c).
+            for (int j = 0; j < nb; j++) {
+                const int k = b0 + j;
+                if (mass[k] == 0.0) continue;
+                const double l = nodeR[k];
+                double w[3];
+                for (int a = 0; a < 3; a++) w[a] = B.pi[a][j] * B.iJ[a][j];
+                double Lk[9];
+                for (int a = 0; a < 9; a++) Lk[a] = B.L[a][j];
+                const double wl0 = Lk[0] * w[0] + Lk[1] * w[1] + Lk[2] * w[2];
+                const double wl1 = Lk[3] * w[0] + Lk[4] * w[1] + Lk[5] * w[2];
+                const double wl2 = Lk[6] * w[0] + Lk[7] * w[1] + Lk[8] * w[2];
+                const double v0 = B.P[0][j] * B.im[j], v1 = B.P[1][j] * B.im[j], v2 = B.P[2][j] * B.im[j];
+                for (int i = 0; i < 3; i++) {
+                    const double x0 = l * (Lk[0] * OFF[i][0] + Lk[1] * OFF[i][1]);
+                    const double x1 = l * (Lk[3] * OFF[i][0] + Lk[4] * OFF[i][1]);
+                    const double x2 = l * (Lk[6] * OFF[i][0] + Lk[7] * OFF[i][1]);
+                    (*pos)[nodeP[3 * k + i]] = Vec3(B.c[0][j] + x0, B.c[1][j] + x1, B.c[2][j] + x2);
+                    (*vel)[nodeP[3 * k + i]] = Vec3(v0 + wl1 * x2 - wl2 * x1, v1 + wl2 * x0 - wl0 * x2,
+                                                    v2 + wl0 * x1 - wl1 * x0);
+                }
             }
         }
         if (refData == nullptr) {
@@ -271,7 +355,7 @@ void RigidBodyIntegrator::step(int steps) {
     }
 }
 
-void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos) {
+DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos) {
     // Frames from the (rigid) particles, orthonormalised by Gram-Schmidt so that roundoff cannot accumulate.
     for (int k = 0; k < n; k++) {
         const Vec3& a0 = (*pos)[nodeP[3 * k]];
@@ -309,11 +393,11 @@ double RigidBodyIntegrator::computeKineticEnergy() {
 }
 
 void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
-    stream << rng << ' ' << normal << ' ';
+    normal.save(stream);
 }
 
 void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
-    stream >> rng >> normal;
+    normal.load(stream);
 }
 
 } // namespace dnarod

@@ -15,6 +15,7 @@
 // particles); every other force is evaluated by OpenMM and reduced to node forces and torques.
 #include "openmm/Integrator.h"
 #include "openmm/Kernel.h"
+#include "Random.h"
 #include <random>
 #include <string>
 #include <vector>
@@ -41,6 +42,11 @@ public:
     void step(int steps);
     /** True if the SMK step loads are evaluated inside the integrator (the System has an SMKForce). */
     bool usesFusedElasticForce() const { return fused != nullptr; }
+    /** Lanes of the blocked update (internal). */
+    static const int BLOCK = 16;
+    struct Block {
+        double L[9][BLOCK], c[3][BLOCK], P[3][BLOCK], pi[3][BLOCK], iJ[3][BLOCK], im[BLOCK], sP[BLOCK], sPi[3][BLOCK];
+    };
 protected:
     void initialize(OpenMM::ContextImpl& context);
     void cleanup() {}
@@ -50,6 +56,7 @@ protected:
     void loadCheckpoint(std::istream& stream);
 private:
     void loads(bool needOther);
+    void run(int steps);
     void nodePoses(int n, const std::vector<OpenMM::Vec3>* pos);
     double temperature, friction;
     int seed;
@@ -62,8 +69,9 @@ private:
     bool haveOther = false;
     std::vector<double> mass, c, L, F, tau;
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
-    std::mt19937_64 rng;
-    std::normal_distribution<double> normal;
+    std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
+    Gaussian normal;
+    Block blk;
 };
 
 } // namespace dnarod

@@ -144,7 +144,7 @@ static inline double stepLoads(const SMKForce::Step& s, double ds, const double*
     return 0.5 * ds * H;
 }
 
-double chainLoads(const vector<SMKForce::Step>& steps, double ds, const double* Q, const double* t,
+DNAROD_CLONES double chainLoads(const vector<SMKForce::Step>& steps, double ds, const double* Q, const double* t,
                   const double* c, const double* L, double* F, double* tau, int& badStep) {
     double E = 0.0;
     badStep = -1;

@@ -14,6 +14,14 @@
 #include "openmm/Context.h"
 #include <vector>
 
+// Hot loops are compiled twice, for AVX2+FMA (x86-64-v3) and the baseline; the loader picks one at run time
+// (GCC/Clang function multi-versioning), so the built library still runs on any x86-64.
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(DNAROD_NO_CLONES)
+#define DNAROD_CLONES __attribute__((target_clones("arch=x86-64-v3", "default")))
+#else
+#define DNAROD_CLONES
+#endif
+
 namespace dnarod {
 
 class SMKForce : public OpenMM::Force {
