@@ -131,22 +131,20 @@ def test_cayley_limit_gives_nan_energy(mod):
     assert np.isnan(ctx.getState(getEnergy=True).getPotentialEnergy()._value)
 
 
-def test_simulation_uses_plugin_and_matches_fast_path(mod):
+def test_simulation_on_plugin_path_has_the_callback_paths_energies(mod):
     from dnarod.openmm.simulation import RodSimulation
 
-    model = load_forcefield("dna-default").model_from_sequence("ACGTACGTACGTACGTACGT")
-    runs = {}
-    for elastic in ("plugin", "fast"):
-        sim = RodSimulation(model, temperature=300.0, platform="Reference", elastic=elastic, nonbonded=False, seed=5)
-        sim.advance(50)
-        runs[elastic] = sim.node_pose()
-    assert sim.rs.elastic == "fast"
-    # Same node loads; the two paths spread a torque over a triangle that SETTLE keeps rigid only to 1e-8, so
-    # the trajectories part at that level (50 steps of 107 fs at 300 K move nodes by ~0.2 nm).
-    assert np.max(np.abs(runs["plugin"][0] - runs["fast"][0])) < 1e-6
-    assert np.max(np.abs(runs["plugin"][1] - runs["fast"][1])) < 1e-6
-    auto = RodSimulation(model, temperature=300.0, platform="CPU", nonbonded=False, seed=5)
-    assert auto.rs.elastic == "plugin"
+    model = random_model(8, sequence="ACGTACGTACGTACGTACGTACGTACGTACGTACGTACGT", scale=0.03, rot=0.05)
+    still = (np.zeros((model.n_nodes, 3)), np.zeros((model.n_nodes, 3)))
+    sims = {el: RodSimulation(model, temperature=300.0, platform="Reference", elastic=el, seed=5,
+                              initial_velocities=still) for el in ("plugin", "fast")}
+    assert sims["plugin"].rs.elastic == "plugin" and sims["plugin"].integrator.usesFusedElasticForce()
+    e = {el: s.energies() for el, s in sims.items()}
+    for term in ("elastic", "nonbonded", "potential"):
+        assert abs(e["plugin"][term] - e["fast"][term]) <= 1e-10 * max(1.0, abs(e["fast"][term]))
+    assert e["fast"]["elastic"] > 1.0
+    auto = RodSimulation(model, temperature=300.0, platform="CPU", seed=5)
+    assert auto.rs.elastic == "plugin" and auto.integrator.usesFusedPairForce()
 
 
 # --- fallback ----------------------------------------------------------------------------------------------
@@ -209,3 +207,29 @@ def test_build_without_compiler_still_installs_and_records_why(tmp_path):
     assert (tmp_path / "inst/dnarod/_bundled/forcefields/dna-default.toml").is_file()
     assert (tmp_path / "inst/dnarod/_plugin/_build_info.py").is_file()
     assert not list((tmp_path / "inst/dnarod/_plugin").glob("_dnarodplugin*"))
+
+
+def test_node_pair_force_equals_nonbonded_reference_as_nodes_move(mod):
+    """The compiled WCA + Debye-Hueckel (Verlet list) against the all-pairs numpy reference, on a squashed ring
+    with many contacts, after small moves (list kept) and large ones (list rebuilt)."""
+    from dnarod.openmm.nonbonded import NonbondedSettings, nonbonded_reference
+
+    model = load_forcefield("dna-default").ring(n_nodes=120)
+    numbers = NonbondedSettings(salt=0.05).resolve(model.ds, 300.0)
+    system = openmm.System()
+    for _ in range(3 * model.n_nodes):
+        system.addParticle(100.0)
+    system.addForce(plugin.node_pair_force(model, numbers))
+    ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("Reference"))
+    rng = np.random.default_rng(0)
+    pos = model.positions * np.array([1.0, 0.25, 1.0]) + 0.3 * rng.normal(size=model.positions.shape)
+    for move in (0.0, 0.05, 0.05, 2.0, 0.1):
+        pos = pos + move * rng.normal(size=pos.shape)
+        ctx.setPositions(P.particle_positions(pos, model.frames, 0.6))
+        st = ctx.getState(getEnergy=True, getForces=True, getPositions=True)
+        F, tau = P.particle_forces_to_loads(st.getPositions(asNumpy=True)._value, st.getForces(asNumpy=True)._value)
+        ew, ed, F0 = nonbonded_reference(pos, True, numbers)
+        assert ew > 0 and ed > 0
+        assert abs(st.getPotentialEnergy()._value - (ew + ed)) <= 1e-12 * (ew + ed)
+        assert np.max(np.abs(F - F0)) <= 1e-12 * np.max(np.abs(F0))
+        assert np.max(np.abs(tau)) <= 1e-12 * np.max(np.abs(F0))

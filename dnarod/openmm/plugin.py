@@ -209,3 +209,41 @@ def rigid_body_integrator(radius, dt, temperature=300.0, friction=1.0, seed=0, p
         integ.addNode(int(idx[k, 0]), int(idx[k, 1]), int(idx[k, 2]), float(radius[k]))
     integ.setRandomNumberSeed(int(seed) % 2**31)
     return integ
+
+
+def node_pair_force(model, numbers, particles=None):
+    """The non-local terms of :mod:`dnarod.openmm.nonbonded` (WCA + shifted Debye-Hueckel between node centres,
+    chain exclusions) as a compiled ``NodePairForce`` (Verlet list in C++).
+
+    Parameters
+    ----------
+    model : RodModel
+        Its node count and closure (circular chains wrap the exclusions) are used.
+    numbers : dict
+        From :meth:`dnarod.openmm.nonbonded.NonbondedSettings.resolve` (eps kJ/mol, sigma nm, rc_wca nm,
+        a_dh kJ/mol nm, kappa 1/nm, rc_dh nm, n_exclude).
+    particles : ndarray of int, shape (n_nodes, 3), optional
+        Particle indices of every node (default ``3k, 3k+1, 3k+2``).
+
+    Returns
+    -------
+    NodePairForce
+        In force group ``GROUPS["nonbonded"]``.
+    """
+    from .forces import GROUPS
+
+    mod = module()
+    if mod is None:
+        raise ParameterError(f"the compiled non-bonded force needs the OpenMM plugin, which is not usable here "
+                             f"({status().reason})")
+    n = model.n_nodes
+    idx = np.arange(3 * n).reshape(n, 3) if particles is None else np.asarray(particles, int).reshape(n, 3)
+    f = mod.NodePairForce()
+    for k in range(n):
+        f.addNode(int(idx[k, 0]), int(idx[k, 1]), int(idx[k, 2]))
+    v = numbers
+    f.setParameters(float(v["eps"]), float(v["sigma"]), float(v["rc_wca"]), float(v["a_dh"]), float(v["kappa"]),
+                    float(v["rc_dh"]), int(v["n_exclude"]), model.closure is not None)
+    f.setForceGroup(GROUPS["nonbonded"])
+    f.setName("dnarod nonbonded (WCA + Debye-Hueckel, plugin)")
+    return f

@@ -185,8 +185,11 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         f, nb_numbers = nonbonded_force(model, settings, temperature)
         if f is not None:
             _check_nonbonded_overlaps(model, nb_numbers)
+            if elastic == "plugin":  # the same terms compiled (a Verlet list in C++)
+                f = plugin.node_pair_force(model, nb_numbers)
+            else:
+                nb_cb = f.dnarod_callback
             system.addForce(f)
-            nb_cb = f.dnarod_callback
         else:
             nb_numbers = None
     return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,

@@ -1,5 +1,6 @@
 #include "RigidBodyIntegrator.h"
 #include "SMKForceImpl.h"
+#include "NodePairForceImpl.h"
 #include "openmm/Context.h"
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
@@ -73,15 +74,16 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
             throw OpenMMException("RigidBodyIntegrator: every particle with mass must belong to a node");
     for (int i = 0; i < system.getNumParticles(); i++)
         if (system.isVirtualSite(i)) throw OpenMMException("RigidBodyIntegrator: virtual sites are not supported");
-    // Fuse the SMK force if it is integrated here and its nodes are ours.
+    // Fuse the SMK and node-pair forces if they are integrated here and their nodes are ours; every other force
+    // (and a fused one sharing a force group with it) is evaluated by OpenMM.
     fused = nullptr;
+    pairs = nullptr;
     otherGroups = 0;
-    haveOther = false;
     const int groups = getIntegrationForceGroups();
     for (ForceImpl* impl : ctx.getForceImpls()) {
-        SMKForceImpl* smk = dynamic_cast<SMKForceImpl*>(impl);
         const int g = impl->getOwner().getForceGroup();
         if (!(groups & (1 << g))) continue;
+        SMKForceImpl* smk = dynamic_cast<SMKForceImpl*>(impl);
         if (smk != nullptr && fused == nullptr) {
             const SMKForce& f = smk->getOwner();
             bool same = f.getNumNodes() == n;
@@ -96,15 +98,30 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
                 continue;
             }
         }
+        NodePairForceImpl* np = dynamic_cast<NodePairForceImpl*>(impl);
+        if (np != nullptr && pairs == nullptr) {
+            const NodePairForce& f = np->getOwner();
+            if (f.particleList() == nodeP) {
+                pairs = np;
+                continue;
+            }
+        }
         otherGroups |= 1 << g;
-        haveOther = true;
     }
-    if (fused != nullptr) {
-        // Other forces in the SMK force's group are evaluated by OpenMM with it; then do not fuse.
-        const int g = fused->getOwner().getForceGroup();
-        if (otherGroups & (1 << g)) fused = nullptr;
-        if (fused == nullptr) otherGroups |= 1 << g, haveOther = true;
+    // A force OpenMM evaluates shares a group with a fused one: OpenMM would count the fused one again, so
+    // un-fuse it (then its group is evaluated by OpenMM too) until nothing changes.
+    for (;;) {
+        otherGroups = 0;
+        for (ForceImpl* impl : ctx.getForceImpls()) {
+            const int g = impl->getOwner().getForceGroup();
+            if ((groups & (1 << g)) && impl != (ForceImpl*) fused && impl != (ForceImpl*) pairs) otherGroups |= 1 << g;
+        }
+        bool changed = false;
+        if (fused != nullptr && (otherGroups & (1 << fused->getOwner().getForceGroup()))) fused = nullptr, changed = true;
+        if (pairs != nullptr && (otherGroups & (1 << pairs->getOwner().getForceGroup()))) pairs = nullptr, changed = true;
+        if (!changed) break;
     }
+    haveOther = otherGroups != 0;
     const string name = ctx.getPlatform().getName();
     refData = (name == "Reference" || name == "CPU") ? ctx.getPlatformData() : nullptr;
     c.resize(3 * n);
@@ -112,6 +129,13 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     F.resize(3 * n);
     tau.resize(3 * n);
     normal.seed(seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()());
+    invMass.assign(n, 0.0);
+    invJ12.assign(n, 0.0);
+    for (int k = 0; k < n; k++)
+        if (mass[k] > 0) {
+            invMass[k] = 1.0 / mass[k];
+            invJ12[k] = 2.0 / (mass[k] * nodeR[k] * nodeR[k]);
+        }
     sigP.resize(n);
     sigPi.resize(3 * n);
     for (int k = 0; k < n; k++) {
@@ -130,6 +154,7 @@ void RigidBodyIntegrator::loads(bool needOther) {
         int bad;
         fused->nodeLoads(c.data(), L.data(), F.data(), tau.data(), bad);
     }
+    if (pairs != nullptr) pairs->nodeForces(c.data(), F.data());
     if (!needOther) return;
     context->calcForcesAndEnergy(true, false, otherGroups);
     const vector<Vec3>* f;
@@ -238,7 +263,7 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     vector<Vec3>* pos;
     vector<Vec3>* vel;
     for (int s = 0; s < steps; s++) {
-        const bool other = haveOther || fused == nullptr;
+        const bool other = haveOther;
         if (other) context->updateContextState();
         if (refData != nullptr) {
             pos = ((ReferencePlatform::PlatformData*) refData)->positions;
@@ -267,7 +292,7 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
                 }
                 const double* ck = &c[3 * k];
                 const double* Lk = &L[9 * k];
-                const double m = mass[k], l2 = nodeR[k] * nodeR[k];
+                const double m = mass[k];
                 // Node velocity and body angular momentum from the particle velocities.
                 double v[3] = {0, 0, 0}, h[3] = {0, 0, 0};
                 for (int i = 0; i < 3; i++) {
@@ -296,15 +321,16 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
                     p2 += B.pi[a][j] * B.pi[a][j];
                 }
                 for (int a = 0; a < 9; a++) B.L[a][j] = Lk[a];
-                B.im[j] = 1.0 / m;
-                B.iJ[0][j] = B.iJ[1][j] = 2.0 / (m * l2);
-                B.iJ[2][j] = 1.0 / (m * l2);
+                B.im[j] = invMass[k];
+                B.iJ[0][j] = B.iJ[1][j] = invJ12[k];
+                B.iJ[2][j] = 0.5 * invJ12[k];
                 B.sP[j] = noise * sigP[k];
                 for (int a = 0; a < 3; a++) B.sPi[a][j] = noise * sigPi[3 * k + a];
                 // |pi| is invariant under the rotor, so this bounds every sub-flow angle of the step.
-                bound = std::max(bound, sqrt(p2) * B.iJ[0][j] * (langevin ? 0.5 * dt : dt));
+                bound = std::max(bound, p2 * invJ12[k] * invJ12[k]);
             }
-            const bool poly = bound < 0.8;
+            const double hmax = langevin ? 0.5 * dt : dt;
+            const bool poly = bound * hmax * hmax < 0.64;
             if (!langevin) {
                 for (int a = 0; a < 3; a++)
                     for (int j = 0; j < BLOCK; j++) B.c[a][j] += dt * B.P[a][j] * B.im[j];

@@ -25,6 +25,7 @@ namespace OpenMM { class ContextImpl; }
 namespace dnarod {
 
 class SMKForceImpl;
+class NodePairForceImpl;
 
 class RigidBodyIntegrator : public OpenMM::Integrator {
 public:
@@ -42,6 +43,8 @@ public:
     void step(int steps);
     /** True if the SMK step loads are evaluated inside the integrator (the System has an SMKForce). */
     bool usesFusedElasticForce() const { return fused != nullptr; }
+    /** True if the node-pair (WCA + Debye-Hueckel) forces are evaluated inside the integrator. */
+    bool usesFusedPairForce() const { return pairs != nullptr; }
     /** Lanes of the blocked update (internal). */
     static const int BLOCK = 16;
     struct Block {
@@ -65,11 +68,13 @@ private:
     OpenMM::ContextImpl* context = nullptr;
     void* refData = nullptr;  // ReferencePlatform::PlatformData on the Reference and CPU platforms
     SMKForceImpl* fused = nullptr;
+    NodePairForceImpl* pairs = nullptr;
     int otherGroups = 0;
     bool haveOther = false;
     std::vector<double> mass, c, L, F, tau;
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
+    std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)
     Gaussian normal;
     Block blk;
 };

@@ -99,7 +99,7 @@ void nodePoses(const vector<SMKForce::Node>& nodes, const vector<Vec3>& pos, dou
 // Loads of one step (a port of dnarod.kernels.step_loads, design A2): left node a (pose ca, La), right node b
 // (pose cb, Lb, already mapped through the closure if it is an image). Adds the left loads to Fa, ta, and
 // returns the right loads (lab, before the closure map) in Fb, tb. Returns the step energy or NaN.
-static inline double stepLoads(const SMKForce::Step& s, double ds, const double* ca, const double* La,
+static inline __attribute__((always_inline)) double stepLoads(const SMKForce::Step& s, double ds, const double* ca, const double* La,
                                const double* cb, const double* Lb, double* Fa, double* ta, double* Fb, double* tb) {
     double R[9];
     for (int a = 0; a < 3; a++)
