@@ -178,3 +178,33 @@ def test_nve_with_loads_and_nonbonded_conserves_energy(mod):
     energies = np.array(energies)
     pe_scale = 3 * model.n_nodes * kT_of(300.0)
     assert np.ptp(energies) < 1e-3 * pe_scale, np.ptp(energies)
+
+
+def test_node_state_kept_between_calls_matches_particles_and_is_dropped_when_they_change(mod):
+    """NVE: one call of 40 steps equals 40 calls of one step bit for bit (the node state is kept between calls);
+    after positions and velocities are set from outside, the integrator starts from them, not from its kept
+    state."""
+    from dnarod.openmm.simulation import RodSimulation
+
+    model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
+    runs = []
+    for chunks in ([40], [1] * 40):
+        sim = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
+                            nonbonded=False)
+        for k in chunks:
+            sim.integrator.step(k)
+        runs.append(sim.context.getState(getPositions=True, getVelocities=True))
+    for get in ("getPositions", "getVelocities"):
+        assert np.array_equal(getattr(runs[0], get)(asNumpy=True)._value, getattr(runs[1], get)(asNumpy=True)._value)
+    s20 = None
+    sim = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
+                        nonbonded=False)
+    sim.integrator.step(20)
+    s20 = sim.context.getState(getPositions=True, getVelocities=True)
+    sim.integrator.step(20)
+    first = sim.context.getState(getPositions=True).getPositions(asNumpy=True)._value
+    sim.context.setState(s20)
+    sim.integrator.step(20)
+    again = sim.context.getState(getPositions=True).getPositions(asNumpy=True)._value
+    assert np.max(np.abs(again - first)) < 1e-9  # restarted from s20 (read back from the particles: roundoff)
+    assert np.max(np.abs(again - runs[0].getPositions(asNumpy=True)._value)) < 1e-9

@@ -43,7 +43,10 @@ public:
         return tail(hz, iz);
     }
     void save(std::ostream& s) const { s << st[0] << ' ' << st[1] << ' ' << st[2] << ' ' << st[3] << ' '; }
-    void load(std::istream& s) { s >> st[0] >> st[1] >> st[2] >> st[3]; }
+    void load(std::istream& s) {
+        s >> st[0] >> st[1] >> st[2] >> st[3];
+        s.get();  // the separator written by save()
+    }
 private:
     static inline uint64_t rotl(uint64_t x, int k) { return (x << k) | (x >> (64 - k)); }
     double tail(int64_t hz, int iz) {

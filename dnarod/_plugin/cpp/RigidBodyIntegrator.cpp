@@ -7,6 +7,7 @@
 #include "openmm/internal/ContextImpl.h"
 #include "openmm/reference/ReferencePlatform.h"
 #include <cmath>
+#include <cstring>
 #include <istream>
 #include <ostream>
 
@@ -126,6 +127,9 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     refData = (name == "Reference" || name == "CPU") ? ctx.getPlatformData() : nullptr;
     c.resize(3 * n);
     L.resize(9 * n);
+    cP.assign(3 * n, 0.0);
+    cPi.assign(3 * n, 0.0);
+    cacheValid = false;
     F.resize(3 * n);
     tau.resize(3 * n);
     normal.seed(seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()());
@@ -274,7 +278,19 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
             pos = &posBuf;
             vel = &velBuf;
         }
-        nodePoses(n, pos);
+        // With only fused forces on the Reference/CPU platforms the node state of the last step is kept (c, L,
+        // cP, cPi; checkpointed, dropped when the Context's positions or velocities are set) and particles are
+        // written once per call; otherwise it is read back from the particles every step.
+        if (s == 0 && cacheValid) {
+            // The kept node state belongs to these particles only if nobody has changed them since (positions
+            // or velocities set, a checkpoint of another state loaded): compare with what was written last.
+            cacheValid = pos->size() == lastPos.size() && vel->size() == lastVel.size()
+                         && std::memcmp(pos->data(), lastPos.data(), sizeof(Vec3) * lastPos.size()) == 0
+                         && std::memcmp(vel->data(), lastVel.data(), sizeof(Vec3) * lastVel.size()) == 0;
+        }
+        const bool useCache = cacheValid && !other && refData != nullptr;
+        const bool write = other || refData == nullptr || s == steps - 1;
+        if (!useCache) nodePoses(n, pos);
         loads(other);
         // Nodes in blocks of BLOCK lanes: the rotor's sub-flows are long dependent chains per node, so each
         // sub-flow runs over all lanes of a block at once (independent work the compiler vectorises).
@@ -293,6 +309,17 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
                 const double* ck = &c[3 * k];
                 const double* Lk = &L[9 * k];
                 const double m = mass[k];
+                const double* Fk = &F[3 * k];
+                const double* tk = &tau[3 * k];
+                double p2 = 0.0;
+                if (useCache) {
+                    for (int a = 0; a < 3; a++) {
+                        B.P[a][j] = cP[3 * k + a] + dt * Fk[a];
+                        B.pi[a][j] = cPi[3 * k + a] + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
+                        B.c[a][j] = ck[a];
+                        p2 += B.pi[a][j] * B.pi[a][j];
+                    }
+                } else {
                 // Node velocity and body angular momentum from the particle velocities.
                 double v[3] = {0, 0, 0}, h[3] = {0, 0, 0};
                 for (int i = 0; i < 3; i++) {
@@ -310,15 +337,13 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
                 }
                 // sum_i x_i x du_i = l^2 L diag(3/2, 3/2, 3) L^T omega_lab, so pi = J omega_body = m/3 L^T sum(..).
                 // V: kick by dt (lab momentum by F, body angular momentum by L^T tau).
-                const double* Fk = &F[3 * k];
-                const double* tk = &tau[3 * k];
-                double p2 = 0.0;
                 for (int a = 0; a < 3; a++) {
                     B.P[a][j] = m * v[a] + dt * Fk[a];
                     B.pi[a][j] = (m / 3.0) * (Lk[a] * h[0] + Lk[3 + a] * h[1] + Lk[6 + a] * h[2])
                                  + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
                     B.c[a][j] = ck[a];
                     p2 += B.pi[a][j] * B.pi[a][j];
+                }
                 }
                 for (int a = 0; a < 9; a++) B.L[a][j] = Lk[a];
                 B.im[j] = invMass[k];
@@ -349,10 +374,17 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
                     for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
                 rotorBlock(B, hdt, poly);
             }
-            // Write the rigid triangles: p_i = c + l L b_i, u_i = v + (L omega) x (p_i - c).
+            // Keep the node state; write the rigid triangles: p_i = c + l L b_i, u_i = v + (L omega) x (p_i - c).
             for (int j = 0; j < nb; j++) {
                 const int k = b0 + j;
                 if (mass[k] == 0.0) continue;
+                for (int a = 0; a < 3; a++) {
+                    c[3 * k + a] = B.c[a][j];
+                    cP[3 * k + a] = B.P[a][j];
+                    cPi[3 * k + a] = B.pi[a][j];
+                }
+                for (int a = 0; a < 9; a++) L[9 * k + a] = B.L[a][j];
+                if (!write) continue;
                 const double l = nodeR[k];
                 double w[3];
                 for (int a = 0; a < 3; a++) w[a] = B.pi[a][j] * B.iJ[a][j];
@@ -375,6 +407,11 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
         if (refData == nullptr) {
             context->setPositions(posBuf);
             context->setVelocities(velBuf);
+        }
+        cacheValid = !other && refData != nullptr;
+        if (cacheValid && s == steps - 1) {
+            lastPos = *pos;
+            lastVel = *vel;
         }
         context->setTime(context->getTime() + dt);
         context->setStepCount(context->getStepCount() + 1);
@@ -420,10 +457,40 @@ double RigidBodyIntegrator::computeKineticEnergy() {
 
 void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
     normal.save(stream);
+    const char valid = cacheValid ? 1 : 0;
+    stream.write(&valid, 1);
+    if (cacheValid) {
+        stream.write((const char*) c.data(), sizeof(double) * c.size());
+        stream.write((const char*) L.data(), sizeof(double) * L.size());
+        stream.write((const char*) cP.data(), sizeof(double) * cP.size());
+        stream.write((const char*) cPi.data(), sizeof(double) * cPi.size());
+        const long long np = (long long) lastPos.size();
+        stream.write((const char*) &np, sizeof(np));
+        stream.write((const char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
+        stream.write((const char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
+    }
 }
 
 void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
     normal.load(stream);
+    char valid = 0;
+    stream.read(&valid, 1);
+    if (valid) {
+        stream.read((char*) c.data(), sizeof(double) * c.size());
+        stream.read((char*) L.data(), sizeof(double) * L.size());
+        stream.read((char*) cP.data(), sizeof(double) * cP.size());
+        stream.read((char*) cPi.data(), sizeof(double) * cPi.size());
+    }
+    if (valid) {
+        long long np = 0;
+        stream.read((char*) &np, sizeof(np));
+        lastPos.resize(np);
+        lastVel.resize(np);
+        stream.read((char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
+        stream.read((char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
+    }
+    cacheValid = valid != 0;
 }
+
 
 } // namespace dnarod

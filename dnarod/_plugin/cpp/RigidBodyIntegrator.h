@@ -71,7 +71,9 @@ private:
     NodePairForceImpl* pairs = nullptr;
     int otherGroups = 0;
     bool haveOther = false;
-    std::vector<double> mass, c, L, F, tau;
+    std::vector<double> mass, c, L, F, tau, cP, cPi;
+    bool cacheValid = false;
+    std::vector<OpenMM::Vec3> lastPos, lastVel;  // the particles as written at the end of the last call
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
     std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)
