@@ -446,12 +446,52 @@ DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos
 }
 
 double RigidBodyIntegrator::computeKineticEnergy() {
-    // The particles move rigidly, so their kinetic energy is the nodes' 1/2 m v^2 + 1/2 omega^T J omega.
-    vector<Vec3> v;
+    // The particles move rigidly, so their kinetic energy is the nodes' 1/2 m v^2 + 1/2 omega^T J omega. The
+    // stored velocities are half a step behind the positions; as OpenMM's Verlet integrator does, NVE reports
+    // them completed to the positions' time by the half kick of the current forces (Langevin reports them as
+    // stored, as LangevinMiddleIntegrator does).
+    vector<Vec3> v, p, f;
     context->getVelocities(v);
     const System& system = context->getSystem();
+    if (friction > 0) {
+        double ke = 0.0;
+        for (int i = 0; i < system.getNumParticles(); i++) ke += 0.5 * system.getParticleMass(i) * v[i].dot(v[i]);
+        return ke;
+    }
+    context->getPositions(p);
+    context->getForces(f);
+    const double h = 0.5 * getStepSize();
     double ke = 0.0;
-    for (int p = 0; p < system.getNumParticles(); p++) ke += 0.5 * system.getParticleMass(p) * v[p].dot(v[p]);
+    const int n = getNumNodes();
+    for (int k = 0; k < n; k++) {
+        if (mass[k] == 0.0) continue;
+        const int* q = &nodeP[3 * k];
+        Vec3 cen = (p[q[0]] + p[q[1]] + p[q[2]]) / 3.0;
+        Vec3 vel = (v[q[0]] + v[q[1]] + v[q[2]]) / 3.0;
+        Vec3 Fk = f[q[0]] + f[q[1]] + f[q[2]];
+        Vec3 hl, tl;
+        for (int i = 0; i < 3; i++) {
+            const Vec3 x = p[q[i]] - cen;
+            hl += x.cross(v[q[i]] - vel);
+            tl += x.cross(f[q[i]]);
+        }
+        // Frame from the particles (d1, d2, d3); body components of sum x_i x du_i and of the torque.
+        Vec3 d1 = p[q[0]] * 2.0 - p[q[1]] - p[q[2]];
+        d1 /= sqrt(d1.dot(d1));
+        Vec3 d2 = p[q[1]] - p[q[2]];
+        d2 -= d1 * d1.dot(d2);
+        d2 /= sqrt(d2.dot(d2));
+        const Vec3 d3 = d1.cross(d2);
+        const double m = mass[k], l2 = nodeR[k] * nodeR[k];
+        const double J[3] = {0.5 * m * l2, 0.5 * m * l2, m * l2};
+        const Vec3 dirs[3] = {d1, d2, d3};
+        const Vec3 von = vel + Fk * (h / m);
+        ke += 0.5 * m * von.dot(von);
+        for (int a = 0; a < 3; a++) {
+            const double pi = (m / 3.0) * dirs[a].dot(hl) + h * dirs[a].dot(tl);
+            ke += 0.5 * pi * pi / J[a];
+        }
+    }
     return ke;
 }
 

@@ -55,6 +55,7 @@ protected:
     void cleanup() {}
     std::vector<std::string> getKernelNames() { return std::vector<std::string>(); }
     double computeKineticEnergy();
+    bool kineticEnergyRequiresForce() const { return friction == 0; }
     void createCheckpoint(std::ostream& stream) const;
     void loadCheckpoint(std::istream& stream);
 private:
