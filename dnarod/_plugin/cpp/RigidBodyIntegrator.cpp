@@ -6,6 +6,8 @@
 #include "openmm/System.h"
 #include "openmm/internal/ContextImpl.h"
 #include "openmm/reference/ReferencePlatform.h"
+#include "openmm/kernels.h"
+#include "openmm/VerletIntegrator.h"
 #include <cmath>
 #include <cstring>
 #include <istream>
@@ -46,6 +48,10 @@ int RigidBodyIntegrator::addNode(int p0, int p1, int p2, double radius) {
     nodeP.push_back(p0); nodeP.push_back(p1); nodeP.push_back(p2);
     nodeR.push_back(radius);
     return getNumNodes() - 1;
+}
+
+vector<string> RigidBodyIntegrator::getKernelNames() {
+    return {IntegrateVerletStepKernel::Name()};
 }
 
 void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
@@ -125,6 +131,14 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     haveOther = otherGroups != 0;
     const string name = ctx.getPlatform().getName();
     refData = (name == "Reference" || name == "CPU") ? ctx.getPlatformData() : nullptr;
+    if (refData == nullptr) {
+        // GPU platforms (OpenCL, CUDA) set up their device arrays when an integration kernel is initialised;
+        // this integrator works through ContextImpl's host copies, so it initialises (and never runs) a Verlet
+        // kernel for that.
+        placeholder.reset(new VerletIntegrator(getStepSize()));
+        setupKernel = ctx.getPlatform().createKernel(IntegrateVerletStepKernel::Name(), ctx);
+        setupKernel.getAs<IntegrateVerletStepKernel>().initialize(system, *(VerletIntegrator*) placeholder.get());
+    }
     c.resize(3 * n);
     L.resize(9 * n);
     cP.assign(3 * n, 0.0);

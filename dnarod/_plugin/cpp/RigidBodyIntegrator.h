@@ -16,6 +16,7 @@
 #include "openmm/Integrator.h"
 #include "openmm/Kernel.h"
 #include "Random.h"
+#include <memory>
 #include <random>
 #include <string>
 #include <vector>
@@ -53,7 +54,7 @@ public:
 protected:
     void initialize(OpenMM::ContextImpl& context);
     void cleanup() {}
-    std::vector<std::string> getKernelNames() { return std::vector<std::string>(); }
+    std::vector<std::string> getKernelNames();
     double computeKineticEnergy();
     bool kineticEnergyRequiresForce() const { return friction == 0; }
     void createCheckpoint(std::ostream& stream) const;
@@ -67,7 +68,9 @@ private:
     std::vector<int> nodeP;
     std::vector<double> nodeR;
     OpenMM::ContextImpl* context = nullptr;
-    void* refData = nullptr;  // ReferencePlatform::PlatformData on the Reference and CPU platforms
+    void* refData = nullptr;
+    OpenMM::Kernel setupKernel;
+    std::shared_ptr<OpenMM::Integrator> placeholder;  // ReferencePlatform::PlatformData on the Reference and CPU platforms
     SMKForceImpl* fused = nullptr;
     NodePairForceImpl* pairs = nullptr;
     int otherGroups = 0;
