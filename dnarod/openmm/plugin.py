@@ -247,3 +247,30 @@ def node_pair_force(model, numbers, particles=None):
     f.setForceGroup(GROUPS["nonbonded"])
     f.setName("dnarod nonbonded (WCA + Debye-Hueckel, plugin)")
     return f
+
+
+class ElasticEnergy:
+    """Per-term energy of the last evaluation of an ``SMKForce`` (the interface of
+    :class:`dnarod.openmm.forces.ElasticCallback` that :class:`~dnarod.openmm.simulation.RodSimulation` reads, so
+    its per-term energies need no extra force evaluations)."""
+
+    def __init__(self, force):
+        self.force = force
+
+    @property
+    def last_energy(self):
+        """kJ/mol."""
+        return self.force.getLastEnergy()
+
+
+class PairEnergies:
+    """``(E_wca, E_dh)`` of the last evaluation of a ``NodePairForce`` (the interface of
+    :class:`dnarod.openmm.nonbonded.NonbondedCallback` read by ``RodSimulation``)."""
+
+    def __init__(self, force):
+        self.force = force
+
+    @property
+    def last(self):
+        """kJ/mol."""
+        return self.force.getLastWca(), self.force.getLastDebyeHuckel()

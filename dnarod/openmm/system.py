@@ -171,7 +171,9 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
             system.addConstraint(3 * k + i, 3 * k + j, side)
     elastic_cb = None
     if elastic == "plugin":
-        system.addForce(plugin.smk_force(model, radius))
+        smk = plugin.smk_force(model, radius)
+        system.addForce(smk)
+        elastic_cb = plugin.ElasticEnergy(smk)
     elif elastic == "fast":
         elastic_cb = ElasticCallback(model, radius)
         system.addForce(elastic_python_force(model, radius, callback=elastic_cb))
@@ -187,6 +189,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
             _check_nonbonded_overlaps(model, nb_numbers)
             if elastic == "plugin":  # the same terms compiled (a Verlet list in C++)
                 f = plugin.node_pair_force(model, nb_numbers)
+                nb_cb = plugin.PairEnergies(f)
             else:
                 nb_cb = f.dnarod_callback
             system.addForce(f)

@@ -22,6 +22,10 @@ public:
                        bool circular);
     void getNodeParticles(int index, int& p0, int& p1, int& p2) const;
     bool usesPeriodicBoundaryConditions() const { return false; }
+    /** WCA and Debye-Hueckel energies of the last evaluation in any Context, kJ/mol. */
+    double getLastWca() const { return lastWca; }
+    double getLastDebyeHuckel() const { return lastDh; }
+    mutable double lastWca = 0.0, lastDh = 0.0;
     struct Params { double eps = 0, sigma = 1, rcWca = 0, aDh = 0, kappa = 1, rcDh = 0; int nExclude = 1; bool circular = false; };
     const Params& params() const { return par; }
     const std::vector<int>& particleList() const { return particles; }

@@ -31,8 +31,8 @@ public:
     double nodeForces(const double* cc, double* FF) {
         double ew, ed;
         double e = list.evaluate(cc, FF, ew, ed);
-        lastWca = ew;
-        lastDh = ed;
+        lastWca = owner.lastWca = ew;
+        lastDh = owner.lastDh = ed;
         return e;
     }
     double computeForce(OpenMM::ContextImpl& context, const std::vector<OpenMM::Vec3>& positions,

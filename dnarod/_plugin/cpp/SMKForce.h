@@ -48,6 +48,9 @@ public:
     /** Push changed step parameters (setStepParameters) into a Context. */
     void updateParametersInContext(OpenMM::Context& context);
     bool usesPeriodicBoundaryConditions() const { return false; }
+    /** Energy of the last evaluation in any Context (kJ/mol; NaN at the Cayley limit). */
+    double getLastEnergy() const { return lastEnergy; }
+    mutable double lastEnergy = 0.0;
 
     struct Node { int p[3]; double radius; };
     struct Step { int left, right; bool image; double K[36]; double xi0[6]; };

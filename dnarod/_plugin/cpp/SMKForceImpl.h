@@ -70,6 +70,7 @@ public:
             }
         }
         lastBadStep = bad;
+        owner.lastEnergy = E;
         return E;
     }
     void updateParametersInContext(OpenMM::ContextImpl& context) {

@@ -55,6 +55,7 @@ public:
     std::vector<double> getClosureT() const;
     void updateParametersInContext(OpenMM::Context& context);
     bool usesPeriodicBoundaryConditions() const;
+    double getLastEnergy() const;
     %extend {
         static dnarod::SMKForce& cast(OpenMM::Force& force) {
             return dynamic_cast<dnarod::SMKForce&>(force);
@@ -73,6 +74,8 @@ public:
     void setParameters(double eps, double sigma, double rcWca, double aDh, double kappa, double rcDh, int nExclude,
                        bool circular);
     bool usesPeriodicBoundaryConditions() const;
+    double getLastWca() const;
+    double getLastDebyeHuckel() const;
 };
 
 class RigidBodyIntegrator : public OpenMM::Integrator {
