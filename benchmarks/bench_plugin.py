@@ -93,9 +93,10 @@ def kbp(budget):
         sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic, threads=1)
         fi = max(1, int(round(1.0 / sim.dt)))
         sim.integrator.step(10)
-        t = time.perf_counter()
-        sim.integrator.step(200)
-        per_step = (time.perf_counter() - t) / 200
+        t, c = time.perf_counter(), time.process_time()
+        sim.integrator.step(400)
+        per_step = (time.perf_counter() - t) / 400
+        bare_cpu = (time.process_time() - c) / 400
         n_steps = max(fi, int(budget / per_step) // fi * fi)
         with tempfile.TemporaryDirectory() as d:
             c0, t0 = time.process_time(), time.perf_counter()
@@ -103,6 +104,7 @@ def kbp(budget):
             cpu, wall = time.process_time() - c0, time.perf_counter() - t0
         ns = n_steps * sim.dt * 1e-3
         out[path] = dict(dt_ps=sim.dt, steps=n_steps, ns_per_day_wall=s["ns_per_day"],
+                         ns_per_day_bare_cpu=sim.dt * 1e-3 / bare_cpu * 86400,
                          ns_per_day_cpu=ns / cpu * 86400, wall_s=wall, cpu_s=cpu,
                          mean_temperature=s["mean_temperature"])
     out["speedup_cpu"] = out["plugin"]["ns_per_day_cpu"] / out["callback"]["ns_per_day_cpu"]
@@ -110,23 +112,28 @@ def kbp(budget):
 
 
 def install_time():
-    """Wall and CPU seconds of the README's venv + editable install (with the plugin build) on a copy."""
-    with tempfile.TemporaryDirectory() as d:
-        tree = Path(d) / "dnarod"
-        shutil.copytree(ROOT, tree, ignore=shutil.ignore_patterns(".venv", "build", "runs", "validation", ".git",
-                                                                  "__pycache__", "*.egg-info"))
-        t = time.perf_counter()
-        before = os.times()
-        p = subprocess.run("python3 -m venv .venv && .venv/bin/pip install -q -e .", shell=True, cwd=tree,
-                           capture_output=True, text=True)
-        after = os.times()
-        wall = time.perf_counter() - t
-        cpu = (after.children_user - before.children_user) + (after.children_system - before.children_system)
-        info = (tree / "build").glob("*/_build_info.py")
-        status = next(iter(info), None)
-        text = status.read_text() if status else ""
-        return dict(ok=p.returncode == 0, wall_s=wall, cpu_s=cpu, plugin_built='STATUS = "built"' in text,
-                    error=p.stderr[-500:] if p.returncode else "")
+    """Wall and CPU seconds of the README's ``python3 -m venv .venv && .venv/bin/pip install -q -e .`` on a fresh
+    copy of the tracked files, with the plugin build and (for comparison, same run) with it switched off."""
+    out = {}
+    for mode, env in (("with_plugin", {}), ("without_plugin", {"DNAROD_BUILD_PLUGIN": "0"})):
+        with tempfile.TemporaryDirectory() as d:
+            tree = Path(d) / "dnarod"
+            files = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True).stdout.split()
+            for f in files:
+                (tree / f).parent.mkdir(parents=True, exist_ok=True)
+                shutil.copy2(ROOT / f, tree / f)
+            t = time.perf_counter()
+            before = os.times()
+            p = subprocess.run("python3 -m venv .venv && .venv/bin/pip install -q -e .", shell=True, cwd=tree,
+                               capture_output=True, text=True, env=dict(os.environ, **env))
+            after = os.times()
+            wall = time.perf_counter() - t
+            cpu = (after.children_user - before.children_user) + (after.children_system - before.children_system)
+            status = next(iter((tree / "build").glob("*/_build_info.py")), None)
+            text = status.read_text() if status else ""
+            out[mode] = dict(ok=p.returncode == 0, wall_s=wall, cpu_s=cpu, plugin_built='STATUS = "built"' in text,
+                             error=p.stderr[-500:] if p.returncode else "")
+    return out
 
 
 def main():
@@ -159,11 +166,13 @@ def main():
         q = k[path]
         print(f"1 kbp, full model, dt {q['dt_ps'] * 1000:.1f} fs, with reporters, {path:>8}: "
               f"{q['ns_per_day_cpu']:.0f} ns/day per CPU ({q['ns_per_day_wall']:.0f} ns/day wall); "
+              f"bare integrator {q['ns_per_day_bare_cpu']:.0f} ns/day per CPU; "
               f"mean T {q['mean_temperature']:.1f} K")
     print(f"1 kbp speed-up (CPU time): {k['speedup_cpu']:.2f}x")
     if inst is not None:
-        print(f"fresh install with the plugin build: {inst['wall_s']:.0f} s wall, {inst['cpu_s']:.0f} s CPU, "
-              f"ok={inst['ok']}, plugin built={inst['plugin_built']}")
+        for mode, q in inst.items():
+            print(f"fresh venv + pip install -e . ({mode.replace('_', ' ')}): {q['wall_s']:.0f} s wall, "
+                  f"{q['cpu_s']:.0f} s CPU, ok={q['ok']}, plugin built={q['plugin_built']}")
     out = dict(benchmark="bench_plugin", machine=platform.platform(), cpu_count=os.cpu_count(),
                python=platform.python_version(), plugin=dict(built_against=st.built_against),
                load_average=os.getloadavg(), sizes=res, kbp=k, install=inst,
