@@ -267,3 +267,26 @@ def test_plugin_force_and_integrator_on_opencl(mod):
         sim.advance(50)
         ends.append(sim.node_pose()[0])
     assert np.max(np.abs(ends[0] - ends[1])) < 1e-4
+
+
+def test_system_with_plugin_forces_pickles_and_copies(mod):
+    """XmlSerializer proxies: a System holding SMKForce and NodePairForce survives pickle and deepcopy with the
+    same energy and forces."""
+    import copy
+    import pickle
+
+    from dnarod.openmm.system import build_system
+
+    model = random_model(3, circular=True)
+    rs = build_system(model, "Reference", "plugin", nonbonded=True)
+    pos = P.particle_positions(model.positions, model.frames, rs.radius)
+    out = []
+    for system in (rs.system, pickle.loads(pickle.dumps(rs.system)), copy.deepcopy(rs.system)):
+        names = [system.getForce(i).getName() for i in range(system.getNumForces())]
+        assert "dnarod elastic (plugin)" in names and "dnarod nonbonded (WCA + Debye-Hueckel, plugin)" in names
+        ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("Reference"))
+        ctx.setPositions(pos)
+        st = ctx.getState(getEnergy=True, getForces=True)
+        out.append((st.getPotentialEnergy()._value, st.getForces(asNumpy=True)._value))
+    for E, F in out[1:]:
+        assert E == out[0][0] and np.array_equal(F, out[0][1])

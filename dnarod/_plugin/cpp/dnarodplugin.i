@@ -14,6 +14,11 @@
 // casts between all of them.
 #include "dnarod_openmm_all.h"
 #include "openmm/internal/ContextImpl.h"
+namespace dnarod { void registerSerializationProxies(); }
+%}
+
+%init %{
+    dnarod::registerSerializationProxies();
 %}
 
 namespace std {
