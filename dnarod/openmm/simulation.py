@@ -112,7 +112,13 @@ class RodSimulation:
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         self.rs = build_system(model, platform, elastic, nonbonded, loads,
                                self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
-        if integrator == "langevin":
+        if self.rs.elastic == "plugin":
+            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied).
+            from .plugin import rigid_body_integrator
+
+            integ = rigid_body_integrator(self.rs.radius, dt, self.temperature,
+                                          self.friction if integrator == "langevin" else 0.0, self.seed)
+        elif integrator == "langevin":
             integ = openmm.LangevinMiddleIntegrator(self.temperature, self.friction, dt)
             integ.setRandomNumberSeed(self.seed)
         else:

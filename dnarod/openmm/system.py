@@ -6,8 +6,8 @@ triangle of circumradius ``l_k = sqrt(J3_k/m_k)`` held by three constraints; see
 
 Forces (force groups in :data:`dnarod.openmm.forces.GROUPS`):
 
-* elastic step energy -- ``"fast"`` (numba analytic loads through ``PythonForce``) or
-  ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the fast path on the CPU and
+* elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.openmm.plugin`), ``"fast"`` (numba analytic loads through ``PythonForce``) or
+  ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the plugin, else the fast path, on the CPU and
   Reference platforms and the portable one on GPU platforms (CUDA, OpenCL, HIP), where a
   Python callback would copy positions off the device every step;
 * non-local terms (:mod:`dnarod.openmm.nonbonded`), on by default;
@@ -22,6 +22,7 @@ import openmm
 from openmm import app
 
 from ..errors import GeometryError, ParameterError
+from . import plugin
 from .forces import ElasticCallback, elastic_compound_forces, elastic_python_force
 from .loads import build_load_forces
 from .nonbonded import NonbondedSettings, nonbonded_force
@@ -117,6 +118,20 @@ class RodSystem:
         return 6 * (self.radius.size - len(self.clamped))
 
 
+def choose_elastic(elastic, platform):
+    """The elastic path for a platform: ``"auto"`` takes the compiled plugin on CPU/Reference when it is usable
+    (saying once which path and why, :mod:`dnarod.openmm.plugin`), else the Python-callback ``"fast"`` path
+    there and the ``"portable"`` expression on GPU platforms."""
+    if elastic == "auto":
+        if platform in plugin.PLUGIN_PLATFORMS:
+            plugin.announce()
+            return "plugin" if plugin.status().available else "fast"
+        return "fast" if platform in PYTHON_FORCE_PLATFORMS else "portable"
+    if elastic not in ("fast", "portable", "plugin"):
+        raise ParameterError(f"elastic must be 'auto', 'plugin', 'fast' or 'portable', got {elastic!r}")
+    return elastic
+
+
 def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=(), temperature=300.0):
     """Build the OpenMM System and Topology of a model.
 
@@ -125,7 +140,8 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
     model : RodModel
     platform : str
         Platform name (used to choose the elastic path for ``elastic="auto"``).
-    elastic : {"auto", "fast", "portable"}
+    elastic : {"auto", "plugin", "fast", "portable"}
+        See :func:`choose_elastic`.
     nonbonded : bool or NonbondedSettings
         ``True`` for the defaults, ``False``/``None`` for none.
     loads : sequence
@@ -139,10 +155,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
     """
     radius = triangle_radius(model.mass, model.inertia)
     check_overlaps(model)
-    if elastic == "auto":
-        elastic = "fast" if platform in PYTHON_FORCE_PLATFORMS else "portable"
-    if elastic not in ("fast", "portable"):
-        raise ParameterError(f"elastic must be 'auto', 'fast' or 'portable', got {elastic!r}")
+    elastic = choose_elastic(elastic, platform)
     n = model.n_nodes
     system = openmm.System()
     info = build_load_forces(list(loads), model, radius, system)
@@ -157,7 +170,11 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         for i, j in ((0, 1), (1, 2), (0, 2)):
             system.addConstraint(3 * k + i, 3 * k + j, side)
     elastic_cb = None
-    if elastic == "fast":
+    if elastic == "plugin":
+        smk = plugin.smk_force(model, radius)
+        system.addForce(smk)
+        elastic_cb = plugin.ElasticEnergy(smk)
+    elif elastic == "fast":
         elastic_cb = ElasticCallback(model, radius)
         system.addForce(elastic_python_force(model, radius, callback=elastic_cb))
     else:
@@ -170,8 +187,12 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         f, nb_numbers = nonbonded_force(model, settings, temperature)
         if f is not None:
             _check_nonbonded_overlaps(model, nb_numbers)
+            if elastic == "plugin":  # the same terms compiled (a Verlet list in C++)
+                f = plugin.node_pair_force(model, nb_numbers)
+                nb_cb = plugin.PairEnergies(f)
+            else:
+                nb_cb = f.dnarod_callback
             system.addForce(f)
-            nb_cb = f.dnarod_callback
         else:
             nb_numbers = None
     return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,

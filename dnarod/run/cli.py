@@ -33,7 +33,7 @@ _OPTIONS = [
                  help="verlet: NVE (the same as --friction 0)."),
     click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, OpenCL) [default CPU]."),
     click.option("--threads", type=int, default=None, help="OpenMM CPU platform threads."),
-    click.option("--elastic", type=click.Choice(["auto", "fast", "portable"]), default="auto", show_default=True,
+    click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto", show_default=True,
                  help="OpenMM elastic path."),
     click.option("--excluded-volume/--no-excluded-volume", default=None,
                  help="WCA excluded volume [default: on with --engine openmm; the lax engine has none]."),

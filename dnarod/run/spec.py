@@ -67,7 +67,7 @@ class RunSpec:
     xtc : bool
         With ``export``, also write ``trajectory.xtc`` (default; mdtraj reads frame times from XTC,
         not from DCD).
-    elastic : {"auto", "fast", "portable"}
+    elastic : {"auto", "plugin", "fast", "portable"}
         OpenMM elastic path.
     threads : int or None
         OpenMM CPU threads.
