@@ -41,7 +41,8 @@ from ..trajectory import TrajectoryWriter
 from .forces import GROUPS, loads_kernel
 from .particles import (node_poses, node_velocities, particle_forces_to_loads, particle_positions,
                         particle_velocities)
-from .system import build_system, get_platform
+from .platforms import choose_platform
+from .system import build_system
 
 #: Default time step: omega_max * dt (design A4 recommends <= 0.25-0.5; leapfrog is unstable at 2).
 DEFAULT_OMEGA_DT = 0.4
@@ -165,8 +166,10 @@ class RodSimulation:
         raise :class:`~dnarod.errors.ParameterError`.
     friction : float
         1/ps (Langevin).
-    platform : str
-        OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL").
+    platform : str or None
+        OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL", "HIP"); ``None`` for the
+        automatic choice of :func:`dnarod.openmm.platforms.choose_platform` (GPU, else the CPU
+        fast path); the choice and its reason are in ``platform_name``, ``platform_reason``.
     elastic : {"auto", "fast", "portable"}
     nonbonded : bool or NonbondedSettings
     loads : sequence
@@ -175,13 +178,15 @@ class RodSimulation:
         Seed of initial velocities and of the Langevin noise.
     threads : int or None
         CPU platform threads.
+    precision : {"single", "mixed", "double"} or None
+        GPU platforms' precision (default mixed).
     constraint_tolerance : float
     initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
     """
 
-    def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform="CPU",
+    def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
                  elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
-                 initial_velocities=None):
+                 initial_velocities=None, precision=None):
         self.model = model
         self.temperature = float(temperature)
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -189,8 +194,8 @@ class RodSimulation:
         if integrator not in ("langevin", "verlet"):
             raise ParameterError(f"integrator must be 'langevin' or 'verlet', got {integrator!r}")
         self.integrator_name = integrator
-        self.platform_name = platform
-        plat = get_platform(platform)
+        plat, props, self.platform_reason = choose_platform(platform, model.n_nodes, elastic, threads, precision)
+        self.platform_name = platform = plat.getName()
         self.omega_max = omega_max(model)
         limit = MAX_OMEGA_DT / self.omega_max
         if dt is None:
@@ -213,9 +218,6 @@ class RodSimulation:
             integ = openmm.VerletIntegrator(dt)
         integ.setConstraintTolerance(constraint_tolerance)
         self.integrator = integ
-        props = {}
-        if platform == "CPU" and threads:
-            props["Threads"] = str(int(threads))
         t0 = time.perf_counter()
         self.context = openmm.Context(self.rs.system, integ, plat, props)
         self.context.setPositions(particle_positions(model.positions, model.frames, self.rs.radius))

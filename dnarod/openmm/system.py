@@ -26,16 +26,9 @@ from .forces import ElasticCallback, elastic_compound_forces, elastic_python_for
 from .loads import build_load_forces
 from .nonbonded import NonbondedSettings, nonbonded_force
 from .particles import SQRT3, triangle_radius
+from .platforms import CALLBACK_PLATFORMS, get_platform  # noqa: F401 (re-exported)
 
-PYTHON_FORCE_PLATFORMS = ("CPU", "Reference")
-
-
-def get_platform(name):
-    """The OpenMM platform called ``name`` (error listing the installed ones)."""
-    names = [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
-    if name not in names:
-        raise ParameterError(f"OpenMM platform {name!r} is not installed here; available: {', '.join(names)}")
-    return openmm.Platform.getPlatformByName(name)
+PYTHON_FORCE_PLATFORMS = CALLBACK_PLATFORMS
 
 
 def base_pair_names(model):
