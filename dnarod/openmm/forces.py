@@ -201,10 +201,9 @@ def spread_loads(p, centres, F, tau, out):
 
 
 @numba.njit(cache=True)
-def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
-    """Energy and particle forces of the step energy from particle positions (fast path)."""
+def elastic_particle_kernel_centres(p, radius, K, xi0, ds, Q, t, circular, out, centres):
+    """:func:`elastic_particle_kernel` that also returns the node centres in ``centres`` (n, 3)."""
     n = radius.shape[0]
-    centres = np.empty((n, 3))
     frames = np.empty((n, 3, 3))
     _frames_from_particles(p, radius, centres, frames)
     F = np.zeros((n, 3))
@@ -214,10 +213,23 @@ def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
     return E
 
 
-class ElasticCallback:
-    """Picklable PythonForce computation: the step energy through the numba kernel."""
+@numba.njit(cache=True)
+def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
+    """Energy and particle forces of the step energy from particle positions (fast path)."""
+    centres = np.empty((radius.shape[0], 3))
+    return elastic_particle_kernel_centres(p, radius, K, xi0, ds, Q, t, circular, out, centres)
 
-    def __init__(self, model, radius):
+
+class ElasticCallback:
+    """Picklable PythonForce computation: the step energy through the numba kernel.
+
+    With ``nonbonded`` (a :class:`dnarod.openmm.nonbonded.NonbondedCallback`) the same callback
+    also adds the non-local terms from the node centres it has just computed, so one
+    ``PythonForce`` (one State hand-over per step) carries both; the per-term energies are
+    recorded in ``last_energy`` and ``nonbonded.last``.
+    """
+
+    def __init__(self, model, radius, nonbonded=None):
         self.radius = np.ascontiguousarray(radius, dtype=float)
         self.K = np.ascontiguousarray(model.params.stiffness, dtype=float)
         self.xi0 = np.ascontiguousarray(model.params.intrinsic, dtype=float)
@@ -225,28 +237,38 @@ class ElasticCallback:
         self.circular = model.closure is not None
         self.Q = np.eye(3) if model.closure is None else np.ascontiguousarray(model.closure.Q, float)
         self.t = np.zeros(3) if model.closure is None else np.ascontiguousarray(model.closure.t, float)
-        self._out = np.zeros((3 * self.radius.size, 3))
+        self.nonbonded = nonbonded
+        self._buffers()
         self.last_energy = 0.0
+
+    def _buffers(self):
+        self._out = np.zeros((3 * self.radius.size, 3))
+        self._centres = np.zeros((self.radius.size, 3))
 
     def __call__(self, state):
         p = np.ascontiguousarray(state.getPositions(asNumpy=True)._value, dtype=float)
         out = self._out
-        E = elastic_particle_kernel(p, self.radius, self.K, self.xi0, self.ds, self.Q, self.t, self.circular, out)
+        E = elastic_particle_kernel_centres(p, self.radius, self.K, self.xi0, self.ds, self.Q, self.t, self.circular,
+                                            out, self._centres)
         self.last_energy = E
+        if self.nonbonded is not None:
+            E = E + self.nonbonded.add_to_particles(self._centres, out)
         return E, out.copy()
 
     def __getstate__(self):
         d = dict(self.__dict__)
         d.pop("_out")
+        d.pop("_centres")
         return d
 
     def __setstate__(self, d):
         self.__dict__.update(d)
-        self._out = np.zeros((3 * self.radius.size, 3))
+        self._buffers()
 
 
 def elastic_python_force(model, radius, callback=None):
-    """The fast CPU path: an ``openmm.PythonForce`` evaluating the analytic loads.
+    """The fast CPU path: an ``openmm.PythonForce`` evaluating the analytic loads (and, if the
+    callback carries them, the non-local terms).
 
     Parameters
     ----------
@@ -265,5 +287,6 @@ def elastic_python_force(model, radius, callback=None):
         raise ParameterError("this OpenMM has no PythonForce (needs OpenMM >= 8.3); use elastic='portable'")
     f = openmm.PythonForce(callback if callback is not None else ElasticCallback(model, radius))
     f.setForceGroup(GROUPS["elastic"])
-    f.setName("dnarod elastic (fast)")
+    fused = callback is not None and callback.nonbonded is not None
+    f.setName("dnarod elastic + nonbonded (fast)" if fused else "dnarod elastic (fast)")
     return f

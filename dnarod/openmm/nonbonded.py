@@ -220,26 +220,22 @@ def build_pairs(c, rlist, circular, n_ex, pi, pj):
         h = ((cellc[i, 0] * 73856093) ^ (cellc[i, 1] * 19349663) ^ (cellc[i, 2] * 83492791)) & mask
         nxt[i] = head[h]
         head[h] = i
-    seen = np.empty(27, dtype=np.int64)
+    # Each node visits its own cell (partners j > i) and a half shell of 13 neighbour cells (all
+    # partners), keeping only bucket members whose cell is the target (buckets can collide).
     for i in range(n):
-        ns = 0
-        for dx in range(-1, 2):
+        cx, cy, cz = cellc[i, 0], cellc[i, 1], cellc[i, 2]
+        for dx in range(0, 2):
             for dy in range(-1, 2):
                 for dz in range(-1, 2):
-                    h = (((cellc[i, 0] + dx) * 73856093) ^ ((cellc[i, 1] + dy) * 19349663)
-                         ^ ((cellc[i, 2] + dz) * 83492791)) & mask
-                    dup = False
-                    for s in range(ns):
-                        if seen[s] == h:
-                            dup = True
-                            break
-                    if dup:
+                    if dx == 0 and (dy < 0 or (dy == 0 and dz < 0)):
                         continue
-                    seen[ns] = h
-                    ns += 1
+                    own = dx == 0 and dy == 0 and dz == 0
+                    tx, ty, tz = cx + dx, cy + dy, cz + dz
+                    h = ((tx * 73856093) ^ (ty * 19349663) ^ (tz * 83492791)) & mask
                     j = head[h]
                     while j >= 0:
-                        if j > i and _separation(i, j, n, circular) > n_ex:
+                        if (cellc[j, 0] == tx and cellc[j, 1] == ty and cellc[j, 2] == tz and (j > i or not own)
+                                and _separation(i, j, n, circular) > n_ex):
                             rx = c[j, 0] - c[i, 0]
                             ry = c[j, 1] - c[i, 1]
                             rz = c[j, 2] - c[i, 2]
@@ -253,11 +249,12 @@ def build_pairs(c, rlist, circular, n_ex, pi, pj):
 
 
 @numba.njit(cache=True)
-def pair_kernel(c, pi, pj, m, eps, sigma, rc_wca, a_dh, kappa, rc_dh, F):
-    """WCA + shifted Debye-Hueckel over the first ``m`` listed pairs; adds forces to F (n,3).
+def pair_kernel(c, pi, pj, m, eps, sigma, rc_wca, a_dh, kappa, rc_dh, F, spread=False):
+    """WCA + shifted Debye-Hueckel over the first ``m`` listed pairs; adds forces to F.
 
-    Pairs beyond the cutoffs (the skin of a Verlet list) contribute nothing. Returns
-    ``(E_wca, E_dh)`` in kJ/mol.
+    ``F`` is (n, 3) node forces, or with ``spread`` (3n, 3) particle forces (each node's force
+    shared equally by its three particles). Pairs beyond the cutoffs (the skin of a Verlet
+    list) contribute nothing. Returns ``(E_wca, E_dh)`` in kJ/mol.
     """
     rc = max(rc_wca, rc_dh)
     rc2 = rc * rc
@@ -285,12 +282,22 @@ def pair_kernel(c, pi, pj, m, eps, sigma, rc_wca, a_dh, kappa, rc_dh, F):
             edh += ex - shift_dh
             fr += ex * (kappa + 1.0 / r)
         g = fr / r
-        F[i, 0] -= g * rx
-        F[i, 1] -= g * ry
-        F[i, 2] -= g * rz
-        F[j, 0] += g * rx
-        F[j, 1] += g * ry
-        F[j, 2] += g * rz
+        if spread:
+            g3 = g / 3.0
+            for q in range(3):
+                F[3 * i + q, 0] -= g3 * rx
+                F[3 * i + q, 1] -= g3 * ry
+                F[3 * i + q, 2] -= g3 * rz
+                F[3 * j + q, 0] += g3 * rx
+                F[3 * j + q, 1] += g3 * ry
+                F[3 * j + q, 2] += g3 * rz
+        else:
+            F[i, 0] -= g * rx
+            F[i, 1] -= g * ry
+            F[i, 2] -= g * rz
+            F[j, 0] += g * rx
+            F[j, 1] += g * ry
+            F[j, 2] += g * rz
     return ewca, edh
 
 
@@ -420,6 +427,16 @@ class NonbondedCallback:
         F = np.zeros((c.shape[0], 3))
         ew, ed = pair_kernel(c, pi, pj, m, v["eps"], v["sigma"], v["rc_wca"], v["a_dh"], v["kappa"], v["rc_dh"], F)
         return ew, ed, F
+
+    def add_to_particles(self, centres, out):
+        """Add the forces, spread over each node's three particles, to ``out`` (3n, 3) kJ/mol/nm
+        for node centres (n, 3) nm; records and returns the energy (kJ/mol)."""
+        v = self.numbers
+        pi, pj, m = self.verlet.update(centres)
+        ew, ed = pair_kernel(centres, pi, pj, m, v["eps"], v["sigma"], v["rc_wca"], v["a_dh"], v["kappa"], v["rc_dh"],
+                             out, True)
+        self.last = (ew, ed)
+        return ew + ed
 
     def __call__(self, state):
         v = self.numbers

@@ -384,6 +384,9 @@ class RodSimulation:
                 terms[name] = self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy()._value
             except Exception:  # noqa: BLE001 - a NaN can make OpenMM raise
                 terms[name] = float("nan")
+        el, nb = self.rs.elastic_callback, self.rs.nonbonded_callback
+        if el is not None and nb is not None and el.nonbonded is nb:  # fused fast path: split by the callbacks
+            terms["elastic"], terms["nonbonded"] = el.last_energy, sum(nb.last)
         bad = [k for k, v in terms.items() if not np.isfinite(v)]
         term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))
         p = self.context.getState(getPositions=True).getPositions(asNumpy=True)._value.reshape(-1, 3, 3)
