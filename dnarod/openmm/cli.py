@@ -31,7 +31,9 @@ def _parse_trap(text, n_nodes):
 @click.option("-T", "--temperature", type=float, default=300.0, show_default=True, help="K.")
 @click.option("--friction", type=float, default=1.0, show_default=True, help="Langevin friction, 1/ps.")
 @click.option("--integrator", type=click.Choice(["langevin", "verlet"]), default="langevin", show_default=True)
-@click.option("--platform", default="CPU", show_default=True, help="OpenMM platform (CPU, Reference, CUDA, OpenCL).")
+@click.option("--platform", default=None,
+              help="OpenMM platform (CUDA, OpenCL, HIP, CPU, Reference) [default: automatic, CUDA > OpenCL GPU > "
+                   "CPU fast path; the choice is printed].")
 @click.option("--threads", type=int, default=None, help="CPU platform threads.")
 @click.option("--elastic", type=click.Choice(["auto", "fast", "portable"]), default="auto", show_default=True)
 @click.option("--excluded-volume/--no-excluded-volume", default=True, show_default=True)
@@ -97,6 +99,7 @@ def simulate_cmd(source, forcefield, circular, ring, delta_lk, time_ns, dt, temp
             dt = json.loads(str(z["meta"]))["dt"]
     sim = RodSimulation(model, integrator=integrator, temperature=temperature, dt=dt, friction=friction,
                         platform=platform, elastic=elastic, nonbonded=nb, loads=loads, seed=seed, threads=threads)
+    click.echo(f"platform: {sim.platform_reason}", err=True)
     if minimize and not resume:
         sim.minimize()
     n_steps = max(1, int(round(time_ns * 1000.0 / sim.dt)))
@@ -112,7 +115,7 @@ def simulate_cmd(source, forcefield, circular, ring, delta_lk, time_ns, dt, temp
 
         export_trajectory(outdir / "trajectory.dtraj", outdir / "trajectory.pdb", outdir / "trajectory.dcd",
                           sequence=model.sequence)
-    click.echo(f"nodes: {n}  elastic path: {sim.rs.elastic}  platform: {platform}  integrator: {integrator}")
+    click.echo(f"nodes: {n}  elastic path: {sim.rs.elastic}  platform: {sim.platform_name}  integrator: {integrator}")
     click.echo(f"dt: {sim.dt * 1000:.2f} fs (omega_max {sim.omega_max:.4g} rad/ps)  steps: {summary['steps']}  "
                f"simulated: {summary['simulated_ps'] / 1000:.4g} ns")
     if sim.rs.nonbonded:
