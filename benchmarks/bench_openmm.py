@@ -2,8 +2,8 @@
 
 For 10^2 .. 10^6 nodes of dna-default DNA (LangevinMiddle, 300 K, the default time step),
 each size in its own process (clean peak memory; pinned to one core with ``--pin``), on the
-platform :func:`dnarod.openmm.platforms.choose_platform` picks for the size (Reference up to
-3x10^4 nodes, CPU above, on a machine without a GPU):
+platform :func:`dnarod.openmm.platforms.choose_platform` picks (Reference on a machine
+without a GPU):
 
 * ``floor``    -- the same particles and constraints with no forces (bare integration);
 * ``bonded``   -- the fast elastic path (numba analytic loads through PythonForce);

@@ -8,13 +8,15 @@ Automatic choice (``requested=None``), in order:
    loader, without creating an OpenMM Context). A CPU-only OpenCL implementation such as pocl
    is never chosen automatically: it runs the portable path several times slower than the
    CPU fast path (``benchmarks/bench_platforms.py``, ``bench_gpu.py``);
-3. **the CPU fast path**: the numba/``PythonForce`` callbacks on the **Reference** platform up
-   to :data:`REFERENCE_MAX_NODES` nodes and on the **CPU** platform above. The CPU platform
-   runs its integrator on a worker thread even with ``Threads=1``, so every step (and every
-   Python callback) is handed between the Python thread and the worker; at 1 kbp that hand-off
-   costs more than the CPU platform's vectorised integrator gains, while from about 10^5 nodes
-   the integrator dominates (measured in ``benchmarks/bench_platforms.py``; figures in the
-   README).
+3. **the CPU fast path**: the numba/``PythonForce`` callbacks on the **Reference** platform (or
+   on the **CPU** platform when ``threads`` is given). The CPU platform runs its integrator on a
+   worker thread even with ``Threads=1``, so every step (and every Python callback) is handed
+   between the Python thread and the worker. Measured per CPU-second on one core
+   (``benchmarks/bench_platforms.py``, README table), the Reference platform is the faster at
+   every size from 10^2 to 10^6 nodes: 3.2x at 10^2, 1.2x at 10^3, 1.15x at 10^4 and within
+   the run's noise (5-9%) at 10^5-10^6, where the CPU platform's threaded integrator can
+   still gain wall-clock time from idle cores (``--threads``; not measurable on this loaded
+   2-core machine).
 
 ``requested`` (``--platform``) overrides the choice; the reason of the choice is returned so
 the caller can print it.
@@ -29,8 +31,9 @@ import openmm
 
 from ..errors import ParameterError
 
-#: Largest node count run on the Reference platform by the automatic choice (CPU platform above).
-REFERENCE_MAX_NODES = 30000
+#: Largest node count run on the Reference platform by the automatic choice (CPU platform above);
+#: None: no limit (measured faster per CPU-second at 10^2-10^6 nodes).
+REFERENCE_MAX_NODES = None
 #: Platforms that run the numba PythonForce (fast) elastic path without copying off a device.
 CALLBACK_PLATFORMS = ("CPU", "Reference")
 #: Platforms on GPUs (portable path only).
@@ -140,9 +143,11 @@ def choose_platform(requested=None, n_nodes=None, elastic="auto", threads=None, 
     if elastic == "portable":
         return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
                 "CPU (no GPU found; portable elastic path on the multithreaded CPU platform)")
-    if n_nodes is not None and n_nodes <= REFERENCE_MAX_NODES and not threads:
+    small = REFERENCE_MAX_NODES is None or (n_nodes is not None and n_nodes <= REFERENCE_MAX_NODES)
+    if small and not threads:
         return (openmm.Platform.getPlatformByName("Reference"), platform_properties("Reference", None, precision),
-                f"Reference (no GPU found; CPU fast path, {n_nodes} <= {REFERENCE_MAX_NODES} nodes: no worker-thread "
-                f"hand-off per step)")
+                "Reference (no GPU found; CPU fast path on the single-threaded Reference platform: no worker-thread "
+                "hand-off per step)")
+    why = f"{threads} threads requested" if threads else f"more than {REFERENCE_MAX_NODES} nodes"
     return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
-            "CPU (no GPU found; CPU fast path" + (f", more than {REFERENCE_MAX_NODES} nodes)" if n_nodes else ")"))
+            f"CPU (no GPU found; CPU fast path, {why})")
