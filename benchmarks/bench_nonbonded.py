@@ -61,8 +61,6 @@ def _rate(integrator, budget):
 
 
 def single(n, budget, repeats):
-    import openmm
-
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm.simulation import RodSimulation
     from dnarod.testsystems import gaussian_coil
