@@ -120,3 +120,29 @@ def test_engine_energies_and_forces_equal_all_pairs_on_a_coil():
     F, tau = particle_forces_to_loads(p, fused - out)
     assert np.abs(F - F0).max() <= 1e-8 * np.abs(F0).max()
     assert np.abs(tau).max() <= 1e-8 * np.abs(F0).max()
+
+
+def test_gaussian_coil_samples_the_step_covariance_without_close_pairs():
+    from scipy.spatial import cKDTree
+
+    from dnarod.thermal import kT
+
+    m = load_forcefield("dna-default").model_from_sequence("ACGT" * 750)
+    c = gaussian_coil(m, seed=11, min_distance=2.3, n_exclude=12)
+    pairs = cKDTree(c.positions).query_pairs(2.3, output_type="ndarray")
+    assert not len(pairs) or np.abs(pairs[:, 1] - pairs[:, 0]).max() <= 12
+    Om, Ga = c.strains()
+    xi = np.concatenate([Om, Ga], axis=1) - m.params.intrinsic
+    expected = np.diag(kT(300) * np.linalg.inv(m.ds * m.params.stiffness[0]))
+    # 2999 independent steps: the variance estimates scatter by sqrt(2/2999) = 2.6%; redraws are rare
+    assert np.all(np.abs(xi.var(axis=0) / expected - 1) < 0.1)
+
+
+def test_plectoneme_is_a_chain_of_rise_ds_and_bad_skin_is_rejected():
+    from dnarod.errors import ParameterError
+
+    c = plectoneme_centres(500, ds=0.34)
+    d = np.linalg.norm(np.diff(c, axis=0), axis=1)
+    assert len(c) == 500 and np.all(np.abs(d / 0.34 - 1) < 0.4)
+    with pytest.raises(ParameterError, match="skin"):
+        NonbondedSettings(skin=-1.0).resolve(0.34, 300.0)
