@@ -145,7 +145,15 @@ def used_stiffness_pairs(stiffness, steps=None):
     return [(i, j) for i in range(6) for j in range(i, 6) if np.any(K[:, i, j] != 0)]
 
 
-def elastic_compound_forces(model, radius):
+#: Largest number of Cholesky entries kept in one force by default (21: never split). Lepton's work
+#: grows faster than linearly with the expression, so one force per factor row compiles faster
+#: (full K, 100 nodes, Reference: Context 1.69 -> 1.05 CPU-s; Lepton alone 1.18 -> 0.40 s), but
+#: the rows no longer share subexpressions and a step costs 3.5x more (0.185 -> 0.645 ms), so the
+#: split is an option (``split=True``), not the default.
+MAX_ENTRIES_PER_FORCE = 21
+
+
+def elastic_compound_forces(model, radius, split=None):
     """The portable path: CustomCompoundBondForce(s) carrying the step energy.
 
     Parameters
@@ -153,12 +161,15 @@ def elastic_compound_forces(model, radius):
     model : RodModel
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius of every node, nm.
+    split : bool or None
+        One force per row of the Cholesky factor (``v_a^2``; faster to compile, slower to
+        run); ``None``: split when more than :data:`MAX_ENTRIES_PER_FORCE` entries are used.
 
     Returns
     -------
     list of openmm.CustomCompoundBondForce
-        One force for an open chain; two (inner steps, closing step) for a circular chain.
-        All in force group ``GROUPS["elastic"]``.
+        For an open chain one force (or one per factor row); a circular chain adds the same for
+        its closing step. All in force group ``GROUPS["elastic"]``.
     """
     n = model.n_nodes
     P, c = cholesky_parameters(model.params.stiffness, model.params.intrinsic, model.ds)
@@ -168,26 +179,31 @@ def elastic_compound_forces(model, radius):
     for steps, image in blocks:
         if steps.size == 0:
             continue
-        pairs = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
-        f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image))
-        rows = sorted({a for a, _ in pairs})
-        names = [f"dnarod_P{a + 1}{b + 1}" for a, b in pairs] + [f"dnarod_c{a + 1}" for a in rows]
-        names += ["dnarod_ua", "dnarod_va", "dnarod_ub", "dnarod_vb"]
-        if image:
-            names += [f"dnarod_Q{r}{c_}" for r in (1, 2, 3) for c_ in (1, 2, 3)] + ["dnarod_t1", "dnarod_t2",
-                                                                                    "dnarod_t3"]
-        for name in names:
-            f.addPerBondParameter(name)
-        for k in steps:
-            k1 = (k + 1) % n
-            vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows]
-            vals += [1 / (3 * radius[k]), 1 / (SQRT3 * radius[k]), 1 / (3 * radius[k1]), 1 / (SQRT3 * radius[k1])]
+        used = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
+        do_split = len(used) > MAX_ENTRIES_PER_FORCE if split is None else bool(split)
+        all_rows = sorted({a for a, _ in used})
+        for rows in ([[a] for a in all_rows] if do_split else [all_rows]):
+            pairs = [(a, b) for a, b in used if a in rows]
+            f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image))
+            names = [f"dnarod_P{a + 1}{b + 1}" for a, b in pairs] + [f"dnarod_c{a + 1}" for a in rows]
+            names += ["dnarod_ua", "dnarod_va", "dnarod_ub", "dnarod_vb"]
             if image:
-                vals += list(model.closure.Q.reshape(-1)) + list(model.closure.t)
-            f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * k1, 3 * k1 + 1, 3 * k1 + 2], [float(v) for v in vals])
-        f.setForceGroup(GROUPS["elastic"])
-        f.setName("dnarod elastic (portable)" + (" closure" if image else ""))
-        forces.append(f)
+                names += [f"dnarod_Q{r}{c_}" for r in (1, 2, 3) for c_ in (1, 2, 3)] + ["dnarod_t1", "dnarod_t2",
+                                                                                        "dnarod_t3"]
+            for name in names:
+                f.addPerBondParameter(name)
+            for k in steps:
+                k1 = (k + 1) % n
+                vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows]
+                vals += [1 / (3 * radius[k]), 1 / (SQRT3 * radius[k]), 1 / (3 * radius[k1]),
+                         1 / (SQRT3 * radius[k1])]
+                if image:
+                    vals += list(model.closure.Q.reshape(-1)) + list(model.closure.t)
+                f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * k1, 3 * k1 + 1, 3 * k1 + 2], [float(v) for v in vals])
+            f.setForceGroup(GROUPS["elastic"])
+            f.setName("dnarod elastic (portable)" + (" closure" if image else "")
+                      + (f" row {rows[0] + 1}" if do_split else ""))
+            forces.append(f)
     return forces
 
 
