@@ -12,11 +12,10 @@ Automatic choice (``requested=None``), in order:
    on the **CPU** platform when ``threads`` is given). The CPU platform runs its integrator on a
    worker thread even with ``Threads=1``, so every step (and every Python callback) is handed
    between the Python thread and the worker. Measured per CPU-second on one core
-   (``benchmarks/bench_platforms.py``, README table), the Reference platform is the faster at
-   every size from 10^2 to 10^6 nodes: 3.2x at 10^2, 1.2x at 10^3, 1.15x at 10^4 and within
-   the run's noise (5-9%) at 10^5-10^6, where the CPU platform's threaded integrator can
-   still gain wall-clock time from idle cores (``--threads``; not measurable on this loaded
-   2-core machine).
+   (``benchmarks/bench_platforms.py``, two runs, README table), the Reference platform is
+   1.1-3.2x faster at 10^2-10^4 nodes and tied within the runs' noise at 10^5-10^6, where the
+   CPU platform's threaded integrator may still gain wall-clock time from idle cores
+   (``--threads``; not measurable on this loaded 2-core machine).
 
 ``requested`` (``--platform``) overrides the choice; the reason of the choice is returned so
 the caller can print it.
