@@ -274,3 +274,101 @@ def dna_like_rod(n_nodes=20, seed=0, twist_deg=33.75, bend_noise=0.08, B33=-54.0
     xi0[:, 5] = 1.0
     params = StepParameters(np.repeat(K[None], m, 0), xi0, ["dna-like"] * m)
     return RodModel.intrinsic(params, ff.ds, ff.node_mass, ff.node_inertia)
+
+
+def gaussian_coil(model, temperature=300.0, seed=0, min_distance=1.0, n_exclude=12, max_fixes=10000):
+    """A coiled pose of an open chain drawn from its thermal equilibrium (Gaussian approximation).
+
+    Each step's strains are drawn independently from ``N(xi0_k, kT (ds K_k)^-1)``, the
+    equilibrium density of the harmonic step energy without the Haar factor (a relative
+    correction of order ``kT ds / B ~ 1e-2`` on the bending variance), and the chain is built
+    with :func:`dnarod.strains.chain_from_strains`. Pairs of nodes more than ``n_exclude``
+    steps apart that come closer than ``min_distance`` are removed by redrawing the strain of a
+    step shortly before the later node and moving the rest of the chain rigidly with it.
+
+    Parameters
+    ----------
+    model : RodModel
+        Open chain (its parameters, ds; the pose is ignored).
+    temperature : float
+        K.
+    seed : int
+    min_distance : float
+        nm (``0`` for no check).
+    n_exclude : int
+        Chain separation below which close pairs are allowed.
+    max_fixes : int
+
+    Returns
+    -------
+    RodModel
+        The model with the coiled pose.
+    """
+    from scipy.spatial import cKDTree
+
+    from .thermal import kT
+
+    if model.closure is not None:
+        raise ParameterError("gaussian_coil needs an open chain")
+    rng = np.random.default_rng(seed)
+    K = np.asarray(model.params.stiffness, float)
+    xi0 = np.asarray(model.params.intrinsic, float)
+    L = np.linalg.cholesky(kT(temperature) * np.linalg.inv(model.ds * K))
+
+    def draw(idx):
+        return xi0[idx] + np.einsum("kab,kb->ka", L[idx], rng.normal(size=(len(idx), 6)))
+
+    xi = draw(np.arange(K.shape[0]))
+    pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds)
+    n = pos.shape[0]
+    fixes = 0
+    while min_distance > 0:
+        pairs = cKDTree(pos).query_pairs(min_distance, output_type="ndarray")
+        if len(pairs):
+            pairs = np.sort(pairs, axis=1)
+            pairs = pairs[pairs[:, 1] - pairs[:, 0] > n_exclude]
+        if not len(pairs):
+            break
+        # redraw one step shortly before each offending node, latest first (a redraw moves only
+        # the nodes after it), then check again
+        for j in np.unique(pairs[:, 1])[::-1]:
+            if fixes >= max_fixes:
+                raise ParameterError(f"gaussian_coil: could not remove close pairs in {max_fixes} redraws")
+            fixes += 1
+            k = int(rng.integers(max(0, j - n_exclude), j))  # redraw step k (nodes k -> k+1)
+            xi[k] = draw(np.array([k]))[0]
+            p1, f1 = chain_from_strains(xi[k:k + 1, :3], xi[k:k + 1, 3:], model.ds, pos[k], frm[k])
+            # rigid motion taking the old node k+1 to the new one, made exactly orthogonal (polar
+            # factor): the frames of a long chain carry rounding (~1e-10 at 10^5 nodes) that a
+            # product of unprojected rotations would amplify fix after fix
+            U, _, Vt = np.linalg.svd(f1[1] @ frm[k + 1].T)
+            R = U @ Vt
+            tail = slice(k + 1, n)
+            pos[tail] = p1[1] + (pos[tail] - pos[k + 1]) @ R.T
+            frm[tail] = np.einsum("ab,kbc->kac", R, frm[tail])
+    return model.with_pose(pos, frm)
+
+
+def plectoneme_centres(n_nodes, ds=0.34, radius=1.05, pitch=6.0):
+    """Node centres (n, 3) nm of a synthetic plectoneme: two interwound right-handed helices.
+
+    One chain runs up a helix of superhelical ``radius`` and ``pitch`` (nm) about the z axis,
+    turns through a semicircular end loop and runs back down the second helix, shifted by half
+    a turn, so nodes far apart along the chain face each other ``2 radius`` apart across the
+    axis. Consecutive centres are ``ds`` apart along the curve (to first order).
+    """
+    n_loop = max(1, int(round(np.pi * radius / ds)) - 1)
+    n_arm = (n_nodes - n_loop) // 2
+    n_loop = n_nodes - 2 * n_arm
+    dtheta = ds / np.hypot(radius, pitch / (2 * np.pi))
+    th = np.arange(n_arm) * dtheta
+    up = np.stack([radius * np.cos(th), radius * np.sin(th), pitch * th / (2 * np.pi)], axis=1)
+    top = th[-1] if n_arm else 0.0
+    z_top = pitch * top / (2 * np.pi)
+    phi = np.linspace(0, np.pi, n_loop + 2)[1:-1]
+    # end loop: a semicircle of radius `radius` above the top, from (angle top) to (angle top + pi)
+    loop = np.stack([radius * np.cos(top + phi), radius * np.sin(top + phi),
+                     z_top + radius * np.sin(phi)], axis=1)
+    down = up[::-1].copy()
+    down[:, :2] = -down[:, :2]  # half a turn about the axis: the second strand
+    return np.concatenate([up, loop, down])[:n_nodes]

@@ -236,3 +236,15 @@ def test_cpu_fast_path_within_precision(open_full):
     assert E2 == pytest.approx(E, rel=1e-4)
     assert np.abs(F2 - F).max() <= 1e-3 * np.abs(F).max()
     assert np.abs(t2 - tau).max() <= 1e-3 * np.abs(tau).max()
+
+
+def test_portable_row_split_gives_the_same_energy_and_loads(open_full):
+    """One force per Cholesky row (faster to compile) equals the single force and dnarod.energy."""
+    r = P.triangle_radius(open_full.mass, open_full.inertia)
+    forces = elastic_compound_forces(open_full, r, split=True)
+    assert len(forces) == 6
+    E, F, tau = loads(open_full.positions, open_full.frames, open_full.params, open_full.ds, open_full.closure)
+    E_mm, F_mm, tau_mm = state_loads(reference_context(open_full, forces))
+    assert abs(E_mm - E) <= 1e-12 * abs(E)
+    assert np.abs(F_mm - F).max() <= 1e-10 * np.abs(F).max()
+    assert np.abs(tau_mm - tau).max() <= 1e-10 * np.abs(tau).max()

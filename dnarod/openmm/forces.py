@@ -3,12 +3,13 @@
 Two interchangeable implementations of ``E = sum_k ds H(Omega_k, Gamma_k)`` on the
 three-particle nodes of :mod:`dnarod.openmm.particles`:
 
-* :func:`elastic_compound_force` -- the **portable path**: a ``CustomCompoundBondForce`` over
-  the six particles of neighbouring nodes, written with the dot-product form of A1, per-bond
-  parameters ``dnarod_Kij`` (the 6x6 stiffness, upper triangle; entries that are zero on
-  every step are left out of the expression), ``dnarod_xi1..6`` (intrinsic strains),
-  ``dnarod_ds`` and the reverse-map scales ``dnarod_ua = 1/(3 l_k)``, ``dnarod_va =
-  1/(sqrt(3) l_k)`` (``ub``, ``vb`` for node k+1). Runs on every OpenMM platform. A circular
+* :func:`elastic_compound_forces` -- the **portable path**: a ``CustomCompoundBondForce`` over
+  the six particles of neighbouring nodes, written with the dot-product form of A1 as a sum of
+  six squares (Cholesky factor of the stiffness; see :func:`elastic_expression`), per-bond
+  parameters ``dnarod_Pab`` (the scaled Cholesky factor; entries that are zero on every step
+  are left out of the expression), ``dnarod_c1..6`` (the factor times the intrinsic strains)
+  and the reverse-map scales ``dnarod_ua = 1/(3 l_k)``, ``dnarod_va = 1/(sqrt(3) l_k)``
+  (``ub``, ``vb`` for node k+1). Runs on every OpenMM platform. A circular
   chain adds a second force of one bond whose second node is the screw image of node 0,
   ``p -> Q p + t`` (per-bond ``dnarod_Q11..33``, ``dnarod_t1..3``): the directors of the image
   are ``Q d_a(0)`` and its centre ``Q c_0 + t``, exactly as in :mod:`dnarod.strains`.
@@ -36,61 +37,106 @@ GROUPS = {"elastic": 1, "nonbonded": 2, "external": 3}
 
 
 
-def _vectors(prefix, i, j, k, scale_u, scale_v):
-    """Definitions of the directors of a node from its particles i, j, k (1-based)."""
-    # OpenMM substitutes a definition only into the text before it: d3 comes first.
-    p = prefix
-    defs = [f"{p}3x = {p}1y*{p}2z - {p}1z*{p}2y", f"{p}3y = {p}1z*{p}2x - {p}1x*{p}2z",
-            f"{p}3z = {p}1x*{p}2y - {p}1y*{p}2x"]
-    for c in "xyz":
-        defs.append(f"{prefix}1{c} = (2*{c}{i} - {c}{j} - {c}{k})*{scale_u}")
-        defs.append(f"{prefix}2{c} = ({c}{j} - {c}{k})*{scale_v}")
-    return defs
+def _det(u, v, w):
+    """Triple product ``u . (v x w)`` of three vectors named by prefix (components x, y, z)."""
+    return (f"({u}x*({v}y*{w}z - {v}z*{w}y) + {u}y*({v}z*{w}x - {v}x*{w}z) + {u}z*({v}x*{w}y - {v}y*{w}x))")
 
 
-def elastic_expression(used_pairs, image=False):
-    """The energy expression of one step.
+def _dot(u, v):
+    return f"({u}x*{v}x + {u}y*{v}y + {u}z*{v}z)"
+
+
+def elastic_expression(used, image=False):
+    """The energy expression of one step (Cholesky form).
+
+    With ``K = R^T R`` (R upper triangular) the step energy ``ds/2 u^T K u`` is
+    ``v1^2 + ... + v6^2``, ``v_a = sqrt(ds/2) sum_{b >= a} R_ab u_b``: each strain enters
+    only the rows ``a <= b``, so the rotation strains (the largest subexpressions, first in the
+    strain order) are copied 1, 2 and 3 times instead of 6 in the expanded quadratic form, and
+    Lepton (OpenMM's expression compiler, which substitutes every ';' definition and
+    differentiates the whole tree with respect to the 18 coordinates) has several times fewer
+    operations to build (``benchmarks/bench_portable.py``). The strains are written without
+    cross products of directors: with the node vectors ``p = 2 x1 - x2 - x3 = 3 l d1``,
+    ``q = x2 - x3 = sqrt(3) l d2`` (node a; ``r``, ``s`` for node b),
+    ``d32 - d23 = (d1a + d1b).(d2a x d2b)`` and ``d13 - d31 = det(d1a, d1b, d2a + d2b)``
+    (one triple product each), ``G3 = det(d1a, d2a, e)`` and
+    ``1 + tr(R) = (1 + d11)(1 + d22) - d12 d21`` (Binet-Cauchy, ``d33 = d11 d22 - d12 d21``).
+    Per-bond constants: ``dnarod_P_ab = sqrt(ds/2) R_ab (2/ds`` for rotation, ``1/ds`` for
+    translation strains), ``dnarod_c_a = sqrt(ds/2) (R xi0)_a`` and the scales ``ua, va, ub,
+    vb = 1/(3 l), 1/(sqrt(3) l)``.
 
     Parameters
     ----------
-    used_pairs : list of (int, int)
-        Stiffness entries ``(i, j)``, ``i <= j`` (0-based, strain order of
-        :class:`~dnarod.parameters.StepParameters`), included in the expression.
+    used : list of (int, int)
+        Entries ``(a, b)``, ``a <= b`` (0-based, strain order of
+        :class:`~dnarod.parameters.StepParameters`) of R included in the expression.
     image : bool
-        The second node is the screw image of the first node of the chain.
+        The second node is the screw image ``p -> Q p + t`` of the first node of the chain
+        (per-bond ``dnarod_Q11..33``, ``dnarod_t1..3``).
 
     Returns
     -------
     str
         An OpenMM expression in the coordinates of particles 1-6.
     """
-    terms = []
-    for i, j in used_pairs:
-        if i == j:
-            terms.append(f"0.5*dnarod_K{i + 1}{j + 1}*u{i + 1}^2")
-        else:
-            terms.append(f"dnarod_K{i + 1}{j + 1}*u{i + 1}*u{j + 1}")
-    lines = [f"dnarod_ds*({' + '.join(terms) if terms else '0'})"]
-    lines += [f"u{a} = {s}{a if a <= 3 else a - 3} - dnarod_xi{a}"
-              for a, s in zip(range(1, 7), ["W", "W", "W", "G", "G", "G"])]
-    lines += ["W1 = 2*(d32 - d23)/(dnarod_ds*D)", "W2 = 2*(d13 - d31)/(dnarod_ds*D)",
-              "W3 = 2*(d21 - d12)/(dnarod_ds*D)", "D = 1 + d11 + d22 + d33"]
-    lines += [f"G{a} = (a{a}x*ex + a{a}y*ey + a{a}z*ez)/dnarod_ds" for a in (1, 2, 3)]
-    lines += [f"d{a}{b} = a{a}x*b{b}x + a{a}y*b{b}y + a{a}z*b{b}z" for a in (1, 2, 3) for b in (1, 2, 3)]
-    lines += [f"e{c} = cb{c} - (x1 + x2 + x3)/3".replace("x1 + x2 + x3", f"{c}1 + {c}2 + {c}3") for c in "xyz"]
-    lines += _vectors("a", 1, 2, 3, "dnarod_ua", "dnarod_va")
+    rows = {}
+    for a, b in used:
+        rows.setdefault(a, []).append(b)
+    lines, squares = [], []
+    for a in sorted(rows):
+        w = [f"dnarod_P{a + 1}{b + 1}*wt{b + 1}" for b in rows[a] if b < 3]
+        g = [f"dnarod_P{a + 1}{b + 1}*gt{b - 2}" for b in rows[a] if b >= 3]
+        parts = (["(" + " + ".join(w) + ")/D"] if w else []) + g
+        lines.append(f"v{a + 1} = " + " + ".join(parts) + f" - dnarod_c{a + 1}")
+        squares.append(f"v{a + 1}^2")
+    lines.insert(0, " + ".join(squares) if squares else "0")
+    # 2 (d32 - d23) = 2 va vb (ua p + ub r).(q x s),  2 (d13 - d31) = 2 ua ub det(p, r, va q + vb s)
+    lines += ["wt1 = dnarod_va*dnarod_vb*" + _det("m", "q", "s"),
+              "wt2 = dnarod_ua*dnarod_ub*" + _det("p", "r", "n"),
+              "wt3 = d21 - d12", "D = (1 + d11)*(1 + d22) - d12*d21",
+              f"d11 = dnarod_ua*dnarod_ub*{_dot('p', 'r')}", f"d22 = dnarod_va*dnarod_vb*{_dot('q', 's')}",
+              f"d12 = dnarod_ua*dnarod_vb*{_dot('p', 's')}", f"d21 = dnarod_va*dnarod_ub*{_dot('q', 'r')}",
+              f"gt1 = dnarod_ua*{_dot('p', 'e')}", f"gt2 = dnarod_va*{_dot('q', 'e')}",
+              f"gt3 = dnarod_ua*dnarod_va*{_det('p', 'q', 'e')}"]
+    lines += [f"m{c} = dnarod_ua*p{c} + dnarod_ub*r{c}" for c in "xyz"]
+    lines += [f"n{c} = dnarod_va*q{c} + dnarod_vb*s{c}" for c in "xyz"]
+    lines += [f"e{c} = (cb{c} - {c}1 - {c}2 - {c}3)/3" for c in "xyz"]
+    lines += [f"p{c} = 2*{c}1 - {c}2 - {c}3" for c in "xyz"] + [f"q{c} = {c}2 - {c}3" for c in "xyz"]
     if image:
-        for a in (1, 2, 3):
-            for r, c in enumerate("xyz"):
-                lines.append(f"b{a}{c} = dnarod_Q{r + 1}1*r{a}x + dnarod_Q{r + 1}2*r{a}y + dnarod_Q{r + 1}3*r{a}z")
-        for r, c in enumerate("xyz"):
-            lines.append(f"cb{c} = dnarod_Q{r + 1}1*sx + dnarod_Q{r + 1}2*sy + dnarod_Q{r + 1}3*sz + dnarod_t{r + 1}")
-        lines += [f"s{c} = ({c}4 + {c}5 + {c}6)/3" for c in "xyz"]
-        lines += _vectors("r", 4, 5, 6, "dnarod_ub", "dnarod_vb")
+        for i, c in enumerate("xyz"):
+            Q = [f"dnarod_Q{i + 1}{j + 1}" for j in range(3)]
+            lines.append(f"r{c} = {Q[0]}*rrx + {Q[1]}*rry + {Q[2]}*rrz")
+            lines.append(f"s{c} = {Q[0]}*ssx + {Q[1]}*ssy + {Q[2]}*ssz")
+            lines.append(f"cb{c} = {Q[0]}*(x4 + x5 + x6) + {Q[1]}*(y4 + y5 + y6) + {Q[2]}*(z4 + z5 + z6) "
+                         f"+ 3*dnarod_t{i + 1}")
+        lines += [f"rr{c} = 2*{c}4 - {c}5 - {c}6" for c in "xyz"] + [f"ss{c} = {c}5 - {c}6" for c in "xyz"]
     else:
-        lines += [f"cb{c} = ({c}4 + {c}5 + {c}6)/3" for c in "xyz"]
-        lines += _vectors("b", 4, 5, 6, "dnarod_ub", "dnarod_vb")
+        lines += [f"cb{c} = {c}4 + {c}5 + {c}6" for c in "xyz"]
+        lines += [f"r{c} = 2*{c}4 - {c}5 - {c}6" for c in "xyz"] + [f"s{c} = {c}5 - {c}6" for c in "xyz"]
     return "; ".join(lines)
+
+
+def cholesky_parameters(stiffness, intrinsic, ds):
+    """Per-step constants of :func:`elastic_expression`: ``P`` (n, 6, 6) and ``c`` (n, 6).
+
+    Raises
+    ------
+    ParameterError
+        If a step's stiffness is not symmetric positive definite (naming the step).
+    """
+    K = np.asarray(stiffness, float)
+    R = np.empty_like(K)
+    for k in range(K.shape[0]):
+        try:
+            R[k] = np.linalg.cholesky(0.5 * (K[k] + K[k].T)).T
+        except np.linalg.LinAlgError:
+            raise ParameterError(f"step {k}: the stiffness matrix is not positive definite; the portable path "
+                                 f"needs K = R^T R (fix the parameter set)") from None
+    h = np.sqrt(0.5 * ds)
+    col = np.array([2 / ds] * 3 + [1 / ds] * 3)
+    P = h * R * col[None, None, :]
+    c = h * np.einsum("kab,kb->ka", R, np.asarray(intrinsic, float))
+    return P, c
 
 
 def used_stiffness_pairs(stiffness, steps=None):
@@ -99,7 +145,15 @@ def used_stiffness_pairs(stiffness, steps=None):
     return [(i, j) for i in range(6) for j in range(i, 6) if np.any(K[:, i, j] != 0)]
 
 
-def elastic_compound_forces(model, radius):
+#: Largest number of Cholesky entries kept in one force by default (21: never split). Lepton's work
+#: grows faster than linearly with the expression, so one force per factor row compiles faster
+#: (full K, 100 nodes, Reference: Context 1.69 -> 1.05 CPU-s; Lepton alone 1.18 -> 0.40 s), but
+#: the rows no longer share subexpressions and a step costs 3.5x more (0.185 -> 0.645 ms), so the
+#: split is an option (``split=True``), not the default.
+MAX_ENTRIES_PER_FORCE = 21
+
+
+def elastic_compound_forces(model, radius, split=None):
     """The portable path: CustomCompoundBondForce(s) carrying the step energy.
 
     Parameters
@@ -107,39 +161,49 @@ def elastic_compound_forces(model, radius):
     model : RodModel
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius of every node, nm.
+    split : bool or None
+        One force per row of the Cholesky factor (``v_a^2``; faster to compile, slower to
+        run); ``None``: split when more than :data:`MAX_ENTRIES_PER_FORCE` entries are used.
 
     Returns
     -------
     list of openmm.CustomCompoundBondForce
-        One force for an open chain; two (inner steps, closing step) for a circular chain.
-        All in force group ``GROUPS["elastic"]``.
+        For an open chain one force (or one per factor row); a circular chain adds the same for
+        its closing step. All in force group ``GROUPS["elastic"]``.
     """
     n = model.n_nodes
-    K, xi0 = model.params.stiffness, model.params.intrinsic
+    P, c = cholesky_parameters(model.params.stiffness, model.params.intrinsic, model.ds)
     inner = np.arange(n - 1)
     forces = []
     blocks = [(inner, False)] + ([(np.array([n - 1]), True)] if model.closure is not None else [])
     for steps, image in blocks:
         if steps.size == 0:
             continue
-        pairs = used_stiffness_pairs(K, steps)
-        f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image))
-        names = [f"dnarod_K{i + 1}{j + 1}" for i, j in pairs] + [f"dnarod_xi{a}" for a in range(1, 7)]
-        names += ["dnarod_ds", "dnarod_ua", "dnarod_va", "dnarod_ub", "dnarod_vb"]
-        if image:
-            names += [f"dnarod_Q{r}{c}" for r in (1, 2, 3) for c in (1, 2, 3)] + ["dnarod_t1", "dnarod_t2", "dnarod_t3"]
-        for name in names:
-            f.addPerBondParameter(name)
-        for k in steps:
-            k1 = (k + 1) % n
-            vals = [K[k, i, j] for i, j in pairs] + list(xi0[k]) + [model.ds]
-            vals += [1 / (3 * radius[k]), 1 / (SQRT3 * radius[k]), 1 / (3 * radius[k1]), 1 / (SQRT3 * radius[k1])]
+        used = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
+        do_split = len(used) > MAX_ENTRIES_PER_FORCE if split is None else bool(split)
+        all_rows = sorted({a for a, _ in used})
+        for rows in ([[a] for a in all_rows] if do_split else [all_rows]):
+            pairs = [(a, b) for a, b in used if a in rows]
+            f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image))
+            names = [f"dnarod_P{a + 1}{b + 1}" for a, b in pairs] + [f"dnarod_c{a + 1}" for a in rows]
+            names += ["dnarod_ua", "dnarod_va", "dnarod_ub", "dnarod_vb"]
             if image:
-                vals += list(model.closure.Q.reshape(-1)) + list(model.closure.t)
-            f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * k1, 3 * k1 + 1, 3 * k1 + 2], [float(v) for v in vals])
-        f.setForceGroup(GROUPS["elastic"])
-        f.setName("dnarod elastic (portable)" + (" closure" if image else ""))
-        forces.append(f)
+                names += [f"dnarod_Q{r}{c_}" for r in (1, 2, 3) for c_ in (1, 2, 3)] + ["dnarod_t1", "dnarod_t2",
+                                                                                        "dnarod_t3"]
+            for name in names:
+                f.addPerBondParameter(name)
+            for k in steps:
+                k1 = (k + 1) % n
+                vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows]
+                vals += [1 / (3 * radius[k]), 1 / (SQRT3 * radius[k]), 1 / (3 * radius[k1]),
+                         1 / (SQRT3 * radius[k1])]
+                if image:
+                    vals += list(model.closure.Q.reshape(-1)) + list(model.closure.t)
+                f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * k1, 3 * k1 + 1, 3 * k1 + 2], [float(v) for v in vals])
+            f.setForceGroup(GROUPS["elastic"])
+            f.setName("dnarod elastic (portable)" + (" closure" if image else "")
+                      + (f" row {rows[0] + 1}" if do_split else ""))
+            forces.append(f)
     return forces
 
 
@@ -201,10 +265,9 @@ def spread_loads(p, centres, F, tau, out):
 
 
 @numba.njit(cache=True)
-def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
-    """Energy and particle forces of the step energy from particle positions (fast path)."""
+def elastic_particle_kernel_centres(p, radius, K, xi0, ds, Q, t, circular, out, centres):
+    """:func:`elastic_particle_kernel` that also returns the node centres in ``centres`` (n, 3)."""
     n = radius.shape[0]
-    centres = np.empty((n, 3))
     frames = np.empty((n, 3, 3))
     _frames_from_particles(p, radius, centres, frames)
     F = np.zeros((n, 3))
@@ -214,10 +277,23 @@ def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
     return E
 
 
-class ElasticCallback:
-    """Picklable PythonForce computation: the step energy through the numba kernel."""
+@numba.njit(cache=True)
+def elastic_particle_kernel(p, radius, K, xi0, ds, Q, t, circular, out):
+    """Energy and particle forces of the step energy from particle positions (fast path)."""
+    centres = np.empty((radius.shape[0], 3))
+    return elastic_particle_kernel_centres(p, radius, K, xi0, ds, Q, t, circular, out, centres)
 
-    def __init__(self, model, radius):
+
+class ElasticCallback:
+    """Picklable PythonForce computation: the step energy through the numba kernel.
+
+    With ``nonbonded`` (a :class:`dnarod.openmm.nonbonded.NonbondedCallback`) the same callback
+    also adds the non-local terms from the node centres it has just computed, so one
+    ``PythonForce`` (one State hand-over per step) carries both; the per-term energies are
+    recorded in ``last_energy`` and ``nonbonded.last``.
+    """
+
+    def __init__(self, model, radius, nonbonded=None):
         self.radius = np.ascontiguousarray(radius, dtype=float)
         self.K = np.ascontiguousarray(model.params.stiffness, dtype=float)
         self.xi0 = np.ascontiguousarray(model.params.intrinsic, dtype=float)
@@ -225,28 +301,38 @@ class ElasticCallback:
         self.circular = model.closure is not None
         self.Q = np.eye(3) if model.closure is None else np.ascontiguousarray(model.closure.Q, float)
         self.t = np.zeros(3) if model.closure is None else np.ascontiguousarray(model.closure.t, float)
-        self._out = np.zeros((3 * self.radius.size, 3))
+        self.nonbonded = nonbonded
+        self._buffers()
         self.last_energy = 0.0
+
+    def _buffers(self):
+        self._out = np.zeros((3 * self.radius.size, 3))
+        self._centres = np.zeros((self.radius.size, 3))
 
     def __call__(self, state):
         p = np.ascontiguousarray(state.getPositions(asNumpy=True)._value, dtype=float)
         out = self._out
-        E = elastic_particle_kernel(p, self.radius, self.K, self.xi0, self.ds, self.Q, self.t, self.circular, out)
+        E = elastic_particle_kernel_centres(p, self.radius, self.K, self.xi0, self.ds, self.Q, self.t, self.circular,
+                                            out, self._centres)
         self.last_energy = E
+        if self.nonbonded is not None:
+            E = E + self.nonbonded.add_to_particles(self._centres, out)
         return E, out.copy()
 
     def __getstate__(self):
         d = dict(self.__dict__)
         d.pop("_out")
+        d.pop("_centres")
         return d
 
     def __setstate__(self, d):
         self.__dict__.update(d)
-        self._out = np.zeros((3 * self.radius.size, 3))
+        self._buffers()
 
 
 def elastic_python_force(model, radius, callback=None):
-    """The fast CPU path: an ``openmm.PythonForce`` evaluating the analytic loads.
+    """The fast CPU path: an ``openmm.PythonForce`` evaluating the analytic loads (and, if the
+    callback carries them, the non-local terms).
 
     Parameters
     ----------
@@ -265,5 +351,6 @@ def elastic_python_force(model, radius, callback=None):
         raise ParameterError("this OpenMM has no PythonForce (needs OpenMM >= 8.3); use elastic='portable'")
     f = openmm.PythonForce(callback if callback is not None else ElasticCallback(model, radius))
     f.setForceGroup(GROUPS["elastic"])
-    f.setName("dnarod elastic (fast)")
+    fused = callback is not None and callback.nonbonded is not None
+    f.setName("dnarod elastic + nonbonded (fast)" if fused else "dnarod elastic (fast)")
     return f

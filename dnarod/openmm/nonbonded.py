@@ -24,8 +24,10 @@ electrostatics, one interaction site per node (its centre).
   are within the cutoff in a straight duplex never interact: their interactions are already
   in the elastic parameters, which are fitted to measured (salt-screened) stiffnesses.
 
-The kernel is a numba cell list (spatial hashing, no box needed, any chain extent), run
-through ``openmm.PythonForce``: a ``CustomNonbondedForce`` needs a box and, on the CPU
+The kernel is a numba Verlet neighbour list with a skin (:class:`VerletList`: pairs within
+``cutoff + skin``, rebuilt by a cell list -- dense grid, or spatial hashing for any chain
+extent, no box needed -- only when a node has moved half the skin), run through
+``openmm.PythonForce``: a ``CustomNonbondedForce`` needs a box and, on the CPU
 platform, a per-particle flag to act on one site per node, which the prototype measured 50x
 slower than the bonded terms at 10^4 nodes (issue 7).
 """
@@ -44,6 +46,9 @@ from .forces import GROUPS
 
 ONE_4PI_EPS0 = 138.935457833  # kJ/mol nm / e^2
 AVOGADRO_PER_NM3_PER_M = 0.602214076  # (1 mol/L) in 1/nm^3
+#: Verlet-list skin, nm: a thermal node (dna-default, 300 K, friction 1/ps) moves skin/2 = 0.5 nm
+#: in roughly 10^2 steps, while the list grows by ((rc + skin)/rc)^3 ~ 2x at 150 mM.
+DEFAULT_SKIN = 1.0
 
 
 @dataclass
@@ -68,6 +73,9 @@ class NonbondedSettings:
         Debye-Hueckel cutoff in Debye lengths.
     n_exclude : int or None
         Chain-distance exclusion; ``None`` for ``ceil(cutoff / ds)``.
+    skin : float
+        Verlet-list skin, nm (the list is rebuilt when a node has moved ``skin / 2``; ``0``
+        rebuilds it at every evaluation).
     """
 
     excluded_volume: bool = True
@@ -78,6 +86,7 @@ class NonbondedSettings:
     dielectric: float = 78.5
     cutoff_debye: float = 5.0
     n_exclude: int | None = None
+    skin: float = DEFAULT_SKIN
 
     def resolve(self, ds, temperature):
         """Numbers used by the kernel: dict of eps, sigma, wca cutoff, DH prefactor, kappa, cutoffs."""
@@ -85,6 +94,8 @@ class NonbondedSettings:
             v = getattr(self, name)
             if not (np.isfinite(v) and v > 0):
                 raise ParameterError(f"nonbonded {name} must be positive and finite, got {v}")
+        if not (np.isfinite(self.skin) and self.skin >= 0):
+            raise ParameterError(f"nonbonded skin must be >= 0 nm and finite, got {self.skin}")
         kt = kT_of(temperature)
         lB = ONE_4PI_EPS0 / (self.dielectric * kt)
         kappa = math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * self.salt)
@@ -98,55 +109,33 @@ class NonbondedSettings:
         return dict(eps=kt if self.excluded_volume else 0.0, sigma=self.diameter, rc_wca=rc_wca,
                     a_dh=(ONE_4PI_EPS0 / self.dielectric * q * q) if self.electrostatics else 0.0,
                     kappa=kappa, rc_dh=rc_dh, cutoff=cutoff, n_exclude=n_ex, bjerrum=lB,
-                    debye_length=1 / kappa, charge=q)
-
-
-@numba.njit(cache=True, inline="always")
-def _pair(c, i, j, n, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, rc2, shift_dh, F, acc):
-    sep = j - i if j > i else i - j
-    if circular and n - sep < sep:
-        sep = n - sep
-    if sep <= n_ex:
-        return
-    rx = c[j, 0] - c[i, 0]
-    ry = c[j, 1] - c[i, 1]
-    rz = c[j, 2] - c[i, 2]
-    r2 = rx * rx + ry * ry + rz * rz
-    if r2 >= rc2:
-        return
-    r = math.sqrt(r2)
-    fr = 0.0  # -dE/dr
-    if r < rc_wca:
-        s6 = (sigma * sigma / r2) ** 3
-        acc[0] += 4.0 * eps * (s6 * s6 - s6) + eps
-        fr += 24.0 * eps * (2.0 * s6 * s6 - s6) / r
-    if r < rc_dh:
-        ex = a_dh * math.exp(-kappa * r) / r
-        acc[1] += ex - shift_dh
-        fr += ex * (kappa + 1.0 / r)
-    g = fr / r
-    F[i, 0] -= g * rx
-    F[i, 1] -= g * ry
-    F[i, 2] -= g * rz
-    F[j, 0] += g * rx
-    F[j, 1] += g * ry
-    F[j, 2] += g * rz
+                    debye_length=1 / kappa, charge=q, skin=float(self.skin))
 
 
 @numba.njit(cache=True)
-def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, cutoff, F):
-    """WCA + shifted Debye-Hueckel between node centres ``c`` (n,3); adds forces to F (n,3).
+def _separation(i, j, n, circular):
+    sep = j - i if j > i else i - j
+    if circular and n - sep < sep:
+        sep = n - sep
+    return sep
 
-    Returns ``(E_wca, E_dh)``. Cell list with cells of size ``cutoff``: a dense grid over the
-    bounding box (counting sort, half-shell of 13 neighbour cells) when it has at most ~8n
-    cells, else spatial hashing of the cells (any extent).
+
+@numba.njit(cache=True)
+def build_pairs(c, rlist, circular, n_ex, pi, pj):
+    """Node pairs ``(i, j)`` with centres closer than ``rlist`` and chain separation > ``n_ex``.
+
+    Writes up to ``len(pi)`` pairs into ``pi``, ``pj`` and returns the number of pairs found
+    (call again with larger arrays if it exceeds their length). Cell list with cells of size
+    ``rlist``: a dense grid over the bounding box (counting sort, the cell itself and a half
+    shell of 13 neighbour cells, pairs emitted in cell order for memory locality) when it has
+    at most ~8n cells, else spatial hashing of the cells (any extent).
     """
     n = c.shape[0]
-    acc = np.zeros(2)
-    if cutoff <= 0.0 or n < 2:
-        return 0.0, 0.0
-    rc2 = cutoff * cutoff
-    shift_dh = a_dh * math.exp(-kappa * rc_dh) / rc_dh if rc_dh > 0 else 0.0
+    cap = pi.shape[0]
+    m = 0
+    if rlist <= 0.0 or n < 2:
+        return 0
+    r2max = rlist * rlist
     lo = np.empty(3)
     hi = np.empty(3)
     for a in range(3):
@@ -162,7 +151,7 @@ def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, 
     dims = np.empty(3, dtype=np.int64)
     total = 1.0
     for a in range(3):
-        dims[a] = np.int64((hi[a] - lo[a]) / cutoff) + 1
+        dims[a] = np.int64((hi[a] - lo[a]) / rlist) + 1
         total *= dims[a]
     if total <= 8.0 * n + 1000.0:
         nx, ny, nz = dims[0], dims[1], dims[2]
@@ -170,9 +159,9 @@ def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, 
         cell = np.empty(n, dtype=np.int64)
         count = np.zeros(ncell + 1, dtype=np.int64)
         for i in range(n):
-            ix = min(np.int64((c[i, 0] - lo[0]) / cutoff), nx - 1)
-            iy = min(np.int64((c[i, 1] - lo[1]) / cutoff), ny - 1)
-            iz = min(np.int64((c[i, 2] - lo[2]) / cutoff), nz - 1)
+            ix = min(np.int64((c[i, 0] - lo[0]) / rlist), nx - 1)
+            iy = min(np.int64((c[i, 1] - lo[1]) / rlist), ny - 1)
+            iz = min(np.int64((c[i, 2] - lo[2]) / rlist), nz - 1)
             cell[i] = (ix * ny + iy) * nz + iz
             count[cell[i] + 1] += 1
         for k in range(ncell):
@@ -182,16 +171,7 @@ def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, 
         for i in range(n):
             order[fill[cell[i]]] = i
             fill[cell[i]] += 1
-        # positions in cell order (memory locality); forces accumulated in the same order
-        cs = np.empty((n, 3))
-        fs = np.zeros((n, 3))
-        for p in range(n):
-            for d in range(3):
-                cs[p, d] = c[order[p], d]
         buf = np.empty(n, dtype=np.int64)
-        ewca = 0.0
-        edh = 0.0
-        s2 = sigma * sigma
         for ix in range(nx):
             for iy in range(ny):
                 for iz in range(nz):
@@ -199,7 +179,6 @@ def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, 
                     a0, a1 = count[a], count[a + 1]
                     if a0 == a1:
                         continue
-                    # candidates: the rest of this cell, then the half shell of neighbour cells
                     nbuf = 0
                     for dx in range(0, 2):
                         for dy in range(-1, 2):
@@ -211,54 +190,25 @@ def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, 
                                     continue
                                 b = (jx * ny + jy) * nz + jz
                                 for q in range(count[b], count[b + 1]):
-                                    buf[nbuf] = q
+                                    buf[nbuf] = order[q]
                                     nbuf += 1
                     for p in range(a0, a1):
                         i = order[p]
-                        xi, yi, zi = cs[p, 0], cs[p, 1], cs[p, 2]
-                        fx = 0.0
-                        fy = 0.0
-                        fz = 0.0
                         m_own = a1 - p - 1
                         for t in range(m_own + nbuf):
-                            q = p + 1 + t if t < m_own else buf[t - m_own]
-                            j = order[q]
-                            sep = j - i if j > i else i - j
-                            if circular and n - sep < sep:
-                                sep = n - sep
-                            if sep <= n_ex:
+                            j = order[p + 1 + t] if t < m_own else buf[t - m_own]
+                            if _separation(i, j, n, circular) <= n_ex:
                                 continue
-                            rx = cs[q, 0] - xi
-                            ry = cs[q, 1] - yi
-                            rz = cs[q, 2] - zi
-                            r2 = rx * rx + ry * ry + rz * rz
-                            if r2 >= rc2:
+                            rx = c[j, 0] - c[i, 0]
+                            ry = c[j, 1] - c[i, 1]
+                            rz = c[j, 2] - c[i, 2]
+                            if rx * rx + ry * ry + rz * rz >= r2max:
                                 continue
-                            r = math.sqrt(r2)
-                            fr = 0.0
-                            if r < rc_wca:
-                                s6 = (s2 / r2) ** 3
-                                ewca += 4.0 * eps * (s6 * s6 - s6) + eps
-                                fr += 24.0 * eps * (2.0 * s6 * s6 - s6) / r
-                            if r < rc_dh:
-                                ex = a_dh * math.exp(-kappa * r) / r
-                                edh += ex - shift_dh
-                                fr += ex * (kappa + 1.0 / r)
-                            g = fr / r
-                            fx -= g * rx
-                            fy -= g * ry
-                            fz -= g * rz
-                            fs[q, 0] += g * rx
-                            fs[q, 1] += g * ry
-                            fs[q, 2] += g * rz
-                        fs[p, 0] += fx
-                        fs[p, 1] += fy
-                        fs[p, 2] += fz
-        for p in range(n):
-            for d in range(3):
-                F[order[p], d] += fs[p, d]
-        return ewca, edh
-        return acc[0], acc[1]
+                            if m < cap:
+                                pi[m] = i
+                                pj[m] = j
+                            m += 1
+        return m
     # Spatial hashing fallback (very spread-out configurations).
     nb = 1
     while nb < 2 * n:
@@ -269,34 +219,163 @@ def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, 
     nxt = np.empty(n, dtype=np.int64)
     for i in range(n):
         for a in range(3):
-            cellc[i, a] = np.int64(math.floor(c[i, a] / cutoff))
+            cellc[i, a] = np.int64(math.floor(c[i, a] / rlist))
         h = ((cellc[i, 0] * 73856093) ^ (cellc[i, 1] * 19349663) ^ (cellc[i, 2] * 83492791)) & mask
         nxt[i] = head[h]
         head[h] = i
-    seen = np.empty(27, dtype=np.int64)
+    # Each node visits its own cell (partners j > i) and a half shell of 13 neighbour cells (all
+    # partners), keeping only bucket members whose cell is the target (buckets can collide).
     for i in range(n):
-        ns = 0
-        for dx in range(-1, 2):
+        cx, cy, cz = cellc[i, 0], cellc[i, 1], cellc[i, 2]
+        for dx in range(0, 2):
             for dy in range(-1, 2):
                 for dz in range(-1, 2):
-                    h = (((cellc[i, 0] + dx) * 73856093) ^ ((cellc[i, 1] + dy) * 19349663)
-                         ^ ((cellc[i, 2] + dz) * 83492791)) & mask
-                    dup = False
-                    for s in range(ns):
-                        if seen[s] == h:
-                            dup = True
-                            break
-                    if dup:
+                    if dx == 0 and (dy < 0 or (dy == 0 and dz < 0)):
                         continue
-                    seen[ns] = h
-                    ns += 1
+                    own = dx == 0 and dy == 0 and dz == 0
+                    tx, ty, tz = cx + dx, cy + dy, cz + dz
+                    h = ((tx * 73856093) ^ (ty * 19349663) ^ (tz * 83492791)) & mask
                     j = head[h]
                     while j >= 0:
-                        if j > i:
-                            _pair(c, i, j, n, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, rc2, shift_dh,
-                                  F, acc)
+                        if (cellc[j, 0] == tx and cellc[j, 1] == ty and cellc[j, 2] == tz and (j > i or not own)
+                                and _separation(i, j, n, circular) > n_ex):
+                            rx = c[j, 0] - c[i, 0]
+                            ry = c[j, 1] - c[i, 1]
+                            rz = c[j, 2] - c[i, 2]
+                            if rx * rx + ry * ry + rz * rz < r2max:
+                                if m < cap:
+                                    pi[m] = i
+                                    pj[m] = j
+                                m += 1
                         j = nxt[j]
-    return acc[0], acc[1]
+    return m
+
+
+@numba.njit(cache=True)
+def pair_kernel(c, pi, pj, m, eps, sigma, rc_wca, a_dh, kappa, rc_dh, F, spread=False):
+    """WCA + shifted Debye-Hueckel over the first ``m`` listed pairs; adds forces to F.
+
+    ``F`` is (n, 3) node forces, or with ``spread`` (3n, 3) particle forces (each node's force
+    shared equally by its three particles). Pairs beyond the cutoffs (the skin of a Verlet
+    list) contribute nothing. Returns ``(E_wca, E_dh)`` in kJ/mol.
+    """
+    rc = max(rc_wca, rc_dh)
+    rc2 = rc * rc
+    shift_dh = a_dh * math.exp(-kappa * rc_dh) / rc_dh if rc_dh > 0 else 0.0
+    s2 = sigma * sigma
+    ewca = 0.0
+    edh = 0.0
+    for t in range(m):
+        i = pi[t]
+        j = pj[t]
+        rx = c[j, 0] - c[i, 0]
+        ry = c[j, 1] - c[i, 1]
+        rz = c[j, 2] - c[i, 2]
+        r2 = rx * rx + ry * ry + rz * rz
+        if r2 >= rc2:
+            continue
+        r = math.sqrt(r2)
+        fr = 0.0  # -dE/dr
+        if r < rc_wca:
+            s6 = (s2 / r2) ** 3
+            ewca += 4.0 * eps * (s6 * s6 - s6) + eps
+            fr += 24.0 * eps * (2.0 * s6 * s6 - s6) / r
+        if r < rc_dh:
+            ex = a_dh * math.exp(-kappa * r) / r
+            edh += ex - shift_dh
+            fr += ex * (kappa + 1.0 / r)
+        g = fr / r
+        if spread:
+            g3 = g / 3.0
+            for q in range(3):
+                F[3 * i + q, 0] -= g3 * rx
+                F[3 * i + q, 1] -= g3 * ry
+                F[3 * i + q, 2] -= g3 * rz
+                F[3 * j + q, 0] += g3 * rx
+                F[3 * j + q, 1] += g3 * ry
+                F[3 * j + q, 2] += g3 * rz
+        else:
+            F[i, 0] -= g * rx
+            F[i, 1] -= g * ry
+            F[i, 2] -= g * rz
+            F[j, 0] += g * rx
+            F[j, 1] += g * ry
+            F[j, 2] += g * rz
+    return ewca, edh
+
+
+@numba.njit(cache=True)
+def max_displacement2(c, ref):
+    """Largest squared displacement of a node between ``ref`` and ``c`` (both (n, 3))."""
+    best = 0.0
+    for i in range(c.shape[0]):
+        dx = c[i, 0] - ref[i, 0]
+        dy = c[i, 1] - ref[i, 1]
+        dz = c[i, 2] - ref[i, 2]
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 > best:
+            best = d2
+    return best
+
+
+class VerletList:
+    """Verlet neighbour list with a skin over node centres.
+
+    The list holds every non-excluded pair closer than ``cutoff + skin`` at the last build; it
+    is rebuilt (cell list, O(n)) only when some node has moved more than ``skin / 2`` since
+    then, so no pair that has come inside the cutoff is missing (two nodes approach by less
+    than ``skin``). Between rebuilds a step costs one pass over the listed pairs and an O(n)
+    displacement check. A displacement that is not finite forces a rebuild, which puts
+    nothing in the list for that node (the engine's blow-up check then reports it).
+
+    Parameters
+    ----------
+    n_nodes : int
+    cutoff : float
+        nm.
+    skin : float
+        nm (``0`` rebuilds at every evaluation).
+    circular : bool
+    n_exclude : int
+        Chain-distance exclusion.
+    """
+
+    def __init__(self, n_nodes, cutoff, skin, circular, n_exclude):
+        self.n = int(n_nodes)
+        self.cutoff = float(cutoff)
+        self.skin = float(skin)
+        self.circular = bool(circular)
+        self.n_exclude = int(n_exclude)
+        self.ref = None
+        self.pi = np.empty(16 * self.n + 1024, dtype=np.int64)
+        self.pj = np.empty_like(self.pi)
+        self.m = 0
+        self.builds = 0
+        self.evaluations = 0
+
+    def update(self, c):
+        """Rebuild the list if needed for centres ``c`` (n, 3) nm; returns ``(pi, pj, m)``."""
+        self.evaluations += 1
+        half = 0.5 * self.skin
+        if self.ref is None or self.skin <= 0 or not max_displacement2(c, self.ref) <= half * half:
+            rlist = self.cutoff + self.skin
+            m = build_pairs(c, rlist, self.circular, self.n_exclude, self.pi, self.pj)
+            if m > self.pi.shape[0]:
+                self.pi = np.empty(m + m // 4 + 1024, dtype=np.int64)
+                self.pj = np.empty_like(self.pi)
+                m = build_pairs(c, rlist, self.circular, self.n_exclude, self.pi, self.pj)
+            self.m = m
+            self.ref = np.array(c, dtype=float, copy=True)
+            self.builds += 1
+        return self.pi, self.pj, self.m
+
+
+def nonbonded_kernel(c, circular, n_ex, eps, sigma, rc_wca, a_dh, kappa, rc_dh, cutoff, F):
+    """WCA + shifted Debye-Hueckel between node centres ``c`` (n,3), from a fresh cell list
+    (no skin); adds forces to F (n,3) and returns ``(E_wca, E_dh)``."""
+    vl = VerletList(c.shape[0], cutoff, 0.0, circular, n_ex)
+    pi, pj, m = vl.update(np.ascontiguousarray(c, float))
+    return pair_kernel(c, pi, pj, m, eps, sigma, rc_wca, a_dh, kappa, rc_dh, F)
 
 
 @numba.njit(cache=True)
@@ -319,31 +398,69 @@ def _spread(F, out):
 
 class NonbondedCallback:
     """Picklable PythonForce computation of the non-local terms (forces on node centres,
-    spread equally over the node's three particles: no torque)."""
+    spread equally over the node's three particles: no torque), through a :class:`VerletList`.
+
+    Parameters
+    ----------
+    n_nodes : int
+    circular : bool
+    numbers : dict
+        From :meth:`NonbondedSettings.resolve` (``skin`` in nm, default 1.0).
+    """
 
     def __init__(self, n_nodes, circular, numbers):
         self.n = int(n_nodes)
         self.circular = bool(circular)
         self.numbers = dict(numbers)
         self.last = (0.0, 0.0)
+        self._setup()
+
+    def _setup(self):
+        v = self.numbers
+        self.verlet = VerletList(self.n, v["cutoff"], v.get("skin", DEFAULT_SKIN), self.circular, v["n_exclude"])
+        self._c = np.empty((self.n, 3))
+        self._F = np.zeros((self.n, 3))
+        self._out = np.empty((3 * self.n, 3))
 
     def evaluate(self, centres):
         """``(E_wca, E_dh, F)`` for node centres (n, 3) nm; F kJ/mol/nm, shape (n, 3)."""
         v = self.numbers
-        F = np.zeros((centres.shape[0], 3))
-        ew, ed = nonbonded_kernel(np.ascontiguousarray(centres, float), self.circular, v["n_exclude"], v["eps"],
-                                  v["sigma"], v["rc_wca"], v["a_dh"], v["kappa"], v["rc_dh"], v["cutoff"], F)
+        c = np.ascontiguousarray(centres, float)
+        pi, pj, m = self.verlet.update(c)
+        F = np.zeros((c.shape[0], 3))
+        ew, ed = pair_kernel(c, pi, pj, m, v["eps"], v["sigma"], v["rc_wca"], v["a_dh"], v["kappa"], v["rc_dh"], F)
         return ew, ed, F
 
-    def __call__(self, state):
-        p = np.ascontiguousarray(state.getPositions(asNumpy=True)._value, dtype=float)
-        c = np.empty((self.n, 3))
-        _centres(p, c)
-        ew, ed, F = self.evaluate(c)
+    def add_to_particles(self, centres, out):
+        """Add the forces, spread over each node's three particles, to ``out`` (3n, 3) kJ/mol/nm
+        for node centres (n, 3) nm; records and returns the energy (kJ/mol)."""
+        v = self.numbers
+        pi, pj, m = self.verlet.update(centres)
+        ew, ed = pair_kernel(centres, pi, pj, m, v["eps"], v["sigma"], v["rc_wca"], v["a_dh"], v["kappa"], v["rc_dh"],
+                             out, True)
         self.last = (ew, ed)
-        out = np.empty((3 * self.n, 3))
+        return ew + ed
+
+    def __call__(self, state):
+        v = self.numbers
+        p = state.getPositions(asNumpy=True)._value
+        c = self._c
+        _centres(p, c)
+        pi, pj, m = self.verlet.update(c)
+        F = self._F
+        F[:] = 0.0
+        ew, ed = pair_kernel(c, pi, pj, m, v["eps"], v["sigma"], v["rc_wca"], v["a_dh"], v["kappa"], v["rc_dh"], F)
+        self.last = (ew, ed)
+        out = self._out
         _spread(F, out)
-        return ew + ed, out
+        return ew + ed, out.copy()
+
+    def __getstate__(self):
+        return dict(n=self.n, circular=self.circular, numbers=self.numbers, last=self.last)
+
+    def __setstate__(self, d):
+        self.__dict__.update(d)
+        self._setup()
 
 
 def nonbonded_force(model, settings, temperature):

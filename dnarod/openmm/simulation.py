@@ -40,7 +40,8 @@ from ..units import md_value
 from .forces import GROUPS, loads_kernel
 from .particles import (node_poses, node_velocities, particle_forces_to_loads, particle_positions,
                         particle_velocities)
-from .system import build_system, get_platform
+from .platforms import choose_platform
+from .system import build_system
 
 #: Temperature (K) that sets the non-bonded energy scales (WCA kT, Bjerrum length) of a run started at 0 K.
 NONBONDED_REFERENCE_T = 300.0
@@ -63,8 +64,10 @@ class RodSimulation:
         raise :class:`~dnarod.errors.ParameterError`.
     friction : float
         1/ps (Langevin).
-    platform : str
-        OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL").
+    platform : str or None
+        OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL", "HIP"); ``None`` for the
+        automatic choice of :func:`dnarod.openmm.platforms.choose_platform` (GPU, else the CPU
+        fast path); the choice and its reason are in ``platform_name``, ``platform_reason``.
     elastic : {"auto", "fast", "portable"}
     nonbonded : bool or NonbondedSettings
     loads : sequence
@@ -73,15 +76,17 @@ class RodSimulation:
         Seed of initial velocities and of the Langevin noise.
     threads : int or None
         CPU platform threads.
+    precision : {"single", "mixed", "double"} or None
+        GPU platforms' precision (default mixed).
     constraint_tolerance : float
     initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
     """
 
     name = "openmm"
 
-    def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform="CPU",
+    def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
                  elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
-                 initial_velocities=None, omega_max=None):
+                 initial_velocities=None, omega_max=None, precision=None):
         self.model = model
         self.temperature = float(temperature)
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -90,8 +95,8 @@ class RodSimulation:
             raise ParameterError(f"integrator must be 'langevin' or 'verlet', got {integrator!r}")
         self.integrator_name = integrator
         self.loads = tuple(loads)
-        self.platform_name = platform
-        plat = get_platform(platform)
+        plat, props, self.platform_reason = choose_platform(platform, model.n_nodes, elastic, threads, precision)
+        self.platform_name = platform = plat.getName()
         self.omega_max = float(omega_max) if omega_max is not None else modes.omega_max(model, loads=tuple(loads))
         limit = MAX_OMEGA_DT / self.omega_max
         if dt is None:
@@ -125,9 +130,6 @@ class RodSimulation:
             integ = openmm.VerletIntegrator(dt)
         integ.setConstraintTolerance(constraint_tolerance)
         self.integrator = integ
-        props = {}
-        if platform == "CPU" and threads:
-            props["Threads"] = str(int(threads))
         t0 = time.perf_counter()
         self.context = openmm.Context(self.rs.system, integ, plat, props)
         self.context.setPositions(particle_positions(model.positions, model.frames, self.rs.radius))
@@ -310,6 +312,9 @@ class RodSimulation:
                 terms[name] = md_value(self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy())
             except Exception:  # noqa: BLE001 - a NaN can make OpenMM raise
                 terms[name] = float("nan")
+        el, nb = self.rs.elastic_callback, self.rs.nonbonded_callback
+        if el is not None and nb is not None and getattr(el, "nonbonded", None) is nb:  # fused fast path: split by the callbacks
+            terms["elastic"], terms["nonbonded"] = el.last_energy, sum(nb.last)
         bad = [k for k, v in terms.items() if not np.isfinite(v)]
         term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))
         p = md_value(self.context.getState(getPositions=True).getPositions(asNumpy=True)).reshape(-1, 3, 3)

@@ -10,7 +10,10 @@ Forces (force groups in :data:`dnarod.openmm.forces.GROUPS`):
   ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the plugin, else the fast path, on the CPU and
   Reference platforms and the portable one on GPU platforms (CUDA, OpenCL, HIP), where a
   Python callback would copy positions off the device every step;
-* non-local terms (:mod:`dnarod.openmm.nonbonded`), on by default;
+* non-local terms (:mod:`dnarod.openmm.nonbonded`), on by default: with the fast elastic path
+  they are evaluated inside the elastic callback (one ``PythonForce``, force group
+  ``"elastic"``; the per-term split is read from the callbacks), with the portable path by
+  their own ``PythonForce`` in group ``"nonbonded"``;
 * external loads (:mod:`dnarod.openmm.loads`).
 """
 from __future__ import annotations
@@ -27,16 +30,9 @@ from .forces import ElasticCallback, elastic_compound_forces, elastic_python_for
 from .loads import build_load_forces
 from .nonbonded import NonbondedSettings, nonbonded_force
 from .particles import SQRT3, triangle_radius
+from .platforms import CALLBACK_PLATFORMS, get_platform  # noqa: F401 (re-exported)
 
-PYTHON_FORCE_PLATFORMS = ("CPU", "Reference")
-
-
-def get_platform(name):
-    """The OpenMM platform called ``name`` (error listing the installed ones)."""
-    names = [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
-    if name not in names:
-        raise ParameterError(f"OpenMM platform {name!r} is not installed here; available: {', '.join(names)}")
-    return openmm.Platform.getPlatformByName(name)
+PYTHON_FORCE_PLATFORMS = CALLBACK_PLATFORMS
 
 
 def base_pair_names(model):
@@ -169,32 +165,35 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         side = SQRT3 * radius[k]
         for i, j in ((0, 1), (1, 2), (0, 2)):
             system.addConstraint(3 * k + i, 3 * k + j, side)
+    nb_numbers = None
+    nb_cb = None
+    nb_force = None
+    if nonbonded:
+        settings = nonbonded if isinstance(nonbonded, NonbondedSettings) else NonbondedSettings()
+        nb_force, nb_numbers = nonbonded_force(model, settings, temperature)
+        if nb_force is not None:
+            _check_nonbonded_overlaps(model, nb_numbers)
+            if elastic == "plugin":  # the same terms compiled (a Verlet list in C++)
+                nb_force = plugin.node_pair_force(model, nb_numbers)
+                nb_cb = plugin.PairEnergies(nb_force)
+            else:
+                nb_cb = nb_force.dnarod_callback
+        else:
+            nb_numbers = None
     elastic_cb = None
     if elastic == "plugin":
         smk = plugin.smk_force(model, radius)
         system.addForce(smk)
         elastic_cb = plugin.ElasticEnergy(smk)
     elif elastic == "fast":
-        elastic_cb = ElasticCallback(model, radius)
+        # The non-local terms ride in the elastic callback (one State hand-over per step; group "elastic").
+        elastic_cb = ElasticCallback(model, radius, nonbonded=nb_cb)
         system.addForce(elastic_python_force(model, radius, callback=elastic_cb))
     else:
         for f in elastic_compound_forces(model, radius):
             system.addForce(f)
-    nb_numbers = None
-    nb_cb = None
-    if nonbonded:
-        settings = nonbonded if isinstance(nonbonded, NonbondedSettings) else NonbondedSettings()
-        f, nb_numbers = nonbonded_force(model, settings, temperature)
-        if f is not None:
-            _check_nonbonded_overlaps(model, nb_numbers)
-            if elastic == "plugin":  # the same terms compiled (a Verlet list in C++)
-                f = plugin.node_pair_force(model, nb_numbers)
-                nb_cb = plugin.PairEnergies(f)
-            else:
-                nb_cb = f.dnarod_callback
-            system.addForce(f)
-        else:
-            nb_numbers = None
+    if nb_force is not None and elastic != "fast":  # fast: evaluated inside the elastic callback
+        system.addForce(nb_force)
     return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,
                      residue_names=base_pair_names(model))
 

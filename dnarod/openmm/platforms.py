@@ -1,0 +1,152 @@
+"""Choice of the OpenMM platform (CUDA, OpenCL, CPU, Reference) and its properties.
+
+Automatic choice (``requested=None``), in order:
+
+1. **CUDA** (or HIP) when OpenMM has loaded that plugin (it only loads with a working driver;
+   ``pip install 'dnarod[cuda12]'`` brings ``openmm-cuda-12``), with the portable elastic path;
+2. **OpenCL** when an OpenCL platform offers a *GPU* device (queried through the OpenCL ICD
+   loader, without creating an OpenMM Context). A CPU-only OpenCL implementation such as pocl
+   is never chosen automatically: it runs the portable path several times slower than the
+   CPU fast path (``benchmarks/bench_platforms.py``, ``bench_gpu.py``);
+3. **the CPU fast path**: the numba/``PythonForce`` callbacks on the **Reference** platform (or
+   on the **CPU** platform when ``threads`` is given). The CPU platform runs its integrator on a
+   worker thread even with ``Threads=1``, so every step (and every Python callback) is handed
+   between the Python thread and the worker. Measured per CPU-second on one core
+   (``benchmarks/bench_platforms.py``, two runs, README table), the Reference platform is
+   1.1-3.2x faster at 10^2-10^4 nodes and tied within the runs' noise at 10^5-10^6, where the
+   CPU platform's threaded integrator may still gain wall-clock time from idle cores
+   (``--threads``; not measurable on this loaded 2-core machine).
+
+``requested`` (``--platform``) overrides the choice; the reason of the choice is returned so
+the caller can print it.
+"""
+from __future__ import annotations
+
+import ctypes
+import ctypes.util
+import functools
+
+import openmm
+
+from ..errors import ParameterError
+
+#: Largest node count run on the Reference platform by the automatic choice (CPU platform above);
+#: None: no limit (measured faster per CPU-second at 10^2-10^6 nodes).
+REFERENCE_MAX_NODES = None
+#: Platforms that run the numba PythonForce (fast) elastic path without copying off a device.
+CALLBACK_PLATFORMS = ("CPU", "Reference")
+#: Platforms on GPUs (portable path only).
+GPU_PLATFORMS = ("CUDA", "HIP", "OpenCL")
+#: Default precision on GPU platforms: forces in single, integration and constraints in double.
+DEFAULT_GPU_PRECISION = "mixed"
+_CL_DEVICE_TYPE_GPU = 1 << 2
+
+
+def platform_names():
+    """Names of the OpenMM platforms installed and loaded here, e.g. ``["Reference", "CPU", "OpenCL"]``."""
+    return [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
+
+
+def get_platform(name):
+    """The OpenMM platform called ``name`` (error listing the installed ones)."""
+    names = platform_names()
+    if name not in names:
+        raise ParameterError(f"OpenMM platform {name!r} is not installed here; available: {', '.join(names)}")
+    return openmm.Platform.getPlatformByName(name)
+
+
+@functools.lru_cache(maxsize=1)
+def opencl_gpu_devices():
+    """Names of the GPU devices offered by the OpenCL ICD loader (empty if none or no OpenCL).
+
+    Queried with ``clGetPlatformIDs``/``clGetDeviceIDs(CL_DEVICE_TYPE_GPU)`` through ctypes,
+    which costs milliseconds, unlike an OpenMM Context on OpenCL (kernel compilation).
+    """
+    path = ctypes.util.find_library("OpenCL")
+    if path is None:
+        return ()
+    try:
+        cl = ctypes.CDLL(path)
+    except OSError:
+        return ()
+    n = ctypes.c_uint(0)
+    if cl.clGetPlatformIDs(0, None, ctypes.byref(n)) != 0 or n.value == 0:
+        return ()
+    plats = (ctypes.c_void_p * n.value)()
+    if cl.clGetPlatformIDs(n.value, plats, None) != 0:
+        return ()
+    names = []
+    for p in plats:
+        nd = ctypes.c_uint(0)
+        if cl.clGetDeviceIDs(ctypes.c_void_p(p), ctypes.c_uint64(_CL_DEVICE_TYPE_GPU), 0, None,
+                             ctypes.byref(nd)) != 0 or nd.value == 0:
+            continue
+        devs = (ctypes.c_void_p * nd.value)()
+        cl.clGetDeviceIDs(ctypes.c_void_p(p), ctypes.c_uint64(_CL_DEVICE_TYPE_GPU), nd.value, devs, None)
+        for d in devs:
+            buf = ctypes.create_string_buffer(256)
+            cl.clGetDeviceInfo(ctypes.c_void_p(d), ctypes.c_uint(0x102B), ctypes.c_size_t(256), buf, None)  # NAME
+            names.append(buf.value.decode(errors="replace") or "GPU")
+    return tuple(names)
+
+
+def platform_properties(name, threads=None, precision=None):
+    """OpenMM platform properties for ``name``: ``Threads`` on CPU, ``Precision`` on GPU platforms."""
+    props = {}
+    if name == "CPU" and threads:
+        props["Threads"] = str(int(threads))
+    if name in GPU_PLATFORMS:
+        props["Precision"] = precision or DEFAULT_GPU_PRECISION
+    elif precision not in (None, "double"):
+        raise ParameterError(f"precision {precision!r} applies to GPU platforms (CUDA, OpenCL, HIP) only; "
+                             f"{name} computes in double precision")
+    return props
+
+
+def choose_platform(requested=None, n_nodes=None, elastic="auto", threads=None, precision=None):
+    """The OpenMM platform for a run, its properties and the reason for the choice.
+
+    Parameters
+    ----------
+    requested : str or None
+        Platform name (``--platform``); ``None`` or ``"auto"`` for the automatic choice.
+    n_nodes : int or None
+        Model size (chooses Reference or CPU for the CPU fast path).
+    elastic : {"auto", "fast", "portable"}
+        ``"fast"`` restricts the automatic choice to the CPU platforms.
+    threads : int or None
+        CPU platform threads.
+    precision : {"single", "mixed", "double"} or None
+        GPU platforms' precision (default ``"mixed"``).
+
+    Returns
+    -------
+    (openmm.Platform, dict, str)
+        The platform, its properties and a one-line reason.
+    """
+    if requested not in (None, "auto"):
+        plat = get_platform(requested)
+        reason = f"{requested} (requested)"
+        return plat, platform_properties(requested, threads, precision), reason
+    names = platform_names()
+    if elastic != "fast":
+        for gpu in ("CUDA", "HIP"):
+            if gpu in names:
+                return (openmm.Platform.getPlatformByName(gpu), platform_properties(gpu, None, precision),
+                        f"{gpu} (GPU found; portable elastic path)")
+        if "OpenCL" in names:
+            gpus = opencl_gpu_devices()
+            if gpus:
+                return (openmm.Platform.getPlatformByName("OpenCL"), platform_properties("OpenCL", None, precision),
+                        f"OpenCL (GPU {gpus[0]}; portable elastic path)")
+    if elastic == "portable":
+        return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
+                "CPU (no GPU found; portable elastic path on the multithreaded CPU platform)")
+    small = REFERENCE_MAX_NODES is None or (n_nodes is not None and n_nodes <= REFERENCE_MAX_NODES)
+    if small and not threads:
+        return (openmm.Platform.getPlatformByName("Reference"), platform_properties("Reference", None, precision),
+                "Reference (no GPU found; CPU fast path on the single-threaded Reference platform: no worker-thread "
+                "hand-off per step)")
+    why = f"{threads} threads requested" if threads else f"more than {REFERENCE_MAX_NODES} nodes"
+    return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
+            f"CPU (no GPU found; CPU fast path, {why})")

@@ -1,0 +1,122 @@
+"""The portable path on OpenMM's OpenCL platform (pocl on a CPU in CI; any OpenCL device elsewhere).
+
+One Context per precision is shared by the module (OpenCL kernels compile for tens of seconds).
+Outside CI a missing OpenCL platform skips these tests with the reason; with ``CI=true`` it is
+a failure (``.ci/run`` installs pocl when it runs as root on Debian).
+
+Tolerances (stated, not tuned to pass):
+* ``mixed`` precision (forces in single, accumulation in 64-bit fixed point, integration in
+  double): node forces and torques within 2e-5 of the largest, energy within 1e-5 relative;
+* ``single``: node forces and torques within 1e-4 of the largest, energy within 1e-4 relative
+  (single precision epsilon 6e-8 times the ~10^3 operations of the expression).
+"""
+import os
+
+import numpy as np
+import pytest
+
+from dnarod.energy import loads
+from dnarod.forcefield import load_forcefield
+from dnarod.openmm.particles import node_poses, particle_forces_to_loads
+from dnarod.rotations import cayley
+from dnarod.thermal import kT
+
+TOL = {"mixed": 2e-5, "single": 1e-4}
+
+
+def _require_opencl():
+    from dnarod.openmm.platforms import platform_names
+
+    if "OpenCL" in platform_names():
+        return
+    import openmm
+
+    why = "; ".join(openmm.Platform.getPluginLoadFailures()) or "no OpenCL platform (install pocl-opencl-icd)"
+    if os.environ.get("CI", "").lower() == "true":
+        pytest.fail(f"CI=true but OpenMM has no OpenCL platform: {why}")
+    pytest.skip(f"OpenMM OpenCL platform not available: {why}")
+
+
+@pytest.fixture(scope="module")
+def model():
+    m = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 2)
+    rng = np.random.default_rng(4)
+    pos = m.positions + 0.03 * rng.normal(size=m.positions.shape)
+    frm = cayley(0.05 * rng.normal(size=(m.n_nodes, 3))) @ m.frames
+    return m.with_pose(pos, frm)
+
+
+def _sim(model, precision):
+    from dnarod.openmm.simulation import RodSimulation, omega_max
+
+    _require_opencl()
+    return RodSimulation(model, platform="OpenCL", precision=precision, temperature=300, friction=1.0,
+                         nonbonded=False, seed=3, dt=0.2 / omega_max(model))
+
+
+@pytest.fixture(scope="module")
+def mixed(model):
+    return _sim(model, "mixed")
+
+
+@pytest.fixture(scope="module")
+def single(model):
+    return _sim(model, "single")
+
+
+@pytest.mark.parametrize("precision", ["mixed", "single"])
+def test_energy_and_loads_equal_reference(precision, model, request):
+    sim = request.getfixturevalue(precision)
+    assert sim.platform_name == "OpenCL" and sim.rs.elastic == "portable"
+    from dnarod.openmm.particles import particle_positions
+
+    sim.context.setPositions(particle_positions(model.positions, model.frames, sim.rs.radius))
+    sim.invalidate()
+    st = sim.context.getState(getEnergy=True, getForces=True, getPositions=True)
+    p = st.getPositions(asNumpy=True)._value
+    F, tau = particle_forces_to_loads(p, st.getForces(asNumpy=True)._value)
+    c, f = node_poses(p)
+    E0, F0, tau0 = loads(c, f, model.params, model.ds, model.closure)
+    tol = TOL[precision]
+    assert abs(st.getPotentialEnergy()._value - E0) <= tol * abs(E0)
+    assert np.abs(F - F0).max() <= tol * np.abs(F0).max()
+    assert np.abs(tau - tau0).max() <= tol * np.abs(tau0).max()
+
+
+def test_checkpoint_round_trip_is_exact(mixed, tmp_path):
+    """Checkpoint, run, restore, run again: the same positions and velocities bit for bit."""
+    sim = mixed
+    sim.thermalize(300, seed=1)
+    sim.advance(50)
+    sim.save_checkpoint(tmp_path / "chk.npz")
+    step0 = sim.step
+    sim.advance(100)
+    a = sim.context.getState(getPositions=True, getVelocities=True)
+    sim.load_checkpoint(tmp_path / "chk.npz")
+    assert sim.step == step0
+    sim.advance(100)
+    b = sim.context.getState(getPositions=True, getVelocities=True)
+    assert np.array_equal(a.getPositions(asNumpy=True)._value, b.getPositions(asNumpy=True)._value)
+    assert np.array_equal(a.getVelocities(asNumpy=True)._value, b.getVelocities(asNumpy=True)._value)
+
+
+def test_langevin_strain_variances_match_the_exact_density(mixed, model):
+    """Bend and twist strain variances of a Langevin run against ``kT (ds K_eff)^-1`` times the
+    Haar factor of the exact step density (same check as the CPU engine's test)."""
+    from test_openmm_simulation import haar_gaussian_ratio
+
+    sim = mixed
+    m = model
+    sim.thermalize(300, seed=2)
+    sim.advance(2000)  # equilibrate
+    Om = []
+    for _ in range(1000):
+        sim.advance(20)
+        c, f = sim.node_pose()
+        Om.append(m.strains(c, f)[0])
+    Om = np.concatenate(Om)
+    K = m.params.stiffness[0]
+    K_eff = K[:3, :3] - K[:3, 3:] @ np.linalg.inv(K[3:, 3:]) @ K[3:, :3]
+    ratio = Om.var(axis=0) / np.diag(np.linalg.inv(K_eff) * kT(300) / m.ds)
+    # 19 steps x 1000 frames 20 steps apart (~50 independent samples per relaxation time): ~5% statistics
+    assert np.all(np.abs(ratio - haar_gaussian_ratio(m, 300)) < 0.07), ratio
