@@ -11,11 +11,15 @@ Two stages:
    (``amber14/DNA.OL15.xml``: OL15 on parmbsc0/parm99) in OBC2 implicit solvent (Amber igb=5
    radii and screening, OpenMM's native ``GBSAOBCForce`` with the parameters of
    ``implicit/obc2.xml``), hydrogens are added by ``Modeller.addHydrogens``, every base ring
-   atom (the atoms the base frame is fitted to) is held to its placed position by a harmonic restraint, and the energy is
-   minimised: first with the covalent terms only (the stretched links close without steric
-   barriers), then with the full force field (1.2 nm non-periodic cut-off: the closure is a
-   local fit, and a cut-off keeps it linear in length). The bases -- hence the base-pair frames -- stay
-   where the frames put them; the backbone takes Amber's geometry.
+   atom (the atoms the base frame is fitted to) is held by a harmonic restraint. The closure starts
+   from the fibre steps, where the template's backbone is nearly closed, and follows a path of
+   intermediate frames to the input's (:func:`_homotopy`), so the backbone is carried along rather
+   than untangled from a far-off start: covalent terms with a capped repulsion first, then the
+   full force field (1.2 nm non-periodic cut-off: the closure is a local fit, and a cut-off keeps
+   it linear in length) at each stage with soft restraints, firm ones on the input frames, and a
+   polish with the covalent terms, repulsion and firm restraints only. Before each stage the
+   targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
+   (:func:`_retarget`), so holding a frame does not strain its ring bonds.
 
 Checked after the closure (:class:`RebuildReport`): every covalent bond's deviation from its
 Amber14 equilibrium length, the shortest distance between heavy atoms that are neither bonded
@@ -23,7 +27,7 @@ nor share a bonded neighbour, the base-pair frames refitted from the atoms again
 (origin distance and rotation angle), and sugar chirality (C1', C3', C4' as in the template).
 A backbone that does not close (a bond still more than ``bond_tolerance`` off, e.g. when two
 frames are too far apart) raises :class:`~dnarod.errors.StructureError` naming the step and
-the length.
+the length; a base pair moved by more than 0.05 A or 1 degree raises one naming the pair.
 
 Units: nm, kJ/mol inside; files in Angstrom (PDB) through OpenMM's writers.
 """
@@ -489,8 +493,10 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     Raises
     ------
     StructureError
-        Bad frames or sequence, or a backbone that cannot be closed (naming the step, the
-        link length after closure and before it).
+        Bad frames or sequence, a backbone that cannot be closed (naming the step, the
+        link length after closure and before it), a bond off Amber14 by more than
+        ``bond_tolerance``, a heavy-atom clash under 2.2 A, a flipped sugar, or a base pair moved by
+        more than 0.05 A or 1 degree (naming the pair).
     """
     import resource
 
