@@ -118,6 +118,60 @@ def test_rebuild_ideal_and_thermal_snapshot(kind):
     _check(res, m.frames, m.positions, m.n_nodes)
 
 
+def _thermal(sequence, seed, steps=400):
+    from dnarod.openmm.simulation import RodSimulation
+
+    m = load_forcefield("dna-default").model_from_sequence(sequence)
+    sim = RodSimulation(m, temperature=300, nonbonded=False, seed=seed)
+    sim.advance(steps)
+    c, f, _, _ = sim.node_state()
+    return m.with_pose(c, f)
+
+
+def _placed_ring_min(m):
+    """Shortest distance between ring atoms of different bases as the input frames place them, nm."""
+    from scipy.spatial.distance import cdist
+
+    from dnarod.structure.frames import standard_bases
+    from dnarod.structure.rebuild import rebuild_coordinates
+
+    _, ring = standard_bases()
+    names = {a for r in ring.values() for a in r}
+    xyz, atoms = rebuild_coordinates(m.frames, m.positions, m.sequence)
+    keep = [i for i, a in enumerate(atoms) if a[3] in names]
+    res = np.array([f"{atoms[i][0]}{atoms[i][1]}" for i in keep])
+    d = cdist(xyz[keep], xyz[keep])
+    d[res[:, None] == res[None, :]] = np.inf
+    return d.min()
+
+
+def _thermal_case(sequence, seed):
+    """Rebuild a 300 K snapshot: True if every tolerance is met (checked independently), else the clear error.
+
+    A refused snapshot must raise StructureError; its frames may put two bases' ring atoms into each
+    other (under 2.2 A, which no backbone can fix while the frames are kept), reported as "clash".
+    """
+    m = _thermal(sequence, seed)
+    try:
+        res = rebuild_allatom(m.frames, m.positions, m.sequence)
+    except StructureError:
+        return "clash" if _placed_ring_min(m) < 0.22 else False
+    _check(res, m.frames, m.positions, m.n_nodes)
+    return True
+
+
+def test_rebuild_thermal_snapshot_other_seed_and_sequence():
+    assert _thermal_case("AAAATTTTCC", 3) is True
+
+
+@pytest.mark.slow
+def test_rebuild_thermal_snapshots_many_seeds():
+    done = [_thermal_case(seq[:n], seed) for seed in range(20, 28)
+            for seq, n in (("GATCCGTAGCATGGCAATTCGCTA", 24), ("AAAATTTTCCCCGGGG", 16), ("CGCGAATTCGCG", 12))]
+    closable = [d for d in done if d != "clash"]
+    assert sum(d is True for d in closable) >= 0.7 * len(closable)
+
+
 @pytest.mark.slow
 def test_1kx5_rebuild():
     m = model_from_structure(DATA / "1KX5.pdb")

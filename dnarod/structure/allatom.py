@@ -11,11 +11,15 @@ Two stages:
    (``amber14/DNA.OL15.xml``: OL15 on parmbsc0/parm99) in OBC2 implicit solvent (Amber igb=5
    radii and screening, OpenMM's native ``GBSAOBCForce`` with the parameters of
    ``implicit/obc2.xml``), hydrogens are added by ``Modeller.addHydrogens``, every base ring
-   atom (the atoms the base frame is fitted to) is held to its placed position by a harmonic restraint, and the energy is
-   minimised: first with the covalent terms only (the stretched links close without steric
-   barriers), then with the full force field (1.2 nm non-periodic cut-off: the closure is a
-   local fit, and a cut-off keeps it linear in length). The bases -- hence the base-pair frames -- stay
-   where the frames put them; the backbone takes Amber's geometry.
+   atom (the atoms the base frame is fitted to) is held by a harmonic restraint. The closure starts
+   from the fibre steps, where the template's backbone is nearly closed, and follows a path of
+   intermediate frames to the input's (:func:`_homotopy`), so the backbone is carried along rather
+   than untangled from a far-off start: covalent terms with a capped repulsion first, then the
+   full force field (1.2 nm non-periodic cut-off: the closure is a local fit, and a cut-off keeps
+   it linear in length) at each stage with soft restraints, firm ones on the input frames, and a
+   polish with the covalent terms, repulsion and firm restraints only. Before each stage the
+   targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
+   (:func:`_retarget`), so holding a frame does not strain its ring bonds.
 
 Checked after the closure (:class:`RebuildReport`): every covalent bond's deviation from its
 Amber14 equilibrium length, the shortest distance between heavy atoms that are neither bonded
@@ -23,7 +27,7 @@ nor share a bonded neighbour, the base-pair frames refitted from the atoms again
 (origin distance and rotation angle), and sugar chirality (C1', C3', C4' as in the template).
 A backbone that does not close (a bond still more than ``bond_tolerance`` off, e.g. when two
 frames are too far apart) raises :class:`~dnarod.errors.StructureError` naming the step and
-the length.
+the length; a base pair moved by more than 0.05 A or 1 degree raises one naming the pair.
 
 Units: nm, kJ/mol inside; files in Angstrom (PDB) through OpenMM's writers.
 """
@@ -36,10 +40,16 @@ import numpy as np
 
 from ..errors import StructureError
 from .frames import standard_bases
-from .rebuild import rebuild_coordinates
+from .rebuild import fibre_pair_parameters, rebuild_coordinates
 
 FORCEFIELD_FILES = ("amber14/DNA.OL15.xml",)
-RESTRAINT_K = 2.0e5        # kJ/mol/nm^2 on each base ring atom
+RESTRAINT_K = 2.0e5        # kJ/mol/nm^2 on each base ring atom (final, firm)
+RESTRAINT_SCHEDULE = (2.0e4,)  # kJ/mol/nm^2: softer stages before the final firm one
+HOMOTOPY = (0.0, 0.25, 0.5, 0.75, 1.0)  # fractions of the way from the fibre steps to the input's
+FIBRE_RISE = 0.338         # nm, B-DNA fibre (Chandrasekaran & Arnott; 3DNA fibre model 4)
+FIBRE_TWIST = np.radians(36.0)
+FRAME_ORIGIN_TOL = 0.005   # nm: largest accepted shift of a base-pair origin
+FRAME_ANGLE_TOL = 1.0      # degrees: largest accepted rotation of a base-pair frame
 MIN_CUTOFF = 1.2           # nm, non-bonded cut-off during the closure (local geometry only)
 EXTRA_ROUNDS = 3           # minimiser restarts while a bond is still off
 CHIRAL_K = 1.0e3           # kJ/mol/rad^2, flat-bottom restraint on sugar stereocentres
@@ -207,22 +217,54 @@ def _atom_name(atom):
 
 
 def _restrain(system, topology, positions, k):
+    """Harmonic restraints on each base's ring atoms (the atoms the base frame is fitted to).
+
+    Returns the force and, per residue, ``(atom indices, standard-base coordinates)`` in the
+    order of the restraint's particles, for :func:`_retarget`.
+    """
     import openmm
 
-    _, ring = standard_bases()
-    base_names = {n for names in ring.values() for n in names}  # the atoms that define the base frame
+    std, ring = standard_bases()
     f = openmm.CustomExternalForce("0.5*kr*((x-x0)^2+(y-y0)^2+(z-z0)^2)")
     f.addGlobalParameter("kr", k)
     for name in ("x0", "y0", "z0"):
         f.addPerParticleParameter(name)
-    held = []
-    for atom in topology.atoms():
-        if atom.element.symbol != "H" and atom.name in base_names:
-            f.addParticle(atom.index, list(map(float, positions[atom.index])))
-            held.append(atom.index)
+    groups = []
+    for res in topology.residues():
+        letter = res.name[-1]
+        idx = {a.name: a.index for a in res.atoms()}
+        names = [a for a in ring.get(letter, ()) if a in idx]
+        if len(names) < 3:
+            continue
+        ids = np.array([idx[a] for a in names])
+        for i in ids:
+            f.addParticle(int(i), list(map(float, positions[i])))
+        groups.append((ids, np.array([std[letter][a] for a in names])))
     f.setForceGroup(31)
     system.addForce(f)
-    return np.array(held)
+    return f, groups
+
+
+def _retarget(force, context, groups, pos, placed):
+    """Move each base's restraint targets to its current (relaxed) shape, refitted onto its placed frame.
+
+    The target of base b is ``o_in + R_in R_b^T (x - o_b)`` where ``(R_b, o_b)`` is the standard-base
+    fit of its current ring atoms ``x`` and ``(R_in, o_in)`` the fit of the placed ones: the fitted
+    frame of the targets is the placed frame exactly (the fit is equivariant under rigid motions),
+    while their internal geometry is the force field's, so firm restraints hold the frame without
+    straining the ring bonds toward the standard base's lengths.
+    """
+    from .frames import kabsch
+
+    k = 0
+    for ids, ref in groups:
+        Rb, ob, _ = kabsch(ref, pos[ids])
+        Ri, oi, _ = kabsch(ref, placed[ids])
+        tgt = (pos[ids] - ob) @ Rb @ Ri.T + oi
+        for i, x in zip(ids, tgt):
+            force.setParticleParameters(k, int(i), list(map(float, x)))
+            k += 1
+    force.updateParametersInContext(context)
 
 
 def _hold_chirality(system, topology, positions, k=CHIRAL_K):
@@ -266,6 +308,26 @@ def _soft_repulsion(system, topology, bonds):
     f.setNonbondedMethod(openmm.CustomNonbondedForce.CutoffNonPeriodic)
     f.setCutoffDistance(0.3)
     system.addForce(f)
+
+
+def _context(system, positions, platform):
+    import openmm
+
+    plat = openmm.Platform.getPlatformByName(platform or "CPU")
+    ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), plat)
+    ctx.setPositions(positions)
+    return ctx
+
+
+def _relax(ctx, tolerance, iterations):
+    """Minimise in ``ctx``: (positions nm, energy kJ/mol without the restraints)."""
+    import openmm
+    import openmm.unit as u
+
+    openmm.LocalEnergyMinimizer.minimize(ctx, tolerance, iterations)
+    st = ctx.getState(getPositions=True, getEnergy=True, groups={g for g in range(31)})
+    return (np.array(st.getPositions(asNumpy=True).value_in_unit(u.nanometer)),
+            st.getPotentialEnergy().value_in_unit(u.kilojoule_per_mole))
 
 
 def _minimise(system, positions, tolerance, iterations, platform):
@@ -346,6 +408,52 @@ def _pair_frames_of(topology, xyz, n, sequence, sequence2):
     return mid, morg
 
 
+def _frame_points(F, O, arm=0.5):
+    """Origins and points ``arm`` nm along d1 and d2 of each frame, shape (3 n, 3)."""
+    return np.concatenate([O, O + arm * F[:, :, 0], O + arm * F[:, :, 1]])
+
+
+def _homotopy(F, O, fractions):
+    """Chains whose steps go from the B-DNA fibre step to the input's: ``[(F_t, O_t)]`` per fraction.
+
+    Step i is ``(R_i, d_i)`` in the frame of pair i (``R_i = F_i^T F_{i+1}``, ``d_i = F_i^T (O_{i+1} - O_i)``);
+    at fraction t the rotation is ``R_fib exp(t log(R_fib^T R_i))`` and the offset ``(1 - t) d_fib + t d_i``.
+    Each chain is superposed on the input origins (least squares) so that successive stages move the
+    atoms locally only (origins and frame axes fitted); at t = 1 it is the input itself. Why: the rigid placement nearly closes the
+    backbone on the fibre (the nucleotide template is the fibre's), so the backbone can follow the
+    frames continuously from there instead of being untangled from a far-off start.
+    """
+    from scipy.spatial.transform import Rotation
+
+    from .frames import kabsch
+
+    n = len(F)
+    c, s_ = np.cos(FIBRE_TWIST), np.sin(FIBRE_TWIST)
+    R_fib = np.array([[c, -s_, 0.0], [s_, c, 0.0], [0.0, 0.0, 1.0]])
+    d_fib = np.array([0.0, 0.0, FIBRE_RISE])
+    out = []
+    if n < 2:
+        return [(F, O) for _ in fractions]
+    R_st = np.einsum("kji,kjl->kil", F[:-1], F[1:])
+    d_st = np.einsum("kji,kj->ki", F[:-1], O[1:] - O[:-1])
+    log = Rotation.from_matrix(np.einsum("ji,kjl->kil", R_fib, R_st)).as_rotvec()
+    for t in fractions:
+        if t >= 1.0:
+            out.append((F, O))
+            continue
+        R = R_fib @ Rotation.from_rotvec(t * log).as_matrix()
+        d = (1.0 - t) * d_fib + t * d_st
+        Ft, Ot = np.empty_like(F), np.empty_like(O)
+        Ft[0], Ot[0] = F[0], O[0]
+        for k in range(n - 1):
+            Ft[k + 1] = Ft[k] @ R[k]
+            Ot[k + 1] = Ot[k] + Ft[k] @ d[k]
+        # superpose on points that carry the frames' orientation too (B-DNA origins are collinear)
+        Q, o, _ = kabsch(_frame_points(Ft, Ot), _frame_points(F, O))
+        out.append((np.einsum("ij,kjl->kil", Q, Ft), Ot @ Q.T + o))
+    return out
+
+
 def _rotation_angle(A, B):
     c = (np.einsum("...ij,...ij->...", A, B) - 1.0) / 2.0
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
@@ -385,8 +493,10 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     Raises
     ------
     StructureError
-        Bad frames or sequence, or a backbone that cannot be closed (naming the step, the
-        link length after closure and before it).
+        Bad frames or sequence, a backbone that cannot be closed (naming the step, the
+        link length after closure and before it), a bond off Amber14 by more than
+        ``bond_tolerance``, a heavy-atom clash under 2.2 A, a flipped sugar, or a base pair moved by
+        more than 0.05 A or 1 degree (naming the pair).
     """
     import resource
 
@@ -403,16 +513,28 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
     n = len(seq1)
     t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_utime
-    top = _topology(atoms, xyz)
-    modeller = app.Modeller(top, xyz * openmm.unit.nanometer)
+    # placements along the path from the fibre (backbone nearly closed) to the input frames and pair parameters
+    p_fib = fibre_pair_parameters()
+    p_in = p_fib if bp_params is None else np.broadcast_to(np.asarray(bp_params, float), (n, 6))
+    stages = [rebuild_coordinates(Ft, Ot, seq1, (1.0 - t) * p_fib + t * p_in, seq2)[0] if t < 1.0 else xyz
+              for t, (Ft, Ot) in zip(HOMOTOPY, _homotopy(F, O, HOMOTOPY))]
+    top = _topology(atoms, stages[0])
+    modeller = app.Modeller(top, stages[0] * openmm.unit.nanometer)
     ff = app.ForceField(*FORCEFIELD_FILES)
     modeller.addHydrogens(ff, platform=openmm.Platform.getPlatformByName(platform or "CPU"))
     top = modeller.topology
     pos = np.array(modeller.getPositions().value_in_unit(openmm.unit.nanometer))
+    index = {(a.residue.chain.id, int(a.residue.id), a.name): a.index for a in top.atoms()}
+    tmap = np.array([index[(c, num, name)] for c, num, _, name, _ in atoms])
+    targets = []
+    for x in stages:
+        full = pos.copy()
+        full[tmap] = x
+        targets.append(full)
     links = _links(top)
     if len(links) != 2 * (n - 1):
         raise StructureError(f"rebuild: expected {2 * (n - 1)} O3'-P links, the topology has {len(links)}")
-    place = np.array([np.linalg.norm(pos[a.index] - pos[b.index]) for a, b in links])
+    place = np.array([np.linalg.norm(targets[-1][a.index] - targets[-1][b.index]) for a, b in links])
     chiral0 = _chirality(top, pos)
     heavy_ref = pos.copy()
     # stage 1: covalent terms only (HarmonicBond/Angle, PeriodicTorsion) + restraints
@@ -424,19 +546,40 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     for f in system.getForces():
         if isinstance(f, (openmm.HarmonicBondForce, openmm.HarmonicAngleForce, openmm.PeriodicTorsionForce)):
             covalent.addForce(openmm.XmlSerializer.deserialize(openmm.XmlSerializer.serialize(f)))
-    _restrain(covalent, top, heavy_ref, restraint_k)
+    cforce, cgroups = _restrain(covalent, top, heavy_ref, restraint_k)
     _hold_chirality(covalent, top, pos)
     _soft_repulsion(covalent, top, bonds)
     pos, _ = _minimise(covalent, pos, 1.0, max_iterations, platform)
-    # stage 2: the full force field + restraints
-    _restrain(system, top, heavy_ref, restraint_k)
+    # stage 2: the full force field + restraints; the base targets follow the path from the fibre
+    # to the input frames (soft restraints), then firm up on the input; before each stage the
+    # targets take the bases' relaxed internal geometry on the exact placed frames (_retarget)
+    force, groups = _restrain(system, top, heavy_ref, RESTRAINT_SCHEDULE[0])
     _hold_chirality(system, top, heavy_ref)
-    pos, energy = _minimise(system, pos, 0.1, max_iterations, platform)
-    for _ in range(EXTRA_ROUNDS):  # L-BFGS can stop early on large systems: restart while a bond is off
+    ctx = _context(system, pos, platform)
+    plan = [(RESTRAINT_SCHEDULE[0], x) for x in targets[:-1]] + [(k, targets[-1]) for k in RESTRAINT_SCHEDULE]
+    for k, target in plan:
+        ctx.setParameter("kr", k)
+        _retarget(force, ctx, groups, pos, target)
+        pos, energy = _relax(ctx, 0.1, max_iterations)
+    ctx.setParameter("kr", restraint_k)
+    for _ in range(1 + EXTRA_ROUNDS):  # L-BFGS can stop early on large systems: restart while a bond is off
+        _retarget(force, ctx, groups, pos, targets[-1])
+        pos, energy = _relax(ctx, 0.01, max_iterations)
         d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
         if d.max() <= bond_tolerance:
             break
-        pos, energy = _minimise(system, pos, 0.01, max_iterations, platform)
+    if d.max() > 0.2 * bond_tolerance:
+        # stage 3: polish with the covalent terms, the capped repulsion and the firm base restraints only,
+        # so that the bonds reach Amber14's lengths inside the frame tolerance; the energy reported is
+        # still the full force field's
+        cctx = _context(covalent, pos, platform)
+        _retarget(cforce, cctx, cgroups, pos, targets[-1])
+        pos, _ = _relax(cctx, 0.01, max_iterations)
+        del cctx
+        ctx.setPositions(pos)
+        energy = ctx.getState(getEnergy=True, groups={g for g in range(31)}).getPotentialEnergy().value_in_unit(
+            openmm.unit.kilojoule_per_mole)
+    del ctx
     seconds = time.perf_counter() - t0
     cpu = resource.getrusage(resource.RUSAGE_SELF).ru_utime - c0
     # checks
@@ -491,6 +634,13 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         raise StructureError(f"rebuild: atoms {pair} are {10 * dmin:.2f} A apart after minimisation (under "
                              f"{10 * MIN_NONBONDED:.1f} A); the frames put two nucleotides into each other")
     mid, morg = _pair_frames_of(top, pos, n, seq1, seq2)
+    shift, turn = np.linalg.norm(morg - O, axis=-1), _rotation_angle(mid, F)
+    bad = np.flatnonzero((shift > FRAME_ORIGIN_TOL) | (turn > FRAME_ANGLE_TOL))
+    if len(bad):
+        k = int(bad[np.argmax(shift[bad] / FRAME_ORIGIN_TOL + turn[bad] / FRAME_ANGLE_TOL)])
+        raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg while "
+                             f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} deg); "
+                             f"the frames are too distorted for an Amber14 backbone")
     report = RebuildReport(
         max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"
                                                          f"{atoms_list[bonds[worst, 1]].name}",
