@@ -166,7 +166,7 @@ def make_engine(spec, model, dt, seed, omega):
                            salt=spec.salt) if spec.nonbonded else False
     return RodSimulation(model, integrator="langevin" if spec.friction > 0 else "verlet",
                          temperature=spec.temperature, dt=dt, friction=spec.friction,
-                         platform=spec.platform or "CPU", elastic=spec.elastic, nonbonded=nb, loads=spec.loads,
+                         platform=spec.platform, elastic=spec.elastic, nonbonded=nb, loads=spec.loads,
                          seed=seed, threads=spec.threads, omega_max=omega)
 
 
@@ -314,7 +314,7 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                      circular=model.closure is not None, frame_interval_steps=fi,
                      inertia_convention="J = m l^2 (1/2, 1/2, 1) about d1,d2,d3; omega body frame")
     if spec.engine == "openmm":
-        traj_meta.update(platform=spec.platform or "CPU", elastic=engine.rs.elastic)
+        traj_meta.update(platform=engine.platform_name, elastic=engine.rs.elastic)
     # the checkpoint was already loaded (resume) or the folder emptied (new run)
     out = simulate_engine(engine, n_steps, outdir, fi, fi, ci, resume=resume_step is not None, overwrite=True,
                           velocities=spec.velocities, metadata=traj_meta, observables=_observables(spec, engine.model),
@@ -338,6 +338,7 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                    mean_temperature_K=float(np.mean(temps)) if temps else float("nan"), seed=meta["seed"],
                    already_done=False, message=None, selection=(model.metadata or {}).get("selection"))
     if spec.engine == "openmm":
-        summary.update(elastic_path=engine.rs.elastic, platform=spec.platform or "CPU",
+        summary.update(elastic_path=engine.rs.elastic, platform=engine.platform_name,
+                       platform_reason=getattr(engine, "platform_reason", None),
                        nonbonded=engine.rs.nonbonded or None, context_s=engine.context_time)
     return RunResult(outdir, run_files(outdir), summary, resumed_from=resume_step)

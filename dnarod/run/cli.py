@@ -31,7 +31,8 @@ _OPTIONS = [
                  help="Langevin collision rate, 1/ps; 0 runs NVE (constant energy) from Maxwell velocities."),
     click.option("--integrator", type=click.Choice(["langevin", "verlet"]), default="langevin", show_default=True,
                  help="verlet: NVE (the same as --friction 0)."),
-    click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, OpenCL) [default CPU]."),
+    click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU platform "
+                      "if a GPU is present, else the CPU fast path; the choice and its reason are printed]."),
     click.option("--threads", type=int, default=None, help="OpenMM CPU platform threads."),
     click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto", show_default=True,
                  help="OpenMM elastic path."),
@@ -122,6 +123,8 @@ def _report(result, spec):
     if s["engine"] == "openmm":
         head += f"  elastic path: {s['elastic_path']}  platform: {s['platform']}"
     echo(head)
+    if s.get("platform_reason"):
+        echo(f"platform choice: {s['platform_reason']}")
     echo(f"dt: {s['dt_ps'] * 1000:.2f} fs (omega_max {s['omega_max']:.4g} rad/ps)  steps: {s['steps']}  "
          f"simulated: {s['simulated_ps'] / 1000:.6g} ns  seed: {s['seed']}")
     nb = s.get("nonbonded")
