@@ -22,12 +22,12 @@ PLOTS = {
     "torque_turns": ("turns", ["twist_torque_pN_nm", "clamp_torque_pN_nm"], "turns", "torque (pN nm)"),
     "rings": ("delta_lk", ["Wr", "Tw_minus_Tw0"], "linking difference", "turns"),
 }
-#: experimental tables (data/experimental/) drawn beside each protocol's curve, when present.
+#: experimental tables (data/experimental/) drawn beside each protocol's curve (see :func:`_draw_experiment`).
 EXPERIMENTS = {
     "force_extension": ["force_extension_parameters.csv"],
-    "magnetic_tweezers": [],
-    "torque_turns": ["torsional_stiffness.csv"],
-    "rings": ["ring_writhe_fraction.csv"],  # not bundled: no writhe fraction could be verified (data/README.md)
+    "magnetic_tweezers": [],  # no measured hat-curve points could be read (experiments.MISSING)
+    "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv"],
+    "rings": ["ring_writhe_fraction.csv"],  # not bundled: no writhe fraction could be read (experiments.MISSING)
 }
 
 
@@ -41,8 +41,10 @@ class Curve:
 
 
 def experimental_dir():
-    """``data/experimental`` of the source tree."""
-    return Path(__file__).resolve().parents[2] / "data" / "experimental"
+    """``data/experimental`` (:func:`dnarod.protocols.experiments.experimental_dir`)."""
+    from .experiments import experimental_dir as _d
+
+    return _d()
 
 
 def _members(kind, axes, base):
@@ -177,12 +179,10 @@ def _write_csv(rows, path):
 
 
 def read_experimental(name):
-    """Rows of ``data/experimental/NAME`` (``#`` comment lines skipped), or [] if the table does not exist."""
-    p = experimental_dir() / name
-    if not p.exists():
-        return []
-    lines = [ln for ln in p.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
-    return list(csv.DictReader(lines))
+    """Rows of ``data/experimental/NAME`` (:func:`dnarod.protocols.experiments.read_table`)."""
+    from .experiments import read_table
+
+    return read_table(name)
 
 
 def plot_curve(kind, rows, path):
@@ -201,6 +201,7 @@ def plot_curve(kind, rows, path):
         a.errorbar(x, y, yerr=np.where(np.isfinite(e), e, 0.0), fmt="o-", capsize=3, label=f"dnarod: {yk}")
     for name in EXPERIMENTS.get(kind, []):
         _draw_experiment(a, kind, name, rows)
+    _note_missing(a, kind)
     a.set_xlabel(xl)
     a.set_ylabel(yl)
     if rows:
@@ -215,40 +216,62 @@ def plot_curve(kind, rows, path):
 
 
 def _draw_experiment(a, kind, name, rows):
-    """Experimental points beside the curve (converted to the curve's axes where a conversion is defined)."""
+    """Measured values beside the curve, converted to the curve's axes (:mod:`dnarod.protocols.experiments`).
+
+    * force-extension: the worm-like-chain extension (Bouchiat interpolation, inextensible) with each measured
+      persistence length, labelled with its salt, and shaded the band of the persistence lengths that bracket
+      the run's salt (:func:`~dnarod.protocols.experiments.persistence_length_band`);
+    * torque-turns: the pre-buckling slope ``kT C_eff 2 pi turns / L`` of this chain for each measured
+      torsional stiffness, labelled with the force it was measured at (not necessarily the run's force);
+    * hat curves and rings: no measured points could be read; the axes say so.
+    """
     from ..thermal import kT
     from ..units import PN
+    from . import experiments as ex
 
-    data = read_experimental(name)
-    if not data or not rows:
+    if not rows:
         return
-    if kind == "torque_turns" and name == "torsional_stiffness.csv":
-        # a measured torsional stiffness C (pN nm^2) at a force gives the pre-buckling slope
-        # torque = C 2 pi turns / L of this chain
+    T = float(rows[0].get("temperature_K") or 300.0)
+    kt_pn = kT(T) / PN
+    if kind == "torque_turns" and name in ("torsional_stiffness.csv", "effective_torsional_stiffness.csv"):
         L = float(rows[0]["contour_length_nm"])
         t = np.array([float(r.get("turns") or 0.0) for r in rows])
         tt = np.linspace(min(t.min(), 0.0), max(t.max(), 0.0), 20)
-        for d in data:
-            C = float(d["C_pN_nm2"])
-            a.plot(tt, C * 2 * np.pi * tt / L, "--", lw=1,
-                   label=f"slope from C = {C:g} pN nm² ({d['source']}, {d['force_pN']} pN)")
+        run_f = rows[0].get("force_pN")
+        for m in ex.effective_torsional_persistence(temperature=T):
+            if (name == "torsional_stiffness.csv") == ("rotor-bead" in m.conditions):
+                a.plot(tt, kt_pn * m.value * 2 * np.pi * tt / L, "--", lw=1,
+                       label=f"slope, measured C_eff = {m.value:.0f} nm at {m.force_pN:g} pN "
+                             f"({ex.cite_short(m.source)}; run at {run_f} pN)")
     if kind == "force_extension" and name == "force_extension_parameters.csv":
         from ..wlc import extensible_wlc_extension
 
         F = np.array([float(r["force_pN"]) for r in rows])
         FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
-        kt_pn = kT(float(rows[0].get("temperature_K") or 300.0)) / PN
-        for d in data:
-            lp = float(d["persistence_length_nm"])
-            a.plot(FF, extensible_wlc_extension(FF, lp, 1e12, kt_pn), ":", lw=1,
-                   label=f"WLC (Bouchiat) with measured lp {lp:g} nm "
-                         f"({d['source'].split(' Bio')[0]}, {d['conditions']})")
+        salt = float(rows[0].get("salt_M") or 0.15)
+        for m in ex.persistence_lengths():
+            a.plot(FF, extensible_wlc_extension(FF, m.value, 1e12, kt_pn), ":", lw=1,
+                   label=f"WLC, measured lp {m.value:g} nm at {1000 * m.salt_M:g} mM Na+ ({ex.cite_short(m.source)})")
+        try:
+            lo, hi, _ = ex.persistence_length_band(salt)
+        except ValueError:
+            return
+        a.fill_between(FF, extensible_wlc_extension(FF, lo, 1e12, kt_pn), extensible_wlc_extension(FF, hi, 1e12, kt_pn),
+                       color="0.85", zorder=0, label=f"measured lp {lo:g}-{hi:g} nm bracketing {1000 * salt:g} mM")
     if kind == "rings" and name == "ring_writhe_fraction.csv":
         dl = np.array([float(r.get("delta_lk") or 0.0) for r in rows])
         xx = np.linspace(min(dl.min(), 0.0), max(dl.max(), 0.0), 20)
-        for d in data:
-            f = float(d["writhe_fraction"])
-            a.plot(xx, f * xx, ":", lw=1, label=f"Wr = {f:g} ΔLk ({d['source']}, σ {d['sigma']})")
+        for m in ex.writhe_fraction_reference():
+            a.plot(xx, m.value * xx, ":", lw=1, label=f"Wr = {m.value:g} dLk ({ex.cite_short(m.source)})")
+
+
+def _note_missing(a, kind):
+    """Say on the axes when no measured value could be drawn for this protocol."""
+    from . import experiments as ex
+
+    if kind == "magnetic_tweezers" or (kind == "rings" and not ex.writhe_fraction_reference()):
+        a.text(0.02, 0.02, "no measured points bundled (data/README.md)", transform=a.transAxes, fontsize=7,
+               color="0.4")
 
 
 def force_extension(forces_pN, outdir, source="600", **kw):

@@ -13,7 +13,9 @@ Checks (by name; each module states its system, reference and tolerances):
 * ``torsion`` -- C_eff(F) of a stretched chain from the torque-turns slope and from twist fluctuations,
   against each other and Moroz & Nelson (:mod:`.torsion`);
 * ``buckling`` -- the torque plateau of a plectonemic chain (Marko's two-phase model; slow, not in ``quick``)
-  (:mod:`.buckling`).
+  (:mod:`.buckling`);
+* ``experiment`` -- the model's persistence length and effective torsional stiffness against measured DNA
+  values (``data/experimental/``; exact, no simulation) (:mod:`.experiment`).
 
 :func:`run_validation` runs a selection and writes ``report.md``, PNG plots and ``results.json``
 (``{"checks": {NAME: {"passed": bool, ...}}}``) to a folder.
@@ -37,9 +39,10 @@ CHECKS = {
     "force_extension": ("force_extension", "check_force_extension"),
     "torsion": ("torsion", "check_torsion"),
     "buckling": ("buckling", "check_buckling"),
+    "experiment": ("experiment", "check_experiment"),
 }
 #: Checks of ``--quick`` (everything but the slow force-extension runs).
-QUICK_CHECKS = ("engines", "thermal", "dispersion", "helix", "paper_scheme", "torsion")
+QUICK_CHECKS = ("engines", "thermal", "dispersion", "helix", "paper_scheme", "torsion", "experiment")
 
 
 def check_function(name):

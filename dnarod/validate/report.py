@@ -26,6 +26,8 @@ def headline(name, r):
     """``(measured, tolerance)`` one-line strings for the summary table."""
     if "error" in r:
         return f"error: {r['error']}", "-"
+    if "headline" in r:  # a check may state its own summary line
+        return str(r["headline"]), str(r.get("headline_tolerance", "-"))
     try:
         if name == "engines":
             o, s = r["openmm"], r["lax_splitting"]

@@ -1,0 +1,248 @@
+"""Measured DNA values bundled in ``data/experimental/`` (the one home of the experimental tables), in MD units.
+
+The tables are in the experimentalist's units (pN, nm, pN nm, pN nm^2, mol/L) with their sources; this module
+reads them and converts at this edge with :mod:`dnarod.units` (forces in kJ/mol/nm, torques and energies in
+kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm). Every value was read in a stored copy of its source
+(``data/README.md`` says where); quantities that could not be read are listed in :data:`MISSING` and the
+functions for them return an empty list rather than a remembered number.
+
+Used by the protocol plots (:mod:`dnarod.protocols.curves`) and by the "vs experiment" validation
+(:mod:`dnarod.validate.experiment`); other checks can call the ``*_reference`` functions.
+"""
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..units import PN
+
+#: Quantities the issue asks for that could not be read in any stored source (so nothing is bundled).
+MISSING = {
+    "force_extension_points": "the individual force-extension points of Wang et al. (1997) and Bouchiat et al. "
+                              "(1999), Wang's fitted stretch modulus and Bouchiat's fitted persistence length",
+    "buckling_torque": "buckling torques, post-buckling torque plateaus and buckling turns of Mosconi et al. (2009), "
+                       "Forth et al. (2008) and Lipfert et al. (2010/2011) (their abstracts state no numbers)",
+    "writhe_fraction": "the writhe fraction Wr/dLk of plectonemic rings at sigma ~ -0.05 (Boles, White & "
+                       "Cozzarelli 1990; Vologodskii et al.)",
+    "supercoiling_free_energy": "the Depew-Wang (1975) / Horowitz-Wang (1984) coefficient K of "
+                                "dG = (K R T / N) dLk^2",
+    "effective_diameter": "the salt-dependent effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
+                          "and of Stigter (1977)",
+}
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """One measured value in MD units.
+
+    Attributes
+    ----------
+    quantity : str
+        What was measured (e.g. ``"persistence_length"``, ``"effective_torsional_persistence"``).
+    value : float
+        The value in ``unit``.
+    uncertainty : float or None
+        Stated uncertainty (same unit), None if the source states none.
+    unit : str
+        MD unit of ``value`` (``"nm"``, ``"kJ/mol nm"``, ``"1"`` for ratios).
+    force : float or None
+        Stretching force of the measurement, kJ/mol/nm (None if not applicable or not stated).
+    salt_M : float or None
+        Monovalent salt concentration, mol/L (None if not monovalent or not stated).
+    approximate : bool
+        The source states the value as approximate ("about", "approximately").
+    source, conditions, url, verification : str
+        Citation, conditions as stated, the page read, and how it was read.
+    value_max : float or None
+        Upper end when the source states a range (``value`` is then the lower end).
+    """
+
+    quantity: str
+    value: float
+    uncertainty: float | None
+    unit: str
+    force: float | None
+    salt_M: float | None
+    approximate: bool
+    source: str
+    conditions: str
+    url: str
+    verification: str
+    value_max: float | None = None
+
+    @property
+    def force_pN(self):
+        """The force in pN (None if not stated)."""
+        return None if self.force is None else self.force / PN
+
+
+def experimental_dir():
+    """``data/experimental`` of the bundled data directory."""
+    from ..forcefield import data_dir
+
+    return Path(data_dir()) / "experimental"
+
+
+def read_table(name):
+    """Rows (dicts of strings) of ``data/experimental/NAME``; ``#`` comment lines skipped; [] if absent."""
+    p = experimental_dir() / name
+    if not p.exists():
+        return []
+    lines = [ln for ln in p.read_text().splitlines() if ln.strip() and not ln.lstrip().startswith("#")]
+    return list(csv.DictReader(lines))
+
+
+def _f(s):
+    s = (s or "").strip()
+    return float(s) if s else None
+
+
+def _m(row, quantity, value, unit, uncertainty=None, force_pN=None, salt_M=None, approximate=False, value_max=None):
+    return Measurement(quantity=quantity, value=float(value), uncertainty=uncertainty, unit=unit,
+                       force=None if force_pN is None else float(force_pN) * PN, salt_M=salt_M,
+                       approximate=bool(approximate), source=row.get("source", ""),
+                       conditions=row.get("conditions", row.get("salt", "")), url=row.get("url", ""),
+                       verification=row.get("verification", ""), value_max=value_max)
+
+
+def cite_short(source):
+    """Short label of a ``source`` string: ``"Wang et al. 1997"``, or the journal reference when no year/author."""
+    import re
+
+    year = re.search(r"\b(?:19|20)\d\d\b", source)
+    name = re.match(r"([A-Z][\w'-]+)(?: & ([A-Z][\w'-]+))?(,| et al)?", source)
+    if year and name:
+        who = f"{name.group(1)} & {name.group(2)}" if name.group(2) else name.group(1)
+        return f"{who}{' et al.' if name.group(3) else ''} {year.group(0)}"
+    doi = re.search(r", ([^,]+?)(?: \(doi|$)", source)
+    return doi.group(1) if doi else source[:40]
+
+
+def persistence_lengths(monovalent_only=True):
+    """Bending persistence lengths (nm) fitted to measured force-extension curves, with their salt.
+
+    ``monovalent_only`` drops the multivalent-cation value of Wang et al. (1997).
+    """
+    out = []
+    for r in read_table("force_extension_parameters.csv"):
+        salt = _f(r.get("salt_M"))
+        if monovalent_only and salt is None:
+            continue
+        out.append(_m(r, "persistence_length", r["persistence_length_nm"], "nm", _f(r.get("uncertainty_nm")),
+                      salt_M=salt, approximate="approximate" in r.get("conditions", "")))
+    return out
+
+
+def persistence_length_band(salt_M):
+    """Measured bending persistence-length interval (nm) at monovalent salt ``salt_M`` (mol/L).
+
+    The persistence length falls with salt (Wenner et al. 2002), so at ``salt_M`` it lies between the smallest
+    value measured at a salt >= ``salt_M`` and the largest measured at a salt <= ``salt_M``: the spread of
+    the measurements that bracket it. Returns ``(low, high, measurements used)``; raises ValueError if
+    ``salt_M`` is outside the measured range.
+    """
+    ms = persistence_lengths()
+    salts = [m.salt_M for m in ms]
+    if not ms or not (min(salts) <= salt_M <= max(salts)):
+        raise ValueError(f"salt {salt_M} M is outside the measured range "
+                         f"{min(salts) if ms else '?'}-{max(salts) if ms else '?'} M")
+    above = [m for m in ms if m.salt_M >= salt_M]
+    below = [m for m in ms if m.salt_M <= salt_M]
+    lo, hi = min(m.value for m in above), max(m.value for m in below)
+    return float(min(lo, hi)), float(max(lo, hi)), sorted(set(above) | set(below), key=lambda m: m.salt_M)
+
+
+def wlc_extension_band(forces_pN, salt_M, stretch_modulus_pN, temperature):
+    """Relative extension x/L (extensible WLC, Bouchiat interpolation) implied by the measured persistence
+    lengths at ``salt_M``: ``(low, high)`` arrays over ``forces_pN`` (pN) with the model's stretch modulus (pN)
+    and kT at ``temperature`` (K). Not measured points: those could not be read (:data:`MISSING`)."""
+    from ..thermal import kT
+    from ..wlc import extensible_wlc_extension
+
+    lo, hi, _ = persistence_length_band(salt_M)
+    F = np.atleast_1d(np.asarray(forces_pN, float))
+    ktp = kT(temperature) / PN
+    return (np.asarray(extensible_wlc_extension(F, lo, stretch_modulus_pN, ktp)),
+            np.asarray(extensible_wlc_extension(F, hi, stretch_modulus_pN, ktp)))
+
+
+def torsional_rigidities():
+    """Measured torsional rigidities C (kJ/mol nm) with their force (Bryant et al. 2003); ``15-45`` pN -> None."""
+    out = []
+    for r in read_table("torsional_stiffness.csv"):
+        try:
+            f = float(r["force_pN"])
+        except ValueError:
+            f = None
+        unc = _f(r.get("uncertainty_pN_nm2"))
+        out.append(_m(r, "torsional_rigidity", float(r["C_pN_nm2"]) * PN, "kJ/mol nm",
+                      None if unc is None else unc * PN, force_pN=f))
+    return out
+
+
+def effective_torsional_persistence(temperature=298.15):
+    """Measured effective torsional persistence lengths C_eff (nm) at a force.
+
+    Magnetic-torque-tweezers values are stated in nm; rotor-bead rigidities (pN nm^2) are divided by kT at
+    ``temperature`` (K): the captions read do not state the experiments' temperature, so the conversion is
+    the caller's choice and is written into ``conditions``.
+    """
+    from ..thermal import kT
+
+    out = []
+    for r in read_table("effective_torsional_stiffness.csv"):
+        salts = [float(s) for s in r.get("salt_M_values", "").split(";") if s.strip()]
+        out.append(_m(r, "effective_torsional_persistence", r["C_eff_nm"], "nm", _f(r.get("uncertainty_nm")),
+                      force_pN=r["force_pN"], salt_M=min(salts) if salts else None))
+    kt = kT(temperature)
+    for m in torsional_rigidities():
+        if m.force is None:
+            continue
+        out.append(Measurement(quantity="effective_torsional_persistence", value=m.value / kt,
+                               uncertainty=None if m.uncertainty is None else m.uncertainty / kt, unit="nm",
+                               force=m.force, salt_M=None, approximate=False, source=m.source,
+                               conditions=f"{m.conditions}; converted with kT at {temperature:g} K", url=m.url,
+                               verification=m.verification))
+    return out
+
+
+def buckling_reference():
+    """What was read about buckling (:data:`MISSING` lists the torques that could not be read)."""
+    return [_m(r, r["quantity"], r["value"], "1" if r["unit"] == "ratio" else r["unit"],
+               approximate=r.get("approximate") == "yes") for r in read_table("buckling.csv")]
+
+
+def writhe_fraction_reference():
+    """Measured writhe fraction Wr/dLk of supercoiled rings: rows of ``ring_writhe_fraction.csv`` (columns
+    ``writhe_fraction``, ``sigma``); empty, because no value could be read (:data:`MISSING`)."""
+    return [_m(r, "writhe_fraction", r["writhe_fraction"], "1", salt_M=_f(r.get("salt_M")))
+            for r in read_table("ring_writhe_fraction.csv")]
+
+
+def writhe_variance_reference():
+    """Ratio var(Wr) / var(Lk) of relaxed circular DNA (about 0.5; ``supercoiling.csv``)."""
+    return [_m(r, r["quantity"], r["value"], "1", approximate=r.get("approximate") == "yes")
+            for r in read_table("supercoiling.csv") if r["quantity"] == "writhe_variance_over_linking_variance"]
+
+
+def supercoiling_free_energy_reference():
+    """The Depew-Wang / Horowitz-Wang coefficient K: empty, no value could be read (:data:`MISSING`)."""
+    return [_m(r, r["quantity"], r["value"], "1") for r in read_table("supercoiling.csv")
+            if r["quantity"] == "supercoiling_free_energy_K"]
+
+
+def dna_diameter_reference():
+    """Geometric diameter (nm) and the effective-thickness statement read (``dna_diameter.csv``)."""
+    out = []
+    for r in read_table("dna_diameter.csv"):
+        out.append(_m(r, r["quantity"], r["value"], "1" if r["unit"] == "ratio" else r["unit"],
+                      approximate=r.get("approximate") == "yes", value_max=_f(r.get("value_max"))))
+    return out
+
+
+def effective_diameter_reference():
+    """Measured salt-dependent effective diameters (Rybenkov et al. 1993): empty, none could be read."""
+    return [m for m in dna_diameter_reference() if m.quantity == "effective_diameter"]

@@ -1,0 +1,151 @@
+"""Check ``experiment`` (quick, no simulation): the ``dna-default`` model's elastic response against measured DNA.
+
+The model's own numbers are exact (no sampling): its bending persistence length (the discrete chain's exact
+value, :func:`dnarod.thermal.persistence_length`), its bare torsional persistence length C
+(:func:`dnarod.validate.torsion.bare_twist_persistence`) and its effective torsional stiffness under tension
+``C_eff(F)`` from the Moroz-Nelson expansion with those A and C (:func:`dnarod.validate.torsion.moroz_nelson`;
+check ``torsion`` measures that the simulated chain follows it). The measured values are read by
+:mod:`dnarod.protocols.experiments` from ``data/experimental/`` (sources in ``data/README.md``).
+
+Comparisons (each passes only inside its tolerance; the overall check passes if all do):
+
+1. **Bending persistence length** vs the persistence lengths fitted to single-molecule force-extension curves
+   (Wang et al. 1997; Wenner et al. 2002) that bracket the salt ``salt_M``
+   (:func:`~dnarod.protocols.experiments.persistence_length_band`): pass if the model's lp lies inside the
+   measured interval (the tolerance is the experimental spread; the papers' abstracts state no errors). The
+   relative extensions x/L that the measured interval implies at ``forces_pN`` (extensible WLC, Bouchiat
+   interpolation, the model's stretch modulus) are reported beside the model's own.
+2. **Effective torsional stiffness** C_eff(F) at the force of each measurement (magnetic torque tweezers at
+   6.5 pN, NAR 45:5920; rotor-bead tweezers at 15 pN, Bryant et al. 2003, converted with kT at
+   ``temperature``): pass if ``|model - measured| <= Z_TOL sigma_measured + THEORY_ALLOWANCE C_model``, the
+   allowance being the Moroz-Nelson accuracy for a finite chain used by check ``torsion``.
+3. **Bare torsional persistence length** C vs the measured microscopic values (Bryant et al. 2003 rotor-bead
+   rigidities, Moroz & Nelson 1997/1998 fits): pass if inside ``[min(value - sigma), max(value + sigma)]``
+   over the measurements (their spread plus their stated errors).
+
+Not compared, because no value could be read (:data:`dnarod.protocols.experiments.MISSING`): buckling torques
+and post-buckling plateaus, the writhe fraction of plectonemic rings, the supercoiling free-energy coefficient,
+measured effective diameters. ``lp_override`` / ``c_override`` replace the model's values (the tests show the
+check failing with wrong ones).
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+NAME = "experiment"
+Z_TOL = 3.0
+THEORY_ALLOWANCE = 0.10
+DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)
+
+
+def model_elastic_constants(temperature, forcefield="dna-default"):
+    """``(lp nm, C nm, S pN)`` of a uniform chain of ``forcefield`` at ``temperature`` K (exact values)."""
+    from ..forcefield import load_forcefield
+    from ..thermal import kT, persistence_length
+    from ..units import PN
+    from .torsion import bare_twist_persistence
+
+    model = load_forcefield(forcefield).model_from_sequence(n_nodes=20)
+    lp = persistence_length(model.params, model.ds, kT(temperature))
+    C = bare_twist_persistence(model, temperature)
+    S = 1.0 / np.linalg.inv(model.params.stiffness[0])[5, 5] / PN
+    return float(lp), float(C), float(S)
+
+
+def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, forces_pN=DEFAULT_FORCES_PN,
+                     forcefield="dna-default", lp_override=None, c_override=None, plots=True):
+    """Run the check (see the module docstring). ``quick`` changes nothing: the check is exact and fast."""
+    from ..protocols import experiments as ex
+    from ..thermal import kT
+    from ..units import PN
+    from ..wlc import extensible_wlc_extension
+    from .torsion import moroz_nelson
+
+    t0 = time.perf_counter()
+    lp0, C0, S = model_elastic_constants(temperature, forcefield)
+    lp = lp0 if lp_override is None else float(lp_override)
+    C = C0 if c_override is None else float(c_override)
+    kt_pn = kT(temperature) / PN
+
+    lo, hi, used = ex.persistence_length_band(salt_M)
+    lp_ok = bool(lo <= lp <= hi)
+    F = np.asarray(forces_pN, float)
+    x_lo, x_hi = ex.wlc_extension_band(F, salt_M, S, temperature)
+    x_model = np.asarray(extensible_wlc_extension(F, lp, S, kt_pn))
+    bending = dict(model_nm=lp, measured_low_nm=lo, measured_high_nm=hi, salt_M=salt_M,
+                   measurements=[dict(value_nm=m.value, salt_M=m.salt_M, source=m.source, url=m.url) for m in used],
+                   relative_extension=[dict(force_pN=float(f), model=float(a), measured_low=float(b),
+                                            measured_high=float(c)) for f, a, b, c in zip(F, x_model, x_lo, x_hi)],
+                   passed=lp_ok)
+
+    torsion_rows = []
+    for m in ex.effective_torsional_persistence(temperature=temperature):
+        model_c = float(moroz_nelson(C, lp, m.force_pN, kt_pn))
+        sigma = m.uncertainty or 0.0
+        tol = Z_TOL * sigma + THEORY_ALLOWANCE * model_c
+        torsion_rows.append(dict(force_pN=m.force_pN, measured_nm=m.value, measured_sigma_nm=sigma,
+                                 model_nm=model_c, difference_nm=model_c - m.value, tolerance_nm=tol,
+                                 source=ex.cite_short(m.source), conditions=m.conditions, url=m.url,
+                                 passed=bool(abs(model_c - m.value) <= tol)))
+    torsion_ok = bool(torsion_rows) and all(r["passed"] for r in torsion_rows)
+
+    bare = []
+    for m in ex.torsional_rigidities():
+        s = m.uncertainty or 0.0
+        bare.append((m.value / kT(temperature), s / kT(temperature), ex.cite_short(m.source)))
+    for r in ex.read_table("twist_stiffness_fits.csv"):
+        bare.append((float(r["C_nm"]), 0.0, ex.cite_short(r["source"])))
+    c_lo = min(v - s for v, s, _ in bare)
+    c_hi = max(v + s for v, s, _ in bare)
+    bare_ok = bool(c_lo <= C <= c_hi)
+    bare_res = dict(model_nm=C, measured_low_nm=c_lo, measured_high_nm=c_hi, conversion_temperature_K=temperature,
+                    measurements=[dict(value_nm=v, sigma_nm=s, source=src) for v, s, src in bare], passed=bare_ok)
+
+    passed = bool(lp_ok and torsion_ok and bare_ok)
+    kriegel = next((r for r in torsion_rows if abs(r["force_pN"] - 6.5) < 1e-9), torsion_rows[0] if torsion_rows else None)
+    res = dict(model=f"{forcefield} uniform chain at {temperature} K: lp {lp:.2f} nm, C {C:.2f} nm, S {S:.0f} pN",
+               temperature_K=temperature, model_persistence_length_nm=lp0, model_twist_persistence_nm=C0,
+               persistence_length_used_nm=lp, twist_persistence_used_nm=C, stretch_modulus_pN=S,
+               bending=bending, effective_torsional_stiffness=torsion_rows, bare_torsional_stiffness=bare_res,
+               z_tolerance=Z_TOL, theory_allowance_relative=THEORY_ALLOWANCE,
+               not_compared={k: f"no value could be read: {v}" for k, v in ex.MISSING.items()},
+               notes=["Measured values and where they were read: data/README.md (data/experimental/).",
+                      "Not compared (no value could be read): " + "; ".join(ex.MISSING.values()) + "."],
+               passed=passed)
+    res["headline"] = (f"lp {lp:.1f} nm vs measured {lo:g}-{hi:g} nm at {1000 * salt_M:g} mM; "
+                       + (f"C_eff({kriegel['force_pN']:g} pN) {kriegel['model_nm']:.1f} vs {kriegel['measured_nm']:g}"
+                          f"+-{kriegel['measured_sigma_nm']:g} nm; " if kriegel else "")
+                       + "; ".join(f"C_eff({r['force_pN']:g} pN) {r['model_nm']:.1f} vs {r['measured_nm']:.1f}"
+                                   f"+-{r['measured_sigma_nm']:.1f} nm" for r in torsion_rows if r is not kriegel)
+                       + f"; C {C:.1f} vs measured {c_lo:.1f}-{c_hi:.1f} nm")
+    res["headline_tolerance"] = (f"lp inside the measured interval; |dC_eff| <= {Z_TOL:g} sigma + "
+                                 f"{100 * THEORY_ALLOWANCE:.0f}%; C inside measured values +- sigma")
+    if plots:
+        res["plots"] = [_plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn)]
+    res["runtime_s"] = time.perf_counter() - t0
+    return res
+
+
+def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
+    from .torsion import moroz_nelson
+    from ._common import new_figure, save_figure
+
+    fig, ax = new_figure(2, 1, width=5.0, height=4.0)
+    a = ax[0, 0]
+    a.fill_between(F, x_lo, x_hi, color="0.85", label="WLC with the measured lp interval")
+    a.semilogx(F, x_model, "ko-", label=f"model (lp {lp:.1f} nm)")
+    a.set_xlabel("force (pN)")
+    a.set_ylabel("extension / contour length")
+    a.legend(fontsize=7)
+    b = ax[0, 1]
+    FF = np.linspace(0.5, 20, 80)
+    b.plot(FF, moroz_nelson(C, lp, FF, kt_pn), "k-", label=f"model, Moroz-Nelson (C {C:.1f} nm)")
+    for r in res["effective_torsional_stiffness"]:
+        b.errorbar([r["force_pN"]], [r["measured_nm"]], yerr=[r["measured_sigma_nm"]], fmt="s", capsize=3,
+                   label=f"measured ({r['source']})")
+    b.set_xlabel("force (pN)")
+    b.set_ylabel("C_eff (nm)")
+    b.legend(fontsize=7)
+    return save_figure(fig, out_dir, "experiment.png")
