@@ -1,0 +1,147 @@
+"""Measured DNA values (data/experimental/): the loader's numbers and units, the plot overlays and the
+``experiment`` validation check (passes with the model's parameters, fails with wrong ones)."""
+import csv
+
+import numpy as np
+import pytest
+
+from dnarod.protocols import experiments as ex
+from dnarod.units import PN
+
+
+def test_tables_carry_a_source_url_and_verification_for_every_row():
+    for p in sorted(ex.experimental_dir().glob("*.csv")):
+        rows = ex.read_table(p.name)
+        assert rows, p.name
+        for r in rows:
+            assert r["source"].strip() and r["verification"].strip(), (p.name, r)
+            assert "url" in r, p.name
+
+
+def test_persistence_lengths_read_from_the_tables():
+    ms = {(m.value, m.salt_M) for m in ex.persistence_lengths()}
+    # Wang et al. 1997 (10 mM Na+), Wenner et al. 2002 (1000 mM and 2.57 mM Na+); the multivalent value is dropped
+    assert ms == {(47.0, 0.010), (46.0, 1.0), (59.0, 0.00257)}
+    assert 40.0 in {m.value for m in ex.persistence_lengths(monovalent_only=False)}
+
+
+def test_persistence_length_band_brackets_the_salt():
+    assert ex.persistence_length_band(0.15)[:2] == (46.0, 59.0)
+    # at 5 mM: below it only 59 nm (2.57 mM), above it 47 nm (10 mM) and 46 nm (1 M)
+    lo, hi, used = ex.persistence_length_band(0.005)
+    assert (lo, hi) == (46.0, 59.0) and [m.salt_M for m in used] == [0.00257, 0.010, 1.0]
+    assert ex.persistence_length_band(1.0)[:2] == (46.0, 59.0)
+    with pytest.raises(ValueError, match="outside the measured range"):
+        ex.persistence_length_band(2.0)
+
+
+def test_wlc_band_orders_and_matches_the_formula():
+    from dnarod.thermal import kT
+    from dnarod.wlc import extensible_wlc_extension
+
+    lo, hi = ex.wlc_extension_band([0.1, 1.0, 10.0], 0.15, 1100.0, 300.0)
+    assert np.all(lo < hi)
+    ktp = kT(300.0) / PN
+    assert lo[1] == pytest.approx(float(extensible_wlc_extension(1.0, 46.0, 1100.0, ktp)), rel=1e-12)
+    assert hi[2] == pytest.approx(float(extensible_wlc_extension(10.0, 59.0, 1100.0, ktp)), rel=1e-12)
+
+
+def test_torsional_values_in_md_units():
+    rig = ex.torsional_rigidities()
+    bry = [m for m in rig if m.force is not None][0]
+    assert bry.value == pytest.approx(440.0 * PN) and bry.uncertainty == pytest.approx(40.0 * PN)
+    assert bry.force == pytest.approx(15.0 * PN) and bry.force_pN == pytest.approx(15.0)
+    ms = ex.effective_torsional_persistence(temperature=300.0)
+    mtt = [m for m in ms if m.force_pN == pytest.approx(6.5)][0]
+    assert (mtt.value, mtt.uncertainty, mtt.unit) == (103.0, 4.0, "nm")
+    from dnarod.thermal import kT
+
+    rb = [m for m in ms if m.force_pN == pytest.approx(15.0)][0]
+    assert rb.value == pytest.approx(440.0 * PN / kT(300.0)) and "300 K" in rb.conditions
+
+
+def test_missing_quantities_return_nothing_rather_than_a_remembered_number():
+    assert ex.writhe_fraction_reference() == []
+    assert ex.supercoiling_free_energy_reference() == []
+    assert ex.effective_diameter_reference() == []
+    assert set(ex.MISSING) >= {"buckling_torque", "writhe_fraction", "supercoiling_free_energy", "effective_diameter"}
+    (w,) = ex.writhe_variance_reference()
+    assert w.value == 0.5 and w.approximate
+    (b,) = ex.buckling_reference()
+    assert b.quantity == "initial_loop_to_per_turn_extension_ratio" and b.value == 2.0
+
+
+def test_short_citations():
+    assert ex.cite_short("Wang, Yin, Landick, Gelles & Block 1997 Biophys J 72:1335") == "Wang et al. 1997"
+    assert ex.cite_short("Moroz & Nelson 1998 Macromolecules 31:6333") == "Moroz & Nelson 1998"
+    assert ex.cite_short("Bryant et al. 2003 Nature 424:338") == "Bryant et al. 2003"
+
+
+def _rows(kind):
+    from dnarod.wlc import extensible_wlc_extension
+
+    if kind == "force_extension":
+        return [dict(force_pN=f, relative_extension=float(extensible_wlc_extension(f, 50.0, 1100.0, 4.14)),
+                     relative_extension_err=0.005, n_bp=600, temperature_K=300.0, salt_M=0.15) for f in (0.1, 1.0, 10.0)]
+    return [dict(turns=t, twist_torque_pN_nm=20.0 * t, twist_torque_pN_nm_err=1.0, clamp_torque_pN_nm=20.0 * t,
+                 clamp_torque_pN_nm_err=2.0, relative_extension=0.8, relative_extension_err=0.01, force_pN=1.0,
+                 contour_length_nm=101.66, n_bp=300, temperature_K=300.0, salt_M=0.15) for t in (-1.0, 0.0, 1.0)]
+
+
+@pytest.mark.parametrize("kind,expected", [
+    ("force_extension", ["Wang et al. 1997", "Wenner et al. 2002", "bracketing 150 mM"]),
+    ("torque_turns", ["103 nm at 6.5 pN", "Bryant et al. 2003", "run at 1.0 pN"]),
+    ("magnetic_tweezers", []),
+])
+def test_protocol_plots_draw_the_measured_values(tmp_path, monkeypatch, kind, expected):
+    import matplotlib.axes
+
+    from dnarod.protocols.curves import plot_curve
+
+    labels, texts = [], []
+    orig_legend, orig_text = matplotlib.axes.Axes.legend, matplotlib.axes.Axes.text
+
+    def legend(self, *a, **k):
+        labels.extend(h.get_label() for h in self.get_legend_handles_labels()[0])
+        labels.extend(self.get_legend_handles_labels()[1])
+        return orig_legend(self, *a, **k)
+
+    def text(self, x, y, s, *a, **k):
+        texts.append(s)
+        return orig_text(self, x, y, s, *a, **k)
+
+    monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
+    monkeypatch.setattr(matplotlib.axes.Axes, "text", text)
+    out = plot_curve(kind, _rows(kind), tmp_path / f"{kind}.png")
+    assert out.stat().st_size > 5000
+    joined = " | ".join(labels)
+    for e in expected:
+        assert e in joined, joined
+    if kind == "magnetic_tweezers":
+        assert any("no measured points" in t for t in texts)
+
+
+def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(tmp_path):
+    from dnarod.validate.experiment import check_experiment
+
+    r = check_experiment(tmp_path)
+    assert r["passed"], r["headline"]
+    assert r["model_persistence_length_nm"] == pytest.approx(50.0, abs=1e-6)
+    assert (r["bending"]["measured_low_nm"], r["bending"]["measured_high_nm"]) == (46.0, 59.0)
+    six = [x for x in r["effective_torsional_stiffness"] if x["force_pN"] == pytest.approx(6.5)][0]
+    # Moroz-Nelson with the model's A = 50 nm, C = 98.3 nm at 6.5 pN, against 103 +- 4 nm measured
+    assert six["model_nm"] == pytest.approx(92.8, abs=0.1) and six["measured_nm"] == 103.0
+    assert (tmp_path / "experiment.png").stat().st_size > 5000
+    assert set(r["not_compared"]) == set(ex.MISSING)
+    for kw in (dict(lp_override=44.0), dict(lp_override=62.0), dict(c_override=60.0), dict(c_override=150.0)):
+        assert not check_experiment(tmp_path, plots=False, **kw)["passed"], kw
+
+
+def test_experiment_check_in_the_report(tmp_path):
+    from dnarod import validate as V
+
+    res = V.run_validation(tmp_path, checks=["experiment"])
+    assert res["checks"]["experiment"]["passed"]
+    rep = (tmp_path / "report.md").read_text()
+    assert "| experiment | PASS |" in rep and "vs measured 46-59 nm" in rep and "experiment.png" in rep
+    assert "experiment" in V.QUICK_CHECKS
