@@ -68,3 +68,35 @@ def test_overlapping_nodes_are_rejected():
     pos[20] = pos[2]  # coincident centres: rejected even without excluded volume
     with pytest.raises(GeometryError, match="overlap"):
         build_system(m.with_pose(pos, m.frames), nonbonded=False)
+
+
+@pytest.mark.parametrize("gamma", [np.pi / 2, np.pi / 4])
+def test_crossing_diameter_of_line_charges_matches_the_continuum_formula(gamma):
+    # Two straight lines of charge nu (e/nm) crossing at angle gamma, closest distance h, interact through the
+    # Debye-Hueckel energy U/kT = 2 pi nu^2 l_B exp(-kappa h) / (kappa sin gamma) (integrate exp(-kappa r)/r over
+    # the plane spanned by the lines, area element ds1 ds2 sin gamma). Sites 0.1 nm apart, no core, cutoff 12
+    # Debye lengths (the shift is then e^-12 per pair): the site sum must reproduce it.
+    from dnarod.openmm.nonbonded import crossing_diameter
+    from dnarod.thermal import kT
+
+    ds = 0.1
+    nb = NonbondedSettings(salt=0.1, excluded_volume=False, cutoff_debye=12.0, charge=0.2).resolve(ds, 300.0)
+    h = np.linspace(0.0, nb["cutoff"], 600)
+    d = crossing_diameter(nb, ds, gamma, kT(300.0), 1, h)
+    nu, k = nb["charge"] / ds, nb["kappa"]
+    U = 2 * np.pi * nu**2 * nb["bjerrum"] * np.exp(-k * h) / (k * np.sin(gamma))
+    assert d == pytest.approx(np.trapezoid(-np.expm1(-U), h), rel=3e-3)
+
+
+def test_effective_diameter_of_the_default_potential():
+    from dnarod.openmm.nonbonded import effective_diameter
+
+    sigma = 2.0
+    d_wca = effective_diameter(NonbondedSettings(electrostatics=False, diameter=sigma), 0.34, 300.0)
+    # f = 1 - exp(-U/kT) <= 1 and U = 0 beyond the WCA cutoff 2^(1/6) sigma; inside sigma the many overlapping
+    # sites make U >> kT
+    assert 0.95 * sigma < d_wca < 2 ** (1 / 6) * sigma
+    d = {c: effective_diameter(NonbondedSettings(salt=c), 0.34, 300.0) for c in (0.1, 0.15, 0.5)}
+    assert d[0.1] > d[0.15] > d[0.5] >= d_wca - 1e-9
+    # measured here (README "What is calibrated to what"): 2.63 nm at 0.1 M, 2.31 nm at 0.15 M, 2.13 nm at 0.5 M
+    assert d[0.15] == pytest.approx(2.31, abs=0.01) and d[0.1] == pytest.approx(2.63, abs=0.01)
