@@ -91,7 +91,7 @@ def _rows(kind):
 @pytest.mark.parametrize("kind,expected", [
     ("force_extension", ["Wang et al. 1997", "Wenner et al. 2002", "bracketing 150 mM"]),
     ("torque_turns", ["103 nm at 6.5 pN", "Bryant et al. 2003", "run at 1.0 pN"]),
-    ("magnetic_tweezers", []),
+    ("magnetic_tweezers", ["x/L at 1 pN from measured lp 46-59 nm"]),
 ])
 def test_protocol_plots_draw_the_measured_values(tmp_path, monkeypatch, kind, expected):
     import matplotlib.axes
@@ -118,7 +118,7 @@ def test_protocol_plots_draw_the_measured_values(tmp_path, monkeypatch, kind, ex
     for e in expected:
         assert e in joined, joined
     if kind == "magnetic_tweezers":
-        assert any("no measured points" in t for t in texts)
+        assert any("no measured hat-curve points" in t for t in texts)
 
 
 def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(tmp_path):

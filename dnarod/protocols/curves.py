@@ -25,7 +25,9 @@ PLOTS = {
 #: experimental tables (data/experimental/) drawn beside each protocol's curve (see :func:`_draw_experiment`).
 EXPERIMENTS = {
     "force_extension": ["force_extension_parameters.csv"],
-    "magnetic_tweezers": [],  # no measured hat-curve points could be read (experiments.MISSING)
+    # no measured hat-curve points could be read (experiments.MISSING); the zero-turn extension is compared with
+    # the force-extension relation of the measured persistence lengths
+    "magnetic_tweezers": ["force_extension_parameters.csv"],
     "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv"],
     "rings": ["ring_writhe_fraction.csv"],  # not bundled: no writhe fraction could be read (experiments.MISSING)
 }
@@ -223,7 +225,10 @@ def _draw_experiment(a, kind, name, rows):
       the run's salt (:func:`~dnarod.protocols.experiments.persistence_length_band`);
     * torque-turns: the pre-buckling slope ``kT C_eff 2 pi turns / L`` of this chain for each measured
       torsional stiffness, labelled with the force it was measured at (not necessarily the run's force);
-    * hat curves and rings: no measured points could be read; the axes say so.
+    * hat curves: no measured hat-curve points could be read (the axes say so); at zero turns a bar spans the
+      relative extension that the measured persistence lengths bracketing the run's salt give at the run's force
+      (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further);
+    * rings: no measured writhe fraction could be read; the axes say so.
     """
     from ..thermal import kT
     from ..units import PN
@@ -258,6 +263,17 @@ def _draw_experiment(a, kind, name, rows):
             return
         a.fill_between(FF, extensible_wlc_extension(FF, lo, 1e12, kt_pn), extensible_wlc_extension(FF, hi, 1e12, kt_pn),
                        color="0.85", zorder=0, label=f"measured lp {lo:g}-{hi:g} nm bracketing {1000 * salt:g} mM")
+    if kind == "magnetic_tweezers" and name == "force_extension_parameters.csv":
+        salt = float(rows[0].get("salt_M") or 0.15)
+        for f in sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}):
+            try:
+                lo, hi = ex.wlc_extension_band([f], salt, 1e12, T)
+                lp_lo, lp_hi, _ = ex.persistence_length_band(salt)
+            except ValueError:
+                continue
+            a.errorbar([0.0], [0.5 * (lo[0] + hi[0])], yerr=[[0.5 * (hi[0] - lo[0])]], fmt="none", ecolor="k",
+                       capsize=6, lw=2, label=f"x/L at {f:g} pN from measured lp {lp_lo:g}-{lp_hi:g} nm "
+                                           f"({1000 * salt:g} mM; long-molecule WLC)")
     if kind == "rings" and name == "ring_writhe_fraction.csv":
         dl = np.array([float(r.get("delta_lk") or 0.0) for r in rows])
         xx = np.linspace(min(dl.min(), 0.0), max(dl.max(), 0.0), 20)
@@ -270,8 +286,9 @@ def _note_missing(a, kind):
     from . import experiments as ex
 
     if kind == "magnetic_tweezers" or (kind == "rings" and not ex.writhe_fraction_reference()):
-        a.text(0.02, 0.02, "no measured points bundled (data/README.md)", transform=a.transAxes, fontsize=7,
-               color="0.4")
+        what = "hat-curve points" if kind == "magnetic_tweezers" else "writhe fraction"
+        a.text(0.02, 0.97, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
+               fontsize=7, color="0.4", va="top")
 
 
 def force_extension(forces_pN, outdir, source="600", **kw):
