@@ -82,7 +82,8 @@ def _rows(kind):
 
     if kind == "force_extension":
         return [dict(force_pN=f, relative_extension=float(extensible_wlc_extension(f, 50.0, 1100.0, 4.14)),
-                     relative_extension_err=0.005, n_bp=600, temperature_K=300.0, salt_M=0.15) for f in (0.1, 1.0, 10.0)]
+                     relative_extension_err=0.005, n_bp=600, temperature_K=300.0, salt_M=0.15)
+                for f in (0.1, 1.0, 10.0)]
     return [dict(turns=t, twist_torque_pN_nm=20.0 * t, twist_torque_pN_nm_err=1.0, clamp_torque_pN_nm=20.0 * t,
                  clamp_torque_pN_nm_err=2.0, relative_extension=0.8, relative_extension_err=0.01, force_pN=1.0,
                  contour_length_nm=101.66, n_bp=300, temperature_K=300.0, salt_M=0.15) for t in (-1.0, 0.0, 1.0)]

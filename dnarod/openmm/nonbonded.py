@@ -8,13 +8,13 @@ electrostatics, one interaction site per node (its centre).
   "about 20 Angstrom" in the NCI thesaurus (secondary sources read in round 3; Saenger's book itself was not
   read; ``data/experimental/dna_diameter.csv``). The larger salt-dependent "effective diameter" that knotting
   and catenation experiments are interpreted with (Rybenkov, Cozzarelli & Vologodskii 1993, PNAS 90:5307;
-  Stigter 1977; both citations from memory) includes the electrostatic repulsion, which is modelled explicitly here. Those measured
-  effective diameters could not be read in any stored source, so **neither sigma nor the charge is calibrated
-  to them**; :func:`effective_diameter` computes the model's own value (second-virial definition): 2.13 nm
-  without electrostatics, 2.63 / 2.31 / 2.13 nm at 0.1 / 0.15 / 0.5 M (300 K, ``ds = 0.34 nm``), i.e. an
-  electrostatic radius of 0.33 / 0.2 Debye lengths at 0.1 / 0.15 M, against "about 5 times the Debye length"
-  inferred from stretching data by arXiv:cond-mat/0601348 (abstract; a thick-chain fit, a different
-  definition).
+  Stigter 1977; both citations from memory) includes the electrostatic repulsion, which is modelled
+  explicitly here. Those measured effective diameters could not be read in any stored source, so **neither
+  sigma nor the charge is calibrated to them**; :func:`effective_diameter` computes the model's own value
+  (second-virial definition): 2.13 nm without electrostatics, 2.63 / 2.31 / 2.13 nm at 0.1 / 0.15 / 0.5 M
+  (300 K, ``ds = 0.34 nm``), i.e. an electrostatic radius of 0.33 / 0.2 Debye lengths at 0.1 / 0.15 M,
+  against "about 5 times the Debye length" inferred from stretching data by arXiv:cond-mat/0601348
+  (abstract; a thick-chain fit, a different definition).
 * **Electrostatics**: Debye-Hueckel, ``q^2 (e^2/4 pi eps0 eps_r) exp(-r/lambda_D)/r``, shifted
   to zero at the cutoff (default ``5 lambda_D``); ``eps_r = 78.5`` (water, 25 C; a textbook value, not
   re-read);
