@@ -54,12 +54,14 @@ MIN_CUTOFF = 1.2           # nm, non-bonded cut-off during the closure (local ge
 EXTRA_ROUNDS = 3           # minimiser restarts while a bond is still off
 CHIRAL_K = 1.0e3           # kJ/mol/rad^2, flat-bottom restraint on sugar stereocentres
 BOND_TOLERANCE = 0.005     # nm: largest accepted deviation of a bond from its Amber14 equilibrium
-# Bond force constants are multiplied by this in the final covalent polish. Why: the residual strain that
+# Bond force constants are multiplied by this in the final polish. Why: the residual strain that
 # the frames leave in a nucleotide sits mostly in the angles at C1' (C2'-C1'-N opened by 5-10 deg, already
 # 5.6 deg on average at the full Amber14 minimum of ideal B-DNA, where bonds are up to 0.04 A off their
 # equilibrium); with Amber's own bond/angle stiffness part of that strain stretches the glycosidic bond to
-# 0.03-0.05 A. Softening the base restraints does not relieve it (4x softer: frames move 3x more, the bond
-# 0.0015 A less), more minimiser iterations do not either; stiffer bonds move it into the angles (reported).
+# 0.03-0.05 A (and the Watson-Crick hydrogen bonds stretch the amino C-N bonds by up to 0.04 A). Softening
+# the base restraints does not relieve it (4x softer: frames move 3x more, the bond 0.0015 A less), more
+# minimiser iterations do not either; stiffer bonds move it into the angles (largest angle deviation reported,
+# unchanged within 0.3 deg on 355D and a thermal snapshot).
 POLISH_BOND_SCALE = 4.0
 RING_SLACK = 0.005         # nm: ring atoms' allowed departure from the rigid standard base (refitted shape)
 MIN_NONBONDED = 0.22       # nm: shortest accepted heavy-atom distance beyond 1-3 neighbours
@@ -309,8 +311,8 @@ def _hold_chirality(system, topology, positions, k=CHIRAL_K):
     system.addForce(f)
 
 
-def _scale_bonds(system, factor):
-    """Multiply every HarmonicBondForce constant of ``system`` by ``factor`` (before a Context is made)."""
+def _scale_bonds(system, factor, context=None):
+    """Multiply every HarmonicBondForce constant of ``system`` by ``factor`` (and update ``context``)."""
     import openmm
 
     for f in system.getForces():
@@ -318,6 +320,8 @@ def _scale_bonds(system, factor):
             for k in range(f.getNumBonds()):
                 i, j, r0, kb = f.getBondParameters(k)
                 f.setBondParameters(k, i, j, r0, kb * factor)
+            if context is not None:
+                f.updateParametersInContext(context)
 
 
 def _pair_of(residue, n):
@@ -643,7 +647,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     for f in system.getForces():
         if isinstance(f, (openmm.HarmonicBondForce, openmm.HarmonicAngleForce, openmm.PeriodicTorsionForce)):
             covalent.addForce(openmm.XmlSerializer.deserialize(openmm.XmlSerializer.serialize(f)))
-    cforce, cgroups = _restrain(covalent, top, heavy_ref, restraint_k)
+    _restrain(covalent, top, heavy_ref, restraint_k)
     _hold_chirality(covalent, top, pos)
     _soft_repulsion(covalent, top, bonds)
     pos, _ = _minimise(covalent, pos, 1.0, max_iterations, platform)
@@ -666,15 +670,14 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         if d.max() <= bond_tolerance:
             break
     if d.max() > 0.2 * bond_tolerance:
-        # stage 3: polish with the covalent terms (bonds POLISH_BOND_SCALE times stiffer), the capped
-        # repulsion and the firm base restraints only, so that the bonds reach Amber14's lengths inside the
-        # frame tolerance; the energy reported is still the full force field's
-        _scale_bonds(covalent, POLISH_BOND_SCALE)
-        cctx = _context(covalent, pos, platform)
-        _retarget(cforce, cctx, cgroups, pos, targets[-1])
-        pos, _ = _relax(cctx, 0.01, max_iterations)
-        del cctx
-        ctx.setPositions(pos)
+        # stage 3: polish with the full force field, firm restraints and the bond terms POLISH_BOND_SCALE
+        # times stiffer, so that the bonds reach Amber14's lengths inside the frame tolerance while the
+        # non-bonded terms stay on (a covalent-only polish cost ~1000 kJ/mol on 355D); the energy reported
+        # is the unmodified force field's
+        _scale_bonds(system, POLISH_BOND_SCALE, ctx)
+        _retarget(force, ctx, groups, pos, targets[-1])
+        pos, _ = _relax(ctx, 0.01, max_iterations)
+        _scale_bonds(system, 1.0 / POLISH_BOND_SCALE, ctx)
         energy = ctx.getState(getEnergy=True, groups={g for g in range(31)}).getPotentialEnergy().value_in_unit(
             openmm.unit.kilojoule_per_mole)
     del ctx
