@@ -17,9 +17,14 @@ Two stages:
    than untangled from a far-off start: covalent terms with a capped repulsion first, then the
    full force field (1.2 nm non-periodic cut-off: the closure is a local fit, and a cut-off keeps
    it linear in length) at each stage with soft restraints, firm ones on the input frames, and a
-   polish with the covalent terms, repulsion and firm restraints only. Before each stage the
+   polish with the covalent terms (bond constants x :data:`POLISH_BOND_SCALE`), repulsion and
+   firm restraints only (why: see :data:`POLISH_BOND_SCALE`). Before each stage the
    targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
    (:func:`_retarget`), so holding a frame does not strain its ring bonds.
+
+Before the closure, frames that put ring atoms of two bases closer than any placement within the
+frame tolerance could separate to 2.2 A are refused at once (:func:`_placed_clash`), naming the
+atoms, the step, the distance and the shortfall.
 
 Checked after the closure (:class:`RebuildReport`): every covalent bond's deviation from its
 Amber14 equilibrium length, the shortest distance between heavy atoms that are neither bonded
