@@ -39,7 +39,8 @@ def _case(name, m, bp=None, seq2=None):
             "wall_per_bp_s": wall / m.n_nodes, "cpu_per_bp_s": cpu / m.n_nodes,
             "max_bond_dev_A": 10 * r.max_bond_deviation, "o3p_min_A": 10 * r.o3p_range[0],
             "o3p_max_A": 10 * r.o3p_range[1], "min_nonbonded_A": 10 * r.min_nonbonded,
-            "frame_origin_err_A": 10 * r.frame_origin_error, "frame_angle_err_deg": r.frame_angle_error}
+            "frame_origin_err_A": 10 * r.frame_origin_error, "frame_angle_err_deg": r.frame_angle_error,
+            "max_angle_dev_deg": r.max_angle_deviation, "energy_kJ_mol": r.energy}
 
 
 def main():
@@ -56,14 +57,17 @@ def main():
         m = model_from_structure(ROOT / "data" / "structures" / f"{s}.pdb")
         rows.append(_case(f"{s} crystal", m, np.array(m.metadata["bp_params"]), m.metadata["sequence2"]))
     cols = ("case", "n_bp", "atoms", "wall_s", "cpu_s", "wall_per_bp_s", "cpu_per_bp_s", "max_bond_dev_A",
-            "o3p_min_A", "o3p_max_A", "min_nonbonded_A", "frame_origin_err_A", "frame_angle_err_deg")
+            "o3p_min_A", "o3p_max_A", "min_nonbonded_A", "frame_origin_err_A", "frame_angle_err_deg",
+            "max_angle_dev_deg")
     print(" | ".join(cols))
     for r in rows:
         print(" | ".join(f"{r[c]:.3f}" if isinstance(r[c], float) else str(r[c]) for c in cols))
     import openmm
 
+    import os
+
     out = {"machine": platform.platform(), "python": platform.python_version(), "openmm": openmm.__version__,
-           "rows": rows}
+           "load_average_at_end": os.getloadavg(), "rows": rows}
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     Path(a.json).write_text(json.dumps(out, indent=1))
     print(f"wrote {a.json}")

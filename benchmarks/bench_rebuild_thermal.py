@@ -83,7 +83,8 @@ def main():
                 r = rebuild_allatom(m.frames, m.positions, m.sequence).report
                 row.update(ok=True, error="", max_bond_dev_A=10 * r.max_bond_deviation, worst_bond=r.worst_bond,
                            min_nonbonded_A=10 * r.min_nonbonded, frame_origin_err_A=10 * r.frame_origin_error,
-                           frame_angle_err_deg=r.frame_angle_error)
+                           frame_angle_err_deg=r.frame_angle_error, max_angle_dev_deg=r.max_angle_deviation,
+                           o3p_min_A=10 * r.o3p_range[0], o3p_max_A=10 * r.o3p_range[1])
             except StructureError as exc:
                 row.update(ok=False, error=str(exc))
             row["wall_per_bp_s"] = (time.perf_counter() - t0) / n
@@ -96,13 +97,19 @@ def main():
             "worst_frame_origin_err_A": max((r["frame_origin_err_A"] for r in ok), default=np.nan),
             "worst_frame_angle_err_deg": max((r["frame_angle_err_deg"] for r in ok), default=np.nan),
             "min_nonbonded_A": min((r["min_nonbonded_A"] for r in ok), default=np.nan),
+            "worst_angle_dev_deg": max((r["max_angle_dev_deg"] for r in ok), default=np.nan),
+            "o3p_range_A": [min((r["o3p_min_A"] for r in ok), default=np.nan),
+                            max((r["o3p_max_A"] for r in ok), default=np.nan)],
+            "refused": [f"{r['sequence']} seed {r['seed']}: {r['error']}" for r in rows if not r["ok"]],
             "mean_wall_per_bp_s": float(np.mean([r["wall_per_bp_s"] for r in rows])),
             "mean_cpu_per_bp_s": float(np.mean([r["cpu_per_bp_s"] for r in rows]))}
     print(json.dumps(summ, indent=1))
     import openmm
 
+    import os
+
     out = {"machine": platform.platform(), "python": platform.python_version(), "openmm": openmm.__version__,
-           "steps": a.steps, "temperature_K": 300, "summary": summ, "rows": rows}
+           "load_average_at_end": os.getloadavg(), "steps": a.steps, "temperature_K": 300, "summary": summ, "rows": rows}
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     Path(a.json).write_text(json.dumps(out, indent=1))
     print(f"wrote {a.json}")

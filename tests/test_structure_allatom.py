@@ -180,6 +180,73 @@ def test_1kx5_rebuild():
     _check(res, m.frames, m.positions, m.n_nodes)
 
 
+def test_frames_that_overlap_two_bases_are_refused_before_minimising():
+    """A step compressed to 1.4 A rise puts stacked ring atoms ~1.4 A apart: no closure within 0.05 A/1 deg can
+    reach 2.2 A, so the rebuild refuses at once, naming the atoms, the step, the distance and the shortfall."""
+    import time
+
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCG")
+    pos = m.positions.copy()
+    pos[3:] -= 0.2 * m.frames[2][:, 2]  # pairs 4-6 moved 2 A toward pair 3 along its helix axis
+    t0 = time.perf_counter()
+    with pytest.raises(StructureError, match=r"the input frames put ring atoms [AB]:\d+[ACGT] \S+ and [AB]:\d+[ACGT] "
+                                             r"\S+ \(step 3-4\) (\d\.\d\d) A apart; .* at most (\d\.\d\d) A apart, "
+                                             r"\d\.\d\d A short of the 2\.2 A clash limit: no backbone closure") as exc:
+        rebuild_allatom(m.frames, pos, m.sequence)
+    assert time.perf_counter() - t0 < 5.0  # refused before any minimisation (which takes tens of seconds)
+    import re
+
+    d, reach = map(float, re.search(r"\) (\d\.\d\d) A apart; .* at most (\d\.\d\d) A", str(exc.value)).groups())
+    assert d < reach < 2.2
+
+
+def test_placed_clash_bound_is_exact_for_the_tolerances():
+    """The refusal bound: moving every pair frame by the full tolerance cannot separate the clashing atoms further."""
+    from scipy.spatial.transform import Rotation
+
+    from dnarod.structure import allatom as aa
+    from dnarod.structure.rebuild import rebuild_coordinates
+
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCG")
+    pos = m.positions.copy()
+    pos[3:] -= 0.2 * m.frames[2][:, 2]
+    with pytest.raises(StructureError) as exc:
+        rebuild_allatom(m.frames, pos, m.sequence)
+    reach = float(str(exc.value).split("at most ")[1].split(" A")[0]) / 10
+    xyz, atoms = rebuild_coordinates(m.frames, pos, m.sequence)
+    rng = np.random.default_rng(5)
+    _, ring = aa.standard_bases()
+    names = {a for r in ring.values() for a in r}
+    best = 0.0
+    for _ in range(200):  # random frame moves within tolerance: the closest ring pair never gets past the bound
+        F, O = m.frames.copy(), pos.copy()
+        for k in range(len(F)):
+            R = Rotation.from_rotvec(rng.normal(size=3) * 0.5 * np.radians(aa.FRAME_ANGLE_TOL)).as_matrix()
+            if np.degrees(np.arccos((np.trace(R) - 1) / 2)) > aa.FRAME_ANGLE_TOL:
+                R = np.eye(3)
+            F[k], O[k] = R @ F[k], O[k] + aa.FRAME_ORIGIN_TOL * rng.uniform(-1, 1, 3) / np.sqrt(3)
+        x2, _ = rebuild_coordinates(F, O, m.sequence)
+        keep = [i for i, a in enumerate(atoms) if a[3] in names]
+        res = np.array([f"{atoms[i][0]}{atoms[i][1]}" for i in keep])
+        from scipy.spatial.distance import cdist
+
+        d = cdist(x2[keep], x2[keep])
+        d[res[:, None] == res[None, :]] = np.inf
+        best = max(best, d.min())
+    assert best < reach
+
+
+def test_final_polish_converges_bonds_well_inside_tolerance():
+    """The last stage (stiffened bond terms) leaves every bond far inside 0.05 A; the strain goes to the angles."""
+    m = _thermal("CGCGAATTCGCG", 1)
+    res = rebuild_allatom(m.frames, m.positions, m.sequence)
+    rep = _check(res, m.frames, m.positions, m.n_nodes)
+    assert rep.max_bond_deviation < 0.0015  # 0.015 A (Amber14's own minimum of an ideal duplex: 0.039 A)
+    assert 0.0 < rep.max_angle_deviation < 20.0 and "-" in rep.worst_angle
+
+
 def test_rebuild_that_cannot_close_names_the_step():
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("GATCCG")

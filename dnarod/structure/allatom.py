@@ -17,9 +17,14 @@ Two stages:
    than untangled from a far-off start: covalent terms with a capped repulsion first, then the
    full force field (1.2 nm non-periodic cut-off: the closure is a local fit, and a cut-off keeps
    it linear in length) at each stage with soft restraints, firm ones on the input frames, and a
-   polish with the covalent terms, repulsion and firm restraints only. Before each stage the
+   polish with the covalent terms (bond constants x :data:`POLISH_BOND_SCALE`), repulsion and
+   firm restraints only (why: see :data:`POLISH_BOND_SCALE`). Before each stage the
    targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
    (:func:`_retarget`), so holding a frame does not strain its ring bonds.
+
+Before the closure, frames that put ring atoms of two bases closer than any placement within the
+frame tolerance could separate to 2.2 A are refused at once (:func:`_placed_clash`), naming the
+atoms, the step, the distance and the shortfall.
 
 Checked after the closure (:class:`RebuildReport`): every covalent bond's deviation from its
 Amber14 equilibrium length, the shortest distance between heavy atoms that are neither bonded
@@ -54,6 +59,16 @@ MIN_CUTOFF = 1.2           # nm, non-bonded cut-off during the closure (local ge
 EXTRA_ROUNDS = 3           # minimiser restarts while a bond is still off
 CHIRAL_K = 1.0e3           # kJ/mol/rad^2, flat-bottom restraint on sugar stereocentres
 BOND_TOLERANCE = 0.005     # nm: largest accepted deviation of a bond from its Amber14 equilibrium
+# Bond force constants are multiplied by this in the final polish. Why: the residual strain that
+# the frames leave in a nucleotide sits mostly in the angles at C1' (C2'-C1'-N opened by 5-10 deg, already
+# 5.6 deg on average at the full Amber14 minimum of ideal B-DNA, where bonds are up to 0.04 A off their
+# equilibrium); with Amber's own bond/angle stiffness part of that strain stretches the glycosidic bond to
+# 0.03-0.05 A (and the Watson-Crick hydrogen bonds stretch the amino C-N bonds by up to 0.04 A). Softening
+# the base restraints does not relieve it (4x softer: frames move 3x more, the bond 0.0015 A less), more
+# minimiser iterations do not either; stiffer bonds move it into the angles (largest angle deviation reported,
+# unchanged within 0.3 deg on 355D and a thermal snapshot).
+POLISH_BOND_SCALE = 4.0
+RING_SLACK = 0.005         # nm: ring atoms' allowed departure from the rigid standard base (refitted shape)
 MIN_NONBONDED = 0.22       # nm: shortest accepted heavy-atom distance beyond 1-3 neighbours
 SUGAR_CHIRAL = (("C1'", "O4'", "C2'", "N"), ("C3'", "C4'", "C2'", "O3'"), ("C4'", "O4'", "C3'", "C5'"))
 
@@ -81,6 +96,9 @@ class RebuildReport:
         Largest rotation between input and refitted base-pair frames, degrees.
     placement_o3p_range : tuple of float
         O3'-P link lengths before the closure, nm.
+    max_angle_deviation : float
+        Largest |angle - Amber14 equilibrium| over all bond angles, degrees.
+    worst_angle : str
     energy : float
         Final potential energy (restraints excluded), kJ/mol.
     seconds : float
@@ -100,6 +118,8 @@ class RebuildReport:
     energy: float
     seconds: float
     cpu_seconds: float
+    max_angle_deviation: float = float("nan")
+    worst_angle: str = ""
 
     def summary(self):
         """Readable lines (Angstrom and degrees)."""
@@ -109,6 +129,7 @@ class RebuildReport:
             f"O3'-P: {10 * self.o3p_range[0]:.3f}-{10 * self.o3p_range[1]:.3f} A (Amber14 "
             f"{10 * self.o3p_equilibrium:.3f} A; before closure {10 * self.placement_o3p_range[0]:.2f}-"
             f"{10 * self.placement_o3p_range[1]:.2f} A)",
+            f"angles: largest deviation from Amber14 equilibrium {self.max_angle_deviation:.1f} deg ({self.worst_angle})",
             f"closest non-bonded heavy atoms: {10 * self.min_nonbonded:.2f} A ({self.min_nonbonded_pair})",
             f"base-pair frames kept within {10 * self.frame_origin_error:.4f} A and {self.frame_angle_error:.4f} deg",
             f"energy {self.energy:.1f} kJ/mol; closure {self.seconds:.2f} s wall, {self.cpu_seconds:.2f} s CPU",
@@ -295,6 +316,75 @@ def _hold_chirality(system, topology, positions, k=CHIRAL_K):
     system.addForce(f)
 
 
+def _scale_bonds(system, factor, context=None):
+    """Multiply every HarmonicBondForce constant of ``system`` by ``factor`` (and update ``context``)."""
+    import openmm
+
+    for f in system.getForces():
+        if isinstance(f, openmm.HarmonicBondForce):
+            for k in range(f.getNumBonds()):
+                i, j, r0, kb = f.getBondParameters(k)
+                f.setBondParameters(k, i, j, r0, kb * factor)
+            if context is not None:
+                f.updateParametersInContext(context)
+
+
+def _pair_of(residue, n):
+    """Base-pair index (1-based) of a residue of the rebuilt duplex (chain A: 1..n, chain B: n+1..2n)."""
+    r = int(residue.id) if hasattr(residue, "id") else int(residue)
+    return r if r <= n else 2 * n + 1 - r
+
+
+def _where(k, l):
+    """``step 4-5`` for neighbouring pairs, else ``base pairs 4 and 9``."""
+    a, b = sorted((k, l))
+    return f"step {a}-{b}" if b == a + 1 else (f"base pair {a}" if a == b else f"base pairs {a} and {b}")
+
+
+def _placed_clash(xyz, atoms, F, O, n):
+    """Refuse frames that put base ring atoms of two nucleotides into each other beyond any fix.
+
+    ``xyz`` (nm) and ``atoms`` are the rigid placement on the input frames. A ring atom at distance
+    rho from its pair's origin moves by at most ``FRAME_ORIGIN_TOL + 2 rho sin(FRAME_ANGLE_TOL / 2)``
+    while its pair frame stays within the accepted tolerance (bases rigid in the pair frame, as the
+    pair parameters are kept) plus ``RING_SLACK`` for the ring's own shape, so two ring atoms placed
+    at d can end at most ``d`` plus both moves apart. If that is still under ``MIN_NONBONDED``, no
+    backbone closure can pass the checks: raise before minimising, naming the atoms and the step.
+    """
+    from scipy.spatial import cKDTree
+
+    _, ring = standard_bases()
+    names = {a for r in ring.values() for a in r}
+    keep = np.array([i for i, a in enumerate(atoms) if a[3] in names])
+    if len(keep) == 0:
+        return
+    res = np.array([(0 if atoms[i][0] == "A" else 1) * 100000 + atoms[i][1] for i in keep])
+    pair = np.array([_pair_of(atoms[i][1], n) - 1 for i in keep])
+    x = xyz[keep]
+    rho = np.linalg.norm(x - O[pair], axis=1)
+    move = FRAME_ORIGIN_TOL + 2 * rho * np.sin(np.radians(FRAME_ANGLE_TOL) / 2) + RING_SLACK
+    worst = None
+    for i, j in cKDTree(x).query_pairs(MIN_NONBONDED):
+        if res[i] == res[j]:
+            continue
+        d = np.linalg.norm(x[i] - x[j])
+        reach = d + move[i] + move[j]
+        if reach < MIN_NONBONDED and (worst is None or d < worst[0]):
+            worst = (d, reach, i, j)
+    if worst is None:
+        return
+    d, reach, i, j = worst
+    a, b = atoms[keep[i]], atoms[keep[j]]
+    name = lambda t: f"{t[0]}:{t[1]}{t[2][-1]} {t[3]}"  # noqa: E731
+    raise StructureError(
+        f"rebuild: the input frames put ring atoms {name(a)} and {name(b)} ({_where(pair[i] + 1, pair[j] + 1)}) "
+        f"{10 * d:.2f} A apart; with each base pair kept within {10 * FRAME_ORIGIN_TOL:.2f} A and "
+        f"{FRAME_ANGLE_TOL:.0f} deg of its frame they can be at most {10 * reach:.2f} A apart, "
+        f"{10 * (MIN_NONBONDED - reach):.2f} A short of the {10 * MIN_NONBONDED:.1f} A clash limit: no backbone "
+        f"closure can fix this (the two bases overlap); the input frames must put them at least "
+        f"{10 * (MIN_NONBONDED - reach):.2f} A further apart")
+
+
 def _soft_repulsion(system, topology, bonds):
     """A capped repulsion between atoms beyond 1-4 neighbours, for the covalent-only stage."""
     import openmm
@@ -344,6 +434,21 @@ def _minimise(system, positions, tolerance, iterations, platform):
     energy = st.getPotentialEnergy().value_in_unit(u.kilojoule_per_mole)
     del ctx
     return np.array(pos), energy
+
+
+def _angle_deviation(system, pos, atoms):
+    """Largest |angle - Amber14 equilibrium| (degrees) over the system's HarmonicAngleForce, and which."""
+    import openmm
+
+    f = [f for f in system.getForces() if isinstance(f, openmm.HarmonicAngleForce)][0]
+    idx = np.array([f.getAngleParameters(k)[:3] for k in range(f.getNumAngles())], int)
+    t0 = np.array([f.getAngleParameters(k)[3].value_in_unit(openmm.unit.radian) for k in range(f.getNumAngles())])
+    a, b = pos[idx[:, 0]] - pos[idx[:, 1]], pos[idx[:, 2]] - pos[idx[:, 1]]
+    c = np.sum(a * b, axis=1) / np.linalg.norm(a, axis=1) / np.linalg.norm(b, axis=1)
+    dev = np.degrees(np.abs(np.arccos(np.clip(c, -1.0, 1.0)) - t0))
+    w = int(np.argmax(dev))
+    i, j, k = idx[w]
+    return float(dev[w]), f"{_atom_name(atoms[j])} {atoms[i].name}-{atoms[j].name}-{atoms[k].name}"
 
 
 def _exclusion_pairs(n, bonds):
@@ -508,6 +613,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     if F.ndim != 3:
         raise StructureError(f"rebuild: bp_frames must have shape (n, 3, 3), got {F.shape}")
     xyz, atoms = rebuild_coordinates(F, O, sequence, bp_params, sequence2)
+    _placed_clash(xyz, atoms, F, O, len(F))
     seq1 = "".join(str(sequence).split()).upper()
     comp = {"A": "T", "T": "A", "G": "C", "C": "G"}
     seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
@@ -569,9 +675,12 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         if d.max() <= bond_tolerance:
             break
     if d.max() > 0.2 * bond_tolerance:
-        # stage 3: polish with the covalent terms, the capped repulsion and the firm base restraints only,
-        # so that the bonds reach Amber14's lengths inside the frame tolerance; the energy reported is
-        # still the full force field's
+        # stage 3: polish with the covalent terms (bonds POLISH_BOND_SCALE times stiffer), the capped
+        # repulsion and the firm base restraints only, so that the bonds reach Amber14's lengths and the
+        # frames their tolerance; the energy reported is still the full force field's. Why not the full
+        # force field here: its non-bonded terms turn base pairs against the firm restraints (up to 2 deg
+        # on a 10-bp thermal snapshot), and restraints firm enough to stop that strain the ring bonds.
+        _scale_bonds(covalent, POLISH_BOND_SCALE)
         cctx = _context(covalent, pos, platform)
         _retarget(cforce, cctx, cgroups, pos, targets[-1])
         pos, _ = _relax(cctx, 0.01, max_iterations)
@@ -631,8 +740,10 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         d, i, j = min(close)
         dmin, pair = d, f"{_atom_name(atoms_list[i])} - {_atom_name(atoms_list[j])}"
     if dmin < MIN_NONBONDED:
-        raise StructureError(f"rebuild: atoms {pair} are {10 * dmin:.2f} A apart after minimisation (under "
-                             f"{10 * MIN_NONBONDED:.1f} A); the frames put two nucleotides into each other")
+        where = _where(_pair_of(atoms_list[i].residue, n), _pair_of(atoms_list[j].residue, n))
+        raise StructureError(f"rebuild: atoms {pair} ({where}) are {10 * dmin:.2f} A apart after minimisation "
+                             f"(under {10 * MIN_NONBONDED:.1f} A, short by {10 * (MIN_NONBONDED - dmin):.2f} A); the "
+                             f"frames put two nucleotides into each other")
     mid, morg = _pair_frames_of(top, pos, n, seq1, seq2)
     shift, turn = np.linalg.norm(morg - O, axis=-1), _rotation_angle(mid, F)
     bad = np.flatnonzero((shift > FRAME_ORIGIN_TOL) | (turn > FRAME_ANGLE_TOL))
@@ -641,6 +752,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg while "
                              f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} deg); "
                              f"the frames are too distorted for an Amber14 backbone")
+    ang_dev, worst_angle = _angle_deviation(system, pos, atoms_list)
     report = RebuildReport(
         max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"
                                                          f"{atoms_list[bonds[worst, 1]].name}",
@@ -650,7 +762,8 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         frame_origin_error=float(np.linalg.norm(morg - O, axis=-1).max()),
         frame_angle_error=float(_rotation_angle(mid, F).max()),
         placement_o3p_range=(float(place.min()), float(place.max())) if len(place) else (np.nan, np.nan),
-        energy=float(energy), seconds=seconds, cpu_seconds=cpu)
+        energy=float(energy), seconds=seconds, cpu_seconds=cpu, max_angle_deviation=ang_dev,
+        worst_angle=worst_angle)
     return AllAtomDuplex(top, pos, report)
 
 

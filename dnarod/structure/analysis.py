@@ -162,10 +162,17 @@ def analyze_structure(path=None, text=None, model=1, altloc=None, pairs=None, ex
                for a, b, n in zip(s1, s2, names) if n != "WC"]
         if odd:
             notes.append(f"pairs that are not Watson-Crick (kept in the helix, check them): {'; '.join(odd)}")
+        mod = [f"{nt.rid} {nt.resname}->{nt.base}" for nt in s1 + s2 if nt.modified]
+        if mod:
+            notes.append(f"modified nucleotides modelled as their parent base: {', '.join(mod)}")
         gaps = [" ".join(nts[i].rid for i in g) for g in (dup.gaps or [[]] * (len(s1) - 1))]
         duplexes.append(DuplexAnalysis(s1, s2, names, mid, morg, bp, sp, dup.circular, notes, gaps))
     for k, d in enumerate(duplexes):
         gap_notes += [f"duplex {k + 1}: {n}" for n in d.notes]
+    outside = [f"{nt.rid} {nt.resname}->{nt.base}" for nt in nts if nt.modified
+               and not any(nt is x for d in duplexes for x in d.strand1 + d.strand2)]
+    if outside:
+        gap_notes.append(f"modified nucleotides outside the duplexes (parent base): {', '.join(outside)}")
     return StructureAnalysis(st, duplexes, list(st.skipped) + gap_notes + skipped)
 
 

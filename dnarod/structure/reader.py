@@ -8,6 +8,13 @@ What the reader does (and reports):
   (``DA``/``A``/``ADE``, modified residues such as ``5CM`` -> parent ``C``), terminal variants
   (``DA5``, ``DT3``, ``RA5``, ...) and gemmi's table of the PDB chemical components;
 * ignores hydrogens, water, amino acids, ions and other ligands (counted in ``skipped``);
+* a nucleotide-like residue that is not part of a DNA/RNA chain (a ligand such as cAMP, ``CMP``,
+  or a free ``ATP``) is a ligand, not an unpaired nucleotide: a residue is part of a chain when
+  it is linked O3'-P to another residue (:data:`LINK_CUTOFF`) or gemmi puts it in a polymer
+  entity (mmCIF ``_entity``, or the PDB chain before its ``TER``); an unlinked residue of a
+  non-polymer entity, or an unlinked modified residue where the entity is unknown, is a ligand;
+* modified nucleotides inside a chain (``5CM``, ``8OG``, ...) are kept as their parent base and
+  listed in ``NucleicStructure.notes``;
 * old atom names are translated (``O5*`` -> ``O5'``, ``O1P`` -> ``OP1``, ``C5M`` -> ``C7``);
 * alternate locations: the altloc with the highest occupancy in each residue (or the one
   asked for with ``altloc``); conflicting altlocs and duplicate atoms are errors.
@@ -32,6 +39,7 @@ BACKBONE = {"P", "OP1", "OP2", "OP3", "O5'", "C5'", "C4'", "O4'", "C3'", "O3'", 
             "HO5'", "HO3'"}
 PYRIMIDINE_RING = ("N1", "C2", "N3", "C4", "C5", "C6")
 OLD_NAMES = {"O1P": "OP1", "O2P": "OP2", "O3P": "OP3", "C5M": "C7"}
+LINK_CUTOFF = 2.5  # Angstrom: O3'(i)-P(j) distance taken as a covalent polymer link (bond 1.6 A)
 TERMINAL_NAME = re.compile(r"^(?:D|R)?([ACGTUI])(?:5|3|N)?$")
 
 
@@ -103,6 +111,8 @@ class NucleicStructure:
     nucleotides : list of Nucleotide
     skipped : list of str
         What was ignored and why (one line per kind or residue).
+    notes : list of str
+        What was kept but changed, e.g. modified nucleotides modelled as their parent base.
     """
 
     source: str
@@ -111,6 +121,7 @@ class NucleicStructure:
     n_atoms: int
     nucleotides: list
     skipped: list
+    notes: list = field(default_factory=list)
 
 
 @lru_cache(maxsize=1)
@@ -181,6 +192,46 @@ def _is_hydrogen(atom, name):
 def _looks_nucleotide(residue):
     names = {_normalise_atom_name(a.name) for a in residue}
     return len(names.intersection(PYRIMIDINE_RING)) >= 3 and "C1'" in names
+
+
+def _linked_residues(model):
+    """Residues of ``model`` bonded O3'-P to another residue: set of (chain index, residue index).
+
+    A polymer link is the covalent O3'(i)-P(j) bond between two residues (within
+    :data:`LINK_CUTOFF`); a cyclic phosphate inside one residue (cAMP) does not count.
+    """
+    from scipy.spatial import cKDTree
+
+    o3, p = [], []
+    for ci, chain in enumerate(model):
+        for ri, res in enumerate(chain):
+            for atom in res:
+                name = _normalise_atom_name(atom.name)
+                if name in ("O3'", "P"):
+                    (o3 if name == "O3'" else p).append(((ci, ri), (atom.pos.x, atom.pos.y, atom.pos.z)))
+    if not o3 or not p:
+        return set()
+    tree = cKDTree(np.array([x for _, x in p]))
+    linked = set()
+    for key, x in o3:
+        for j in tree.query_ball_point(x, LINK_CUTOFF):
+            if p[j][0] != key:
+                linked.update((key, p[j][0]))
+    return linked
+
+
+def _is_ligand(res, key, linked, modified):
+    """True if a nucleotide-like residue is a free ligand rather than part of a DNA/RNA chain."""
+    import gemmi
+
+    if key in linked:
+        return False
+    et = res.entity_type
+    if et == gemmi.EntityType.Polymer:
+        return False  # in a chain (e.g. at a chain break)
+    if et in (gemmi.EntityType.NonPolymer, gemmi.EntityType.Branched, gemmi.EntityType.Water):
+        return True
+    return bool(modified)  # entity unknown: an unlinked non-standard nucleotide is a ligand
 
 
 def _read_gemmi(path, text, source):
@@ -312,11 +363,12 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
     altloc = (altloc or None)
     counts = {"water": 0, "amino acid": 0, "hydrogen atoms": 0, "other (ions, ligands)": 0}
     others = set()
-    nucleotides, skipped, seen = [], [], {}
+    nucleotides, skipped, seen, ligands, modified_nts = [], [], {}, [], []
     atom_counter = 0
     try:
-        for chain in st[model - 1]:
-            for res in chain:
+        linked = _linked_residues(st[model - 1])
+        for ci, chain in enumerate(st[model - 1]):
+            for ri, res in enumerate(chain):
                 first_index = atom_counter
                 atom_counter += len(res)
                 name = res.name.strip().upper()
@@ -344,6 +396,9 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
                         others.add(name)
                     continue
                 base, modified = parent
+                if _is_ligand(res, (ci, ri), linked, modified):
+                    ligands.append(f"{res.name.strip()} {chain.name}:{res.seqid.num}{res.seqid.icode.strip()}")
+                    continue
                 if base == "P":
                     skipped.append(f"{label}: pseudouridine is not supported (no standard base); skipped")
                     continue
@@ -379,6 +434,8 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
                                 len(nucleotides), xyz_nm, index)
                 seen[key] = nt
                 nucleotides.append(nt)
+                if modified:
+                    modified_nts.append(f"{nt.rid} {nt.resname}->{base}")
     except UnicodeDecodeError:
         raise StructureError(f"{source}: non-ASCII bytes in a chain, residue or atom name near atom "
                              f"{atom_counter}; PDB/mmCIF names must be plain text") from None
@@ -386,10 +443,16 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
         if n:
             extra_txt = f" ({', '.join(sorted(others))})" if what.startswith("other") else ""
             skipped.append(f"ignored {n} {what}{extra_txt}")
+    if ligands:
+        skipped.append(f"ignored {len(ligands)} nucleotide-like ligand{'s' if len(ligands) > 1 else ''} not linked "
+                       f"into a DNA/RNA chain ({', '.join(ligands)})")
+    notes = []
+    if modified_nts:
+        notes.append(f"modified nucleotides modelled as their parent base: {', '.join(modified_nts)}")
     if not nucleotides:
         raise StructureError(f"{source}: no nucleic acid found in model {model} "
-                             f"({atom_counter} atoms; {', '.join(f'{n} {w}' for w, n in counts.items() if n) or 'none recognised'})")
-    return NucleicStructure(source, int(model), n_models, atom_counter, nucleotides, skipped)
+                             f"({atom_counter} atoms; {', '.join([f'{n} {w}' for w, n in counts.items() if n] + ([f'{len(ligands)} nucleotide-like ligands not in a chain'] if ligands else [])) or 'none recognised'})")
+    return NucleicStructure(source, int(model), n_models, atom_counter, nucleotides, skipped, notes)
 
 
 @lru_cache(maxsize=None)

@@ -44,9 +44,12 @@ class DuplexSelection:
                 f"{d.strand1[0].rid}..{d.strand1[-1].rid}, strand II {d.strand2[0].rid}..{d.strand2[-1].rid})")
 
     def report(self):
-        """One line: the duplex taken and what was dropped."""
+        """One line: the duplex taken, what was dropped and which modified nucleotides it models as parents."""
         drop = "; ".join(self.dropped) if self.dropped else "nothing"
-        return f"{self.source}: took {self.describe()}; dropped: {drop}"
+        d = self.duplex
+        mod = [f"{nt.rid} {nt.resname}->{nt.base}" for nt in list(d.strand1) + list(d.strand2) if nt.modified]
+        kept = f"; modified nucleotides modelled as their parent base: {', '.join(mod)}" if mod else ""
+        return f"{self.source}: took {self.describe()}; dropped: {drop}{kept}"
 
 
 def _dropped(analysis, index):
