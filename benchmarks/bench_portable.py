@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = ("dna-default", "full", "circular")
+CASES = ("dna-default", "full", "circular", "full-circular", "olson1998", "olson1998-circular")
 
 
 def _forces_module(rev):
@@ -56,23 +56,31 @@ def _forces_module(rev):
 
 
 def _model(case):
+    """100 nodes: ``dna-default`` (open), ``full`` (random full K and intrinsic strains per step, open),
+    ``circular`` (dna-default closed by its helical screw), ``full-circular`` (``full`` closed by a general
+    screw), ``olson1998`` and ``olson1998-circular`` (sequence-dependent full K of the bundled set)."""
     from dnarod.forcefield import load_forcefield
     from dnarod.model import RodModel
     from dnarod.parameters import StepParameters
-    from dnarod.rotations import cayley
+    from dnarod.rotations import cayley, rotation_about_axis
+    from dnarod.strains import Closure
 
-    ff = load_forcefield("dna-default")
+    circular = case.endswith("circular")
+    ff = load_forcefield("olson1998" if case.startswith("olson") else "dna-default")
     rng = np.random.default_rng(7)
     seq = "".join(rng.choice(list("ACGT"), 100))
-    m = ff.model_from_sequence(seq, circular=case == "circular")
-    params = m.params
-    if case == "full":
+    m = ff.model_from_sequence(seq, circular=circular)
+    params, closure = m.params, m.closure
+    if case.startswith("full"):
         A = rng.normal(size=(m.n_steps, 6, 6))
         K = np.einsum("kij,klj->kil", A, A) * 20 + np.eye(6) * 50
         params = StepParameters(K, m.params.intrinsic + 0.1 * rng.normal(size=m.params.intrinsic.shape))
+    if case == "full-circular":
+        axis = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+        closure = Closure(rotation_about_axis(axis, 0.7), np.array([0.1, -0.2, 3.3]))
     pos = m.positions + 0.03 * rng.normal(size=m.positions.shape)
     frm = cayley(0.05 * rng.normal(size=(m.n_nodes, 3))) @ m.frames
-    return RodModel(pos, frm, params, m.ds, m.mass, m.inertia, closure=m.closure)
+    return RodModel(pos, frm, params, m.ds, m.mass, m.inertia, closure=closure)
 
 
 def single(case, plat, rev):
