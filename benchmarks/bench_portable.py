@@ -83,13 +83,58 @@ def _model(case):
     return RodModel(pos, frm, params, m.ds, m.mass, m.inertia, closure=closure)
 
 
+def _context_time(system, plat, positions=None):
+    """CPU and wall seconds to create an OpenMM Context (LangevinMiddle) and evaluate energy and forces once.
+
+    CPU time is that of all threads of this process plus any child processes it waited for (pocl may run
+    the linker as a separate process)."""
+    import openmm
+
+    from dnarod.openmm.platforms import platform_properties
+
+    def cpu():
+        t = os.times()
+        return t.user + t.system + t.children_user + t.children_system
+
+    c0, w0 = cpu(), time.perf_counter()
+    ctx = openmm.Context(system, openmm.LangevinMiddleIntegrator(300.0, 1.0, 0.001),
+                         openmm.Platform.getPlatformByName(plat), platform_properties(plat))
+    if positions is not None:
+        ctx.setPositions(positions)
+    state = ctx.getState(getEnergy=True, getForces=True)
+    out = (cpu() - c0, time.perf_counter() - w0)
+    del ctx
+    return out, state
+
+
+def trivial(plat):
+    """OpenMM's own cost: two particles, one HarmonicBondForce, LangevinMiddleIntegrator (two Contexts)."""
+    import openmm
+
+    out = dict(case="trivial (HarmonicBondForce)", platform=plat)
+    times = []
+    for _ in range(2):
+        system = openmm.System()
+        system.addParticle(1.0)
+        system.addParticle(1.0)
+        f = openmm.HarmonicBondForce()
+        f.addBond(0, 1, 0.1, 1000.0)
+        system.addForce(f)
+        t, _ = _context_time(system, plat, [openmm.Vec3(0, 0, 0), openmm.Vec3(0.11, 0, 0)])
+        times.append(t)
+    out["context_cpu_s"], out["context_wall_s"] = times[0]
+    out["second_context_cpu_s"], out["second_context_wall_s"] = times[1]
+    return out
+
+
 def single(case, plat, rev):
     import openmm
 
     from dnarod.energy import energy
     from dnarod.openmm import particles as P
-    from dnarod.openmm.platforms import platform_properties
 
+    if case == "trivial":
+        return trivial(plat)
     forces = _forces_module(rev)
     m = _model(case)
     r = P.triangle_radius(m.mass, m.inertia)
@@ -101,17 +146,14 @@ def single(case, plat, rev):
             system.addParticle(mass)
         for f in forces.elastic_compound_forces(m, r):
             system.addForce(f)
-        c0, w0 = time.process_time(), time.perf_counter()
-        ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName(plat),
-                             platform_properties(plat))
-        ctx.setPositions(P.particle_positions(m.positions, m.frames, r))
-        E = ctx.getState(getEnergy=True, getForces=True).getPotentialEnergy()._value
-        times.append((time.process_time() - c0, time.perf_counter() - w0))
-        del ctx
+        t, state = _context_time(system, plat, P.particle_positions(m.positions, m.frames, r))
+        times.append(t)
+    E = state.getPotentialEnergy()._value
     out["context_cpu_s"], out["context_wall_s"] = times[0]
     out["second_context_cpu_s"], out["second_context_wall_s"] = times[-1]
     E0 = energy(m.positions, m.frames, m.params, m.ds, m.closure)
     out["energy_rel_error"] = abs(E - E0) / abs(E0)
+    out["n_forces"] = system.getNumForces()
     out["expressions"] = [system.getForce(i).getEnergyFunction() for i in range(system.getNumForces())]
     return out
 
@@ -131,6 +173,15 @@ def _lepton_tool():
         if p.returncode != 0:
             return None
     return exe
+
+
+def _run(case, plat, rev, env=None):
+    p = subprocess.run([sys.executable, __file__, "--single", case, plat, rev or "-"], capture_output=True, text=True,
+                       timeout=3600, env=env)
+    if p.returncode != 0:
+        return dict(case=case, platform=plat, revision=rev or "working tree",
+                    error=(p.stderr.strip().splitlines() or ["failed"])[-1])
+    return json.loads(p.stdout.strip().splitlines()[-1])
 
 
 def main():
@@ -154,17 +205,24 @@ def main():
     tool = _lepton_tool()
     results = []
     counted = {}
+    load = [os.getloadavg()]
     for rev in revs:
-        for case in args.cases.split(","):
+        for case in ["trivial"] + args.cases.split(","):
+            if case == "trivial" and rev is not None:
+                continue
             for plat in (plats if rev is None else [p for p in args.baseline_platforms.split(",") if p in have]):
-                p = subprocess.run([sys.executable, __file__, "--single", case, plat, rev or "-"], capture_output=True,
-                                   text=True, timeout=3600)
-                if p.returncode != 0:
-                    results.append(dict(case=case, platform=plat, revision=rev or "working tree",
-                                        error=(p.stderr.strip().splitlines() or ["failed"])[-1]))
-                    continue
-                r = json.loads(p.stdout.strip().splitlines()[-1])
-                if tool is not None:
+                if plat == "OpenCL":
+                    # cold: a fresh, empty pocl kernel cache (first Context compiles every kernel); warm: a new
+                    # process on the cache the cold run filled (what every later run sees)
+                    with tempfile.TemporaryDirectory() as cache:
+                        env = dict(os.environ, POCL_CACHE_DIR=cache)
+                        cold = _run(case, plat, rev, env)
+                        r = _run(case, plat, rev, env)
+                    if "error" not in r and "error" not in cold:
+                        r["cold_context_cpu_s"], r["cold_context_wall_s"] = cold["context_cpu_s"], cold["context_wall_s"]
+                else:
+                    r = _run(case, plat, rev)
+                if tool is not None and "expressions" in r:
                     counts = []
                     for expr in r["expressions"]:
                         if expr not in counted:
@@ -172,20 +230,27 @@ def main():
                             counted[expr] = json.loads(q.stdout)
                         counts.append(counted[expr])
                     r["lepton"] = counts
+                    r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
+                                                                                "derivative_tree_nodes")}
+                r.pop("expressions", None)
                 results.append(r)
                 print(f"measured {case} on {plat} ({rev or 'working tree'})", file=sys.stderr)
-    print("portable force (100 nodes): Context creation CPU s (wall s), 2nd creation CPU s; energy vs dnarod.energy; "
-          "Lepton nodes energy / derivatives (per force)")
+    load.append(os.getloadavg())
+    print("portable force (100 nodes): Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
+          "filled), cold (empty cache); energy vs dnarod.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
     for r in results:
         if "error" in r:
-            print(f"{r['revision'][:12]:>12} {r['case']:>11} {r['platform']:>9} error: {r['error']}")
+            print(f"{r['revision'][:12]:>12} {r['case']:>18} {r['platform']:>9} error: {r['error']}")
             continue
-        lep = "; ".join(f"{c['energy_tree_nodes']}/{c['derivative_tree_nodes']}" for c in r.get("lepton", []))
-        print(f"{r['revision'][:12]:>12} {r['case']:>11} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
-              f"({r['context_wall_s']:6.2f}) {r['second_context_cpu_s']:6.2f}  rel.err {r['energy_rel_error']:.1e}  "
-              f"{lep}")
+        lep = r.get("lepton_total")
+        lep = f"{lep['energy_tree_nodes']}/{lep['derivative_tree_nodes']}" if lep else ""
+        cold = f" cold {r['cold_context_cpu_s']:6.2f} ({r['cold_context_wall_s']:6.2f})" if "cold_context_cpu_s" in r else ""
+        err = f"rel.err {r['energy_rel_error']:.1e}" if "energy_rel_error" in r else ""
+        print(f"{r.get('revision', '')[:12]:>12} {r['case']:>18} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
+              f"({r['context_wall_s']:6.2f}){cold} forces {r.get('n_forces', 1):>2} {err} {lep}")
     out = dict(benchmark="bench_portable", machine=platform.platform(), cpu_count=os.cpu_count(),
-               date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), results=results,
+               date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average_start_end=load,
+               openmm=openmm.__version__, results=results,
                target="Context creation < 2 s on every platform for any stiffness")
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
     Path(args.json).write_text(json.dumps(out, indent=2))
