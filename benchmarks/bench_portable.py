@@ -25,7 +25,6 @@ import argparse
 import importlib.util
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -33,6 +32,8 @@ import time
 from pathlib import Path
 
 import numpy as np
+
+import _harness as H
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = ("dna-default", "full", "circular", "full-circular", "olson1998", "olson1998-circular")
@@ -92,17 +93,13 @@ def _context_time(system, plat, positions=None):
 
     from dnarod.openmm.platforms import platform_properties
 
-    def cpu():
-        t = os.times()
-        return t.user + t.system + t.children_user + t.children_system
-
-    c0, w0 = cpu(), time.perf_counter()
+    c0, w0 = H.cpu_seconds(), time.perf_counter()
     ctx = openmm.Context(system, openmm.LangevinMiddleIntegrator(300.0, 1.0, 0.001),
                          openmm.Platform.getPlatformByName(plat), platform_properties(plat))
     if positions is not None:
         ctx.setPositions(positions)
     state = ctx.getState(getEnergy=True, getForces=True)
-    out = (cpu() - c0, time.perf_counter() - w0)
+    out = (H.cpu_seconds() - c0, time.perf_counter() - w0)
     del ctx
     return out, state
 
@@ -248,14 +245,8 @@ def main():
         err = f"rel.err {r['energy_rel_error']:.1e}" if "energy_rel_error" in r else ""
         print(f"{r.get('revision', '')[:12]:>12} {r['case']:>18} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
               f"({r['context_wall_s']:6.2f}){cold} forces {r.get('n_forces', 1):>2} {err} {lep}")
-    out = dict(benchmark="bench_portable", machine=platform.platform(), cpu_count=os.cpu_count(),
-               date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average_start_end=load,
-               openmm=openmm.__version__, results=results,
-               target="Context creation < 2 s on every platform for any stiffness")
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
-
+    H.write_results(args.json, "bench_portable", load_average_start_end=load, openmm=openmm.__version__,
+                    results=results, target="Context creation < 2 s on every platform for any stiffness")
 
 if __name__ == "__main__":
     main()
