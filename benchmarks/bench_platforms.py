@@ -37,10 +37,10 @@ def _rate(integrator, budget):
     return steps / max(cpu, 1e-9), steps / max(wall, 1e-9)
 
 
-def _make(model, config):
+def _make(model, config, elastic):
     from dnarod.openmm.simulation import RodSimulation
 
-    kw = dict(temperature=300.0, seed=1)
+    kw = dict(temperature=300.0, seed=1, elastic=elastic)
     if config == "cpu":
         kw.update(platform="CPU")
     elif config == "cpu_t1":
@@ -54,7 +54,7 @@ def _make(model, config):
     return sim, time.perf_counter() - t
 
 
-def single(n, budget, repeats):
+def single(n, budget, repeats, elastic="fast"):
     from dnarod.forcefield import load_forcefield
 
     rng = np.random.default_rng(0)
@@ -64,7 +64,7 @@ def single(n, budget, repeats):
     if n <= 10000:
         sims = {}
         for c in CONFIGS:
-            sims[c], out[f"{c}_setup_s"] = _make(model, c)
+            sims[c], out[f"{c}_setup_s"] = _make(model, c, elastic)
         out["auto_choice"] = sims["auto"].platform_name
         out["auto_reason"] = sims["auto"].platform_reason
         for _ in range(repeats):
@@ -73,7 +73,7 @@ def single(n, budget, repeats):
                 best[c] = max(best[c], r)
     else:
         for c in CONFIGS:
-            sim, out[f"{c}_setup_s"] = _make(model, c)
+            sim, out[f"{c}_setup_s"] = _make(model, c, elastic)
             if c == "auto":
                 out["auto_choice"] = sim.platform_name
                 out["auto_reason"] = sim.platform_reason
@@ -88,18 +88,21 @@ def single(n, budget, repeats):
 
 def main():
     ap = H.add_common_arguments(argparse.ArgumentParser(), "100,1000,10000,100000,1000000", "bench_platforms")
+    ap.add_argument("--elastic", default="fast", choices=["fast", "plugin", "auto"],
+                    help="elastic path measured on every platform (default: the Python-callback path)")
     args = ap.parse_args()
     if args.single is not None:
-        print(json.dumps(single(args.single, args.budget, args.repeats)))
+        print(json.dumps(single(args.single, args.budget, args.repeats, args.elastic)))
         return
     prefix = H.pin_prefix(args.pin)
     load = [os.getloadavg()]
     results = H.run_sizes(__file__, H.parse_sizes(args.sizes),
                           lambda n: ["--budget", args.budget if n <= 100000 else max(args.budget, 3.0),
-                                     "--repeats", args.repeats], prefix)
+                                     "--repeats", args.repeats, "--elastic", args.elastic], prefix)
     load.append(os.getloadavg())
     pin = f"pinned to core {args.pin}" if prefix else "not pinned"
-    print(f"steps per CPU-second (steps per wall-second), full model, LangevinMiddle 300 K, default dt, {pin}")
+    print(f"steps per CPU-second (steps per wall-second), full model, elastic={args.elastic}, LangevinMiddle 300 K, "
+          f"default dt, {pin}")
     print(f"{'nodes':>8} " + " ".join(f"{c:>19}" for c in CONFIGS) + "  auto choice  node-steps/CPU-s (auto)")
     for r in results:
         if "error" in r:
@@ -107,7 +110,7 @@ def main():
             continue
         cells = [f"{r[f'{c}_steps_per_cpu_s']:>9.4g} ({r[f'{c}_steps_per_wall_s']:>7.4g})" for c in CONFIGS]
         print(f"{r['n_nodes']:>8} " + " ".join(cells) + f"  {r['auto_choice']:>11}  {r['auto_node_steps_per_cpu_s']:.3g}")
-    H.write_results(args.json, "bench_platforms", pinned=bool(prefix), load_average_start_end=load, sizes=results)
+    H.write_results(args.json, "bench_platforms", elastic=args.elastic, pinned=bool(prefix), load_average_start_end=load, sizes=results)
 
 
 if __name__ == "__main__":
