@@ -21,15 +21,11 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform as pyplatform
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+import _harness as H
 
 
 def _default_platform():
@@ -88,31 +84,20 @@ def single(n, plat, budget, precision):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap = H.add_common_arguments(argparse.ArgumentParser(description=__doc__.splitlines()[0]), "1000,10000",
+                                "bench_gpu", pin=False, budget=3.0)
     ap.add_argument("--platform", default=None, help="CUDA, HIP or OpenCL [default: the first present]")
-    ap.add_argument("--sizes", default="1000,10000", help="node counts, e.g. 1000,10000,100000,1000000")
-    ap.add_argument("--budget", type=float, default=3.0, help="seconds per rate measurement")
     ap.add_argument("--precision", default="mixed", choices=["single", "mixed", "double"])
-    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_gpu.json"))
-    ap.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     plat = args.platform or _default_platform()
     if args.single is not None:
         print(json.dumps(single(args.single, plat, args.budget, args.precision)))
         return
-    sizes = sorted({int(s) for s in args.sizes.split(",")} | {1000})
-    results = []
-    for n in sizes:
-        t = time.perf_counter()
-        p = subprocess.run([sys.executable, __file__, "--single", str(n), "--platform", plat, "--budget",
-                            str(args.budget), "--precision", args.precision], capture_output=True, text=True,
-                           timeout=7200)
-        if p.returncode != 0:
-            results.append(dict(n_nodes=n, error=(p.stderr.strip().splitlines() or ["failed"])[-1]))
-        else:
-            results.append(json.loads(p.stdout.strip().splitlines()[-1]))
-        results[-1]["wall_s"] = time.perf_counter() - t
-        print(f"measured {n} nodes in {results[-1]['wall_s']:.0f} s", file=sys.stderr)
+    sizes = sorted(set(H.parse_sizes(args.sizes)) | {1000})
+    load = [os.getloadavg()]
+    results = H.run_sizes(__file__, sizes, lambda n: ["--platform", plat, "--budget", args.budget,
+                                                      "--precision", args.precision], timeout=7200)
+    load.append(os.getloadavg())
     device = ""
     print(f"platform {plat} ({args.precision} precision), portable path, LangevinMiddle 300 K, default dt")
     print(f"{'nodes':>8} {'context s':>9} {'bonded n-st/s':>13} {'full n-st/s':>11} {'bonded ns/day':>13} "
@@ -132,12 +117,8 @@ def main():
 
         device = "GPU: " + ", ".join(opencl_gpu_devices()) if opencl_gpu_devices() else "no OpenCL GPU (pocl on CPU?)"
         print(device)
-    out = dict(benchmark="bench_gpu", platform=plat, device=device, precision=args.precision,
-               machine=pyplatform.platform(), cpu_count=os.cpu_count(),
-               date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), sizes=results)
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
+    H.write_results(args.json, "bench_gpu", platform=plat, device=device, precision=args.precision,
+                    load_average_start_end=load, sizes=results)
 
 
 if __name__ == "__main__":

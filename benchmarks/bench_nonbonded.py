@@ -21,16 +21,11 @@ import argparse
 import gc
 import json
 import os
-import platform
-import shutil
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+import _harness as H
 
 
 class _Timed:
@@ -49,49 +44,39 @@ class _Timed:
         return r
 
 
-def _rate(integrator, budget):
-    integrator.step(2)
-    t = time.perf_counter()
-    integrator.step(1)
-    one = max(time.perf_counter() - t, 1e-5)
-    steps = max(2, int(budget / one))
-    c0, w0 = time.process_time(), time.perf_counter()
-    integrator.step(steps)
-    return steps, time.process_time() - c0, time.perf_counter() - w0
-
-
-def single(n, budget, repeats):
+def single(n, budget, repeats, elastic="fast"):
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm.simulation import RodSimulation
     from dnarod.testsystems import gaussian_coil
 
     rng = np.random.default_rng(0)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), n)))
-    t = time.perf_counter()
+    t, c = time.perf_counter(), time.process_time()
     # no pair inside the WCA range at the start (2^(1/6) sigma = 2.24 nm; closer pairs blow up at the default dt)
     model = gaussian_coil(model, seed=1, min_distance=2.3)
-    out = dict(n_nodes=n, coil_s=time.perf_counter() - t,
+    out = dict(n_nodes=n, coil_s=time.perf_counter() - t, coil_cpu_s=time.process_time() - c,
                radius_of_gyration_nm=float(np.sqrt(((model.positions - model.positions.mean(0)) ** 2).sum(1).mean())))
     sims = {}
     timed = None
     for name, nb in (("bonded", False), ("full", True)):
-        sim = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1)
-        if nb:
+        sim = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1, elastic=elastic)
+        if nb and sim.rs.elastic == "fast":
             # time the non-bonded part of the (fused) callback: the list update and the pair loop
             cb = sim.rs.nonbonded_callback
             timed = _Timed(cb.add_to_particles)
             cb.add_to_particles = timed
         sims[name] = sim
         out["platform"] = sim.platform_name
+        out["elastic"] = sim.rs.elastic
     best = {k: (0, 0.0, 1.0) for k in sims}
     reps = repeats if n <= 100000 else 1
     for _ in range(reps):
         for k, sim in sims.items():
-            timed_before = (timed.cpu, timed.calls) if k == "full" else None
-            steps, cpu, wall = _rate(sim.integrator, budget)
+            timed_before = (timed.cpu, timed.calls) if (k == "full" and timed is not None) else None
+            steps, cpu, wall = H.timed_steps(sim.integrator, budget)
             if steps / cpu > best[k][0] / best[k][1] if best[k][0] else True:
                 best[k] = (steps, cpu, wall)
-                if k == "full":
+                if timed_before is not None:
                     out["callback_cpu_s"] = timed.cpu - timed_before[0]
                     out["callback_calls"] = timed.calls - timed_before[1]
                     out["full_cpu_s"] = cpu
@@ -100,60 +85,46 @@ def single(n, budget, repeats):
         out[f"{k}_steps_per_wall_s"] = steps / wall
         out[f"{k}_node_steps_per_cpu_s"] = n * steps / cpu
     out["share"] = 1.0 - out["full_steps_per_cpu_s"] / out["bonded_steps_per_cpu_s"]
-    out["callback_share"] = out["callback_cpu_s"] / out["full_cpu_s"]
-    vl = sims["full"].rs.nonbonded_callback.verlet
-    out["list_builds"] = vl.builds
-    out["list_evaluations"] = vl.evaluations
-    out["builds_per_1000_evaluations"] = 1000.0 * vl.builds / max(vl.evaluations, 1)
-    out["pairs_per_node"] = vl.m / n
+    if timed is not None:
+        out["callback_share"] = out["callback_cpu_s"] / out["full_cpu_s"]
+        vl = sims["full"].rs.nonbonded_callback.verlet
+        out["list_builds"] = vl.builds
+        out["list_evaluations"] = vl.evaluations
+        out["builds_per_1000_evaluations"] = 1000.0 * vl.builds / max(vl.evaluations, 1)
+        out["pairs_per_node"] = vl.m / n
     del sims
     gc.collect()
     return out
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--sizes", default="1000,10000,100000,1000000")
-    ap.add_argument("--budget", type=float, default=2.0, help="seconds per rate measurement")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--pin", default="0", help="core to pin each measurement to with taskset ('' for none)")
-    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_nonbonded.json"))
-    ap.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
+    ap = H.add_common_arguments(argparse.ArgumentParser(), "1000,10000,100000,1000000", "bench_nonbonded")
+    ap.add_argument("--elastic", default="fast", choices=["fast", "plugin", "auto"],
+                    help="elastic path (the in-callback share needs 'fast', the Python-callback path)")
     args = ap.parse_args()
     if args.single is not None:
-        print(json.dumps(single(args.single, args.budget, args.repeats)))
+        print(json.dumps(single(args.single, args.budget, args.repeats, args.elastic)))
         return
-    prefix = ["taskset", "-c", args.pin] if args.pin and shutil.which("taskset") else []
-    results = []
-    for n in [int(s) for s in args.sizes.split(",")]:
-        budget = args.budget if n <= 100000 else max(args.budget, 4.0)
-        t = time.perf_counter()
-        p = subprocess.run(prefix + [sys.executable, __file__, "--single", str(n), "--budget", str(budget),
-                                     "--repeats", str(args.repeats)], capture_output=True, text=True, timeout=3600)
-        if p.returncode != 0:
-            results.append(dict(n_nodes=n, error=" | ".join((p.stderr.strip().splitlines() or ["failed"])[-4:])))
-        else:
-            results.append(json.loads(p.stdout.strip().splitlines()[-1]))
-        results[-1]["wall_s"] = time.perf_counter() - t
-        print(f"measured {n} nodes in {results[-1]['wall_s']:.0f} s", file=sys.stderr)
+    prefix = H.pin_prefix(args.pin)
+    load = [os.getloadavg()]
+    results = H.run_sizes(__file__, H.parse_sizes(args.sizes),
+                          lambda n: ["--budget", args.budget if n <= 100000 else max(args.budget, 4.0),
+                                     "--repeats", args.repeats, "--elastic", args.elastic], prefix, error_lines=4)
+    load.append(os.getloadavg())
     pin = f"pinned to core {args.pin}" if prefix else "not pinned"
     print(f"non-bonded share of the step, thermal coil, LangevinMiddle 300 K, default dt, {pin}")
-    print(f"{'nodes':>8} {'platform':>9} {'Rg nm':>7} {'bonded st/cpu-s':>15} {'full st/cpu-s':>13} {'share':>7} "
-          f"{'in-callback':>11} {'builds/1000':>11} {'pairs/node':>10}")
+    print(f"{'nodes':>8} {'platform':>9} {'Rg nm':>7} {'coil s':>6} {'bonded st/cpu-s':>15} {'full st/cpu-s':>13} "
+          f"{'share':>7} {'in-callback':>11} {'builds/1000':>11} {'pairs/node':>10}")
     for r in results:
         if "error" in r:
             print(f"{r['n_nodes']:>8} error: {r['error']}")
             continue
-        print(f"{r['n_nodes']:>8} {r['platform']:>9} {r['radius_of_gyration_nm']:>7.0f} "
-              f"{r['bonded_steps_per_cpu_s']:>15.4g} {r['full_steps_per_cpu_s']:>13.4g} {100 * r['share']:>6.1f}% "
-              f"{100 * r['callback_share']:>10.2f}% {r['builds_per_1000_evaluations']:>11.1f} {r['pairs_per_node']:>10.2f}")
-    out = dict(benchmark="bench_nonbonded", machine=platform.platform(), cpu_count=os.cpu_count(),
-               python=platform.python_version(), pinned=bool(prefix),
-               date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), sizes=results,
-               target="share <= 3% at 10^4 nodes")
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
+        cb = (f"{100 * r['callback_share']:>10.2f}% {r['builds_per_1000_evaluations']:>11.1f} "
+              f"{r['pairs_per_node']:>10.2f}" if "callback_share" in r else f"{'-':>11} {'-':>11} {'-':>10}")
+        print(f"{r['n_nodes']:>8} {r['platform']:>9} {r['radius_of_gyration_nm']:>7.0f} {r['coil_cpu_s']:>6.1f} "
+              f"{r['bonded_steps_per_cpu_s']:>15.4g} {r['full_steps_per_cpu_s']:>13.4g} {100 * r['share']:>6.1f}% {cb}")
+    H.write_results(args.json, "bench_nonbonded", elastic=args.elastic, pinned=bool(prefix), load_average_start_end=load, sizes=results,
+                    target="share <= 3% at 10^4 nodes")
 
 
 if __name__ == "__main__":

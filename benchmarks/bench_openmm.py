@@ -28,30 +28,22 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
 import resource
-import shutil
-import subprocess
-import sys
 import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+import _harness as H
+
+#: The 1 kbp figure is measured for the default (``auto``) and for each path it may pick, in one run.
+KBP_PATHS = ("auto", "fast", "plugin")
 
 
 def _rate(integrator, n_nodes, budget):
     """(node-steps per CPU-second, per wall-second), running about ``budget`` seconds."""
-    integrator.step(2)
-    t = time.perf_counter()
-    integrator.step(1)
-    one = max(time.perf_counter() - t, 1e-5)
-    steps = max(2, int(budget / one))
-    c, t = time.process_time(), time.perf_counter()
-    integrator.step(steps)
-    return n_nodes * steps / max(time.process_time() - c, 1e-9), n_nodes * steps / (time.perf_counter() - t)
+    steps, cpu, wall = H.timed_steps(integrator, budget)
+    return n_nodes * steps / max(cpu, 1e-9), n_nodes * steps / wall
 
 
 def single(n, budget, repeats):
@@ -114,15 +106,15 @@ def single(n, budget, repeats):
     return out
 
 
-def kbp(budget):
-    """1 kbp duplex, 300 K, default dt, full model, through the run loop with reporters."""
+def kbp(budget, elastic="auto"):
+    """1 kbp duplex, 300 K, default dt, full model, through the run loop with reporters (``elastic`` path)."""
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm.simulation import RodSimulation
 
     rng = np.random.default_rng(1)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))
     t = time.perf_counter()
-    sim = RodSimulation(model, temperature=300.0, seed=2)
+    sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic)
     setup = time.perf_counter() - t
     fi = max(1, int(round(1.0 / sim.dt)))
     sim.integrator.step(10)
@@ -143,7 +135,8 @@ def kbp(budget):
         run_cpu = time.process_time() - c
     done = s["steps_this_run"]
     ns_day = done * sim.dt * 1e-3 / s["wall_s"] * 86400
-    return dict(n_nodes=1000, dt_ps=sim.dt, platform=sim.platform_name, setup_s=setup, context_s=sim.context_time,
+    return dict(n_nodes=1000, requested=elastic, elastic=sim.rs.elastic, dt_ps=sim.dt, platform=sim.platform_name,
+                setup_s=setup, context_s=sim.context_time, node_steps_per_cpu_s_bare=1000 * n_steps / bare_cpu,
                 steps=done, steps_per_cpu_s_bare=n_steps / bare_cpu, steps_per_wall_s_bare=n_steps / bare_wall,
                 ns_per_day_bare=n_steps * sim.dt * 1e-3 / bare_wall * 86400,
                 ns_per_day_bare_cpu=n_steps * sim.dt * 1e-3 / bare_cpu * 86400,
@@ -155,38 +148,23 @@ def kbp(budget):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--sizes", default="100,1000,10000,100000,1000000")
-    ap.add_argument("--budget", type=float, default=2.0, help="seconds per rate measurement")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--pin", default="0", help="core to pin each measurement to with taskset ('' for none)")
-    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_openmm.json"))
-    ap.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
-    ap.add_argument("--kbp", action="store_true", help=argparse.SUPPRESS)
+    ap = H.add_common_arguments(argparse.ArgumentParser(), "100,1000,10000,100000,1000000", "bench_openmm")
+    ap.add_argument("--kbp", default=None, choices=KBP_PATHS, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.single is not None:
         print(json.dumps(single(args.single, args.budget, args.repeats)))
         return
     if args.kbp:
-        print(json.dumps(kbp(10 * args.budget)))
+        print(json.dumps(kbp(10 * args.budget, args.kbp)))
         return
-    prefix = ["taskset", "-c", args.pin] if args.pin and shutil.which("taskset") else []
-    results = []
-    for n in [int(s) for s in args.sizes.split(",")]:
-        reps = args.repeats if n <= 100000 else 1
-        budget = args.budget if n <= 100000 else max(args.budget, 3.0)
-        t = time.perf_counter()
-        p = subprocess.run(prefix + [sys.executable, __file__, "--single", str(n), "--budget", str(budget),
-                            "--repeats", str(reps)], capture_output=True, text=True, timeout=1800)
-        if p.returncode != 0:
-            results.append(dict(n_nodes=n, error=p.stderr.strip().splitlines()[-1] if p.stderr else "failed"))
-        else:
-            results.append(json.loads(p.stdout.strip().splitlines()[-1]))
-        results[-1]["wall_s"] = time.perf_counter() - t
-        print(f"measured {n} nodes in {results[-1]['wall_s']:.0f} s", file=sys.stderr)
-    p = subprocess.run(prefix + [sys.executable, __file__, "--kbp", "--budget", str(args.budget)], capture_output=True,
-                       text=True, timeout=1800)
-    k = json.loads(p.stdout.strip().splitlines()[-1]) if p.returncode == 0 else dict(error=p.stderr[-500:])
+    prefix = H.pin_prefix(args.pin)
+    load = [os.getloadavg()]
+    results = H.run_sizes(__file__, H.parse_sizes(args.sizes),
+                          lambda n: ["--budget", args.budget if n <= 100000 else max(args.budget, 3.0),
+                                     "--repeats", args.repeats if n <= 100000 else 1], prefix, timeout=1800)
+    kbps = {path: H.run_child(__file__, ["--kbp", path, "--budget", args.budget], prefix, timeout=1800, error_lines=3)
+            for path in KBP_PATHS}
+    load.append(os.getloadavg())
 
     hdr = (f"{'nodes':>8} {'floor':>10} {'bonded':>10} {'full':>10} {'portable':>10} {'bond/floor':>10} "
            f"{'full/bond':>9} {'setup s':>8} {'context s':>9} {'omega s':>8} {'peak MB':>8} platform")
@@ -205,23 +183,21 @@ def main():
               f"{r['bonded_over_floor']:>10.2f} {r['full_cost_over_bonded']:>9.2f} {r['full_setup_s']:>8.2f} "
               f"{r['full_context_s']:>9.3f} {r['omega_max_s']:>8.2f} {r['peak_rss_MB']:>8.0f} {r['platform']}")
     print()
-    if "error" in k:
-        print("1 kbp: error", k["error"])
-    else:
-        print(f"1 kbp duplex, 300 K, dt {k['dt_ps'] * 1000:.1f} fs, full model, {k['platform']} platform: "
-              f"{k['steps_per_cpu_s_bare']:.0f} steps per CPU-second bare = {k['ns_per_day_bare_cpu']:.0f} ns/day "
-              f"per CPU-day ({k['ns_per_day_bare']:.0f} ns/day wall); with reporters {k['steps_per_cpu_s_with_reporters']:.0f} "
+    for path, k in kbps.items():
+        if "error" in k:
+            print(f"1 kbp ({path}): error", k["error"])
+            continue
+        print(f"1 kbp duplex, 300 K, dt {k['dt_ps'] * 1000:.1f} fs, full model, elastic={path} -> {k['elastic']} path, "
+              f"{k['platform']} platform: {k['steps_per_cpu_s_bare']:.0f} steps per CPU-second bare "
+              f"({k['node_steps_per_cpu_s_bare']:.3g} node-steps/CPU-s) = {k['ns_per_day_bare_cpu']:.0f} ns per CPU-day "
+              f"({k['ns_per_day_bare']:.0f} ns/day wall); with reporters {k['steps_per_cpu_s_with_reporters']:.0f} "
               f"steps per CPU-second = {k['node_steps_per_cpu_s_with_reporters']:.3g} node-steps per CPU-second, "
-              f"{k['ns_per_day_with_reporters_cpu']:.0f} ns/day per CPU-day ({k['ns_per_day_with_reporters']:.0f} wall); "
+              f"{k['ns_per_day_with_reporters_cpu']:.0f} ns per CPU-day ({k['ns_per_day_with_reporters']:.0f} wall); "
               f"setup {k['setup_s']:.2f} s (Context {k['context_s']:.3f} s); mean T {k['mean_temperature']:.1f} K")
-    out = dict(benchmark="bench_openmm", machine=platform.platform(), cpu_count=os.cpu_count(),
-               python=platform.python_version(), sizes=results, kbp=k,
-               pinned=bool(prefix), date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-               targets=dict(bonded_over_floor_1e4=">= 0.40", full_cost_over_bonded_1e4="<= 2",
-                            kbp_steps_per_cpu_s=">= 2000", context_s="< 2", nodes_1e6="fit in memory"))
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
+    H.write_results(args.json, "bench_openmm", pinned=bool(prefix), load_average_start_end=load, sizes=results,
+                    kbp=kbps, targets=dict(bonded_over_floor_1e4=">= 0.40", full_cost_over_bonded_1e4="<= 2",
+                                           kbp_steps_per_cpu_s=">= 2000 (default path)", context_s="< 2",
+                                           nodes_1e6="fit in memory"))
 
 
 if __name__ == "__main__":

@@ -22,36 +22,25 @@ import argparse
 import gc
 import json
 import os
-import platform
-import shutil
-import subprocess
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
+import _harness as H
+
 CONFIGS = ("cpu", "cpu_t1", "reference", "auto")
 
 
 def _rate(integrator, budget):
     """(steps per CPU-second, steps per wall-second) over about ``budget`` seconds."""
-    integrator.step(2)
-    t = time.perf_counter()
-    integrator.step(1)
-    one = max(time.perf_counter() - t, 1e-5)
-    steps = max(2, int(budget / one))
-    c0, w0 = time.process_time(), time.perf_counter()
-    integrator.step(steps)
-    c1, w1 = time.process_time(), time.perf_counter()
-    return steps / max(c1 - c0, 1e-9), steps / max(w1 - w0, 1e-9)
+    steps, cpu, wall = H.timed_steps(integrator, budget)
+    return steps / max(cpu, 1e-9), steps / max(wall, 1e-9)
 
 
-def _make(model, config):
+def _make(model, config, elastic):
     from dnarod.openmm.simulation import RodSimulation
 
-    kw = dict(temperature=300.0, seed=1)
+    kw = dict(temperature=300.0, seed=1, elastic=elastic)
     if config == "cpu":
         kw.update(platform="CPU")
     elif config == "cpu_t1":
@@ -65,7 +54,7 @@ def _make(model, config):
     return sim, time.perf_counter() - t
 
 
-def single(n, budget, repeats):
+def single(n, budget, repeats, elastic="fast"):
     from dnarod.forcefield import load_forcefield
 
     rng = np.random.default_rng(0)
@@ -75,7 +64,7 @@ def single(n, budget, repeats):
     if n <= 10000:
         sims = {}
         for c in CONFIGS:
-            sims[c], out[f"{c}_setup_s"] = _make(model, c)
+            sims[c], out[f"{c}_setup_s"] = _make(model, c, elastic)
         out["auto_choice"] = sims["auto"].platform_name
         out["auto_reason"] = sims["auto"].platform_reason
         for _ in range(repeats):
@@ -84,7 +73,7 @@ def single(n, budget, repeats):
                 best[c] = max(best[c], r)
     else:
         for c in CONFIGS:
-            sim, out[f"{c}_setup_s"] = _make(model, c)
+            sim, out[f"{c}_setup_s"] = _make(model, c, elastic)
             if c == "auto":
                 out["auto_choice"] = sim.platform_name
                 out["auto_reason"] = sim.platform_reason
@@ -98,46 +87,30 @@ def single(n, budget, repeats):
 
 
 def main():
-    ap = argparse.ArgumentParser()
-    ap.add_argument("--sizes", default="100,1000,10000,100000,1000000")
-    ap.add_argument("--budget", type=float, default=2.0, help="seconds per rate measurement")
-    ap.add_argument("--repeats", type=int, default=3)
-    ap.add_argument("--pin", default="0", help="core to pin each measurement to with taskset ('' for none)")
-    ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_platforms.json"))
-    ap.add_argument("--single", type=int, default=None, help=argparse.SUPPRESS)
+    ap = H.add_common_arguments(argparse.ArgumentParser(), "100,1000,10000,100000,1000000", "bench_platforms")
+    ap.add_argument("--elastic", default="fast", choices=["fast", "plugin", "auto"],
+                    help="elastic path measured on every platform (default: the Python-callback path)")
     args = ap.parse_args()
     if args.single is not None:
-        print(json.dumps(single(args.single, args.budget, args.repeats)))
+        print(json.dumps(single(args.single, args.budget, args.repeats, args.elastic)))
         return
-    prefix = ["taskset", "-c", args.pin] if args.pin and shutil.which("taskset") else []
-    results = []
-    for n in [int(s) for s in args.sizes.split(",")]:
-        budget = args.budget if n <= 100000 else max(args.budget, 3.0)
-        t = time.perf_counter()
-        p = subprocess.run(prefix + [sys.executable, __file__, "--single", str(n), "--budget", str(budget),
-                                     "--repeats", str(args.repeats)], capture_output=True, text=True, timeout=3600)
-        if p.returncode != 0:
-            results.append(dict(n_nodes=n, error=(p.stderr.strip().splitlines() or ["failed"])[-1]))
-        else:
-            results.append(json.loads(p.stdout.strip().splitlines()[-1]))
-        results[-1]["wall_s"] = time.perf_counter() - t
-        print(f"measured {n} nodes in {results[-1]['wall_s']:.0f} s", file=sys.stderr)
+    prefix = H.pin_prefix(args.pin)
+    load = [os.getloadavg()]
+    results = H.run_sizes(__file__, H.parse_sizes(args.sizes),
+                          lambda n: ["--budget", args.budget if n <= 100000 else max(args.budget, 3.0),
+                                     "--repeats", args.repeats, "--elastic", args.elastic], prefix)
+    load.append(os.getloadavg())
     pin = f"pinned to core {args.pin}" if prefix else "not pinned"
-    print(f"steps per CPU-second (steps per wall-second), full model, LangevinMiddle 300 K, default dt, {pin}")
-    print(f"{'nodes':>8} " + " ".join(f"{c:>19}" for c in CONFIGS) + "  auto choice")
+    print(f"steps per CPU-second (steps per wall-second), full model, elastic={args.elastic}, LangevinMiddle 300 K, "
+          f"default dt, {pin}")
+    print(f"{'nodes':>8} " + " ".join(f"{c:>19}" for c in CONFIGS) + "  auto choice  node-steps/CPU-s (auto)")
     for r in results:
         if "error" in r:
             print(f"{r['n_nodes']:>8} error: {r['error']}")
             continue
         cells = [f"{r[f'{c}_steps_per_cpu_s']:>9.4g} ({r[f'{c}_steps_per_wall_s']:>7.4g})" for c in CONFIGS]
-        print(f"{r['n_nodes']:>8} " + " ".join(cells) + f"  {r['auto_choice']}")
-    out = dict(benchmark="bench_platforms", machine=platform.platform(), cpu_count=os.cpu_count(),
-               python=platform.python_version(), pinned=bool(prefix), date=time.strftime("%Y-%m-%d %H:%M UTC",
-                                                                                          time.gmtime()),
-               sizes=results)
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
+        print(f"{r['n_nodes']:>8} " + " ".join(cells) + f"  {r['auto_choice']:>11}  {r['auto_node_steps_per_cpu_s']:.3g}")
+    H.write_results(args.json, "bench_platforms", elastic=args.elastic, pinned=bool(prefix), load_average_start_end=load, sizes=results)
 
 
 if __name__ == "__main__":

@@ -21,9 +21,7 @@ Usage: ``python benchmarks/bench_plugin.py [--sizes 1000,10000] [--budget S] [--
 from __future__ import annotations
 
 import argparse
-import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -35,6 +33,8 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+
+import _harness as H  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -173,13 +173,9 @@ def main():
         for mode, q in inst.items():
             print(f"fresh venv + pip install -e . ({mode.replace('_', ' ')}): {q['wall_s']:.0f} s wall, "
                   f"{q['cpu_s']:.0f} s CPU, ok={q['ok']}, plugin built={q['plugin_built']}")
-    out = dict(benchmark="bench_plugin", machine=platform.platform(), cpu_count=os.cpu_count(),
-               python=platform.python_version(), plugin=dict(built_against=st.built_against),
-               load_average=os.getloadavg(), sizes=res, kbp=k, install=inst,
-               targets=dict(plugin_full_per_cpu_s_1e4=">= 1e7", kbp_ns_per_day=">= 30000", install_s="<= 120"))
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
+    H.write_results(args.json, "bench_plugin", plugin=dict(built_against=st.built_against), sizes=res, kbp=k,
+                    install=inst,
+                    targets=dict(plugin_full_per_cpu_s_1e4=">= 1e7", kbp_ns_per_day=">= 30000", install_s="<= 120"))
 
 
 if __name__ == "__main__":

@@ -25,7 +25,6 @@ import argparse
 import importlib.util
 import json
 import os
-import platform
 import subprocess
 import sys
 import tempfile
@@ -34,8 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
+import _harness as H
+
 ROOT = Path(__file__).resolve().parents[1]
-CASES = ("dna-default", "full", "circular")
+CASES = ("dna-default", "full", "circular", "full-circular", "olson1998", "olson1998-circular")
 
 
 def _forces_module(rev):
@@ -56,23 +57,71 @@ def _forces_module(rev):
 
 
 def _model(case):
+    """100 nodes: ``dna-default`` (open), ``full`` (random full K and intrinsic strains per step, open),
+    ``circular`` (dna-default closed by its helical screw), ``full-circular`` (``full`` closed by a general
+    screw), ``olson1998`` and ``olson1998-circular`` (sequence-dependent full K of the bundled set)."""
     from dnarod.forcefield import load_forcefield
     from dnarod.model import RodModel
     from dnarod.parameters import StepParameters
-    from dnarod.rotations import cayley
+    from dnarod.rotations import cayley, rotation_about_axis
+    from dnarod.strains import Closure
 
-    ff = load_forcefield("dna-default")
+    circular = case.endswith("circular")
+    ff = load_forcefield("olson1998" if case.startswith("olson") else "dna-default")
     rng = np.random.default_rng(7)
     seq = "".join(rng.choice(list("ACGT"), 100))
-    m = ff.model_from_sequence(seq, circular=case == "circular")
-    params = m.params
-    if case == "full":
+    m = ff.model_from_sequence(seq, circular=circular)
+    params, closure = m.params, m.closure
+    if case.startswith("full"):
         A = rng.normal(size=(m.n_steps, 6, 6))
         K = np.einsum("kij,klj->kil", A, A) * 20 + np.eye(6) * 50
         params = StepParameters(K, m.params.intrinsic + 0.1 * rng.normal(size=m.params.intrinsic.shape))
+    if case == "full-circular":
+        axis = np.array([0.3, 0.2, 1.0]) / np.linalg.norm([0.3, 0.2, 1.0])
+        closure = Closure(rotation_about_axis(axis, 0.7), np.array([0.1, -0.2, 3.3]))
     pos = m.positions + 0.03 * rng.normal(size=m.positions.shape)
     frm = cayley(0.05 * rng.normal(size=(m.n_nodes, 3))) @ m.frames
-    return RodModel(pos, frm, params, m.ds, m.mass, m.inertia, closure=m.closure)
+    return RodModel(pos, frm, params, m.ds, m.mass, m.inertia, closure=closure)
+
+
+def _context_time(system, plat, positions=None):
+    """CPU and wall seconds to create an OpenMM Context (LangevinMiddle) and evaluate energy and forces once.
+
+    CPU time is that of all threads of this process plus any child processes it waited for (pocl may run
+    the linker as a separate process)."""
+    import openmm
+
+    from dnarod.openmm.platforms import platform_properties
+
+    c0, w0 = H.cpu_seconds(), time.perf_counter()
+    ctx = openmm.Context(system, openmm.LangevinMiddleIntegrator(300.0, 1.0, 0.001),
+                         openmm.Platform.getPlatformByName(plat), platform_properties(plat))
+    if positions is not None:
+        ctx.setPositions(positions)
+    state = ctx.getState(getEnergy=True, getForces=True)
+    out = (H.cpu_seconds() - c0, time.perf_counter() - w0)
+    del ctx
+    return out, state
+
+
+def trivial(plat):
+    """OpenMM's own cost: two particles, one HarmonicBondForce, LangevinMiddleIntegrator (two Contexts)."""
+    import openmm
+
+    out = dict(case="trivial (HarmonicBondForce)", platform=plat)
+    times = []
+    for _ in range(2):
+        system = openmm.System()
+        system.addParticle(1.0)
+        system.addParticle(1.0)
+        f = openmm.HarmonicBondForce()
+        f.addBond(0, 1, 0.1, 1000.0)
+        system.addForce(f)
+        t, _ = _context_time(system, plat, [openmm.Vec3(0, 0, 0), openmm.Vec3(0.11, 0, 0)])
+        times.append(t)
+    out["context_cpu_s"], out["context_wall_s"] = times[0]
+    out["second_context_cpu_s"], out["second_context_wall_s"] = times[1]
+    return out
 
 
 def single(case, plat, rev):
@@ -80,8 +129,9 @@ def single(case, plat, rev):
 
     from dnarod.energy import energy
     from dnarod.openmm import particles as P
-    from dnarod.openmm.platforms import platform_properties
 
+    if case == "trivial":
+        return trivial(plat)
     forces = _forces_module(rev)
     m = _model(case)
     r = P.triangle_radius(m.mass, m.inertia)
@@ -93,17 +143,14 @@ def single(case, plat, rev):
             system.addParticle(mass)
         for f in forces.elastic_compound_forces(m, r):
             system.addForce(f)
-        c0, w0 = time.process_time(), time.perf_counter()
-        ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName(plat),
-                             platform_properties(plat))
-        ctx.setPositions(P.particle_positions(m.positions, m.frames, r))
-        E = ctx.getState(getEnergy=True, getForces=True).getPotentialEnergy()._value
-        times.append((time.process_time() - c0, time.perf_counter() - w0))
-        del ctx
+        t, state = _context_time(system, plat, P.particle_positions(m.positions, m.frames, r))
+        times.append(t)
+    E = state.getPotentialEnergy()._value
     out["context_cpu_s"], out["context_wall_s"] = times[0]
     out["second_context_cpu_s"], out["second_context_wall_s"] = times[-1]
     E0 = energy(m.positions, m.frames, m.params, m.ds, m.closure)
     out["energy_rel_error"] = abs(E - E0) / abs(E0)
+    out["n_forces"] = system.getNumForces()
     out["expressions"] = [system.getForce(i).getEnergyFunction() for i in range(system.getNumForces())]
     return out
 
@@ -123,6 +170,15 @@ def _lepton_tool():
         if p.returncode != 0:
             return None
     return exe
+
+
+def _run(case, plat, rev, env=None):
+    p = subprocess.run([sys.executable, __file__, "--single", case, plat, rev or "-"], capture_output=True, text=True,
+                       timeout=3600, env=env)
+    if p.returncode != 0:
+        return dict(case=case, platform=plat, revision=rev or "working tree",
+                    error=(p.stderr.strip().splitlines() or ["failed"])[-1])
+    return json.loads(p.stdout.strip().splitlines()[-1])
 
 
 def main():
@@ -146,17 +202,24 @@ def main():
     tool = _lepton_tool()
     results = []
     counted = {}
+    load = [os.getloadavg()]
     for rev in revs:
-        for case in args.cases.split(","):
+        for case in ["trivial"] + args.cases.split(","):
+            if case == "trivial" and rev is not None:
+                continue
             for plat in (plats if rev is None else [p for p in args.baseline_platforms.split(",") if p in have]):
-                p = subprocess.run([sys.executable, __file__, "--single", case, plat, rev or "-"], capture_output=True,
-                                   text=True, timeout=3600)
-                if p.returncode != 0:
-                    results.append(dict(case=case, platform=plat, revision=rev or "working tree",
-                                        error=(p.stderr.strip().splitlines() or ["failed"])[-1]))
-                    continue
-                r = json.loads(p.stdout.strip().splitlines()[-1])
-                if tool is not None:
+                if plat == "OpenCL":
+                    # cold: a fresh, empty pocl kernel cache (first Context compiles every kernel); warm: a new
+                    # process on the cache the cold run filled (what every later run sees)
+                    with tempfile.TemporaryDirectory() as cache:
+                        env = dict(os.environ, POCL_CACHE_DIR=cache)
+                        cold = _run(case, plat, rev, env)
+                        r = _run(case, plat, rev, env)
+                    if "error" not in r and "error" not in cold:
+                        r["cold_context_cpu_s"], r["cold_context_wall_s"] = cold["context_cpu_s"], cold["context_wall_s"]
+                else:
+                    r = _run(case, plat, rev)
+                if tool is not None and "expressions" in r:
                     counts = []
                     for expr in r["expressions"]:
                         if expr not in counted:
@@ -164,25 +227,26 @@ def main():
                             counted[expr] = json.loads(q.stdout)
                         counts.append(counted[expr])
                     r["lepton"] = counts
+                    r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
+                                                                                "derivative_tree_nodes")}
+                r.pop("expressions", None)
                 results.append(r)
                 print(f"measured {case} on {plat} ({rev or 'working tree'})", file=sys.stderr)
-    print("portable force (100 nodes): Context creation CPU s (wall s), 2nd creation CPU s; energy vs dnarod.energy; "
-          "Lepton nodes energy / derivatives (per force)")
+    load.append(os.getloadavg())
+    print("portable force (100 nodes): Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
+          "filled), cold (empty cache); energy vs dnarod.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
     for r in results:
         if "error" in r:
-            print(f"{r['revision'][:12]:>12} {r['case']:>11} {r['platform']:>9} error: {r['error']}")
+            print(f"{r['revision'][:12]:>12} {r['case']:>18} {r['platform']:>9} error: {r['error']}")
             continue
-        lep = "; ".join(f"{c['energy_tree_nodes']}/{c['derivative_tree_nodes']}" for c in r.get("lepton", []))
-        print(f"{r['revision'][:12]:>12} {r['case']:>11} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
-              f"({r['context_wall_s']:6.2f}) {r['second_context_cpu_s']:6.2f}  rel.err {r['energy_rel_error']:.1e}  "
-              f"{lep}")
-    out = dict(benchmark="bench_portable", machine=platform.platform(), cpu_count=os.cpu_count(),
-               date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), results=results,
-               target="Context creation < 2 s on every platform for any stiffness")
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    Path(args.json).write_text(json.dumps(out, indent=2))
-    print(f"wrote {args.json}")
-
+        lep = r.get("lepton_total")
+        lep = f"{lep['energy_tree_nodes']}/{lep['derivative_tree_nodes']}" if lep else ""
+        cold = f" cold {r['cold_context_cpu_s']:6.2f} ({r['cold_context_wall_s']:6.2f})" if "cold_context_cpu_s" in r else ""
+        err = f"rel.err {r['energy_rel_error']:.1e}" if "energy_rel_error" in r else ""
+        print(f"{r.get('revision', '')[:12]:>12} {r['case']:>18} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
+              f"({r['context_wall_s']:6.2f}){cold} forces {r.get('n_forces', 1):>2} {err} {lep}")
+    H.write_results(args.json, "bench_portable", load_average_start_end=load, openmm=openmm.__version__,
+                    results=results, target="Context creation < 2 s on every platform for any stiffness")
 
 if __name__ == "__main__":
     main()

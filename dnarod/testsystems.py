@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from .errors import ParameterError
@@ -276,15 +277,16 @@ def dna_like_rod(n_nodes=20, seed=0, twist_deg=33.75, bend_noise=0.08, B33=-54.0
     return RodModel.intrinsic(params, ff.ds, ff.node_mass, ff.node_inertia)
 
 
-def gaussian_coil(model, temperature=300.0, seed=0, min_distance=1.0, n_exclude=12, max_fixes=10000):
+def gaussian_coil(model, temperature=300.0, seed=0, min_distance=1.0, n_exclude=12, max_redraws=None):
     """A coiled pose of an open chain drawn from its thermal equilibrium (Gaussian approximation).
 
     Each step's strains are drawn independently from ``N(xi0_k, kT (ds K_k)^-1)``, the
     equilibrium density of the harmonic step energy without the Haar factor (a relative
-    correction of order ``kT ds / B ~ 1e-2`` on the bending variance), and the chain is built
-    with :func:`dnarod.strains.chain_from_strains`. Pairs of nodes more than ``n_exclude``
-    steps apart that come closer than ``min_distance`` are removed by redrawing the strain of a
-    step shortly before the later node and moving the rest of the chain rigidly with it.
+    correction of order ``kT ds / B ~ 1e-2`` on the bending variance), and the chain is grown
+    node by node (:func:`_grow_chain`). A node that comes closer than ``min_distance`` to a node
+    more than ``n_exclude`` steps before it is removed with up to ``n_exclude`` nodes before it,
+    the strain of the step leading to the first removed node is redrawn, and growth resumes
+    (a spatial hash finds the close nodes, so the cost is O(n): about 1 s at 10^6 nodes).
 
     Parameters
     ----------
@@ -297,56 +299,128 @@ def gaussian_coil(model, temperature=300.0, seed=0, min_distance=1.0, n_exclude=
         nm (``0`` for no check).
     n_exclude : int
         Chain separation below which close pairs are allowed.
-    max_fixes : int
+    max_redraws : int, optional
+        Redraws before giving up (error); default ``max(10000, n_nodes)``.
 
     Returns
     -------
     RodModel
         The model with the coiled pose.
     """
-    from scipy.spatial import cKDTree
-
     from .thermal import kT
 
     if model.closure is not None:
         raise ParameterError("gaussian_coil needs an open chain")
     rng = np.random.default_rng(seed)
     K = np.asarray(model.params.stiffness, float)
-    xi0 = np.asarray(model.params.intrinsic, float)
-    L = np.linalg.cholesky(kT(temperature) * np.linalg.inv(model.ds * K))
-
-    def draw(idx):
-        return xi0[idx] + np.einsum("kab,kb->ka", L[idx], rng.normal(size=(len(idx), 6)))
-
-    xi = draw(np.arange(K.shape[0]))
-    pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds)
-    n = pos.shape[0]
-    fixes = 0
-    while min_distance > 0:
-        pairs = cKDTree(pos).query_pairs(min_distance, output_type="ndarray")
-        if len(pairs):
-            pairs = np.sort(pairs, axis=1)
-            pairs = pairs[pairs[:, 1] - pairs[:, 0] > n_exclude]
-        if not len(pairs):
-            break
-        # redraw one step shortly before each offending node, latest first (a redraw moves only
-        # the nodes after it), then check again
-        for j in np.unique(pairs[:, 1])[::-1]:
-            if fixes >= max_fixes:
-                raise ParameterError(f"gaussian_coil: could not remove close pairs in {max_fixes} redraws")
-            fixes += 1
-            k = int(rng.integers(max(0, j - n_exclude), j))  # redraw step k (nodes k -> k+1)
-            xi[k] = draw(np.array([k]))[0]
-            p1, f1 = chain_from_strains(xi[k:k + 1, :3], xi[k:k + 1, 3:], model.ds, pos[k], frm[k])
-            # rigid motion taking the old node k+1 to the new one, made exactly orthogonal (polar
-            # factor): the frames of a long chain carry rounding (~1e-10 at 10^5 nodes) that a
-            # product of unprojected rotations would amplify fix after fix
-            U, _, Vt = np.linalg.svd(f1[1] @ frm[k + 1].T)
-            R = U @ Vt
-            tail = slice(k + 1, n)
-            pos[tail] = p1[1] + (pos[tail] - pos[k + 1]) @ R.T
-            frm[tail] = np.einsum("ab,kbc->kac", R, frm[tail])
+    xi0 = np.ascontiguousarray(model.params.intrinsic, float)
+    L = np.ascontiguousarray(np.linalg.cholesky(kT(temperature) * np.linalg.inv(model.ds * K)))
+    xi = xi0 + np.einsum("kab,kb->ka", L, rng.normal(size=xi0.shape))
+    n = K.shape[0] + 1
+    if min_distance <= 0:
+        pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds)
+        return model.with_pose(pos, frm)
+    max_redraws = max(10000, n) if max_redraws is None else int(max_redraws)
+    # random numbers for the redraws, drawn here so that the compiled loop needs no generator
+    z = rng.normal(size=(max_redraws, 6))
+    back = rng.integers(1, n_exclude + 1, size=max_redraws)
+    pos = np.zeros((n, 3))
+    frm = np.zeros((n, 3, 3))
+    frm[0] = np.eye(3)
+    used = _grow_chain(xi, xi0, L, float(model.ds), float(min_distance), int(n_exclude), z, back, pos, frm)
+    if used < 0:
+        raise ParameterError(f"gaussian_coil: close pairs still left after {max_redraws} redraws (lower "
+                             f"min_distance)")
     return model.with_pose(pos, frm)
+
+
+@numba.njit(cache=True)
+def _grow_chain(xi, xi0, L, ds, dmin, n_exclude, z, back, pos, frm):
+    """Grow the chain of :func:`gaussian_coil` from node 0 (``pos[0]``, ``frm[0]`` set), redrawing on
+    close contacts; returns the number of redraws used, or -1 when ``z`` ran out.
+
+    Compiled and hand-written (no library grows a chain with rejection): nodes sit in a hash of
+    cubic cells of side ``dmin`` (linked lists, newest first, so removing nodes in reverse order of
+    insertion pops list heads); a node is checked against the 27 cells around it.
+    """
+    n = pos.shape[0]
+    size = 1
+    while size < 2 * n:
+        size *= 2
+    head = np.full(size, -1, np.int64)
+    nxt = np.full(n, -1, np.int64)
+    key = np.zeros(n, np.int64)
+    R = np.empty((3, 3))
+    used = 0
+
+    def cell_hash(ix, iy, iz):
+        return ((ix * 73856093) ^ (iy * 19349663) ^ (iz * 83492791)) & (size - 1)
+
+    def insert(j):
+        ix = int(np.floor(pos[j, 0] / dmin))
+        iy = int(np.floor(pos[j, 1] / dmin))
+        iz = int(np.floor(pos[j, 2] / dmin))
+        h = cell_hash(ix, iy, iz)
+        key[j] = h
+        nxt[j] = head[h]
+        head[h] = j
+
+    insert(0)
+    j = 1
+    while j < n:
+        k = j - 1
+        # node j from node k and step k's strains: R = cayley(ds Omega), c_j = c_k + ds F_k Gamma
+        w0, w1, w2 = ds * xi[k, 0], ds * xi[k, 1], ds * xi[k, 2]
+        den = 1.0 + 0.25 * (w0 * w0 + w1 * w1 + w2 * w2)
+        W = np.array([[0.0, -w2, w1], [w2, 0.0, -w0], [-w1, w0, 0.0]])
+        W2 = W @ W
+        for a in range(3):
+            for b in range(3):
+                R[a, b] = (1.0 if a == b else 0.0) + (W[a, b] + 0.5 * W2[a, b]) / den
+        for a in range(3):
+            acc = 0.0
+            for b in range(3):
+                acc += frm[k, a, b] * xi[k, 3 + b]
+            pos[j, a] = pos[k, a] + ds * acc
+            for b in range(3):
+                acc = 0.0
+                for c in range(3):
+                    acc += frm[k, a, c] * R[c, b]
+                frm[j, a, b] = acc
+        # contact with a node more than n_exclude steps back?
+        ix = int(np.floor(pos[j, 0] / dmin))
+        iy = int(np.floor(pos[j, 1] / dmin))
+        iz = int(np.floor(pos[j, 2] / dmin))
+        clash = False
+        for dx in range(-1, 2):
+            for dy in range(-1, 2):
+                for dz in range(-1, 2):
+                    i = head[cell_hash(ix + dx, iy + dy, iz + dz)]
+                    while i >= 0 and not clash:
+                        if i < j - n_exclude:
+                            d2 = ((pos[i, 0] - pos[j, 0]) ** 2 + (pos[i, 1] - pos[j, 1]) ** 2
+                                  + (pos[i, 2] - pos[j, 2]) ** 2)
+                            clash = d2 < dmin * dmin
+                        i = nxt[i]
+        if not clash:
+            insert(j)
+            j += 1
+            continue
+        if used >= z.shape[0]:
+            return -1
+        # remove nodes j-1 .. j0 (newest first) and redraw step j0 - 1
+        j0 = max(1, j - back[used])
+        for m in range(j - 1, j0 - 1, -1):
+            head[key[m]] = nxt[m]
+        k = j0 - 1
+        for a in range(6):
+            acc = 0.0
+            for b in range(6):
+                acc += L[k, a, b] * z[used, b]
+            xi[k, a] = xi0[k, a] + acc
+        used += 1
+        j = j0
+    return used
 
 
 def plectoneme_centres(n_nodes, ds=0.34, radius=1.05, pitch=6.0):

@@ -55,6 +55,26 @@ def circular(ff):
     return perturbed(base, rng, closure=closure)
 
 
+@pytest.fixture(scope="module")
+def circular_full(ff):
+    """A circular chain with a random full SPD K and intrinsic strains per step, closed by a general screw."""
+    rng = np.random.default_rng(11)
+    base = ff.model_from_sequence("ACGTTGCAGT", circular=True)
+    xi0 = base.params.intrinsic + 0.1 * rng.normal(size=base.params.intrinsic.shape)
+    params = StepParameters(random_spd(rng, base.n_steps), xi0)
+    axis = np.array([-0.5, 0.4, 1.0]) / np.linalg.norm([-0.5, 0.4, 1.0])
+    closure = Closure(rotation_about_axis(axis, 0.9), np.array([0.3, 0.1, 3.1]))
+    return perturbed(base, rng, closure=closure, params=params)
+
+
+@pytest.fixture(scope="module")
+def open_sized(open_full):
+    """``open_full`` with nodes of different sizes (triangle radius varies from node to node)."""
+    scale = 1.0 + 0.3 * np.sin(np.arange(open_full.n_nodes))
+    return RodModel(open_full.positions, open_full.frames, open_full.params, open_full.ds, open_full.mass,
+                    open_full.inertia * scale[:, None], closure=None)
+
+
 def reference_context(model, forces):
     r = P.triangle_radius(model.mass, model.inertia)
     system = openmm.System()
@@ -84,6 +104,18 @@ def portable_open(open_full):
 def portable_circular(circular):
     r = P.triangle_radius(circular.mass, circular.inertia)
     return reference_context(circular, elastic_compound_forces(circular, r))
+
+
+@pytest.fixture(scope="module")
+def portable_circular_full(circular_full):
+    r = P.triangle_radius(circular_full.mass, circular_full.inertia)
+    return reference_context(circular_full, elastic_compound_forces(circular_full, r))
+
+
+@pytest.fixture(scope="module")
+def portable_open_sized(open_sized):
+    r = P.triangle_radius(open_sized.mass, open_sized.inertia)
+    return reference_context(open_sized, elastic_compound_forces(open_sized, r))
 
 
 # --- particles -------------------------------------------------------------------------
@@ -158,10 +190,14 @@ def test_numba_kernel_equals_analytic_loads(which, request):
 
 
 # --- portable path on the Reference platform ----------------------------------------------
-@pytest.mark.parametrize("which", ["open_full", "circular"])
+PORTABLE = {"open_full": "portable_open", "circular": "portable_circular", "circular_full": "portable_circular_full",
+            "open_sized": "portable_open_sized"}
+
+
+@pytest.mark.parametrize("which", list(PORTABLE))
 def test_portable_energy_and_loads_equal_numpy(which, request):
     m = request.getfixturevalue(which)
-    ctx = request.getfixturevalue("portable_" + ("open" if which == "open_full" else "circular"))
+    ctx = request.getfixturevalue(PORTABLE[which])
     E, F, tau = loads(m.positions, m.frames, m.params, m.ds, m.closure)
     E_mm, F_mm, tau_mm = state_loads(ctx)
     assert abs(E_mm - energy(m.positions, m.frames, m.params, m.ds, m.closure)) <= 1e-10 * abs(E)
@@ -187,10 +223,10 @@ def test_portable_forces_are_the_gradient(open_full, portable_open):
     ctx.setPositions(p0)
 
 
-@pytest.mark.parametrize("which", ["open_full", "circular"])
+@pytest.mark.parametrize("which", list(PORTABLE))
 def test_fast_path_equals_portable_path(which, request):
     m = request.getfixturevalue(which)
-    ctx = request.getfixturevalue("portable_" + ("open" if which == "open_full" else "circular"))
+    ctx = request.getfixturevalue(PORTABLE[which])
     r = P.triangle_radius(m.mass, m.inertia)
     fast = reference_context(m, [elastic_python_force(m, r)])
     E1, F1, t1 = state_loads(ctx)
@@ -238,13 +274,31 @@ def test_cpu_fast_path_within_precision(open_full):
     assert np.abs(t2 - tau).max() <= 1e-3 * np.abs(tau).max()
 
 
-def test_portable_row_split_gives_the_same_energy_and_loads(open_full):
-    """One force per Cholesky row (faster to compile) equals the single force and dnarod.energy."""
-    r = P.triangle_radius(open_full.mass, open_full.inertia)
-    forces = elastic_compound_forces(open_full, r, split=True)
-    assert len(forces) == 6
-    E, F, tau = loads(open_full.positions, open_full.frames, open_full.params, open_full.ds, open_full.closure)
-    E_mm, F_mm, tau_mm = state_loads(reference_context(open_full, forces))
-    assert abs(E_mm - E) <= 1e-12 * abs(E)
-    assert np.abs(F_mm - F).max() <= 1e-10 * np.abs(F).max()
-    assert np.abs(tau_mm - tau).max() <= 1e-10 * np.abs(tau).max()
+@pytest.mark.parametrize("which", ["open_full", "circular_full"])
+def test_portable_single_force_and_row_split_give_the_same_energy_and_loads(which, request):
+    """One force per Cholesky row (the default for a full K; faster to compile) and one force for all rows
+    both equal dnarod.energy; the closing step is split by default too."""
+    m = request.getfixturevalue(which)
+    r = P.triangle_radius(m.mass, m.inertia)
+    closing = m.closure is not None
+    assert len(elastic_compound_forces(m, r)) == 6 * (1 + closing)
+    assert len(elastic_compound_forces(m, r, split=False)) == 1 + closing
+    E, F, tau = loads(m.positions, m.frames, m.params, m.ds, m.closure)
+    for split in (False, True):
+        E_mm, F_mm, tau_mm = state_loads(reference_context(m, elastic_compound_forces(m, r, split=split)))
+        assert abs(E_mm - E) <= 1e-12 * abs(E)
+        assert np.abs(F_mm - F).max() <= 1e-10 * np.abs(F).max()
+        assert np.abs(tau_mm - tau).max() <= 1e-10 * np.abs(tau).max()
+
+
+def test_portable_expression_keeps_only_the_used_entries(ff):
+    """dna-default (diagonal + twist-stretch coupling) stays one force with 7 factor entries (row, strain):
+    the strain order (Omega, Gamma3, Gamma1, Gamma2) puts Gamma3 next to Omega3, so the coupling adds no
+    fill-in."""
+    m = ff.model_from_sequence("ACGTTGCAGT")
+    r = P.triangle_radius(m.mass, m.inertia)
+    forces = elastic_compound_forces(m, r)
+    assert len(forces) == 1
+    names = {forces[0].getPerBondParameterName(i) for i in range(forces[0].getNumPerBondParameters())}
+    assert sorted(n for n in names if n.startswith("dnarod_P")) == [
+        "dnarod_P11", "dnarod_P22", "dnarod_P33", "dnarod_P36", "dnarod_P46", "dnarod_P54", "dnarod_P65"]

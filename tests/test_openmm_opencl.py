@@ -83,6 +83,41 @@ def test_energy_and_loads_equal_reference(precision, model, request):
     assert np.abs(tau - tau0).max() <= tol * np.abs(tau0).max()
 
 
+def test_circular_full_stiffness_equals_reference_in_mixed_precision():
+    """A circular chain with a full sequence-dependent K (olson1998, 21 entries) closed by its screw: the
+    portable force split into one force per Cholesky row, the closing step's screw written as numbers."""
+    import openmm
+
+    from dnarod.openmm.forces import elastic_compound_forces
+    from dnarod.openmm.particles import particle_positions, triangle_radius
+    from dnarod.openmm.platforms import platform_properties
+
+    _require_opencl()
+    m = load_forcefield("olson1998").model_from_sequence("ACGTTGCAAC" * 2, circular=True)
+    rng = np.random.default_rng(5)
+    m = m.with_pose(m.positions + 0.03 * rng.normal(size=m.positions.shape),
+                    cayley(0.05 * rng.normal(size=(m.n_nodes, 3))) @ m.frames)
+    r = triangle_radius(m.mass, m.inertia)
+    system = openmm.System()
+    for mass in np.repeat(m.mass / 3, 3):
+        system.addParticle(mass)
+    for f in elastic_compound_forces(m, r):
+        system.addForce(f)
+    assert system.getNumForces() == 12
+    props = dict(platform_properties("OpenCL"), Precision="mixed")
+    ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("OpenCL"), props)
+    ctx.setPositions(particle_positions(m.positions, m.frames, r))
+    st = ctx.getState(getEnergy=True, getForces=True, getPositions=True)
+    p = st.getPositions(asNumpy=True)._value
+    F, tau = particle_forces_to_loads(p, st.getForces(asNumpy=True)._value)
+    c, f = node_poses(p)
+    E0, F0, tau0 = loads(c, f, m.params, m.ds, m.closure)
+    tol = TOL["mixed"]
+    assert abs(st.getPotentialEnergy()._value - E0) <= tol * abs(E0)
+    assert np.abs(F - F0).max() <= tol * np.abs(F0).max()
+    assert np.abs(tau - tau0).max() <= tol * np.abs(tau0).max()
+
+
 def test_checkpoint_round_trip_is_exact(mixed, tmp_path):
     """Checkpoint, run, restore, run again: the same positions and velocities bit for bit."""
     sim = mixed

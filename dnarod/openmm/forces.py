@@ -3,16 +3,17 @@
 Two interchangeable implementations of ``E = sum_k ds H(Omega_k, Gamma_k)`` on the
 three-particle nodes of :mod:`dnarod.openmm.particles`:
 
-* :func:`elastic_compound_forces` -- the **portable path**: a ``CustomCompoundBondForce`` over
+* :func:`elastic_compound_forces` -- the **portable path**: ``CustomCompoundBondForce`` forces over
   the six particles of neighbouring nodes, written with the dot-product form of A1 as a sum of
   six squares (Cholesky factor of the stiffness; see :func:`elastic_expression`), per-bond
-  parameters ``dnarod_Pab`` (the scaled Cholesky factor; entries that are zero on every step
-  are left out of the expression), ``dnarod_c1..6`` (the factor times the intrinsic strains)
-  and the reverse-map scales ``dnarod_ua = 1/(3 l_k)``, ``dnarod_va = 1/(sqrt(3) l_k)``
-  (``ub``, ``vb`` for node k+1). Runs on every OpenMM platform. A circular
-  chain adds a second force of one bond whose second node is the screw image of node 0,
-  ``p -> Q p + t`` (per-bond ``dnarod_Q11..33``, ``dnarod_t1..3``): the directors of the image
-  are ``Q d_a(0)`` and its centre ``Q c_0 + t``, exactly as in :mod:`dnarod.strains`.
+  parameters ``dnarod_Pab`` (the scaled Cholesky factor with the node scales folded in; entries
+  that are zero on every step are left out of the expression), ``dnarod_c1..6`` (the factor
+  times the intrinsic strains) and ``dnarod_alpha``, ``dnarod_beta`` (and ``dnarod_rho`` when
+  the nodes differ in size). Runs on every OpenMM platform. A large factor is split into one
+  force per row (faster to compile). A circular chain adds forces of one bond whose second node
+  is the screw image of node 0, ``p -> Q p + t`` (Q and t written into the expression): the
+  directors of the image are ``Q d_a(0)`` and its centre ``Q c_0 + t``, exactly as in
+  :mod:`dnarod.strains`.
 * :func:`elastic_python_force` -- the **fast CPU path**: an ``openmm.PythonForce`` whose
   callback runs a numba kernel of the analytic loads of A2 (tested equal to
   :func:`dnarod.energy.loads`) and spreads each node's force and torque over its particles
@@ -46,33 +47,48 @@ def _dot(u, v):
     return f"({u}x*{v}x + {u}y*{v}y + {u}z*{v}z)"
 
 
-def elastic_expression(used, image=False):
-    """The energy expression of one step (Cholesky form).
+def elastic_expression(used, image=False, closure=None, uniform=False):
+    """The energy expression of one step (Cholesky form, node scales folded into the per-bond constants).
 
-    With ``K = R^T R`` (R upper triangular) the step energy ``ds/2 u^T K u`` is
-    ``v1^2 + ... + v6^2``, ``v_a = sqrt(ds/2) sum_{b >= a} R_ab u_b``: each strain enters
-    only the rows ``a <= b``, so the rotation strains (the largest subexpressions, first in the
-    strain order) are copied 1, 2 and 3 times instead of 6 in the expanded quadratic form, and
-    Lepton (OpenMM's expression compiler, which substitutes every ';' definition and
-    differentiates the whole tree with respect to the 18 coordinates) has several times fewer
-    operations to build (``benchmarks/bench_portable.py``). The strains are written without
-    cross products of directors: with the node vectors ``p = 2 x1 - x2 - x3 = 3 l d1``,
-    ``q = x2 - x3 = sqrt(3) l d2`` (node a; ``r``, ``s`` for node b),
-    ``d32 - d23 = (d1a + d1b).(d2a x d2b)`` and ``d13 - d31 = det(d1a, d1b, d2a + d2b)``
-    (one triple product each), ``G3 = det(d1a, d2a, e)`` and
-    ``1 + tr(R) = (1 + d11)(1 + d22) - d12 d21`` (Binet-Cauchy, ``d33 = d11 d22 - d12 d21``).
-    Per-bond constants: ``dnarod_P_ab = sqrt(ds/2) R_ab (2/ds`` for rotation, ``1/ds`` for
-    translation strains), ``dnarod_c_a = sqrt(ds/2) (R xi0)_a`` and the scales ``ua, va, ub,
-    vb = 1/(3 l), 1/(sqrt(3) l)``.
+    With ``K = R^T R`` (R the upper-triangular Cholesky factor, strains taken in
+    :data:`STRAIN_ORDER`) the step energy ``ds/2 u^T K u`` is ``v1^2 + ... + v6^2``,
+    ``v_a = sqrt(ds/2) sum_b R_ab u_b``: each strain enters only the rows that need it, so the
+    rotation strains (the largest subexpressions, first in the order) are copied 1, 2 and 3 times
+    instead of 6 in the expanded quadratic form, and Lepton (OpenMM's expression compiler, which
+    substitutes every ';' definition and differentiates the whole tree with respect to the 18
+    coordinates) has several times fewer operations to build (``benchmarks/bench_portable.py``).
+
+    The strains are written in the unnormalised node vectors ``p = 2 x1 - x2 - x3 = 3 l d1``,
+    ``q = x2 - x3 = sqrt(3) l d2`` (node a; ``r``, ``s`` for node b) and the centre difference
+    ``E = 3 (c_b - c_a)``, without director cross products, and every node scale is moved out
+    of the coordinate subexpressions into the per-bond constants (fewer operations in every
+    copy and every derivative):
+
+    * ``1 + tr(R) = (1 + d11)(1 + d22) - d12 d21`` (Binet-Cauchy, ``d33 = d11 d22 - d12 d21``)
+      ``= ua ub va vb Dt``, ``Dt = (alpha + p.r)(beta + q.s) - (p.s)(q.r)``,
+      ``alpha = 1/(ua ub)``, ``beta = 1/(va vb)``;
+    * ``d32 - d23 = (d1a + d1b).(d2a x d2b) ~ W1 = det(p + rho r, q, s)``,
+      ``d13 - d31 = det(d1a, d1b, d2a + d2b) ~ W2 = det(p, r, q + rho s)``,
+      ``d21 - d12 ~ W3 = q.r - p.s`` (``rho = l_a / l_b``, left out when all nodes are alike);
+    * ``Gamma ~ (p.E, q.E, det(p, q, E))``.
+
+    Here ``ua, va = 1/(3 l_a), 1/(sqrt(3) l_a)`` (``ub``, ``vb`` for node b). The factors that
+    turn ``W_b/Dt`` and the ``Gamma`` terms into strains are folded into the per-bond
+    ``dnarod_P_ab`` (see :func:`portable_parameters`); ``dnarod_c_a = sqrt(ds/2) (R xi0)_a``.
 
     Parameters
     ----------
     used : list of (int, int)
-        Entries ``(a, b)``, ``a <= b`` (0-based, strain order of
-        :class:`~dnarod.parameters.StepParameters`) of R included in the expression.
+        Entries ``(row, strain)`` (0-based; strain order of
+        :class:`~dnarod.parameters.StepParameters`) of the folded factor included.
     image : bool
-        The second node is the screw image ``p -> Q p + t`` of the first node of the chain
-        (per-bond ``dnarod_Q11..33``, ``dnarod_t1..3``).
+        The second node is the screw image ``p -> Q p + t`` of the first node of the chain.
+    closure : Closure, optional
+        With ``image`` (required then): the screw, written into the expression as numbers (one
+        bond; Lepton folds zero and unit entries: per-bond parameters made the closing force's
+        expression 1.7x larger).
+    uniform : bool
+        All nodes have the same triangle radius (``rho = 1`` left out).
 
     Returns
     -------
@@ -84,31 +100,27 @@ def elastic_expression(used, image=False):
         rows.setdefault(a, []).append(b)
     lines, squares = [], []
     for a in sorted(rows):
-        w = [f"dnarod_P{a + 1}{b + 1}*wt{b + 1}" for b in rows[a] if b < 3]
-        g = [f"dnarod_P{a + 1}{b + 1}*gt{b - 2}" for b in rows[a] if b >= 3]
-        parts = (["(" + " + ".join(w) + ")/D"] if w else []) + g
+        w = [f"dnarod_P{a + 1}{b + 1}*W{b + 1}" for b in sorted(rows[a]) if b < 3]
+        g = [f"dnarod_P{a + 1}{b + 1}*G{b - 2}" for b in sorted(rows[a]) if b >= 3]
+        parts = (["(" + " + ".join(w) + ")/Dt"] if w else []) + g
         lines.append(f"v{a + 1} = " + " + ".join(parts) + f" - dnarod_c{a + 1}")
         squares.append(f"v{a + 1}^2")
     lines.insert(0, " + ".join(squares) if squares else "0")
-    # 2 (d32 - d23) = 2 va vb (ua p + ub r).(q x s),  2 (d13 - d31) = 2 ua ub det(p, r, va q + vb s)
-    lines += ["wt1 = dnarod_va*dnarod_vb*" + _det("m", "q", "s"),
-              "wt2 = dnarod_ua*dnarod_ub*" + _det("p", "r", "n"),
-              "wt3 = d21 - d12", "D = (1 + d11)*(1 + d22) - d12*d21",
-              f"d11 = dnarod_ua*dnarod_ub*{_dot('p', 'r')}", f"d22 = dnarod_va*dnarod_vb*{_dot('q', 's')}",
-              f"d12 = dnarod_ua*dnarod_vb*{_dot('p', 's')}", f"d21 = dnarod_va*dnarod_ub*{_dot('q', 'r')}",
-              f"gt1 = dnarod_ua*{_dot('p', 'e')}", f"gt2 = dnarod_va*{_dot('q', 'e')}",
-              f"gt3 = dnarod_ua*dnarod_va*{_det('p', 'q', 'e')}"]
-    lines += [f"m{c} = dnarod_ua*p{c} + dnarod_ub*r{c}" for c in "xyz"]
-    lines += [f"n{c} = dnarod_va*q{c} + dnarod_vb*s{c}" for c in "xyz"]
-    lines += [f"e{c} = (cb{c} - {c}1 - {c}2 - {c}3)/3" for c in "xyz"]
+    rho = "" if uniform else "dnarod_rho*"
+    lines += ["W1 = " + _det("h", "q", "s"), "W2 = " + _det("p", "r", "k"),
+              f"W3 = {_dot('q', 'r')} - {_dot('p', 's')}",
+              f"Dt = (dnarod_alpha + {_dot('p', 'r')})*(dnarod_beta + {_dot('q', 's')}) - {_dot('p', 's')}*{_dot('q', 'r')}",
+              f"G1 = {_dot('p', 'E')}", f"G2 = {_dot('q', 'E')}", "G3 = " + _det("p", "q", "E")]
+    lines += [f"h{c} = p{c} + {rho}r{c}" for c in "xyz"] + [f"k{c} = q{c} + {rho}s{c}" for c in "xyz"]
+    lines += [f"E{c} = cb{c} - {c}1 - {c}2 - {c}3" for c in "xyz"]
     lines += [f"p{c} = 2*{c}1 - {c}2 - {c}3" for c in "xyz"] + [f"q{c} = {c}2 - {c}3" for c in "xyz"]
     if image:
         for i, c in enumerate("xyz"):
-            Q = [f"dnarod_Q{i + 1}{j + 1}" for j in range(3)]
+            Q = [repr(float(v)) for v in closure.Q[i]]
+            t = repr(3 * float(closure.t[i]))
             lines.append(f"r{c} = {Q[0]}*rrx + {Q[1]}*rry + {Q[2]}*rrz")
             lines.append(f"s{c} = {Q[0]}*ssx + {Q[1]}*ssy + {Q[2]}*ssz")
-            lines.append(f"cb{c} = {Q[0]}*(x4 + x5 + x6) + {Q[1]}*(y4 + y5 + y6) + {Q[2]}*(z4 + z5 + z6) "
-                         f"+ 3*dnarod_t{i + 1}")
+            lines.append(f"cb{c} = {Q[0]}*(x4 + x5 + x6) + {Q[1]}*(y4 + y5 + y6) + {Q[2]}*(z4 + z5 + z6) + {t}")
         lines += [f"rr{c} = 2*{c}4 - {c}5 - {c}6" for c in "xyz"] + [f"ss{c} = {c}5 - {c}6" for c in "xyz"]
     else:
         lines += [f"cb{c} = {c}4 + {c}5 + {c}6" for c in "xyz"]
@@ -116,8 +128,37 @@ def elastic_expression(used, image=False):
     return "; ".join(lines)
 
 
-def cholesky_parameters(stiffness, intrinsic, ds):
+def portable_parameters(stiffness, intrinsic, ds, radius_a, radius_b, order=None):
+    """Per-step constants of :func:`elastic_expression`: folded factor ``P`` (n, 6, 6) (row, strain),
+    ``c`` (n, 6) and ``alpha``, ``beta``, ``rho`` (n,).
+
+    Parameters
+    ----------
+    stiffness : ndarray, shape (n, 6, 6)
+    intrinsic : ndarray, shape (n, 6)
+    ds : float
+        nm.
+    radius_a, radius_b : ndarray, shape (n,)
+        Triangle circumradius of the first and second node of each step, nm.
+    order : sequence of int, optional
+        Strain order of the Cholesky factorisation (default :data:`STRAIN_ORDER`).
+    """
+    order = STRAIN_ORDER if order is None else order
+    P, c = cholesky_parameters(stiffness, intrinsic, ds, order)
+    la, lb = np.asarray(radius_a, float), np.asarray(radius_b, float)
+    ua, va, ub, vb = 1 / (3 * la), 1 / (SQRT3 * la), 1 / (3 * lb), 1 / (SQRT3 * lb)
+    rho = la / lb
+    # strain_b = factor_b * (W_b / Dt) for rotations, factor_b * G_b for translations
+    factor = np.stack([1 / ub, 1 / vb, rho / (ub * vb), ua / 3, va / 3, ua * va / 3], axis=1)
+    return P * factor[:, None, :], c, 1 / (ua * ub), 1 / (va * vb), rho
+
+
+def cholesky_parameters(stiffness, intrinsic, ds, order=None):
     """Per-step constants of :func:`elastic_expression`: ``P`` (n, 6, 6) and ``c`` (n, 6).
+
+    ``P[k, a, s]`` is row ``a`` of the Cholesky factor of the stiffness with its strains taken in
+    ``order`` (a permutation of 0..5, strain order of StepParameters; default the identity),
+    indexed by the original strain ``s``: ``v_a = sum_s P[k, a, s] u_s - c[k, a]``.
 
     Raises
     ------
@@ -125,10 +166,12 @@ def cholesky_parameters(stiffness, intrinsic, ds):
         If a step's stiffness is not symmetric positive definite (naming the step).
     """
     K = np.asarray(stiffness, float)
-    R = np.empty_like(K)
+    order = np.arange(6) if order is None else np.asarray(order)
+    R = np.zeros_like(K)
     for k in range(K.shape[0]):
+        Kk = 0.5 * (K[k] + K[k].T)
         try:
-            R[k] = np.linalg.cholesky(0.5 * (K[k] + K[k].T)).T
+            R[k][:, order] = np.linalg.cholesky(Kk[np.ix_(order, order)]).T
         except np.linalg.LinAlgError:
             raise ParameterError(f"step {k}: the stiffness matrix is not positive definite; the portable path "
                                  f"needs K = R^T R (fix the parameter set)") from None
@@ -140,21 +183,32 @@ def cholesky_parameters(stiffness, intrinsic, ds):
 
 
 def used_stiffness_pairs(stiffness, steps=None):
-    """Upper-triangle stiffness entries that are non-zero on at least one step."""
+    """Entries ``(row, strain)`` of the (permuted) Cholesky factor that are non-zero on at least one step."""
     K = np.asarray(stiffness)[steps] if steps is not None else np.asarray(stiffness)
-    return [(i, j) for i in range(6) for j in range(i, 6) if np.any(K[:, i, j] != 0)]
+    return [(i, j) for i in range(6) for j in range(6) if np.any(K[:, i, j] != 0)]
 
 
-#: Largest number of Cholesky entries kept in one force by default (21: never split). Lepton's work
-#: grows faster than linearly with the expression, so one force per factor row compiles faster
-#: (full K, 100 nodes, Reference: Context 1.69 -> 1.05 CPU-s; Lepton alone 1.18 -> 0.40 s), but
-#: the rows no longer share subexpressions and a step costs 3.5x more (0.185 -> 0.645 ms), so the
-#: split is an option (``split=True``), not the default.
-MAX_ENTRIES_PER_FORCE = 21
+#: Strain order of the Cholesky factorisation: the rotations first (their subexpressions, with the
+#: denominator ``Dt``, are the largest, and a strain enters only the factor rows up to its position),
+#: then Gamma3 (a triple product) before the two dot-product strains Gamma1, Gamma2 (5% fewer Lepton
+#: operations than the natural order for a full K; ``benchmarks/bench_portable.py``).
+STRAIN_ORDER = (0, 1, 2, 5, 3, 4)
+#: A force whose factor has more entries than this is split into one force per factor row (see
+#: :func:`elastic_compound_forces`); dna-default-like stiffness (7 entries) stays in one force.
+MAX_ENTRIES_PER_FORCE = 7
 
 
-def elastic_compound_forces(model, radius, split=None):
+def elastic_compound_forces(model, radius, split=None, order=None):
     """The portable path: CustomCompoundBondForce(s) carrying the step energy.
+
+    Lepton's work (differentiating each force's expression with respect to its 18 particle
+    coordinates, then compiling every derivative with common-subexpression elimination) grows
+    faster than linearly with the expression, so a large energy compiles faster as several
+    forces: one per row ``v_a^2`` of the Cholesky factor. The rows then no longer share the
+    strain subexpressions at run time, so a step of the portable force costs about 3x more on
+    the Reference/CPU platforms (on GPU platforms OpenMM runs all bonded forces in one kernel).
+    The closing step of a circular chain is its own force (one bond) whose screw is written
+    into the expression as numbers. Measured in ``benchmarks/bench_portable.py``.
 
     Parameters
     ----------
@@ -162,47 +216,49 @@ def elastic_compound_forces(model, radius, split=None):
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius of every node, nm.
     split : bool or None
-        One force per row of the Cholesky factor (``v_a^2``; faster to compile, slower to
-        run); ``None``: split when more than :data:`MAX_ENTRIES_PER_FORCE` entries are used.
+        One force per row of the Cholesky factor; ``None``: split a force whose factor has more
+        than :data:`MAX_ENTRIES_PER_FORCE` entries, and always the closing step's force (its
+        screw makes the expression about 1.5x larger).
+    order : sequence of int, optional
+        Strain order of the factorisation (default :data:`STRAIN_ORDER`).
 
     Returns
     -------
     list of openmm.CustomCompoundBondForce
-        For an open chain one force (or one per factor row); a circular chain adds the same for
-        its closing step. All in force group ``GROUPS["elastic"]``.
+        All in force group ``GROUPS["elastic"]``.
     """
     n = model.n_nodes
-    P, c = cholesky_parameters(model.params.stiffness, model.params.intrinsic, model.ds)
-    inner = np.arange(n - 1)
+    radius = np.asarray(radius, float)
+    k1 = (np.arange(n - 1 if model.closure is None else n) + 1) % n
+    ka = np.arange(k1.size)
+    P, c, alpha, beta, rho = portable_parameters(model.params.stiffness, model.params.intrinsic, model.ds,
+                                                 radius[ka], radius[k1], order)
+    uniform = bool(np.all(radius == radius[0]))
     forces = []
-    blocks = [(inner, False)] + ([(np.array([n - 1]), True)] if model.closure is not None else [])
+    blocks = [(np.arange(n - 1), False)] + ([(np.array([n - 1]), True)] if model.closure is not None else [])
     for steps, image in blocks:
         if steps.size == 0:
             continue
         used = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
-        do_split = len(used) > MAX_ENTRIES_PER_FORCE if split is None else bool(split)
         all_rows = sorted({a for a, _ in used})
-        for rows in ([[a] for a in all_rows] if do_split else [all_rows]):
+        do_split = (image or len(used) > MAX_ENTRIES_PER_FORCE) if split is None else bool(split)
+        row_groups = [[a] for a in all_rows] if do_split else [all_rows]
+        closure = model.closure if image else None
+        for rows in row_groups:
             pairs = [(a, b) for a, b in used if a in rows]
-            f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image))
+            f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image, closure, uniform))
             names = [f"dnarod_P{a + 1}{b + 1}" for a, b in pairs] + [f"dnarod_c{a + 1}" for a in rows]
-            names += ["dnarod_ua", "dnarod_va", "dnarod_ub", "dnarod_vb"]
-            if image:
-                names += [f"dnarod_Q{r}{c_}" for r in (1, 2, 3) for c_ in (1, 2, 3)] + ["dnarod_t1", "dnarod_t2",
-                                                                                        "dnarod_t3"]
+            names += ["dnarod_alpha", "dnarod_beta"] + ([] if uniform else ["dnarod_rho"])
             for name in names:
                 f.addPerBondParameter(name)
             for k in steps:
-                k1 = (k + 1) % n
-                vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows]
-                vals += [1 / (3 * radius[k]), 1 / (SQRT3 * radius[k]), 1 / (3 * radius[k1]),
-                         1 / (SQRT3 * radius[k1])]
-                if image:
-                    vals += list(model.closure.Q.reshape(-1)) + list(model.closure.t)
-                f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * k1, 3 * k1 + 1, 3 * k1 + 2], [float(v) for v in vals])
+                vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows] + [alpha[k], beta[k]]
+                vals += [] if uniform else [rho[k]]
+                j = k1[k]
+                f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * j, 3 * j + 1, 3 * j + 2], [float(v) for v in vals])
             f.setForceGroup(GROUPS["elastic"])
             f.setName("dnarod elastic (portable)" + (" closure" if image else "")
-                      + (f" row {rows[0] + 1}" if do_split else ""))
+                      + (f" rows {','.join(str(a + 1) for a in rows)}" if len(row_groups) > 1 else ""))
             forces.append(f)
     return forces
 
