@@ -54,6 +54,22 @@ vector<string> RigidBodyIntegrator::getKernelNames() {
     return {IntegrateVerletStepKernel::Name()};
 }
 
+// Called by OpenMM when the Context is destroyed or re-created (Context.reinitialize): forget everything bound to
+// the old ContextImpl, so that initialize() can bind the new one (a preserved state comes back through
+// loadCheckpoint, which restores the node state kept here).
+void RigidBodyIntegrator::cleanup() {
+    context = nullptr;
+    refData = nullptr;
+    fused = nullptr;
+    pairs = nullptr;
+    otherGroups = 0;
+    haveOther = false;
+    cacheValid = false;
+    loadsValid = false;
+    setupKernel = Kernel();
+    placeholder.reset();
+}
+
 void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     if (context != nullptr && context != &ctx)
         throw OpenMMException("RigidBodyIntegrator: this integrator is already bound to a Context");
@@ -144,6 +160,7 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     cP.assign(3 * n, 0.0);
     cPi.assign(3 * n, 0.0);
     cacheValid = false;
+    loadsValid = false;
     F.resize(3 * n);
     tau.resize(3 * n);
     normal.seed(seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()());
@@ -168,31 +185,39 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
 void RigidBodyIntegrator::loads(bool needOther) {
     std::fill(F.begin(), F.end(), 0.0);
     std::fill(tau.begin(), tau.end(), 0.0);
+    lastE[0] = lastE[1] = lastE[2] = 0.0;
     if (fused != nullptr) {
         int bad;
-        fused->nodeLoads(c.data(), L.data(), F.data(), tau.data(), bad);
+        lastE[0] = fused->nodeLoads(c.data(), L.data(), F.data(), tau.data(), bad);
     }
-    if (pairs != nullptr) pairs->nodeForces(c.data(), F.data());
+    if (pairs != nullptr) {
+        pairs->nodeForces(c.data(), F.data());
+        lastE[1] = pairs->lastWca;
+        lastE[2] = pairs->lastDh;
+    }
     if (!needOther) return;
     context->calcForcesAndEnergy(true, false, otherGroups);
+    otherLoads(c.data(), refData != nullptr ? ((ReferencePlatform::PlatformData*) refData)->positions : &posBuf,
+               F.data(), tau.data());
+}
+
+// Adds the forces OpenMM computed last (for otherGroups) to node forces FF and torques tt about centres cc.
+void RigidBodyIntegrator::otherLoads(const double* cc, const vector<Vec3>* p, double* FF, double* tt) {
     const vector<Vec3>* f;
-    const vector<Vec3>* p;
     if (refData != nullptr) {
         f = ((ReferencePlatform::PlatformData*) refData)->forces;
-        p = ((ReferencePlatform::PlatformData*) refData)->positions;
     } else {
         context->getForces(forceBuf);
         f = &forceBuf;
-        p = &posBuf;
     }
     const int n = getNumNodes();
     for (int k = 0; k < n; k++) {
-        double* Fk = &F[3 * k];
-        double* tk = &tau[3 * k];
+        double* Fk = &FF[3 * k];
+        double* tk = &tt[3 * k];
         for (int i = 0; i < 3; i++) {
             const Vec3& fi = (*f)[nodeP[3 * k + i]];
             const Vec3& pi = (*p)[nodeP[3 * k + i]];
-            const double x0 = pi[0] - c[3 * k], x1 = pi[1] - c[3 * k + 1], x2 = pi[2] - c[3 * k + 2];
+            const double x0 = pi[0] - cc[3 * k], x1 = pi[1] - cc[3 * k + 1], x2 = pi[2] - cc[3 * k + 2];
             Fk[0] += fi[0]; Fk[1] += fi[1]; Fk[2] += fi[2];
             tk[0] += x1 * fi[2] - x2 * fi[1];
             tk[1] += x2 * fi[0] - x0 * fi[2];
@@ -304,8 +329,12 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
         }
         const bool useCache = cacheValid && !other && refData != nullptr;
         const bool write = other || refData == nullptr || s == steps - 1;
-        if (!useCache) nodePoses(n, pos);
-        loads(other);
+        if (!useCache) nodePoses(n, pos, c.data(), L.data());
+        // The loads at the kept node state were computed already if a report asked for them (same inputs, same
+        // result: skipping them changes nothing).
+        const long long version = fused != nullptr ? fused->version : 0;
+        if (!(s == 0 && useCache && loadsValid && loadsVersion == version)) loads(other);
+        loadsValid = false;
         // Nodes in blocks of BLOCK lanes: the rotor's sub-flows are long dependent chains per node, so each
         // sub-flow runs over all lanes of a block at once (independent work the compiler vectorises).
         for (int b0 = 0; b0 < n; b0 += BLOCK) {
@@ -432,14 +461,14 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     }
 }
 
-DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos) {
+DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos, double* cOut, double* LOut) const {
     // Frames from the (rigid) particles, orthonormalised by Gram-Schmidt so that roundoff cannot accumulate.
     for (int k = 0; k < n; k++) {
         const Vec3& a0 = (*pos)[nodeP[3 * k]];
         const Vec3& a1 = (*pos)[nodeP[3 * k + 1]];
         const Vec3& a2 = (*pos)[nodeP[3 * k + 2]];
-        double* ck = &c[3 * k];
-        double* Lk = &L[9 * k];
+        double* ck = &cOut[3 * k];
+        double* Lk = &LOut[9 * k];
         double d1[3], d2[3];
         for (int r = 0; r < 3; r++) {
             ck[r] = (a0[r] + a1[r] + a2[r]) / 3.0;
@@ -457,6 +486,121 @@ DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos
         Lk[5] = d1[2] * d2[0] - d1[0] * d2[2];
         Lk[8] = d1[0] * d2[1] - d1[1] * d2[0];
     }
+}
+
+void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
+    if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
+    const int n = getNumNodes();
+    const vector<Vec3>* pos;
+    const vector<Vec3>* vel;
+    if (refData != nullptr) {
+        pos = ((ReferencePlatform::PlatformData*) refData)->positions;
+        vel = ((ReferencePlatform::PlatformData*) refData)->velocities;
+    } else {
+        context->getPositions(posBuf);
+        context->getVelocities(velBuf);
+        pos = &posBuf;
+        vel = &velBuf;
+    }
+    if (cacheValid)
+        cacheValid = pos->size() == lastPos.size() && vel->size() == lastVel.size()
+                     && std::memcmp(pos->data(), lastPos.data(), sizeof(Vec3) * lastPos.size()) == 0
+                     && std::memcmp(vel->data(), lastVel.data(), sizeof(Vec3) * lastVel.size()) == 0;
+    const bool fromCache = cacheValid && !haveOther && refData != nullptr;
+    const double* cc;
+    const double* LL;
+    const double* FF;
+    const double* tt;
+    double eOther = 0.0;
+    if (fromCache) {
+        // The kept node state (what the next step starts from) and its loads, kept for that step.
+        const long long version = fused != nullptr ? fused->version : 0;
+        if (!(loadsValid && loadsVersion == version)) {
+            loads(false);
+            loadsValid = true;
+            loadsVersion = version;
+        }
+        cc = c.data(); LL = L.data(); FF = F.data(); tt = tau.data();
+    } else {
+        loadsValid = false;
+        rc.resize(3 * n); rL.resize(9 * n);
+        rF.assign(3 * n, 0.0); rtau.assign(3 * n, 0.0);
+        nodePoses(n, pos, rc.data(), rL.data());
+        lastE[0] = lastE[1] = lastE[2] = 0.0;
+        if (fused != nullptr) {
+            int bad;
+            lastE[0] = fused->nodeLoads(rc.data(), rL.data(), rF.data(), rtau.data(), bad);
+        }
+        if (pairs != nullptr) {
+            pairs->nodeForces(rc.data(), rF.data());
+            lastE[1] = pairs->lastWca;
+            lastE[2] = pairs->lastDh;
+        }
+        if (haveOther) {
+            eOther = context->calcForcesAndEnergy(true, true, otherGroups);
+            otherLoads(rc.data(), pos, rF.data(), rtau.data());
+        }
+        cc = rc.data(); LL = rL.data(); FF = rF.data(); tt = rtau.data();
+    }
+    const double h = 0.5 * getStepSize();
+    const bool half = friction > 0;  // Langevin: the Context reports the stored (half-step) kinetic energy
+    double ke = 0.0;
+    for (int k = 0; k < n; k++) {
+        double* o = out + REPORT_STRIDE * k;
+        const double* Lk = LL + 9 * k;
+        for (int a = 0; a < 3; a++) o[a] = cc[3 * k + a];
+        for (int a = 0; a < 9; a++) o[3 + a] = Lk[a];
+        if (mass[k] == 0.0) {
+            for (int a = 12; a < 18; a++) o[a] = 0.0;
+            continue;
+        }
+        const double m = mass[k];
+        double v[3], pi[3];
+        if (fromCache) {
+            for (int a = 0; a < 3; a++) { v[a] = cP[3 * k + a] * invMass[k]; pi[a] = cPi[3 * k + a]; }
+        } else {
+            double h3[3] = {0, 0, 0};
+            v[0] = v[1] = v[2] = 0.0;
+            for (int i = 0; i < 3; i++) {
+                const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                v[0] += u[0] / 3.0; v[1] += u[1] / 3.0; v[2] += u[2] / 3.0;
+            }
+            for (int i = 0; i < 3; i++) {
+                const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                const Vec3& p = (*pos)[nodeP[3 * k + i]];
+                const double x0 = p[0] - cc[3 * k], x1 = p[1] - cc[3 * k + 1], x2 = p[2] - cc[3 * k + 2];
+                const double u0 = u[0] - v[0], u1 = u[1] - v[1], u2 = u[2] - v[2];
+                h3[0] += x1 * u2 - x2 * u1;
+                h3[1] += x2 * u0 - x0 * u2;
+                h3[2] += x0 * u1 - x1 * u0;
+            }
+            for (int a = 0; a < 3; a++) pi[a] = (m / 3.0) * (Lk[a] * h3[0] + Lk[3 + a] * h3[1] + Lk[6 + a] * h3[2]);
+        }
+        const double iJ[3] = {invJ12[k], invJ12[k], 0.5 * invJ12[k]};
+        if (half) {
+            ke += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            for (int a = 0; a < 3; a++) ke += 0.5 * pi[a] * pi[a] * iJ[a];
+        }
+        const double* Fk = FF + 3 * k;
+        const double* tk = tt + 3 * k;
+        for (int a = 0; a < 3; a++) {
+            v[a] += h * Fk[a] * invMass[k];
+            pi[a] += h * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
+        }
+        if (!half) {
+            ke += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            for (int a = 0; a < 3; a++) ke += 0.5 * pi[a] * pi[a] * iJ[a];
+        }
+        for (int a = 0; a < 3; a++) {
+            o[12 + a] = v[a];
+            o[15 + a] = pi[a] * iJ[a];
+        }
+    }
+    energies[0] = lastE[0];
+    energies[1] = lastE[1];
+    energies[2] = lastE[2];
+    energies[3] = eOther;
+    energies[4] = ke;
 }
 
 double RigidBodyIntegrator::computeKineticEnergy() {
@@ -544,6 +688,7 @@ void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
         stream.read((char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
     }
     cacheValid = valid != 0;
+    loadsValid = false;
 }
 
 

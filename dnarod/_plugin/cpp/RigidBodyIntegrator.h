@@ -46,6 +46,17 @@ public:
     bool usesFusedElasticForce() const { return fused != nullptr; }
     /** True if the node-pair (WCA + Debye-Hueckel) forces are evaluated inside the integrator. */
     bool usesFusedPairForce() const { return pairs != nullptr; }
+    /** Number of doubles per node written by getNodeReport. */
+    static const int REPORT_STRIDE = 18;
+    /** The node state at the current positions for reporters, without an OpenMM State: per node (out, n*18
+     *  doubles) the centre c (3, nm), the frame L (9, row-major, directors as columns), the on-step centre
+     *  velocity (3, lab, nm/ps) and the on-step angular velocity (3, body frame, rad/ps), i.e. the stored
+     *  half-step velocities completed by the half kick dt/2 of the current loads (zero for clamped nodes);
+     *  energies (5): the fused SMK energy, the fused WCA and Debye-Hueckel energies, the energy of every force
+     *  OpenMM evaluates for this integrator (all kJ/mol), and the kinetic energy as the Context reports it
+     *  (computeKineticEnergy). After a step with only fused forces this reads the kept node state, and the
+     *  loads computed here are the ones the next step starts from (they are not computed twice). */
+    void getNodeReport(double* out, double* energies);
     /** Lanes of the blocked update (internal). */
     static const int BLOCK = 16;
     struct Block {
@@ -53,7 +64,7 @@ public:
     };
 protected:
     void initialize(OpenMM::ContextImpl& context);
-    void cleanup() {}
+    void cleanup();
     std::vector<std::string> getKernelNames();
     double computeKineticEnergy();
     bool kineticEnergyRequiresForce() const { return friction == 0; }
@@ -62,7 +73,8 @@ protected:
 private:
     void loads(bool needOther);
     void run(int steps);
-    void nodePoses(int n, const std::vector<OpenMM::Vec3>* pos);
+    void nodePoses(int n, const std::vector<OpenMM::Vec3>* pos, double* cOut, double* LOut) const;
+    void otherLoads(const double* cc, const std::vector<OpenMM::Vec3>* pos, double* FF, double* tt);
     double temperature, friction;
     int seed;
     std::vector<int> nodeP;
@@ -77,6 +89,12 @@ private:
     bool haveOther = false;
     std::vector<double> mass, c, L, F, tau, cP, cPi;
     bool cacheValid = false;
+    // F, tau (and lastE: SMK, WCA, DH energies) hold the fused loads at the kept c, L (computed by getNodeReport);
+    // the next step starts from them. loadsVersion: the SMKForce parameter version they were computed with.
+    bool loadsValid = false;
+    long long loadsVersion = -1;
+    double lastE[3] = {0, 0, 0};
+    std::vector<double> rc, rL, rF, rtau;  // getNodeReport's node state read from the particles
     std::vector<OpenMM::Vec3> lastPos, lastVel;  // the particles as written at the end of the last call
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)

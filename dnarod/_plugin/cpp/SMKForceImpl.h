@@ -80,6 +80,7 @@ public:
             if (s[k].left != steps[k].left || s[k].right != steps[k].right || s[k].image != steps[k].image)
                 throw OpenMM::OpenMMException("SMKForce.updateParametersInContext: the nodes of a step changed");
         steps = s;
+        version++;
         context.systemChanged();
     }
     std::vector<std::pair<int, int> > getBondedParticles() const {
@@ -92,6 +93,8 @@ public:
         return chainLoads(steps, ds, Q, t, cc, LL, FF, tt, bad);
     }
     int lastBadStep = -1;
+    /** Incremented whenever the step parameters change (updateParametersInContext). */
+    long long version = 0;
 private:
     const SMKForce& owner;
     std::vector<SMKForce::Step> steps;
