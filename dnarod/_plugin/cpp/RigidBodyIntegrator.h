@@ -16,6 +16,7 @@
 #include "openmm/Integrator.h"
 #include "openmm/Kernel.h"
 #include "Random.h"
+#include <functional>
 #include <memory>
 #include <random>
 #include <string>
@@ -27,11 +28,13 @@ namespace dnarod {
 
 class SMKForceImpl;
 class NodePairForceImpl;
+class Workers;
 
 class RigidBodyIntegrator : public OpenMM::Integrator {
 public:
     /** stepSize ps, temperature K, friction 1/ps (0: NVE). */
     RigidBodyIntegrator(double stepSize, double temperature = 300.0, double friction = 0.0);
+    ~RigidBodyIntegrator();
     /** A node carried by particles p0, p1, p2 (triangle circumradius radius, nm); returns its index. */
     int addNode(int p0, int p1, int p2, double radius);
     int getNumNodes() const { return (int) nodeP.size() / 3; }
@@ -46,6 +49,13 @@ public:
     bool usesFusedElasticForce() const { return fused != nullptr; }
     /** True if the node-pair (WCA + Debye-Hueckel) forces are evaluated inside the integrator. */
     bool usesFusedPairForce() const { return pairs != nullptr; }
+    /** Threads the node update and the SMK loads run on in the bound Context: the CPU platform's Threads
+     *  property, at most one thread per getMinNodesPerThread() nodes (1 on other platforms). Results are
+     *  deterministic for a given number of threads. */
+    int getNumThreads() const { return numThreads; }
+    /** Nodes per thread below which fewer threads are used (default 2048; set before creating the Context). */
+    int getMinNodesPerThread() const { return minNodesPerThread; }
+    void setMinNodesPerThread(int m);
     /** Number of doubles per node written by getNodeReport. */
     static const int REPORT_STRIDE = 18;
     /** The node state at the current positions for reporters, without an OpenMM State: per node (out, n*18
@@ -72,8 +82,11 @@ protected:
     void loadCheckpoint(std::istream& stream);
 private:
     void loads(bool needOther);
+    void loadsRange(int t);
     void run(int steps);
-    void nodePoses(int n, const std::vector<OpenMM::Vec3>* pos, double* cOut, double* LOut) const;
+    void update(int t, std::vector<OpenMM::Vec3>* pos, std::vector<OpenMM::Vec3>* vel, bool useCache, bool write);
+    void nodePoses(int k0, int k1, const std::vector<OpenMM::Vec3>* pos, double* cOut, double* LOut) const;
+    void parallel(const std::function<void(int)>& f);
     void otherLoads(const double* cc, const std::vector<OpenMM::Vec3>* pos, double* FF, double* tt);
     double temperature, friction;
     int seed;
@@ -99,8 +112,19 @@ private:
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
     std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)
-    Gaussian normal;
-    Block blk;
+    // Threads: node range [nodeStart[t], nodeStart[t+1]) (whole blocks) and its SMK steps, its own Gaussian
+    // stream (stream 0 is the single-thread one), its block buffer, the loads on the right node of its last step
+    // (carry, 6 doubles) and its part of the SMK energy.
+    int numThreads = 1, minNodesPerThread = 2048;
+    bool chainRanges = false;
+    uint64_t baseSeed = 0;
+    std::unique_ptr<Workers> workers;
+    std::vector<int> nodeStart;
+    std::vector<Gaussian> normals;
+    std::vector<Block> blocks;
+    std::vector<double> carry, partE;
+    // per-step constants for update()
+    double stepDt = 0, stepCfric = 0, stepNoise = 0;
 };
 
 } // namespace dnarod

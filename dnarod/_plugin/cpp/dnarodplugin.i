@@ -97,6 +97,9 @@ public:
     void step(int steps);
     bool usesFusedElasticForce() const;
     bool usesFusedPairForce() const;
+    int getNumThreads() const;
+    int getMinNodesPerThread() const;
+    void setMinNodesPerThread(int m);
     %extend {
         /* Node state and energies at the current positions (RigidBodyIntegrator::getNodeReport) written into
            out, a writable C-contiguous float64 buffer of n_nodes * 18 values (a numpy array of shape
