@@ -83,9 +83,10 @@ def sizes(ns, budget, repeats):
 
 
 def kbp(budget):
-    """1 kbp duplex, 300 K, default dt, full model, one thread, through the run loop with ``dnarod simulate``'s
-    default reporting: a frame and an energies row every 1 ps, a checkpoint every 10 frames
-    (:func:`dnarod.run.loop.simulate_engine`, as :func:`dnarod.run.run` calls it)."""
+    """1 kbp duplex, 300 K, default dt, full model, through the run loop with ``dnarod simulate``'s defaults: the
+    automatic platform choice without ``--threads`` (the single-threaded Reference platform), a frame and an
+    energies row every 1 ps, a checkpoint every 10 frames (:func:`dnarod.run.loop.simulate_engine`, as
+    :func:`dnarod.run.run` calls it)."""
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm.simulation import RodSimulation
     from dnarod.run.loop import simulate_engine
@@ -94,7 +95,7 @@ def kbp(budget):
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))
     out = {}
     for path, elastic in (("callback", "fast"), ("plugin", "plugin")):
-        sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic, threads=1)
+        sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic)
         fi = max(1, int(round(1.0 / sim.dt)))
         sim.integrator.step(10)
         t, c = time.perf_counter(), time.process_time()
@@ -108,7 +109,7 @@ def kbp(budget):
                                 checkpoint_interval=10 * fi)
             cpu, wall = time.process_time() - c0, time.perf_counter() - t0
         ns = n_steps * sim.dt * 1e-3
-        out[path] = dict(dt_ps=sim.dt, steps=n_steps, frame_interval_steps=fi, checkpoint_interval_steps=10 * fi,
+        out[path] = dict(platform=sim.platform_name, dt_ps=sim.dt, steps=n_steps, frame_interval_steps=fi, checkpoint_interval_steps=10 * fi,
                          ns_per_day_wall=ns / wall * 86400, ns_per_day_bare_cpu=sim.dt * 1e-3 / bare_cpu * 86400,
                          ns_per_day_cpu=ns / cpu * 86400, wall_s=wall, cpu_s=cpu,
                          mean_temperature=float(np.mean(s["temperatures"])))
