@@ -254,7 +254,8 @@ class RodSimulation:
         one pass over the nodes in C++ (no OpenMM State, no particle arrays in numpy), and the loads it
         computes are reused by the next step. rows: centre (3, nm), frame (9, row-major), on-step velocity
         (3, lab, nm/ps), on-step angular velocity (3, body, rad/ps); energies: SMK, WCA, Debye-Hueckel,
-        every other force, kinetic (kJ/mol). Cached until the context changes.
+        every other force, kinetic (kJ/mol), then 1.0 if every node value is finite. Cached until the
+        context changes.
         """
         if self._report_cache is None:
             if not self._reports_in_plugin():
@@ -278,7 +279,7 @@ class RodSimulation:
         """
         rep = self._node_report()
         if rep is not None:
-            e_smk, e_wca, e_dh, e_other, kinetic = rep[1]
+            e_smk, e_wca, e_dh, e_other, kinetic = rep[1][:5]
             out = dict(elastic=e_smk, nonbonded=e_wca + e_dh, external=e_other,
                        potential=e_smk + e_wca + e_dh + e_other, kinetic=kinetic)
             out["temperature"] = float(kinetic_temperature(kinetic, self.rs.degrees_of_freedom))
@@ -342,10 +343,10 @@ class RodSimulation:
 
     # --- checks -----------------------------------------------------------------------
     def _report_healthy(self):
-        rows, e = self._node_report()
-        E, K = sum(e[:4]), e[4]
+        e = self._node_report()[1]
+        E, K = e[0] + e[1] + e[2] + e[3], e[4]
         limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
-        return math.isfinite(E) and math.isfinite(K) and bool(np.isfinite(rows[:, :12]).all()) and abs(E) + K < limit
+        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < limit
 
     def _healthy(self, st):
         E = md_value(st.getPotentialEnergy())

@@ -691,6 +691,10 @@ void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
     energies[2] = lastE[2];
     energies[3] = eOther;
     energies[4] = ke;
+    // 1 if every node value written is finite (x - x is 0 for finite x, NaN for NaN and inf).
+    double probe = 0.0;
+    for (long long i = 0; i < (long long) REPORT_STRIDE * n; i++) probe += out[i] - out[i];
+    energies[5] = probe == 0.0 ? 1.0 : 0.0;
 }
 
 double RigidBodyIntegrator::computeKineticEnergy() {

@@ -62,9 +62,9 @@ public:
      *  doubles) the centre c (3, nm), the frame L (9, row-major, directors as columns), the on-step centre
      *  velocity (3, lab, nm/ps) and the on-step angular velocity (3, body frame, rad/ps), i.e. the stored
      *  half-step velocities completed by the half kick dt/2 of the current loads (zero for clamped nodes);
-     *  energies (5): the fused SMK energy, the fused WCA and Debye-Hueckel energies, the energy of every force
-     *  OpenMM evaluates for this integrator (all kJ/mol), and the kinetic energy as the Context reports it
-     *  (computeKineticEnergy). After a step with only fused forces this reads the kept node state, and the
+     *  energies (6): the fused SMK energy, the fused WCA and Debye-Hueckel energies, the energy of every force
+     *  OpenMM evaluates for this integrator (all kJ/mol), the kinetic energy as the Context reports it
+     *  (computeKineticEnergy), and 1 if every value written to out is finite (else 0). After a step with only fused forces this reads the kept node state, and the
      *  loads computed here are the ones the next step starts from (they are not computed twice). */
     void getNodeReport(double* out, double* energies);
     /** Lanes of the blocked update (internal). */

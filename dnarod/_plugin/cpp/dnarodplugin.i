@@ -103,7 +103,8 @@ public:
     %extend {
         /* Node state and energies at the current positions (RigidBodyIntegrator::getNodeReport) written into
            out, a writable C-contiguous float64 buffer of n_nodes * 18 values (a numpy array of shape
-           (n_nodes, 18)); returns (E_smk, E_wca, E_dh, E_other, E_kinetic) in kJ/mol. */
+           (n_nodes, 18)); returns (E_smk, E_wca, E_dh, E_other, E_kinetic) in kJ/mol and 1.0 if every value
+           written is finite (else 0.0). */
         PyObject* getNodeReport(PyObject* out) {
             Py_buffer view;
             if (PyObject_GetBuffer(out, &view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0) {
@@ -117,7 +118,7 @@ public:
                 PyBuffer_Release(&view);
                 throw OpenMM::OpenMMException("getNodeReport: out must be a float64 array of n_nodes * 18 values");
             }
-            double e[5];
+            double e[6];
             try {
                 self->getNodeReport((double*) view.buf, e);
             } catch (...) {
@@ -125,7 +126,7 @@ public:
                 throw;
             }
             PyBuffer_Release(&view);
-            return Py_BuildValue("(ddddd)", e[0], e[1], e[2], e[3], e[4]);
+            return Py_BuildValue("(dddddd)", e[0], e[1], e[2], e[3], e[4], e[5]);
         }
     }
 };
