@@ -9,8 +9,9 @@ On the CPU platform with one thread (OpenMM ``Threads=1``, numba one thread), dn
 
 each ``bonded`` (elastic only) and ``full`` (plus excluded volume and Debye-Hueckel, today's PythonForce
 kernel in both). Rates are node-steps per CPU-second of this process (``time.process_time``) and per wall
-second, best of interleaved repeats. Then a 1 kbp duplex through ``RodSimulation.run`` (frames every 1 ps,
-energies, checkpoints), full model: ns/day for both paths. ``--install`` also times a fresh
+second, best of interleaved repeats. Then a 1 kbp duplex through the run loop with ``dnarod simulate``'s default
+reporting (a frame and an energies row every 1 ps, a checkpoint every 10 frames), full model: ns/day for both
+paths. Then the plugin on one and two threads (wall and CPU rates). ``--install`` also times a fresh
 ``python3 -m venv .venv && .venv/bin/pip install -q -e .`` of a copy of this tree (the plugin build included).
 
 Targets (issue 15): plugin full >= 1.0e7 node-steps per CPU-second at 10^4 nodes; 1 kbp >= 30,000 ns/day;
@@ -82,15 +83,19 @@ def sizes(ns, budget, repeats):
 
 
 def kbp(budget):
-    """1 kbp duplex, 300 K, default dt, full model, through RodSimulation.run with reporters."""
+    """1 kbp duplex, 300 K, default dt, full model, through the run loop with ``dnarod simulate``'s defaults: the
+    automatic platform choice without ``--threads`` (the single-threaded Reference platform), a frame and an
+    energies row every 1 ps, a checkpoint every 10 frames (:func:`dnarod.run.loop.simulate_engine`, as
+    :func:`dnarod.run.run` calls it)."""
     from dnarod.forcefield import load_forcefield
     from dnarod.openmm.simulation import RodSimulation
+    from dnarod.run.loop import simulate_engine
 
     rng = np.random.default_rng(1)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))
     out = {}
     for path, elastic in (("callback", "fast"), ("plugin", "plugin")):
-        sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic, threads=1)
+        sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic)
         fi = max(1, int(round(1.0 / sim.dt)))
         sim.integrator.step(10)
         t, c = time.perf_counter(), time.process_time()
@@ -100,14 +105,60 @@ def kbp(budget):
         n_steps = max(fi, int(budget / per_step) // fi * fi)
         with tempfile.TemporaryDirectory() as d:
             c0, t0 = time.process_time(), time.perf_counter()
-            s = sim.run(n_steps, d, frame_interval=fi, checkpoint_interval=100 * fi, progress=False)
+            s = simulate_engine(sim, sim.step + n_steps, d, frame_interval=fi, energy_interval=fi,
+                                checkpoint_interval=10 * fi)
             cpu, wall = time.process_time() - c0, time.perf_counter() - t0
         ns = n_steps * sim.dt * 1e-3
-        out[path] = dict(dt_ps=sim.dt, steps=n_steps, ns_per_day_wall=s["ns_per_day"],
-                         ns_per_day_bare_cpu=sim.dt * 1e-3 / bare_cpu * 86400,
+        out[path] = dict(platform=sim.platform_name, dt_ps=sim.dt, steps=n_steps, frame_interval_steps=fi, checkpoint_interval_steps=10 * fi,
+                         ns_per_day_wall=ns / wall * 86400, ns_per_day_bare_cpu=sim.dt * 1e-3 / bare_cpu * 86400,
                          ns_per_day_cpu=ns / cpu * 86400, wall_s=wall, cpu_s=cpu,
-                         mean_temperature=s["mean_temperature"])
+                         mean_temperature=float(np.mean(s["temperatures"])))
     out["speedup_cpu"] = out["plugin"]["ns_per_day_cpu"] / out["callback"]["ns_per_day_cpu"]
+    return out
+
+
+def threads(ns, budget, repeats):
+    """The plugin (full model) on 1 and 2 threads of the CPU platform: node-steps per wall second and per CPU-second.
+    ``forced`` sets one node per thread as the minimum (two threads at every size); ``default`` is the integrator's
+    own choice (at most one thread per ``getMinNodesPerThread()`` nodes)."""
+    import openmm
+
+    from dnarod.forcefield import load_forcefield
+    from dnarod.openmm import particles as P
+    from dnarod.openmm import plugin
+    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.openmm.system import build_system
+
+    ff = load_forcefield("dna-default")
+    out = []
+    for n in ns:
+        rng = np.random.default_rng(0)
+        model = ff.model_from_sequence("".join(rng.choice(list("ACGT"), n)))
+        dt = RodSimulation(model, temperature=300.0, seed=1, threads=1).dt
+        rs = build_system(model, "CPU", "plugin", True, (), 300.0)
+        runs = {}
+        for label, nthreads, min_nodes in (("1", 1, None), ("2_forced", 2, 1), ("2_default", 2, None)):
+            integ = plugin.rigid_body_integrator(rs.radius, dt, 300.0, 1.0, 1)
+            if min_nodes is not None:
+                integ.setMinNodesPerThread(min_nodes)
+            ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("CPU"),
+                                 {"Threads": str(nthreads)})
+            ctx.setPositions(P.particle_positions(model.positions, model.frames, rs.radius))
+            ctx.setVelocitiesToTemperature(300.0, 1)
+            runs[label] = (ctx, integ)
+        rates = {k: [] for k in runs}
+        for _ in range(repeats):
+            for k, (ctx, integ) in runs.items():
+                rates[k].append(_rate(integ, n, budget))
+        r = dict(n_nodes=n, min_nodes_per_thread=runs["2_default"][1].getMinNodesPerThread())
+        for k, v in rates.items():
+            r[f"threads_{k}_used"] = runs[k][1].getNumThreads()
+            r[f"threads_{k}_per_cpu_s"] = max(x[0] for x in v)
+            r[f"threads_{k}_per_wall_s"] = max(x[1] for x in v)
+        r["wall_speedup_2_forced"] = r["threads_2_forced_per_wall_s"] / r["threads_1_per_wall_s"]
+        r["wall_speedup_2_default"] = r["threads_2_default_per_wall_s"] / r["threads_1_per_wall_s"]
+        out.append(r)
+        print(f"measured threads at {n} nodes", file=sys.stderr)
     return out
 
 
@@ -143,6 +194,8 @@ def main():
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--kbp-budget", type=float, default=20.0, help="seconds of each 1 kbp run")
     ap.add_argument("--install", action="store_true", help="also time a fresh install")
+    ap.add_argument("--thread-sizes", default="1000,10000,100000", help="sizes of the 1-vs-2-thread comparison "
+                    "('' to skip)")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_plugin.json"))
     args = ap.parse_args()
     from dnarod.openmm import plugin
@@ -150,8 +203,10 @@ def main():
     st = plugin.status()
     if not st.available:
         sys.exit(f"the compiled plugin is not usable here: {st.reason}")
+    load_start = os.getloadavg()
     res = sizes([int(s) for s in args.sizes.split(",")], args.budget, args.repeats)
     k = kbp(args.kbp_budget)
+    thr = threads([int(s) for s in args.thread_sizes.split(",") if s], args.budget, args.repeats)
     inst = install_time() if args.install else None
 
     print("node-steps per CPU-second (per wall second), CPU platform, one thread, Langevin 300 K, default dt")
@@ -169,12 +224,23 @@ def main():
               f"bare integrator {q['ns_per_day_bare_cpu']:.0f} ns/day per CPU; "
               f"mean T {q['mean_temperature']:.1f} K")
     print(f"1 kbp speed-up (CPU time): {k['speedup_cpu']:.2f}x")
+    if thr:
+        print()
+        print("plugin, full model, Langevin 300 K: node-steps per wall second (per CPU-second), CPU platform")
+        print(f"{'nodes':>7} {'1 thread':>22} {'2 threads (forced)':>22} {'2 threads (default)':>22} "
+              f"{'forced x':>9} {'default x':>9}")
+        for r in thr:
+            cells = [f"{r[f'threads_{k}_per_wall_s']:.3g} ({r[f'threads_{k}_per_cpu_s']:.3g})"
+                     for k in ("1", "2_forced", "2_default")]
+            print(f"{r['n_nodes']:>7} " + " ".join(f"{c:>22}" for c in cells)
+                  + f" {r['wall_speedup_2_forced']:>9.2f} {r['wall_speedup_2_default']:>9.2f}"
+                  + f"  (default used {r['threads_2_default_used']} thread(s))")
     if inst is not None:
         for mode, q in inst.items():
             print(f"fresh venv + pip install -e . ({mode.replace('_', ' ')}): {q['wall_s']:.0f} s wall, "
                   f"{q['cpu_s']:.0f} s CPU, ok={q['ok']}, plugin built={q['plugin_built']}")
-    H.write_results(args.json, "bench_plugin", plugin=dict(built_against=st.built_against), sizes=res, kbp=k,
-                    install=inst,
+    H.write_results(args.json, "bench_plugin", plugin=dict(built_against=st.built_against),
+                    load_average_start=load_start, sizes=res, kbp=k, threads=thr, install=inst,
                     targets=dict(plugin_full_per_cpu_s_1e4=">= 1e7", kbp_ns_per_day=">= 30000", install_s="<= 120"))
 
 

@@ -218,3 +218,137 @@ def test_langevin_temperature_and_strain_fluctuations_on_plugin(mod, tmp_path):
 
     model = load_forcefield("dna-default").model_from_sequence("ACGT" * 5)
     _langevin_check(model, tmp_path, 100000, 0.2, 5, 0.05, elastic="plugin")
+
+
+def test_context_reinitialize_keeps_state_and_continues(mod):
+    """Context.reinitialize(preserveState=True) re-binds the integrator: positions and velocities are kept, the
+    elastic energy equals dnarod.energy at them, and the run continues exactly as without the re-initialisation
+    (the checkpoint carries the random-number and node state); a force added before reinitialize is applied."""
+    from dnarod.energy import energy
+    from dnarod.openmm.forces import GROUPS
+    from dnarod.openmm.simulation import RodSimulation
+
+    model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
+    ends = []
+    for reinit in (False, True):
+        sim = RodSimulation(model, temperature=300.0, elastic="plugin", nonbonded=True, seed=7, platform="CPU")
+        sim.advance(25)
+        if reinit:
+            before = sim.context.getState(getPositions=True, getVelocities=True)
+            sim.context.reinitialize(preserveState=True)
+            sim.invalidate()
+            after = sim.context.getState(getPositions=True, getVelocities=True)
+            for get in ("getPositions", "getVelocities"):
+                assert np.array_equal(getattr(before, get)(asNumpy=True)._value,
+                                      getattr(after, get)(asNumpy=True)._value)
+            assert sim.integrator.usesFusedElasticForce() and sim.integrator.usesFusedPairForce()
+            c, f = sim.node_pose()
+            e_ref = energy(c, f, model.params, model.ds, model.closure)
+            e_ctx = sim.context.getState(getEnergy=True, groups={GROUPS["elastic"]}).getPotentialEnergy()._value
+            assert abs(e_ctx - e_ref) <= 1e-10 * abs(e_ref)
+            assert abs(sim.energies()["elastic"] - e_ref) <= 1e-10 * abs(e_ref)
+        sim.advance(25)
+        ends.append(sim.context.getState(getPositions=True, getVelocities=True))
+    for get in ("getPositions", "getVelocities"):
+        assert np.array_equal(getattr(ends[0], get)(asNumpy=True)._value, getattr(ends[1], get)(asNumpy=True)._value)
+    # A force added to the System afterwards (as the tweezers protocol adds its walls) is evaluated by OpenMM.
+    push = openmm.CustomExternalForce("-0.5*x")
+    for i in range(3 * model.n_nodes):
+        push.addParticle(i, [])
+    push.setForceGroup(GROUPS["external"])
+    sim.rs.system.addForce(push)
+    sim.context.reinitialize(preserveState=True)
+    sim.invalidate()
+    v0 = sim.node_state()[2][:, 0].mean()
+    sim.advance(40)
+    assert np.isclose(sim.energies()["external"],
+                      sim.context.getState(getEnergy=True, groups={GROUPS["external"]}).getPotentialEnergy()._value,
+                      rtol=1e-12, atol=1e-9)
+    assert sim.node_state()[2][:, 0].mean() > v0  # pushed along +x (1.5 kJ/mol/nm per node, 40 steps)
+
+
+@pytest.mark.parametrize("integrator", ["langevin", "verlet"])
+def test_node_report_equals_the_openmm_state_path(mod, integrator):
+    """The integrator's node report (node state, on-step velocities, energies by term, kinetic energy) equals what
+    the OpenMM State and the numpy particle code give at the same state, before the first step (read from the
+    particles), after steps (the kept node state) and with a force OpenMM evaluates; asking for reports does not
+    change the trajectory."""
+    from dnarod.openmm.forces import GROUPS
+    from dnarod.openmm.loads import PullingForce
+    from dnarod.openmm.simulation import RodSimulation
+
+    model = load_forcefield("dna-default").ring(n_nodes=30)  # small enough for Debye-Hueckel across the ring
+    for loads in ([], [PullingForce(3, [0.0, 0.0, 5.0])]):
+        ends = []
+        for report in (True, False):
+            sim = RodSimulation(model, integrator=integrator, temperature=300.0, elastic="plugin", seed=9,
+                                platform="CPU", loads=loads)
+            assert sim._reports_in_plugin()
+            for k in (0, 7, 1, 12):
+                if k:
+                    sim.advance(k)
+                if not report:
+                    continue
+                fast, e = sim.node_state(), sim.energies()
+                st = sim._full_state()
+                ref = sim.node_state(st)
+                for a, b, tol in zip(fast, ref, (1e-12, 1e-12, 1e-10, 1e-9)):
+                    assert np.max(np.abs(a - b)) <= tol * max(1.0, np.max(np.abs(b)))
+                kin = st.getKineticEnergy()._value
+                assert abs(e["kinetic"] - kin) <= 1e-10 * kin
+                assert abs(e["potential"] - st.getPotentialEnergy()._value) <= 1e-9 * max(1.0, abs(e["potential"]))
+                for term in ("elastic", "nonbonded", "external"):
+                    ref_e = sim.context.getState(getEnergy=True, groups={GROUPS[term]}).getPotentialEnergy()._value
+                    assert abs(e[term] - ref_e) <= 1e-9 * max(1.0, abs(ref_e)), term
+                assert e["nonbonded"] != 0.0 and (e["external"] != 0.0) == bool(loads)
+            ends.append(sim.context.getState(getPositions=True, getVelocities=True))
+        for get in ("getPositions", "getVelocities"):
+            assert np.array_equal(getattr(ends[0], get)(asNumpy=True)._value,
+                                  getattr(ends[1], get)(asNumpy=True)._value)
+
+
+def threaded_context(mod, model, threads, friction, seed, min_nodes=16, circular=False):
+    """A CPU Context of the full model (SMK + node pairs) on the compiled integrator with `threads` threads."""
+    from dnarod.openmm.system import build_system
+
+    rs = build_system(model, "CPU", "plugin", True, (), 300.0)
+    integ = plugin.rigid_body_integrator(rs.radius, 0.05, 300.0, friction, seed)
+    integ.setMinNodesPerThread(min_nodes)
+    ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("CPU"), {"Threads": str(threads)})
+    ctx.setPositions(P.particle_positions(model.positions, model.frames, rs.radius))
+    ctx.setVelocitiesToTemperature(300.0, 5)
+    return ctx, integ
+
+
+@pytest.mark.parametrize("circular", [False, True])
+def test_threads_give_the_single_thread_trajectory_in_nve_and_are_deterministic(mod, circular):
+    """The node update and the SMK loads on two threads: in NVE (no random numbers) bit for bit the one-thread
+    trajectory (every node gets the same loads in the same order); with the thermostat, two runs on two threads
+    agree bit for bit, also across a checkpoint."""
+    ff = load_forcefield("dna-default")
+    model = ff.ring(n_nodes=100) if circular else ff.model_from_sequence("ACGT" * 25)
+    ends = {}
+    for threads in (1, 2):
+        ctx, integ = threaded_context(mod, model, threads, 0.0, 3)
+        assert integ.getNumThreads() == threads and integ.usesFusedElasticForce()
+        integ.step(30)
+        integ.step(1)
+        ends[threads] = ctx.getState(getPositions=True, getVelocities=True, getEnergy=True)
+    for get in ("getPositions", "getVelocities"):
+        assert np.array_equal(getattr(ends[1], get)(asNumpy=True)._value, getattr(ends[2], get)(asNumpy=True)._value)
+    runs = []
+    for _ in range(2):
+        ctx, integ = threaded_context(mod, model, 2, 1.0, 8)
+        integ.step(20)
+        blob = ctx.createCheckpoint()
+        integ.step(20)
+        a = ctx.getState(getPositions=True, getVelocities=True)
+        ctx.loadCheckpoint(blob)
+        integ.step(20)
+        b = ctx.getState(getPositions=True, getVelocities=True)
+        assert np.array_equal(a.getPositions(asNumpy=True)._value, b.getPositions(asNumpy=True)._value)
+        runs.append(a.getPositions(asNumpy=True)._value)
+    assert np.array_equal(runs[0], runs[1])
+    # Fewer nodes than two threads' minimum: one thread.
+    _, integ = threaded_context(mod, model, 2, 1.0, 8, min_nodes=2048)
+    assert integ.getNumThreads() == 1

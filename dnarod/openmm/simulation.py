@@ -135,6 +135,7 @@ class RodSimulation:
         self.context.setPositions(particle_positions(model.positions, model.frames, self.rs.radius))
         self.context_time = time.perf_counter() - t0
         self._state_cache = None
+        self._report_cache = None
         if initial_velocities is not None:
             self.set_node_velocities(*initial_velocities)
         elif self.temperature > 0:
@@ -163,7 +164,7 @@ class RodSimulation:
         for name, a in (("velocities", velocities), ("angular_velocities", angular_velocities)):
             if np.shape(a) != (n, 3):
                 raise ParameterError(f"{name} must have shape ({n}, 3), got {np.shape(a)}")
-        self._state_cache = None
+        self.invalidate()
         st = self.context.getState(getPositions=True, getForces=True)
         p = md_value(st.getPositions(asNumpy=True))
         _, frames = node_poses(p)
@@ -187,6 +188,11 @@ class RodSimulation:
 
     def node_pose(self, state=None):
         """``(centres (n,3) nm, frames (n,3,3))`` of the current (or given) state."""
+        if state is None:
+            rep = self._node_report()
+            if rep is not None:
+                rows = rep[0]
+                return rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy()
         state = state or self._full_state()
         return node_poses(md_value(state.getPositions(asNumpy=True)))
 
@@ -199,6 +205,12 @@ class RodSimulation:
         node, ``v += dt/2 F/m`` and ``omega += dt/2 J^-1 L^T tau`` (design A4 b), which is what
         the Lax-form engine reports; ``on_step=False`` gives OpenMM's raw half-step velocities.
         """
+        if state is None and on_step:
+            rep = self._node_report()
+            if rep is not None:
+                rows = rep[0]
+                return (rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy(), rows[:, 12:15].copy(),
+                        rows[:, 15:18].copy())
         state = state or self._full_state()
         p = md_value(state.getPositions(asNumpy=True))
         u = md_value(state.getVelocities(asNumpy=True))
@@ -232,6 +244,32 @@ class RodSimulation:
     def invalidate(self):
         """Forget the cached state (call after changing the context directly)."""
         self._state_cache = None
+        self._report_cache = None
+
+    def _node_report(self):
+        """``(rows (n, 18), energies)`` from the compiled integrator's ``getNodeReport``, or None.
+
+        Available when the compiled integrator evaluates the SMK force (and the node-pair force, if the
+        System has one) itself: then the node state, on-step velocities and energies by term come from
+        one pass over the nodes in C++ (no OpenMM State, no particle arrays in numpy), and the loads it
+        computes are reused by the next step. rows: centre (3, nm), frame (9, row-major), on-step velocity
+        (3, lab, nm/ps), on-step angular velocity (3, body, rad/ps); energies: SMK, WCA, Debye-Hueckel,
+        every other force, kinetic (kJ/mol), then 1.0 if every node value is finite. Cached until the
+        context changes.
+        """
+        if self._report_cache is None:
+            if not self._reports_in_plugin():
+                return None
+            rows = np.empty((self.model.n_nodes, 18))
+            energies = self.integrator.getNodeReport(rows)
+            self._report_cache = (rows, energies)
+        return self._report_cache
+
+    def _reports_in_plugin(self):
+        """True if :meth:`_node_report` can be used (the compiled integrator evaluates all dnarod forces)."""
+        integ = self.integrator
+        return (self.rs.elastic == "plugin" and integ.usesFusedElasticForce()
+                and (self.rs.nonbonded_callback is None or integ.usesFusedPairForce()))
 
     def energies(self):
         """Dict of potential energies per term (kJ/mol), plus ``potential``, ``kinetic``, ``temperature``.
@@ -239,6 +277,13 @@ class RodSimulation:
         With the fast path the per-term split comes from the callbacks' own evaluation at this
         state (no extra force evaluations); otherwise each force group is evaluated.
         """
+        rep = self._node_report()
+        if rep is not None:
+            e_smk, e_wca, e_dh, e_other, kinetic = rep[1][:5]
+            out = dict(elastic=e_smk, nonbonded=e_wca + e_dh, external=e_other,
+                       potential=e_smk + e_wca + e_dh + e_other, kinetic=kinetic)
+            out["temperature"] = float(kinetic_temperature(kinetic, self.rs.degrees_of_freedom))
+            return out
         st = self._full_state()
         out = {}
         pot = md_value(st.getPotentialEnergy())
@@ -265,7 +310,7 @@ class RodSimulation:
         OpenMM's L-BFGS with constraints can stop early on this stiff, constrained system, so it
         is restarted until the energy stops decreasing (at most ``max_rounds`` rounds).
         """
-        self._state_cache = None
+        self.invalidate()
         E = md_value(self.context.getState(getEnergy=True).getPotentialEnergy())
         for _ in range(max_rounds):
             openmm.LocalEnergyMinimizer.minimize(self.context, tolerance, max_iterations)
@@ -280,7 +325,7 @@ class RodSimulation:
         from .loads import set_clamp_rotation
 
         set_clamp_rotation(self.context, self.rs.load_info["rotation_clamps"][index], angle)
-        self._state_cache = None
+        self.invalidate()
 
     def update_loads(self, time_ps, duration_ps=None):
         """Turn every rotation clamp with ``turns``/``turns_per_ns`` to its angle at ``time_ps`` (run layer hook)."""
@@ -294,9 +339,15 @@ class RodSimulation:
         for info, load in zip(clamps, [x for x in self.loads if isinstance(x, RotationClamp)]):
             if load.turns or load.turns_per_ns is not None:
                 set_clamp_rotation(self.context, info, clamp_angle(load, time_ps, duration_ps))
-        self._state_cache = None
+        self.invalidate()
 
     # --- checks -----------------------------------------------------------------------
+    def _report_healthy(self):
+        e = self._node_report()[1]
+        E, K = e[0] + e[1] + e[2] + e[3], e[4]
+        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
+        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < limit
+
     def _healthy(self, st):
         E = md_value(st.getPotentialEnergy())
         K = md_value(st.getKineticEnergy())
@@ -345,11 +396,13 @@ class RodSimulation:
         SimulationError
             Naming the step, node and energy term; the context is left at the first bad step.
         """
-        good = self._full_state()
+        fast = self._reports_in_plugin()
+        # the state to go back to if the run blows up (positions and velocities are all it needs: cheap)
+        good = (self.context.getState(getPositions=True, getVelocities=True, getParameters=True) if fast
+                else self._full_state())
         self.integrator.step(int(n_steps))
-        self._state_cache = None
-        st = self._full_state()
-        if self._healthy(st):
+        self.invalidate()
+        if self._report_healthy() if fast else self._healthy(self._full_state()):
             self.step += int(n_steps)
             return
         self.context.setState(good)
@@ -392,7 +445,7 @@ class RodSimulation:
         except Exception as exc:  # noqa: BLE001 - OpenMMException
             raise ParameterError(f"{path}: OpenMM cannot load this checkpoint here ({exc})") from None
         self.step = int(meta["step"])
-        self._state_cache = None
+        self.invalidate()
         cb = self.rs.load_info.get("torque_callback")
         if cb is not None and "torque_phi" in meta:
             cb.phi[:] = meta["torque_phi"]

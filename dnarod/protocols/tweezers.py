@@ -262,10 +262,8 @@ def sample_member(m, progress=None):
     nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
                            salt=float(s["salt_M"]))
     t0, c0 = time.perf_counter(), time.process_time()
-    # elastic="fast": the walls are added to the System after the Context exists (Context.reinitialize), and the
-    # compiled plugin's rigid-body integrator cannot be bound to the re-created Context; the callback path can.
     sim = RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
-                        nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"], elastic="fast")
+                        nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"])
     add_tweezers_walls(sim, model)
     dt = sim.dt
     stride = max(1, int(round(m["sample_ps"] / dt)))

@@ -42,6 +42,28 @@ public:
         if ((hz < 0 ? -hz : hz) < kn[iz]) return hz * wn[iz];
         return tail(hz, iz);
     }
+    /** out[0..count-1] = the next count standard normals (the same numbers as count calls of operator(); the
+     *  generator state is held in registers through the loop). */
+    inline void fill(double* out, int count) {
+        uint64_t s0 = st[0], s1 = st[1], s2 = st[2], s3 = st[3];
+        for (int i = 0; i < count; i++) {
+            const uint64_t u = rotl(s0 + s3, 23) + s0;
+            const uint64_t t = s1 << 17;
+            s2 ^= s0; s3 ^= s1; s1 ^= s2; s0 ^= s3;
+            s2 ^= t;
+            s3 = rotl(s3, 45);
+            const int iz = (int) (u & 127);
+            const int64_t hz = (int32_t) (u >> 32);
+            if ((hz < 0 ? -hz : hz) < kn[iz]) {
+                out[i] = hz * wn[iz];
+                continue;
+            }
+            st[0] = s0; st[1] = s1; st[2] = s2; st[3] = s3;
+            out[i] = tail(hz, iz);
+            s0 = st[0]; s1 = st[1]; s2 = st[2]; s3 = st[3];
+        }
+        st[0] = s0; st[1] = s1; st[2] = s2; st[3] = s3;
+    }
     void save(std::ostream& s) const { s << st[0] << ' ' << st[1] << ' ' << st[2] << ' ' << st[3] << ' '; }
     void load(std::istream& s) {
         s >> st[0] >> st[1] >> st[2] >> st[3];

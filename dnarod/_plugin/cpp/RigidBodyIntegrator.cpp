@@ -1,6 +1,7 @@
 #include "RigidBodyIntegrator.h"
 #include "SMKForceImpl.h"
 #include "NodePairForceImpl.h"
+#include "Workers.h"
 #include "openmm/Context.h"
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
@@ -9,6 +10,7 @@
 #include "openmm/kernels.h"
 #include "openmm/VerletIntegrator.h"
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <istream>
 #include <ostream>
@@ -24,12 +26,25 @@ static const double S3 = 1.7320508075688772;
 // Unit offsets of the three particles in body coordinates (dnarod.openmm.particles.BODY_OFFSETS).
 static const double OFF[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
 
+// Seed of thread t's Gaussian stream (stream 0: the seed itself, as with one thread).
+static uint64_t streamSeed(uint64_t base, int t) {
+    return t == 0 ? base : base ^ (0xD1B54A32D192ED03ULL * (uint64_t) t);
+}
+
 RigidBodyIntegrator::RigidBodyIntegrator(double stepSize, double temperature, double friction)
     : temperature(temperature), friction(friction), seed(0) {
     setStepSize(stepSize);
     setTemperature(temperature);
     setFriction(friction);
     setConstraintTolerance(1e-8);
+}
+
+RigidBodyIntegrator::~RigidBodyIntegrator() {}
+
+void RigidBodyIntegrator::setMinNodesPerThread(int m) {
+    if (context != nullptr) throw OpenMMException("RigidBodyIntegrator: set the nodes per thread before creating the Context");
+    if (m < 1) throw OpenMMException("RigidBodyIntegrator: nodes per thread must be >= 1");
+    minNodesPerThread = m;
 }
 
 void RigidBodyIntegrator::setTemperature(double t) {
@@ -52,6 +67,24 @@ int RigidBodyIntegrator::addNode(int p0, int p1, int p2, double radius) {
 
 vector<string> RigidBodyIntegrator::getKernelNames() {
     return {IntegrateVerletStepKernel::Name()};
+}
+
+// Called by OpenMM when the Context is destroyed or re-created (Context.reinitialize): forget everything bound to
+// the old ContextImpl, so that initialize() can bind the new one (a preserved state comes back through
+// loadCheckpoint, which restores the node state kept here).
+void RigidBodyIntegrator::cleanup() {
+    context = nullptr;
+    refData = nullptr;
+    fused = nullptr;
+    pairs = nullptr;
+    otherGroups = 0;
+    haveOther = false;
+    cacheValid = false;
+    loadsValid = false;
+    setupKernel = Kernel();
+    placeholder.reset();
+    workers.reset();
+    numThreads = 1;
 }
 
 void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
@@ -144,9 +177,31 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     cP.assign(3 * n, 0.0);
     cPi.assign(3 * n, 0.0);
     cacheValid = false;
+    loadsValid = false;
     F.resize(3 * n);
     tau.resize(3 * n);
-    normal.seed(seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()());
+    // Threads: the CPU platform's Threads property (what dnarod's --threads sets), at most one per
+    // minNodesPerThread nodes; each thread owns whole blocks of nodes and the SMK steps starting at them.
+    int threads = 1;
+    if (name == "CPU") {
+        try {
+            threads = std::max(1, std::atoi(ctx.getPlatform().getPropertyValue(ctx.getOwner(), "Threads").c_str()));
+        } catch (const std::exception&) {
+            threads = 1;
+        }
+    }
+    const int nBlocks = (n + BLOCK - 1) / BLOCK;
+    numThreads = std::max(1, std::min(std::min(threads, n / minNodesPerThread), nBlocks));
+    nodeStart.assign(numThreads + 1, n);
+    for (int t = 0; t < numThreads; t++) nodeStart[t] = std::min(n, (int) ((long long) t * nBlocks / numThreads) * BLOCK);
+    chainRanges = fused != nullptr && fused->isChain() && fused->numSteps() >= n - 1;
+    workers.reset(numThreads > 1 ? new Workers(numThreads) : nullptr);
+    blocks.resize(numThreads);
+    carry.assign(6 * numThreads, 0.0);
+    partE.assign(numThreads, 0.0);
+    baseSeed = seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()();
+    normals.resize(numThreads);
+    for (int t = 0; t < numThreads; t++) normals[t].seed(streamSeed(baseSeed, t));
     invMass.assign(n, 0.0);
     invJ12.assign(n, 0.0);
     for (int k = 0; k < n; k++)
@@ -164,35 +219,71 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     }
 }
 
+// SMK loads of thread t's steps (its node range; the right loads of its last step go to its carry).
+void RigidBodyIntegrator::loadsRange(int t) {
+    const int k0 = nodeStart[t], k1 = nodeStart[t + 1];
+    std::fill(F.begin() + 3 * k0, F.begin() + 3 * k1, 0.0);
+    std::fill(tau.begin() + 3 * k0, tau.begin() + 3 * k1, 0.0);
+    const int end = t == numThreads - 1 ? fused->numSteps() : k1;
+    int bad;
+    partE[t] = fused->nodeLoadsRange(k0, end, c.data(), L.data(), F.data(), tau.data(), &carry[6 * t],
+                                     &carry[6 * t + 3], bad);
+}
+
 // Node loads (lab force F, torque tau about the centre) at the current positions, c and L already set.
 void RigidBodyIntegrator::loads(bool needOther) {
-    std::fill(F.begin(), F.end(), 0.0);
-    std::fill(tau.begin(), tau.end(), 0.0);
-    if (fused != nullptr) {
-        int bad;
-        fused->nodeLoads(c.data(), L.data(), F.data(), tau.data(), bad);
+    lastE[0] = lastE[1] = lastE[2] = 0.0;
+    if (fused != nullptr && numThreads > 1 && chainRanges) {
+        // Threads on disjoint ranges of the chain; the loads a range puts on the first node of the next (or, for
+        // the closure, on node 0) are added afterwards. Every node gets the same two SMK terms as with one
+        // thread and 0 + a + b = 0 + b + a, so the loads are bitwise those of one thread.
+        parallel([this](int t) { loadsRange(t); });
+        for (int t = 0; t < numThreads; t++) {
+            const int end = t == numThreads - 1 ? fused->numSteps() : nodeStart[t + 1];
+            int left, right;
+            fused->stepNodes(end - 1, left, right);
+            for (int a = 0; a < 3; a++) {
+                F[3 * right + a] += carry[6 * t + a];
+                tau[3 * right + a] += carry[6 * t + 3 + a];
+            }
+            lastE[0] += partE[t];
+        }
+    } else {
+        std::fill(F.begin(), F.end(), 0.0);
+        std::fill(tau.begin(), tau.end(), 0.0);
+        if (fused != nullptr) {
+            int bad;
+            lastE[0] = fused->nodeLoads(c.data(), L.data(), F.data(), tau.data(), bad);
+        }
     }
-    if (pairs != nullptr) pairs->nodeForces(c.data(), F.data());
+    if (pairs != nullptr) {
+        pairs->nodeForces(c.data(), F.data());
+        lastE[1] = pairs->lastWca;
+        lastE[2] = pairs->lastDh;
+    }
     if (!needOther) return;
     context->calcForcesAndEnergy(true, false, otherGroups);
+    otherLoads(c.data(), refData != nullptr ? ((ReferencePlatform::PlatformData*) refData)->positions : &posBuf,
+               F.data(), tau.data());
+}
+
+// Adds the forces OpenMM computed last (for otherGroups) to node forces FF and torques tt about centres cc.
+void RigidBodyIntegrator::otherLoads(const double* cc, const vector<Vec3>* p, double* FF, double* tt) {
     const vector<Vec3>* f;
-    const vector<Vec3>* p;
     if (refData != nullptr) {
         f = ((ReferencePlatform::PlatformData*) refData)->forces;
-        p = ((ReferencePlatform::PlatformData*) refData)->positions;
     } else {
         context->getForces(forceBuf);
         f = &forceBuf;
-        p = &posBuf;
     }
     const int n = getNumNodes();
     for (int k = 0; k < n; k++) {
-        double* Fk = &F[3 * k];
-        double* tk = &tau[3 * k];
+        double* Fk = &FF[3 * k];
+        double* tk = &tt[3 * k];
         for (int i = 0; i < 3; i++) {
             const Vec3& fi = (*f)[nodeP[3 * k + i]];
             const Vec3& pi = (*p)[nodeP[3 * k + i]];
-            const double x0 = pi[0] - c[3 * k], x1 = pi[1] - c[3 * k + 1], x2 = pi[2] - c[3 * k + 2];
+            const double x0 = pi[0] - cc[3 * k], x1 = pi[1] - cc[3 * k + 1], x2 = pi[2] - cc[3 * k + 2];
             Fk[0] += fi[0]; Fk[1] += fi[1]; Fk[2] += fi[2];
             tk[0] += x1 * fi[2] - x2 * fi[1];
             tk[1] += x2 * fi[0] - x0 * fi[2];
@@ -203,7 +294,7 @@ void RigidBodyIntegrator::loads(bool needOther) {
 
 // sin and cos: Taylor polynomials for |x| < 0.8 (truncation < 1e-19, as dnarod.integrators.fast._sincos; rotor
 // angles per sub-step are ~0.05 rad at the default step), libm beyond.
-static inline void sinCosPoly(double x, double& s, double& c) {
+static inline __attribute__((always_inline)) void sinCosPoly(double x, double& s, double& c) {
     const double x2 = x * x;
     s = x * (1.0 + x2 * (-1.0 / 6 + x2 * (1.0 / 120 + x2 * (-1.0 / 5040 + x2 * (1.0 / 362880 + x2 * (
             -1.0 / 39916800 + x2 * (1.0 / 6227020800 + x2 * (-1.0 / 1307674368000 + x2 * (
@@ -224,7 +315,7 @@ static inline void sinCos(double x, double& s, double& c) {
 
 // Exact free-rotor sub-flow of every lane by angle scale * pi_a / J_a about body axis a: rotates frame columns
 // b, d and body momenta pi_b, pi_d. poly: all angles are below 0.8 rad (then the polynomial sin/cos).
-static inline void subBlock(RigidBodyIntegrator::Block& B, int a, int b, int d, double scale, bool poly) {
+static inline __attribute__((always_inline)) void subBlock(RigidBodyIntegrator::Block& B, int a, int b, int d, double scale, bool poly) {
     if (poly) {
         for (int j = 0; j < RigidBodyIntegrator::BLOCK; j++) {
             const double x = scale * B.pi[a][j] * B.iJ[a][j];
@@ -257,7 +348,7 @@ static inline void subBlock(RigidBodyIntegrator::Block& B, int a, int b, int d, 
 }
 
 // Free rotor for time h: R1(h/2) R2(h/2) R3(h) R2(h/2) R1(h/2) (dnarod.integrators.splitting.rotor_flow).
-static inline void rotorBlock(RigidBodyIntegrator::Block& B, double h, bool poly) {
+static inline __attribute__((always_inline)) void rotorBlock(RigidBodyIntegrator::Block& B, double h, bool poly) {
     const double hh = 0.5 * h;
     subBlock(B, 0, 1, 2, hh, poly);
     subBlock(B, 1, 2, 0, hh, poly);
@@ -274,7 +365,6 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
     const int n = getNumNodes();
     const double dt = getStepSize();
-    const bool langevin = friction > 0;
     const double cfric = exp(-friction * dt);
     const double kT = KB * temperature;
     const double noise = sqrt(std::max(0.0, 1.0 - cfric * cfric) * kT);
@@ -304,120 +394,20 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
         }
         const bool useCache = cacheValid && !other && refData != nullptr;
         const bool write = other || refData == nullptr || s == steps - 1;
-        if (!useCache) nodePoses(n, pos);
-        loads(other);
-        // Nodes in blocks of BLOCK lanes: the rotor's sub-flows are long dependent chains per node, so each
-        // sub-flow runs over all lanes of a block at once (independent work the compiler vectorises).
-        for (int b0 = 0; b0 < n; b0 += BLOCK) {
-            const int nb = std::min(BLOCK, n - b0);
-            Block& B = blk;
-            double bound = 0.0;
-            for (int j = 0; j < BLOCK; j++) {
-                const int k = b0 + j;
-                if (j >= nb || mass[k] == 0.0) {  // padding lane or clamped node: nothing moves
-                    for (int a = 0; a < 9; a++) B.L[a][j] = a % 4 == 0 ? 1.0 : 0.0;
-                    for (int a = 0; a < 3; a++) B.c[a][j] = B.P[a][j] = B.pi[a][j] = B.iJ[a][j] = B.sPi[a][j] = 0.0;
-                    B.im[j] = B.sP[j] = 0.0;
-                    continue;
-                }
-                const double* ck = &c[3 * k];
-                const double* Lk = &L[9 * k];
-                const double m = mass[k];
-                const double* Fk = &F[3 * k];
-                const double* tk = &tau[3 * k];
-                double p2 = 0.0;
-                if (useCache) {
-                    for (int a = 0; a < 3; a++) {
-                        B.P[a][j] = cP[3 * k + a] + dt * Fk[a];
-                        B.pi[a][j] = cPi[3 * k + a] + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
-                        B.c[a][j] = ck[a];
-                        p2 += B.pi[a][j] * B.pi[a][j];
-                    }
-                } else {
-                // Node velocity and body angular momentum from the particle velocities.
-                double v[3] = {0, 0, 0}, h[3] = {0, 0, 0};
-                for (int i = 0; i < 3; i++) {
-                    const Vec3& u = (*vel)[nodeP[3 * k + i]];
-                    v[0] += u[0] / 3.0; v[1] += u[1] / 3.0; v[2] += u[2] / 3.0;
-                }
-                for (int i = 0; i < 3; i++) {
-                    const Vec3& u = (*vel)[nodeP[3 * k + i]];
-                    const Vec3& p = (*pos)[nodeP[3 * k + i]];
-                    const double x0 = p[0] - ck[0], x1 = p[1] - ck[1], x2 = p[2] - ck[2];
-                    const double u0 = u[0] - v[0], u1 = u[1] - v[1], u2 = u[2] - v[2];
-                    h[0] += x1 * u2 - x2 * u1;
-                    h[1] += x2 * u0 - x0 * u2;
-                    h[2] += x0 * u1 - x1 * u0;
-                }
-                // sum_i x_i x du_i = l^2 L diag(3/2, 3/2, 3) L^T omega_lab, so pi = J omega_body = m/3 L^T sum(..).
-                // V: kick by dt (lab momentum by F, body angular momentum by L^T tau).
-                for (int a = 0; a < 3; a++) {
-                    B.P[a][j] = m * v[a] + dt * Fk[a];
-                    B.pi[a][j] = (m / 3.0) * (Lk[a] * h[0] + Lk[3 + a] * h[1] + Lk[6 + a] * h[2])
-                                 + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
-                    B.c[a][j] = ck[a];
-                    p2 += B.pi[a][j] * B.pi[a][j];
-                }
-                }
-                for (int a = 0; a < 9; a++) B.L[a][j] = Lk[a];
-                B.im[j] = invMass[k];
-                B.iJ[0][j] = B.iJ[1][j] = invJ12[k];
-                B.iJ[2][j] = 0.5 * invJ12[k];
-                B.sP[j] = noise * sigP[k];
-                for (int a = 0; a < 3; a++) B.sPi[a][j] = noise * sigPi[3 * k + a];
-                // |pi| is invariant under the rotor, so this bounds every sub-flow angle of the step.
-                bound = std::max(bound, p2 * invJ12[k] * invJ12[k]);
-            }
-            const double hmax = langevin ? 0.5 * dt : dt;
-            const bool poly = bound * hmax * hmax < 0.64;
-            if (!langevin) {
-                for (int a = 0; a < 3; a++)
-                    for (int j = 0; j < BLOCK; j++) B.c[a][j] += dt * B.P[a][j] * B.im[j];
-                rotorBlock(B, dt, poly);
-            } else {
-                const double hdt = 0.5 * dt;
-                for (int a = 0; a < 3; a++)
-                    for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
-                rotorBlock(B, hdt, poly);
-                for (int a = 0; a < 3; a++)
-                    for (int j = 0; j < nb; j++) {
-                        B.P[a][j] = cfric * B.P[a][j] + B.sP[j] * normal();
-                        B.pi[a][j] = cfric * B.pi[a][j] + B.sPi[a][j] * normal();
-                    }
-                for (int a = 0; a < 3; a++)
-                    for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
-                rotorBlock(B, hdt, poly);
-            }
-            // Keep the node state; write the rigid triangles: p_i = c + l L b_i, u_i = v + (L omega) x (p_i - c).
-            for (int j = 0; j < nb; j++) {
-                const int k = b0 + j;
-                if (mass[k] == 0.0) continue;
-                for (int a = 0; a < 3; a++) {
-                    c[3 * k + a] = B.c[a][j];
-                    cP[3 * k + a] = B.P[a][j];
-                    cPi[3 * k + a] = B.pi[a][j];
-                }
-                for (int a = 0; a < 9; a++) L[9 * k + a] = B.L[a][j];
-                if (!write) continue;
-                const double l = nodeR[k];
-                double w[3];
-                for (int a = 0; a < 3; a++) w[a] = B.pi[a][j] * B.iJ[a][j];
-                double Lk[9];
-                for (int a = 0; a < 9; a++) Lk[a] = B.L[a][j];
-                const double wl0 = Lk[0] * w[0] + Lk[1] * w[1] + Lk[2] * w[2];
-                const double wl1 = Lk[3] * w[0] + Lk[4] * w[1] + Lk[5] * w[2];
-                const double wl2 = Lk[6] * w[0] + Lk[7] * w[1] + Lk[8] * w[2];
-                const double v0 = B.P[0][j] * B.im[j], v1 = B.P[1][j] * B.im[j], v2 = B.P[2][j] * B.im[j];
-                for (int i = 0; i < 3; i++) {
-                    const double x0 = l * (Lk[0] * OFF[i][0] + Lk[1] * OFF[i][1]);
-                    const double x1 = l * (Lk[3] * OFF[i][0] + Lk[4] * OFF[i][1]);
-                    const double x2 = l * (Lk[6] * OFF[i][0] + Lk[7] * OFF[i][1]);
-                    (*pos)[nodeP[3 * k + i]] = Vec3(B.c[0][j] + x0, B.c[1][j] + x1, B.c[2][j] + x2);
-                    (*vel)[nodeP[3 * k + i]] = Vec3(v0 + wl1 * x2 - wl2 * x1, v1 + wl2 * x0 - wl0 * x2,
-                                                    v2 + wl0 * x1 - wl1 * x0);
-                }
-            }
+        if (!useCache) {
+            if (numThreads == 1) nodePoses(0, n, pos, c.data(), L.data());
+            else parallel([&](int t) { nodePoses(nodeStart[t], nodeStart[t + 1], pos, c.data(), L.data()); });
         }
+        // The loads at the kept node state were computed already if a report asked for them (same inputs, same
+        // result: skipping them changes nothing).
+        const long long version = fused != nullptr ? fused->version : 0;
+        if (!(s == 0 && useCache && loadsValid && loadsVersion == version)) loads(other);
+        loadsValid = false;
+        stepDt = dt;
+        stepCfric = cfric;
+        stepNoise = noise;
+        if (numThreads == 1) update(0, pos, vel, useCache, write);
+        else parallel([&](int t) { update(t, pos, vel, useCache, write); });
         if (refData == nullptr) {
             context->setPositions(posBuf);
             context->setVelocities(velBuf);
@@ -432,14 +422,143 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     }
 }
 
-DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos) {
+// The node update of thread t's nodes (all of them with one thread): kick, drift, rotor (and thermostat), and
+// with write the rigid particles.
+DNAROD_CLONES void RigidBodyIntegrator::update(int t, vector<Vec3>* pos, vector<Vec3>* vel, bool useCache, bool write) {
+    const int n = getNumNodes();
+    const double dt = stepDt, cfric = stepCfric, noise = stepNoise;
+    const bool langevin = friction > 0;
+    Gaussian& normal = normals[t];
+    // Nodes in blocks of BLOCK lanes: the rotor's sub-flows are long dependent chains per node, so each
+    // sub-flow runs over all lanes of a block at once (independent work the compiler vectorises).
+    for (int b0 = nodeStart[t]; b0 < nodeStart[t + 1]; b0 += BLOCK) {
+        const int nb = std::min(BLOCK, n - b0);
+        Block& B = blocks[t];
+        double bound = 0.0;
+        for (int j = 0; j < BLOCK; j++) {
+            const int k = b0 + j;
+            if (j >= nb || mass[k] == 0.0) {  // padding lane or clamped node: nothing moves
+                for (int a = 0; a < 9; a++) B.L[a][j] = a % 4 == 0 ? 1.0 : 0.0;
+                for (int a = 0; a < 3; a++) B.c[a][j] = B.P[a][j] = B.pi[a][j] = B.iJ[a][j] = B.sPi[a][j] = 0.0;
+                B.im[j] = B.sP[j] = 0.0;
+                continue;
+            }
+            const double* ck = &c[3 * k];
+            const double* Lk = &L[9 * k];
+            const double m = mass[k];
+            const double* Fk = &F[3 * k];
+            const double* tk = &tau[3 * k];
+            double p2 = 0.0;
+            if (useCache) {
+                for (int a = 0; a < 3; a++) {
+                    B.P[a][j] = cP[3 * k + a] + dt * Fk[a];
+                    B.pi[a][j] = cPi[3 * k + a] + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
+                    B.c[a][j] = ck[a];
+                    p2 += B.pi[a][j] * B.pi[a][j];
+                }
+            } else {
+            // Node velocity and body angular momentum from the particle velocities.
+            double v[3] = {0, 0, 0}, h[3] = {0, 0, 0};
+            for (int i = 0; i < 3; i++) {
+                const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                v[0] += u[0] / 3.0; v[1] += u[1] / 3.0; v[2] += u[2] / 3.0;
+            }
+            for (int i = 0; i < 3; i++) {
+                const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                const Vec3& p = (*pos)[nodeP[3 * k + i]];
+                const double x0 = p[0] - ck[0], x1 = p[1] - ck[1], x2 = p[2] - ck[2];
+                const double u0 = u[0] - v[0], u1 = u[1] - v[1], u2 = u[2] - v[2];
+                h[0] += x1 * u2 - x2 * u1;
+                h[1] += x2 * u0 - x0 * u2;
+                h[2] += x0 * u1 - x1 * u0;
+            }
+            // sum_i x_i x du_i = l^2 L diag(3/2, 3/2, 3) L^T omega_lab, so pi = J omega_body = m/3 L^T sum(..).
+            // V: kick by dt (lab momentum by F, body angular momentum by L^T tau).
+            for (int a = 0; a < 3; a++) {
+                B.P[a][j] = m * v[a] + dt * Fk[a];
+                B.pi[a][j] = (m / 3.0) * (Lk[a] * h[0] + Lk[3 + a] * h[1] + Lk[6 + a] * h[2])
+                             + dt * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
+                B.c[a][j] = ck[a];
+                p2 += B.pi[a][j] * B.pi[a][j];
+            }
+            }
+            for (int a = 0; a < 9; a++) B.L[a][j] = Lk[a];
+            B.im[j] = invMass[k];
+            B.iJ[0][j] = B.iJ[1][j] = invJ12[k];
+            B.iJ[2][j] = 0.5 * invJ12[k];
+            B.sP[j] = noise * sigP[k];
+            for (int a = 0; a < 3; a++) B.sPi[a][j] = noise * sigPi[3 * k + a];
+            // |pi| is invariant under the rotor, so this bounds every sub-flow angle of the step.
+            bound = std::max(bound, p2 * invJ12[k] * invJ12[k]);
+        }
+        const double hmax = langevin ? 0.5 * dt : dt;
+        const bool poly = bound * hmax * hmax < 0.64;
+        if (!langevin) {
+            for (int a = 0; a < 3; a++)
+                for (int j = 0; j < BLOCK; j++) B.c[a][j] += dt * B.P[a][j] * B.im[j];
+            rotorBlock(B, dt, poly);
+        } else {
+            const double hdt = 0.5 * dt;
+            for (int a = 0; a < 3; a++)
+                for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
+            rotorBlock(B, hdt, poly);
+            // Normals in the order P[0][0], pi[0][0], P[0][1], ... (one stream per thread).
+            double z[6 * BLOCK];
+            normal.fill(z, 6 * nb);
+            for (int a = 0; a < 3; a++)
+                for (int j = 0; j < nb; j++) {
+                    B.P[a][j] = cfric * B.P[a][j] + B.sP[j] * z[2 * (a * nb + j)];
+                    B.pi[a][j] = cfric * B.pi[a][j] + B.sPi[a][j] * z[2 * (a * nb + j) + 1];
+                }
+            for (int a = 0; a < 3; a++)
+                for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
+            rotorBlock(B, hdt, poly);
+        }
+        // Keep the node state; write the rigid triangles: p_i = c + l L b_i, u_i = v + (L omega) x (p_i - c).
+        for (int j = 0; j < nb; j++) {
+            const int k = b0 + j;
+            if (mass[k] == 0.0) continue;
+            for (int a = 0; a < 3; a++) {
+                c[3 * k + a] = B.c[a][j];
+                cP[3 * k + a] = B.P[a][j];
+                cPi[3 * k + a] = B.pi[a][j];
+            }
+            for (int a = 0; a < 9; a++) L[9 * k + a] = B.L[a][j];
+            if (!write) continue;
+            const double l = nodeR[k];
+            double w[3];
+            for (int a = 0; a < 3; a++) w[a] = B.pi[a][j] * B.iJ[a][j];
+            double Lk[9];
+            for (int a = 0; a < 9; a++) Lk[a] = B.L[a][j];
+            const double wl0 = Lk[0] * w[0] + Lk[1] * w[1] + Lk[2] * w[2];
+            const double wl1 = Lk[3] * w[0] + Lk[4] * w[1] + Lk[5] * w[2];
+            const double wl2 = Lk[6] * w[0] + Lk[7] * w[1] + Lk[8] * w[2];
+            const double v0 = B.P[0][j] * B.im[j], v1 = B.P[1][j] * B.im[j], v2 = B.P[2][j] * B.im[j];
+            for (int i = 0; i < 3; i++) {
+                const double x0 = l * (Lk[0] * OFF[i][0] + Lk[1] * OFF[i][1]);
+                const double x1 = l * (Lk[3] * OFF[i][0] + Lk[4] * OFF[i][1]);
+                const double x2 = l * (Lk[6] * OFF[i][0] + Lk[7] * OFF[i][1]);
+                (*pos)[nodeP[3 * k + i]] = Vec3(B.c[0][j] + x0, B.c[1][j] + x1, B.c[2][j] + x2);
+                (*vel)[nodeP[3 * k + i]] = Vec3(v0 + wl1 * x2 - wl2 * x1, v1 + wl2 * x0 - wl0 * x2,
+                                                v2 + wl0 * x1 - wl1 * x0);
+            }
+        }
+    }
+}
+
+void RigidBodyIntegrator::parallel(const std::function<void(int)>& f) {
+    workers->run(f);
+}
+
+DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int k0, int k1, const vector<Vec3>* pos, double* cOut,
+                                                  double* LOut) const {
     // Frames from the (rigid) particles, orthonormalised by Gram-Schmidt so that roundoff cannot accumulate.
-    for (int k = 0; k < n; k++) {
+    for (int k = k0; k < k1; k++) {
         const Vec3& a0 = (*pos)[nodeP[3 * k]];
         const Vec3& a1 = (*pos)[nodeP[3 * k + 1]];
         const Vec3& a2 = (*pos)[nodeP[3 * k + 2]];
-        double* ck = &c[3 * k];
-        double* Lk = &L[9 * k];
+        double* ck = &cOut[3 * k];
+        double* Lk = &LOut[9 * k];
         double d1[3], d2[3];
         for (int r = 0; r < 3; r++) {
             ck[r] = (a0[r] + a1[r] + a2[r]) / 3.0;
@@ -457,6 +576,125 @@ DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int n, const vector<Vec3>* pos
         Lk[5] = d1[2] * d2[0] - d1[0] * d2[2];
         Lk[8] = d1[0] * d2[1] - d1[1] * d2[0];
     }
+}
+
+void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
+    if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
+    const int n = getNumNodes();
+    const vector<Vec3>* pos;
+    const vector<Vec3>* vel;
+    if (refData != nullptr) {
+        pos = ((ReferencePlatform::PlatformData*) refData)->positions;
+        vel = ((ReferencePlatform::PlatformData*) refData)->velocities;
+    } else {
+        context->getPositions(posBuf);
+        context->getVelocities(velBuf);
+        pos = &posBuf;
+        vel = &velBuf;
+    }
+    if (cacheValid)
+        cacheValid = pos->size() == lastPos.size() && vel->size() == lastVel.size()
+                     && std::memcmp(pos->data(), lastPos.data(), sizeof(Vec3) * lastPos.size()) == 0
+                     && std::memcmp(vel->data(), lastVel.data(), sizeof(Vec3) * lastVel.size()) == 0;
+    const bool fromCache = cacheValid && !haveOther && refData != nullptr;
+    const double* cc;
+    const double* LL;
+    const double* FF;
+    const double* tt;
+    double eOther = 0.0;
+    if (fromCache) {
+        // The kept node state (what the next step starts from) and its loads, kept for that step.
+        const long long version = fused != nullptr ? fused->version : 0;
+        if (!(loadsValid && loadsVersion == version)) {
+            loads(false);
+            loadsValid = true;
+            loadsVersion = version;
+        }
+        cc = c.data(); LL = L.data(); FF = F.data(); tt = tau.data();
+    } else {
+        loadsValid = false;
+        rc.resize(3 * n); rL.resize(9 * n);
+        rF.assign(3 * n, 0.0); rtau.assign(3 * n, 0.0);
+        nodePoses(0, n, pos, rc.data(), rL.data());
+        lastE[0] = lastE[1] = lastE[2] = 0.0;
+        if (fused != nullptr) {
+            int bad;
+            lastE[0] = fused->nodeLoads(rc.data(), rL.data(), rF.data(), rtau.data(), bad);
+        }
+        if (pairs != nullptr) {
+            pairs->nodeForces(rc.data(), rF.data());
+            lastE[1] = pairs->lastWca;
+            lastE[2] = pairs->lastDh;
+        }
+        if (haveOther) {
+            eOther = context->calcForcesAndEnergy(true, true, otherGroups);
+            otherLoads(rc.data(), pos, rF.data(), rtau.data());
+        }
+        cc = rc.data(); LL = rL.data(); FF = rF.data(); tt = rtau.data();
+    }
+    const double h = 0.5 * getStepSize();
+    const bool half = friction > 0;  // Langevin: the Context reports the stored (half-step) kinetic energy
+    double ke = 0.0;
+    for (int k = 0; k < n; k++) {
+        double* o = out + REPORT_STRIDE * k;
+        const double* Lk = LL + 9 * k;
+        for (int a = 0; a < 3; a++) o[a] = cc[3 * k + a];
+        for (int a = 0; a < 9; a++) o[3 + a] = Lk[a];
+        if (mass[k] == 0.0) {
+            for (int a = 12; a < 18; a++) o[a] = 0.0;
+            continue;
+        }
+        const double m = mass[k];
+        double v[3], pi[3];
+        if (fromCache) {
+            for (int a = 0; a < 3; a++) { v[a] = cP[3 * k + a] * invMass[k]; pi[a] = cPi[3 * k + a]; }
+        } else {
+            double h3[3] = {0, 0, 0};
+            v[0] = v[1] = v[2] = 0.0;
+            for (int i = 0; i < 3; i++) {
+                const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                v[0] += u[0] / 3.0; v[1] += u[1] / 3.0; v[2] += u[2] / 3.0;
+            }
+            for (int i = 0; i < 3; i++) {
+                const Vec3& u = (*vel)[nodeP[3 * k + i]];
+                const Vec3& p = (*pos)[nodeP[3 * k + i]];
+                const double x0 = p[0] - cc[3 * k], x1 = p[1] - cc[3 * k + 1], x2 = p[2] - cc[3 * k + 2];
+                const double u0 = u[0] - v[0], u1 = u[1] - v[1], u2 = u[2] - v[2];
+                h3[0] += x1 * u2 - x2 * u1;
+                h3[1] += x2 * u0 - x0 * u2;
+                h3[2] += x0 * u1 - x1 * u0;
+            }
+            for (int a = 0; a < 3; a++) pi[a] = (m / 3.0) * (Lk[a] * h3[0] + Lk[3 + a] * h3[1] + Lk[6 + a] * h3[2]);
+        }
+        const double iJ[3] = {invJ12[k], invJ12[k], 0.5 * invJ12[k]};
+        if (half) {
+            ke += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            for (int a = 0; a < 3; a++) ke += 0.5 * pi[a] * pi[a] * iJ[a];
+        }
+        const double* Fk = FF + 3 * k;
+        const double* tk = tt + 3 * k;
+        for (int a = 0; a < 3; a++) {
+            v[a] += h * Fk[a] * invMass[k];
+            pi[a] += h * (Lk[a] * tk[0] + Lk[3 + a] * tk[1] + Lk[6 + a] * tk[2]);
+        }
+        if (!half) {
+            ke += 0.5 * m * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+            for (int a = 0; a < 3; a++) ke += 0.5 * pi[a] * pi[a] * iJ[a];
+        }
+        for (int a = 0; a < 3; a++) {
+            o[12 + a] = v[a];
+            o[15 + a] = pi[a] * iJ[a];
+        }
+    }
+    energies[0] = lastE[0];
+    energies[1] = lastE[1];
+    energies[2] = lastE[2];
+    energies[3] = eOther;
+    energies[4] = ke;
+    // 1 if every node value written is finite (x - x is 0 for finite x, NaN for NaN and inf).
+    double probe = 0.0;
+    for (long long i = 0; i < (long long) REPORT_STRIDE * n; i++) probe += out[i] - out[i];
+    energies[5] = probe == 0.0 ? 1.0 : 0.0;
 }
 
 double RigidBodyIntegrator::computeKineticEnergy() {
@@ -510,8 +748,9 @@ double RigidBodyIntegrator::computeKineticEnergy() {
 }
 
 void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
-    normal.save(stream);
-    const char valid = cacheValid ? 1 : 0;
+    // Stream 0 first and a flag byte (bit 0: node state follows; bit 1: the other threads' streams follow it).
+    normals[0].save(stream);
+    const char valid = (cacheValid ? 1 : 0) | (numThreads > 1 ? 2 : 0);
     stream.write(&valid, 1);
     if (cacheValid) {
         stream.write((const char*) c.data(), sizeof(double) * c.size());
@@ -523,12 +762,18 @@ void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
         stream.write((const char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
         stream.write((const char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
     }
+    if (numThreads > 1) {
+        const int extra = numThreads - 1;
+        stream.write((const char*) &extra, sizeof(extra));
+        for (int t = 1; t < numThreads; t++) normals[t].save(stream);
+    }
 }
 
 void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
-    normal.load(stream);
-    char valid = 0;
-    stream.read(&valid, 1);
+    normals[0].load(stream);
+    char flags = 0;
+    stream.read(&flags, 1);
+    const bool valid = (flags & 1) != 0;
     if (valid) {
         stream.read((char*) c.data(), sizeof(double) * c.size());
         stream.read((char*) L.data(), sizeof(double) * L.size());
@@ -543,7 +788,15 @@ void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
         stream.read((char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
         stream.read((char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
     }
-    cacheValid = valid != 0;
+    // The other threads' streams; a checkpoint of another thread count gives what it has, the rest are reseeded
+    // (deterministic for a given pair of thread counts).
+    int extra = 0;
+    if (flags & 2) stream.read((char*) &extra, sizeof(extra));
+    Gaussian scratch;
+    for (int t = 1; t <= extra; t++) (t < numThreads ? normals[t] : scratch).load(stream);
+    for (int t = extra + 1; t < numThreads; t++) normals[t].seed(streamSeed(baseSeed, t));
+    cacheValid = valid;
+    loadsValid = false;
 }
 
 

@@ -16,6 +16,7 @@
 #include "openmm/Integrator.h"
 #include "openmm/Kernel.h"
 #include "Random.h"
+#include <functional>
 #include <memory>
 #include <random>
 #include <string>
@@ -27,11 +28,13 @@ namespace dnarod {
 
 class SMKForceImpl;
 class NodePairForceImpl;
+class Workers;
 
 class RigidBodyIntegrator : public OpenMM::Integrator {
 public:
     /** stepSize ps, temperature K, friction 1/ps (0: NVE). */
     RigidBodyIntegrator(double stepSize, double temperature = 300.0, double friction = 0.0);
+    ~RigidBodyIntegrator();
     /** A node carried by particles p0, p1, p2 (triangle circumradius radius, nm); returns its index. */
     int addNode(int p0, int p1, int p2, double radius);
     int getNumNodes() const { return (int) nodeP.size() / 3; }
@@ -46,6 +49,24 @@ public:
     bool usesFusedElasticForce() const { return fused != nullptr; }
     /** True if the node-pair (WCA + Debye-Hueckel) forces are evaluated inside the integrator. */
     bool usesFusedPairForce() const { return pairs != nullptr; }
+    /** Threads the node update and the SMK loads run on in the bound Context: the CPU platform's Threads
+     *  property, at most one thread per getMinNodesPerThread() nodes (1 on other platforms). Results are
+     *  deterministic for a given number of threads. */
+    int getNumThreads() const { return numThreads; }
+    /** Nodes per thread below which fewer threads are used (default 2048; set before creating the Context). */
+    int getMinNodesPerThread() const { return minNodesPerThread; }
+    void setMinNodesPerThread(int m);
+    /** Number of doubles per node written by getNodeReport. */
+    static const int REPORT_STRIDE = 18;
+    /** The node state at the current positions for reporters, without an OpenMM State: per node (out, n*18
+     *  doubles) the centre c (3, nm), the frame L (9, row-major, directors as columns), the on-step centre
+     *  velocity (3, lab, nm/ps) and the on-step angular velocity (3, body frame, rad/ps), i.e. the stored
+     *  half-step velocities completed by the half kick dt/2 of the current loads (zero for clamped nodes);
+     *  energies (6): the fused SMK energy, the fused WCA and Debye-Hueckel energies, the energy of every force
+     *  OpenMM evaluates for this integrator (all kJ/mol), the kinetic energy as the Context reports it
+     *  (computeKineticEnergy), and 1 if every value written to out is finite (else 0). After a step with only fused forces this reads the kept node state, and the
+     *  loads computed here are the ones the next step starts from (they are not computed twice). */
+    void getNodeReport(double* out, double* energies);
     /** Lanes of the blocked update (internal). */
     static const int BLOCK = 16;
     struct Block {
@@ -53,7 +74,7 @@ public:
     };
 protected:
     void initialize(OpenMM::ContextImpl& context);
-    void cleanup() {}
+    void cleanup();
     std::vector<std::string> getKernelNames();
     double computeKineticEnergy();
     bool kineticEnergyRequiresForce() const { return friction == 0; }
@@ -61,8 +82,12 @@ protected:
     void loadCheckpoint(std::istream& stream);
 private:
     void loads(bool needOther);
+    void loadsRange(int t);
     void run(int steps);
-    void nodePoses(int n, const std::vector<OpenMM::Vec3>* pos);
+    void update(int t, std::vector<OpenMM::Vec3>* pos, std::vector<OpenMM::Vec3>* vel, bool useCache, bool write);
+    void nodePoses(int k0, int k1, const std::vector<OpenMM::Vec3>* pos, double* cOut, double* LOut) const;
+    void parallel(const std::function<void(int)>& f);
+    void otherLoads(const double* cc, const std::vector<OpenMM::Vec3>* pos, double* FF, double* tt);
     double temperature, friction;
     int seed;
     std::vector<int> nodeP;
@@ -77,12 +102,29 @@ private:
     bool haveOther = false;
     std::vector<double> mass, c, L, F, tau, cP, cPi;
     bool cacheValid = false;
+    // F, tau (and lastE: SMK, WCA, DH energies) hold the fused loads at the kept c, L (computed by getNodeReport);
+    // the next step starts from them. loadsVersion: the SMKForce parameter version they were computed with.
+    bool loadsValid = false;
+    long long loadsVersion = -1;
+    double lastE[3] = {0, 0, 0};
+    std::vector<double> rc, rL, rF, rtau;  // getNodeReport's node state read from the particles
     std::vector<OpenMM::Vec3> lastPos, lastVel;  // the particles as written at the end of the last call
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
     std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)
-    Gaussian normal;
-    Block blk;
+    // Threads: node range [nodeStart[t], nodeStart[t+1]) (whole blocks) and its SMK steps, its own Gaussian
+    // stream (stream 0 is the single-thread one), its block buffer, the loads on the right node of its last step
+    // (carry, 6 doubles) and its part of the SMK energy.
+    int numThreads = 1, minNodesPerThread = 2048;
+    bool chainRanges = false;
+    uint64_t baseSeed = 0;
+    std::unique_ptr<Workers> workers;
+    std::vector<int> nodeStart;
+    std::vector<Gaussian> normals;
+    std::vector<Block> blocks;
+    std::vector<double> carry, partE;
+    // per-step constants for update()
+    double stepDt = 0, stepCfric = 0, stepNoise = 0;
 };
 
 } // namespace dnarod

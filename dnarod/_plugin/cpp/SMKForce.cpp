@@ -99,7 +99,7 @@ void nodePoses(const vector<SMKForce::Node>& nodes, const vector<Vec3>& pos, dou
 // Loads of one step (a port of dnarod.kernels.step_loads, design A2): left node a (pose ca, La), right node b
 // (pose cb, Lb, already mapped through the closure if it is an image). Adds the left loads to Fa, ta, and
 // returns the right loads (lab, before the closure map) in Fb, tb. Returns the step energy or NaN.
-static inline __attribute__((always_inline)) double stepLoads(const SMKForce::Step& s, double ds, const double* ca, const double* La,
+static inline __attribute__((always_inline)) double stepLoads(const SMKForce::Step& s, double ds, double inv, const double* ca, const double* La,
                                const double* cb, const double* Lb, double* Fa, double* ta, double* Fb, double* tb) {
     double R[9];
     for (int a = 0; a < 3; a++)
@@ -110,7 +110,6 @@ static inline __attribute__((always_inline)) double stepLoads(const SMKForce::St
     const double iden = 2.0 / den;
     const double w0 = (R[7] - R[5]) * iden, w1 = (R[2] - R[6]) * iden, w2 = (R[3] - R[1]) * iden;
     const double e0 = cb[0] - ca[0], e1 = cb[1] - ca[1], e2 = cb[2] - ca[2];
-    const double inv = 1.0 / ds;
     double d[6];
     d[0] = w0 * inv - s.xi0[0];
     d[1] = w1 * inv - s.xi0[1];
@@ -144,12 +143,16 @@ static inline __attribute__((always_inline)) double stepLoads(const SMKForce::St
     return 0.5 * ds * H;
 }
 
-DNAROD_CLONES double chainLoads(const vector<SMKForce::Step>& steps, double ds, const double* Q, const double* t,
-                  const double* c, const double* L, double* F, double* tau, int& badStep) {
+DNAROD_CLONES double chainLoadsRange(const vector<SMKForce::Step>& steps, int begin, int end, double ds,
+                                     const double* Q, const double* t, const double* c, const double* L, double* F,
+                                     double* tau, double* carryF, double* carryT, int& badStep) {
     double E = 0.0;
     badStep = -1;
     double Fb[3], tb[3], cimg[3], Limg[9];
-    for (size_t k = 0; k < steps.size(); k++) {
+    const double invDs = 1.0 / ds;  // (the compiler does not hoist this division out of the loop itself)
+    if (carryF != nullptr)
+        for (int a = 0; a < 3; a++) carryF[a] = carryT[a] = 0.0;
+    for (int k = begin; k < end; k++) {
         const SMKForce::Step& s = steps[k];
         const double* cb = c + 3 * s.right;
         const double* Lb = L + 9 * s.right;
@@ -162,16 +165,18 @@ DNAROD_CLONES double chainLoads(const vector<SMKForce::Step>& steps, double ds, 
             cb = cimg;
             Lb = Limg;
         }
-        const double e = stepLoads(s, ds, c + 3 * s.left, L + 9 * s.left, cb, Lb, F + 3 * s.left, tau + 3 * s.left,
+        const double e = stepLoads(s, ds, invDs, c + 3 * s.left, L + 9 * s.left, cb, Lb, F + 3 * s.left, tau + 3 * s.left,
                                    Fb, tb);
         if (e != e) {
-            if (badStep < 0) badStep = (int) k;
+            if (badStep < 0) badStep = k;
             E = numeric_limits<double>::quiet_NaN();
             continue;
         }
         E += e;
-        double* Fr = F + 3 * s.right;
-        double* tr = tau + 3 * s.right;
+        // The right loads of the range's last step go to the carry (its node may belong to another range).
+        const bool carry = carryF != nullptr && k == end - 1;
+        double* Fr = carry ? carryF : F + 3 * s.right;
+        double* tr = carry ? carryT : tau + 3 * s.right;
         if (s.image) {  // loads on the image act on the node through Q^T
             for (int a = 0; a < 3; a++) {
                 Fr[a] += Q[a] * Fb[0] + Q[3 + a] * Fb[1] + Q[6 + a] * Fb[2];
@@ -182,6 +187,11 @@ DNAROD_CLONES double chainLoads(const vector<SMKForce::Step>& steps, double ds, 
         }
     }
     return E;
+}
+
+double chainLoads(const vector<SMKForce::Step>& steps, double ds, const double* Q, const double* t,
+                  const double* c, const double* L, double* F, double* tau, int& badStep) {
+    return chainLoadsRange(steps, 0, (int) steps.size(), ds, Q, t, c, L, F, tau, nullptr, nullptr, badStep);
 }
 
 ForceImpl* SMKForce::createImpl() const { return new SMKForceImpl(*this); }

@@ -70,6 +70,12 @@ private:
 double chainLoads(const std::vector<SMKForce::Step>& steps, double ds, const double* Q, const double* t,
                   const double* centres, const double* frames, double* F, double* tau, int& badStep);
 
+/** chainLoads over steps [begin, end) only; if carryF is given, the loads on the right node of step end - 1
+ *  are written to carryF, carryT (3 each) instead of being added to F, tau. The carry is zeroed first. */
+double chainLoadsRange(const std::vector<SMKForce::Step>& steps, int begin, int end, double ds, const double* Q,
+                       const double* t, const double* centres, const double* frames, double* F, double* tau,
+                       double* carryF, double* carryT, int& badStep);
+
 /** Centres (n*3) and frames (n*9, row-major, directors as columns) of the nodes from particle positions. */
 void nodePoses(const std::vector<SMKForce::Node>& nodes, const std::vector<OpenMM::Vec3>& positions,
                double* centres, double* frames);

@@ -80,6 +80,7 @@ public:
             if (s[k].left != steps[k].left || s[k].right != steps[k].right || s[k].image != steps[k].image)
                 throw OpenMM::OpenMMException("SMKForce.updateParametersInContext: the nodes of a step changed");
         steps = s;
+        version++;
         context.systemChanged();
     }
     std::vector<std::pair<int, int> > getBondedParticles() const {
@@ -91,7 +92,26 @@ public:
     double nodeLoads(const double* cc, const double* LL, double* FF, double* tt, int& bad) const {
         return chainLoads(steps, ds, Q, t, cc, LL, FF, tt, bad);
     }
+    /** nodeLoads over steps [begin, end) with the right loads of step end - 1 in carryF, carryT (see
+     *  chainLoadsRange); for threads working on disjoint ranges of a chain. */
+    double nodeLoadsRange(int begin, int end, const double* cc, const double* LL, double* FF, double* tt,
+                          double* carryF, double* carryT, int& bad) const {
+        return chainLoadsRange(steps, begin, end, ds, Q, t, cc, LL, FF, tt, carryF, carryT, bad);
+    }
+    /** True if step k joins node k to node k + 1 for every k < n - 1 and a last step, if any, is the closure
+     *  n - 1 -> image of 0 (then ranges of steps touch disjoint nodes except at their ends). */
+    bool isChain() const {
+        const int n = (int) nodes.size(), m = (int) steps.size();
+        if (m < n - 1 || m > n) return false;
+        for (int k = 0; k < n - 1; k++)
+            if (steps[k].left != k || steps[k].right != k + 1 || steps[k].image) return false;
+        return m == n - 1 || (steps[n - 1].left == n - 1 && steps[n - 1].right == 0);
+    }
+    int numSteps() const { return (int) steps.size(); }
+    void stepNodes(int k, int& left, int& right) const { left = steps[k].left; right = steps[k].right; }
     int lastBadStep = -1;
+    /** Incremented whenever the step parameters change (updateParametersInContext). */
+    long long version = 0;
 private:
     const SMKForce& owner;
     std::vector<SMKForce::Step> steps;

@@ -97,6 +97,38 @@ public:
     void step(int steps);
     bool usesFusedElasticForce() const;
     bool usesFusedPairForce() const;
+    int getNumThreads() const;
+    int getMinNodesPerThread() const;
+    void setMinNodesPerThread(int m);
+    %extend {
+        /* Node state and energies at the current positions (RigidBodyIntegrator::getNodeReport) written into
+           out, a writable C-contiguous float64 buffer of n_nodes * 18 values (a numpy array of shape
+           (n_nodes, 18)); returns (E_smk, E_wca, E_dh, E_other, E_kinetic) in kJ/mol and 1.0 if every value
+           written is finite (else 0.0). */
+        PyObject* getNodeReport(PyObject* out) {
+            Py_buffer view;
+            if (PyObject_GetBuffer(out, &view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0) {
+                PyErr_Clear();
+                throw OpenMM::OpenMMException("getNodeReport: out must be a writable C-contiguous float64 array");
+            }
+            const Py_ssize_t want = (Py_ssize_t) sizeof(double) * dnarod::RigidBodyIntegrator::REPORT_STRIDE
+                                    * self->getNumNodes();
+            if (view.len != want || view.itemsize != (Py_ssize_t) sizeof(double) || view.format == NULL
+                || std::string(view.format) != "d") {
+                PyBuffer_Release(&view);
+                throw OpenMM::OpenMMException("getNodeReport: out must be a float64 array of n_nodes * 18 values");
+            }
+            double e[6];
+            try {
+                self->getNodeReport((double*) view.buf, e);
+            } catch (...) {
+                PyBuffer_Release(&view);
+                throw;
+            }
+            PyBuffer_Release(&view);
+            return Py_BuildValue("(dddddd)", e[0], e[1], e[2], e[3], e[4], e[5]);
+        }
+    }
 };
 
 const char* builtAgainstOpenMM();
