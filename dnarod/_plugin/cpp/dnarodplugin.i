@@ -59,6 +59,7 @@ public:
     std::vector<double> getClosureQ() const;
     std::vector<double> getClosureT() const;
     void updateParametersInContext(OpenMM::Context& context);
+    bool usesDeviceKernel(OpenMM::Context& context);
     bool usesPeriodicBoundaryConditions() const;
     double getLastEnergy() const;
     %extend {

@@ -1,0 +1,40 @@
+// Kernel library for OpenMM's OpenCL platform (libdnarod_opencl.so): registers the Common-compute SMK kernel
+// with the OpenCL platform. dnarod.openmm.plugin loads it with openmm.Platform.loadPluginLibrary, which calls
+// registerPlatforms() and registerKernelFactories() below.
+#include "common/CommonSMKKernel.h"
+#include "openmm/KernelFactory.h"
+#include "openmm/OpenMMException.h"
+#include "openmm/internal/ContextImpl.h"
+#include "openmm/opencl/OpenCLContext.h"
+#include "openmm/opencl/OpenCLPlatform.h"
+#include <exception>
+
+using namespace OpenMM;
+
+namespace dnarod {
+
+class OpenCLSMKKernelFactory : public KernelFactory {
+public:
+    KernelImpl* createKernelImpl(std::string name, const Platform& platform, ContextImpl& context) const {
+        OpenCLContext& cl = *static_cast<OpenCLPlatform::PlatformData*>(context.getPlatformData())->contexts[0];
+        if (name == CalcSMKForceKernel::Name()) return new CommonCalcSMKForceKernel(name, platform, cl);
+        throw OpenMMException("dnarod OpenCL kernels: no kernel called " + name);
+    }
+};
+
+} // namespace dnarod
+
+// Defined (empty) so that OpenMM's lookup of this symbol does not find the OpenCL platform library's own.
+extern "C" __attribute__((visibility("default"))) void registerPlatforms() {}
+
+extern "C" __attribute__((visibility("default"))) void registerKernelFactories() {
+    try {
+        Platform& platform = Platform::getPlatformByName("OpenCL");
+        platform.registerKernelFactory(dnarod::CalcSMKForceKernel::Name(), new dnarod::OpenCLSMKKernelFactory());
+    } catch (std::exception&) {
+        // no OpenCL platform in this process: nothing to register
+    }
+}
+
+// Version of OpenMM the library was compiled against (checked by dnarod.openmm.plugin before loading it).
+extern "C" __attribute__((visibility("default"))) const char* dnarodKernelsOpenMMVersion() { return DNAROD_OPENMM_VERSION; }
