@@ -98,10 +98,17 @@ def _load():
 
 
 def status():
-    """The :class:`PluginStatus` of this process (computed once)."""
+    """The :class:`PluginStatus` of this process (computed once).
+
+    Loading the extension also loads its device-kernel libraries into OpenMM (:func:`device_kernel`), so every
+    Context created afterwards on such a platform evaluates SMKForce on the device, whichever way the force
+    was made."""
     global _STATUS, _MODULE
     if _STATUS is None:
         _STATUS, _MODULE = _load()
+        if _STATUS.available:
+            for name in DEVICE_PLATFORMS:
+                device_kernel(name)
     return _STATUS
 
 

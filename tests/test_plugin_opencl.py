@@ -1,0 +1,219 @@
+"""The compiled plugin's device (Common-compute) kernel of SMKForce on OpenMM's OpenCL platform (pocl on a CPU
+in CI; any OpenCL device elsewhere).
+
+References: dnarod.energy.loads (numpy analytic loads) and the plugin's host code on the Reference platform;
+for trajectories, the Python-callback path on the Reference platform with the same VerletIntegrator + SETTLE.
+Skipped with the reason when OpenCL or the kernel library is missing, except under ``CI=true`` (``.ci/run``
+installs pocl and the OpenCL headers as root on Debian), where either is a failure.
+
+Tolerances (stated, not tuned to pass):
+* ``double``: energy 1e-12 relative; node forces, torques and particle forces 1e-10 of the largest (forces are
+  accumulated in OpenMM's 64-bit fixed point, resolution 2^-32 kJ/mol/nm);
+* ``mixed`` and ``single`` (forces in single precision): 2e-5 relative (single epsilon 6e-8 times the ~10^2
+  operations per step; measured 3e-7 to 2e-6).
+"""
+import io
+import os
+
+import numpy as np
+import openmm
+import pytest
+
+from dnarod.energy import loads
+from dnarod.forcefield import load_forcefield
+from dnarod.model import RodModel
+from dnarod.openmm import particles as P
+from dnarod.openmm import plugin
+from dnarod.parameters import StepParameters
+
+from test_plugin import assert_equal_loads, plugin_loads, random_model
+
+TOL = {"double": 1e-10, "mixed": 2e-5, "single": 2e-5}
+CI = os.environ.get("CI", "").lower() in ("1", "true", "yes")
+
+
+def _fail_or_skip(why):
+    if CI:
+        pytest.fail(f"CI: {why}")
+    pytest.skip(why)
+
+
+@pytest.fixture(scope="module")
+def mod():
+    st = plugin.status()
+    if not st.available:
+        _fail_or_skip(f"compiled plugin not usable: {st.reason}")
+    names = [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
+    if "OpenCL" not in names:
+        why = "; ".join(openmm.Platform.getPluginLoadFailures()) or "install pocl-opencl-icd"
+        _fail_or_skip(f"OpenMM has no OpenCL platform: {why}")
+    ok, why = plugin.device_kernel("OpenCL")
+    if not ok:
+        _fail_or_skip(f"no OpenCL kernel of the plugin: {why}")
+    return plugin.module()
+
+
+def opencl_context(model, precision, integrator=None):
+    r = P.triangle_radius(model.mass, model.inertia)
+    system = openmm.System()
+    for m in np.repeat(model.mass / 3, 3):
+        system.addParticle(m)
+    force = plugin.smk_force(model, r)
+    system.addForce(force)
+    ctx = openmm.Context(system, integrator or openmm.VerletIntegrator(0.001),
+                         openmm.Platform.getPlatformByName("OpenCL"), {"Precision": precision})
+    ctx.setPositions(P.particle_positions(model.positions, model.frames, r))
+    return ctx, force
+
+
+@pytest.mark.parametrize("circular", [False, True])
+@pytest.mark.parametrize("precision", ["double", "mixed", "single"])
+def test_device_kernel_equals_dnarod_energy(mod, precision, circular):
+    """Random full 6x6 K and intrinsic strains per step, far from the intrinsic shape, open and circular (screw
+    closure): energy, node forces and torques equal dnarod.energy; the host code never ran."""
+    model = random_model(21 + circular, circular=circular)
+    want = loads(model.positions, model.frames, model.params, model.ds, model.closure)
+    assert want[0] > 1.0
+    ctx, force = opencl_context(model, precision)
+    assert force.usesDeviceKernel(ctx)
+    assert_equal_loads(plugin_loads(ctx), want, TOL[precision])
+    assert force.getLastEnergy() == 0.0  # the host evaluation (which records it) was not used
+
+
+def test_particle_forces_equal_reference_plugin(mod):
+    """Per-particle forces in double precision equal the plugin's host code on the Reference platform (the
+    same spreading of node loads over the triangle)."""
+    model = random_model(5, circular=True)
+    ctx, _ = opencl_context(model, "double")
+    from test_plugin import context
+
+    ref, rforce = context(model, "Reference")
+    assert not rforce.usesDeviceKernel(ref)
+    got = ctx.getState(getForces=True, getEnergy=True)
+    want = ref.getState(getForces=True, getEnergy=True)
+    f, f0 = got.getForces(asNumpy=True)._value, want.getForces(asNumpy=True)._value
+    assert np.max(np.abs(f - f0)) <= 1e-10 * np.max(np.abs(f0))
+    E, E0 = got.getPotentialEnergy()._value, want.getPotentialEnergy()._value
+    assert abs(E - E0) <= 1e-12 * abs(E0)
+
+
+def test_sequence_model_and_parameter_update_on_device(mod):
+    """Olson sequence-dependent parameters: zero loads at the intrinsic shape; after setStepParameters +
+    updateParametersInContext the device uses the new K and xi0."""
+    seq = "CGCGAATTCGCGATATGC"
+    olson = load_forcefield("olson1998").model_from_sequence(seq)
+    ctx, force = opencl_context(olson, "double")
+    E, F, tau = plugin_loads(ctx)
+    assert abs(E) < 1e-9 and np.max(np.abs(F)) < 1e-7 and np.max(np.abs(tau)) < 1e-7
+    bent = random_model(5, sequence=seq)
+    bent = RodModel(bent.positions, bent.frames, olson.params, olson.ds, olson.mass, olson.inertia)
+    ctx, force = opencl_context(bent, "double")
+    assert_equal_loads(plugin_loads(ctx), loads(bent.positions, bent.frames, bent.params, bent.ds), 1e-10)
+    K = bent.params.stiffness.copy()
+    xi0 = bent.params.intrinsic.copy()
+    K[4] *= 1.9
+    xi0[7] += np.array([0.1, -0.2, 0.3, 0.05, -0.05, 0.02])
+    for k in (4, 7):
+        force.setStepParameters(k, K[k].ravel().tolist(), xi0[k].tolist())
+    force.updateParametersInContext(ctx)
+    want = loads(bent.positions, bent.frames, StepParameters(K, xi0), bent.ds)
+    assert abs(want[0] - loads(bent.positions, bent.frames, bent.params, bent.ds)[0]) > 1.0
+    assert_equal_loads(plugin_loads(ctx), want, 1e-10)
+
+
+def test_auto_takes_the_device_kernel_on_opencl(mod, capsys):
+    """elastic='auto' on OpenCL: the plugin's SMKForce on the device inside OpenMM's LangevinMiddleIntegrator
+    (SETTLE), said once; without the kernel it falls back to the portable expression."""
+    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.openmm.system import choose_elastic
+
+    plugin._DEVICE_ANNOUNCED.discard("OpenCL")
+    assert choose_elastic("auto", "OpenCL") == "plugin"
+    assert choose_elastic("auto", "OpenCL") == "plugin"
+    err = capsys.readouterr().err
+    assert err.count("OpenCL kernel (SMK force on the device") == 1
+    model = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 2)
+    sim = RodSimulation(model, platform="OpenCL", precision="mixed", temperature=300.0, seed=3, nonbonded=False)
+    assert sim.rs.elastic == "plugin" and sim.rs.device
+    assert isinstance(sim.integrator, openmm.LangevinMiddleIntegrator)
+    smk = [f for f in (sim.rs.system.getForce(i) for i in range(sim.rs.system.getNumForces()))
+           if mod.SMKForce.isinstance(f)]
+    assert len(smk) == 1 and mod.SMKForce.cast(smk[0]).usesDeviceKernel(sim.context)
+    sim.advance(200)
+    e = sim.energies()
+    assert np.isfinite(e["elastic"]) and e["elastic"] > 0 and 10.0 < e["temperature"] < 1000.0
+    c, f = sim.node_pose()
+    assert np.isfinite(c).all()
+    # without the kernel: the portable path, said once
+    saved = plugin._DEVICE["OpenCL"]
+    try:
+        plugin._DEVICE["OpenCL"] = (False, "its OpenCL kernel library was not built: test")
+        plugin._DEVICE_ANNOUNCED.discard("OpenCL")
+        assert choose_elastic("auto", "OpenCL") == "portable"
+        assert "compiled OpenMM plugin not used on OpenCL (its OpenCL kernel library was not built: test)" in \
+            capsys.readouterr().err
+    finally:
+        plugin._DEVICE["OpenCL"] = saved
+
+
+def test_nve_trajectory_equals_callback_path(mod):
+    """VerletIntegrator + SETTLE in double precision: the device kernel on OpenCL follows the same trajectory as
+    the Python-callback path on the Reference platform (same integrator, same forces). Measured after 100 steps:
+    5e-9 nm / 3e-8 in the frames; OpenMM's own CustomCompoundBondForce on OpenCL differs from Reference by
+    4e-9 nm / 6e-9 in the same run (the platforms' SETTLE and summation differ; the rounding grows with time)."""
+    from dnarod.openmm.simulation import RodSimulation
+
+    model = random_model(8, scale=0.02, rot=0.05)
+    ends = []
+    for platform, elastic, prec in (("Reference", "fast", None), ("OpenCL", "plugin", "double")):
+        sim = RodSimulation(model, integrator="verlet", temperature=300.0, elastic=elastic, platform=platform,
+                            precision=prec, seed=4, nonbonded=False, dt=0.01)
+        assert sim.rs.device == (platform == "OpenCL")
+        sim.advance(100)
+        ends.append(sim.node_pose())
+    assert np.max(np.abs(ends[0][0] - ends[1][0])) < 1e-7
+    assert np.max(np.abs(ends[0][1] - ends[1][1])) < 2e-7
+
+
+def test_checkpoint_round_trip_on_device(mod):
+    """A Langevin + SETTLE run on the device from a checkpoint repeats bit for bit (device forces are summed in
+    fixed point, so they do not depend on the order of the atomic additions)."""
+    from dnarod.openmm.system import build_system
+
+    model = random_model(6, scale=0.02, rot=0.05)
+    rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
+    assert rs.device and rs.system.getNumConstraints() == 3 * model.n_nodes
+    integ = openmm.LangevinMiddleIntegrator(300.0, 1.0, 0.005)
+    integ.setRandomNumberSeed(17)
+    ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("OpenCL"), {"Precision": "mixed"})
+    ctx.setPositions(P.particle_positions(model.positions, model.frames, rs.radius))
+    ctx.setVelocitiesToTemperature(300.0, 5)
+    integ.step(20)
+    blob = ctx.createCheckpoint()
+    integ.step(30)
+    a = ctx.getState(getPositions=True, getVelocities=True, getEnergy=True)
+    ctx.loadCheckpoint(blob)
+    integ.step(30)
+    b = ctx.getState(getPositions=True, getVelocities=True, getEnergy=True)
+    assert np.array_equal(a.getPositions(asNumpy=True)._value, b.getPositions(asNumpy=True)._value)
+    assert np.array_equal(a.getVelocities(asNumpy=True)._value, b.getVelocities(asNumpy=True)._value)
+    assert a.getPotentialEnergy()._value == b.getPotentialEnergy()._value
+    assert np.isfinite(a.getPotentialEnergy()._value)
+
+
+def test_build_record_names_device_kernels(mod):
+    """The build record lists the device kernels built and the reason for the others; unknown platforms say so."""
+    from dnarod._plugin import _build_info
+
+    assert "OpenCL" in _build_info.DEVICE_KERNELS
+    assert "CUDA" in _build_info.DEVICE_KERNELS or _build_info.DEVICE_KERNELS_NOT_BUILT["CUDA"]
+    ok, why = plugin.device_kernel("HIP")
+    assert not ok and "no device kernel for the HIP platform" in why
+    buf = io.StringIO()
+    plugin._DEVICE_ANNOUNCED.discard("CUDA")
+    plugin.announce_device("CUDA", buf)
+    plugin.announce_device("CUDA", buf)
+    out = buf.getvalue()
+    assert out.count("\n") == 1
+    if "CUDA" not in _build_info.DEVICE_KERNELS:
+        assert "compiled OpenMM plugin not used on CUDA (its CUDA kernel library was not built:" in out
