@@ -24,7 +24,8 @@ code on both paths): the compiled plugin's SMK kernel (``elastic="plugin"``) aga
 CustomCompoundBondForce (``elastic="portable"``), both in LangevinMiddle + SETTLE, each size and path in its
 own process. Context creation is timed cold (a fresh, empty pocl kernel cache: ``POCL_CACHE_DIR`` set to a
 new directory; OpenMM's OpenCL platform keeps no cache of its own) and warm (a second Context in the same
-process, kernels cached), steps/s on the warm one. JSON to ``benchmarks/results/bench_gpu_compare.json``.
+process, kernels cached; both include building the System and the first evaluation), then on the warm one
+the elastic force alone (energy evaluations of its force group) and steps/s. JSON to ``benchmarks/results/bench_gpu_compare.json``.
 """
 from __future__ import annotations
 
@@ -116,6 +117,18 @@ def compare_single(n, plat, budget, precision, elastic):
         out["dt_ps"] = sim.dt
         if phase == "cold":
             del sim
+    # The elastic force alone: energy evaluations of its force group (only the energy sum leaves the device).
+    from dnarod.openmm.forces import GROUPS
+
+    groups = {GROUPS["elastic"]}
+    sim.context.getState(getEnergy=True, groups=groups)
+    k, c0, w0 = 0, time.process_time(), time.perf_counter()
+    while time.perf_counter() - w0 < 0.5 * budget or k < 3:
+        sim.context.getState(getEnergy=True, groups=groups)
+        k += 1
+    wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+    out["force_evals_per_s"] = k / wall
+    out["force_evals_per_cpu_s"] = k / max(cpu, 1e-9)
     steps, wall, cpu = _rate(sim, budget)
     out["steps_per_s"] = steps / wall
     out["node_steps_per_s"] = n * steps / wall
@@ -148,21 +161,23 @@ def compare(args, plat):
     load = os.getloadavg()
     print(f"platform {plat} ({args.precision} precision), bonded model, LangevinMiddle + SETTLE 300 K, default dt; "
           f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-    print(f"{'nodes':>7} {'elastic':>9} {'device':>6} {'cold ctx s':>10} {'warm ctx s':>10} {'steps/s':>9} "
-          f"{'node-st/s':>10} {'node-st/CPU-s':>13} {'ns/day':>9}")
+    print(f"{'nodes':>7} {'elastic':>9} {'device':>6} {'cold ctx s':>10} {'warm ctx s':>10} {'force ev/CPU-s':>14} "
+          f"{'steps/s':>9} {'node-st/s':>10} {'node-st/CPU-s':>13} {'ns/day':>9}")
     for r in results:
         if "error" in r:
             print(f"{r['n_nodes']:>7} {r['elastic']:>9} error: {r['error']}")
             continue
         print(f"{r['n_nodes']:>7} {r['elastic']:>9} {str(r['device']):>6} {r['cold_context_wall_s']:>10.2f} "
-              f"{r['warm_context_wall_s']:>10.2f} {r['steps_per_s']:>9.4g} {r['node_steps_per_s']:>10.4g} "
+              f"{r['warm_context_wall_s']:>10.2f} {r['force_evals_per_cpu_s']:>14.4g} "
+              f"{r['steps_per_s']:>9.4g} {r['node_steps_per_s']:>10.4g} "
               f"{r['node_steps_per_cpu_s']:>13.4g} {r['ns_per_day']:>9.4g}")
     for n in sizes:
         a = next((r for r in results if r["n_nodes"] == n and r["elastic"] == "plugin" and "error" not in r), None)
         b = next((r for r in results if r["n_nodes"] == n and r["elastic"] == "portable" and "error" not in r), None)
         if a and b:
             print(f"{n} nodes: plugin/portable steps/s {a['steps_per_s'] / b['steps_per_s']:.3g}x, per CPU-second "
-                  f"{a['node_steps_per_cpu_s'] / b['node_steps_per_cpu_s']:.3g}x; cold context "
+                  f"{a['node_steps_per_cpu_s'] / b['node_steps_per_cpu_s']:.3g}x; elastic force alone per "
+                  f"CPU-second {a['force_evals_per_cpu_s'] / b['force_evals_per_cpu_s']:.3g}x; cold context "
                   f"{a['cold_context_wall_s']:.1f} s vs {b['cold_context_wall_s']:.1f} s, warm "
                   f"{a['warm_context_wall_s']:.2f} s vs {b['warm_context_wall_s']:.2f} s")
     device = ""

@@ -217,3 +217,19 @@ def test_build_record_names_device_kernels(mod):
     assert out.count("\n") == 1
     if "CUDA" not in _build_info.DEVICE_KERNELS:
         assert "compiled OpenMM plugin not used on CUDA (its CUDA kernel library was not built:" in out
+
+
+@pytest.mark.parametrize("precision", ["double", "single"])
+def test_cayley_limit_gives_nan_energy_on_device(mod, precision):
+    """A step rotated by 180 degrees (the Cayley limit): NaN energy and no loads from that step, as the host code."""
+    from dnarod.rotations import rotation_about_axis
+
+    model = random_model(4, scale=0.0, rot=0.0)
+    frames = model.frames.copy()
+    frames[3] = frames[2] @ rotation_about_axis(np.array([1.0, 0.0, 0.0]), np.pi)
+    ctx, force = opencl_context(model, precision)
+    ctx.setPositions(P.particle_positions(model.positions, frames, P.triangle_radius(model.mass, model.inertia)))
+    st = ctx.getState(getEnergy=True, getForces=True)
+    assert force.usesDeviceKernel(ctx)
+    assert np.isnan(st.getPotentialEnergy()._value)
+    assert np.isfinite(st.getForces(asNumpy=True)._value).all()
