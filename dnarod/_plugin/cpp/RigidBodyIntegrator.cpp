@@ -1,5 +1,6 @@
 #include "RigidBodyIntegrator.h"
 #include "SMKForceImpl.h"
+#include "RigidBodyKernels.h"
 #include "NodePairForceImpl.h"
 #include "openmm/Context.h"
 #include "openmm/OpenMMException.h"
@@ -162,6 +163,16 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
         sigPi[3 * k] = sigPi[3 * k + 1] = sqrt(0.5 * mass[k] * l2);
         sigPi[3 * k + 2] = sqrt(mass[k] * l2);
     }
+    // On a device platform with dnarod's kernel library the whole step runs there, every force through OpenMM.
+    onDevice = refData == nullptr && ctx.getPlatform().supportsKernels({IntegrateRigidBodyStepKernel::Name()});
+    if (onDevice) {
+        fused = nullptr;
+        pairs = nullptr;
+        otherGroups = groups;
+        haveOther = true;
+        deviceKernel = ctx.getPlatform().createKernel(IntegrateRigidBodyStepKernel::Name(), ctx);
+        static_cast<IntegrateRigidBodyStepKernel&>(deviceKernel.getImpl()).initialize(system, nodeP, nodeR, mass, seed);
+    }
 }
 
 // Node loads (lab force F, torque tau about the centre) at the current positions, c and L already set.
@@ -267,6 +278,11 @@ static inline void rotorBlock(RigidBodyIntegrator::Block& B, double h, bool poly
 }
 
 void RigidBodyIntegrator::step(int steps) {
+    if (onDevice) {
+        static_cast<IntegrateRigidBodyStepKernel&>(deviceKernel.getImpl()).execute(
+            *context, steps, getStepSize(), temperature, friction, getIntegrationForceGroups());
+        return;
+    }
     run(steps);
 }
 

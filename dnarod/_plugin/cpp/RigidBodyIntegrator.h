@@ -46,6 +46,8 @@ public:
     bool usesFusedElasticForce() const { return fused != nullptr; }
     /** True if the node-pair (WCA + Debye-Hueckel) forces are evaluated inside the integrator. */
     bool usesFusedPairForce() const { return pairs != nullptr; }
+    /** True if the steps run on the device (OpenCL/CUDA with dnarod's kernel library; every force by OpenMM). */
+    bool usesDeviceKernel() const { return onDevice; }
     /** Lanes of the blocked update (internal). */
     static const int BLOCK = 16;
     struct Block {
@@ -83,6 +85,8 @@ private:
     std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)
     Gaussian normal;
     Block blk;
+    bool onDevice = false;
+    OpenMM::Kernel deviceKernel;  // IntegrateRigidBodyStepKernel (RigidBodyKernels.h) when onDevice
 };
 
 } // namespace dnarod

@@ -98,6 +98,7 @@ public:
     void step(int steps);
     bool usesFusedElasticForce() const;
     bool usesFusedPairForce() const;
+    bool usesDeviceKernel() const;
 };
 
 const char* builtAgainstOpenMM();
