@@ -1,8 +1,10 @@
-"""The compiled plugin's device (Common-compute) kernel of SMKForce on OpenMM's OpenCL platform (pocl on a CPU
-in CI; any OpenCL device elsewhere).
+"""The compiled plugin's device (Common-compute) kernels on OpenMM's OpenCL platform (pocl on a CPU in CI; any
+OpenCL device elsewhere): SMKForce and the rigid-body integrator's step.
 
 References: dnarod.energy.loads (numpy analytic loads) and the plugin's host code on the Reference platform;
-for trajectories, the Python-callback path on the Reference platform with the same VerletIntegrator + SETTLE.
+for trajectories, the Python-callback path on the Reference platform with the same VerletIntegrator + SETTLE,
+and the rigid-body integrator's host steps on Reference for its device steps; the Maxwell-Boltzmann variances
+for its thermostat.
 Skipped with the reason when OpenCL or the kernel library is missing, except under ``CI=true`` (``.ci/run``
 installs pocl and the OpenCL headers as root on Debian), where either is a failure.
 
@@ -121,9 +123,9 @@ def test_sequence_model_and_parameter_update_on_device(mod):
     assert_equal_loads(plugin_loads(ctx), want, 1e-10)
 
 
-def test_auto_takes_the_device_kernel_on_opencl(mod, capsys):
-    """elastic='auto' on OpenCL: the plugin's SMKForce on the device inside OpenMM's LangevinMiddleIntegrator
-    (SETTLE), said once; without the kernel it falls back to the portable expression."""
+def test_auto_takes_the_device_kernels_on_opencl(mod, capsys):
+    """elastic='auto' on OpenCL: the plugin's SMKForce and rigid-body integrator both on the device, said once;
+    without the kernels it falls back to the portable expression."""
     from dnarod.openmm.simulation import RodSimulation
     from dnarod.openmm.system import choose_elastic
 
@@ -131,11 +133,12 @@ def test_auto_takes_the_device_kernel_on_opencl(mod, capsys):
     assert choose_elastic("auto", "OpenCL") == "plugin"
     assert choose_elastic("auto", "OpenCL") == "plugin"
     err = capsys.readouterr().err
-    assert err.count("OpenCL kernel (SMK force on the device") == 1
+    assert err.count("OpenCL kernels (SMK force and rigid-body steps on the device") == 1
     model = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 2)
     sim = RodSimulation(model, platform="OpenCL", precision="mixed", temperature=300.0, seed=3, nonbonded=False)
     assert sim.rs.elastic == "plugin" and sim.rs.device
-    assert isinstance(sim.integrator, openmm.LangevinMiddleIntegrator)
+    assert isinstance(sim.integrator, mod.RigidBodyIntegrator) and sim.integrator.usesDeviceKernel()
+    assert not sim.integrator.usesFusedElasticForce()
     smk = [f for f in (sim.rs.system.getForce(i) for i in range(sim.rs.system.getNumForces()))
            if mod.SMKForce.isinstance(f)]
     assert len(smk) == 1 and mod.SMKForce.cast(smk[0]).usesDeviceKernel(sim.context)
@@ -156,23 +159,97 @@ def test_auto_takes_the_device_kernel_on_opencl(mod, capsys):
         plugin._DEVICE["OpenCL"] = saved
 
 
-def test_nve_trajectory_equals_callback_path(mod):
-    """VerletIntegrator + SETTLE in double precision: the device kernel on OpenCL follows the same trajectory as
-    the Python-callback path on the Reference platform (same integrator, same forces). Measured after 100 steps:
-    5e-9 nm / 3e-8 in the frames; OpenMM's own CustomCompoundBondForce on OpenCL differs from Reference by
-    4e-9 nm / 6e-9 in the same run (the platforms' SETTLE and summation differ; the rounding grows with time)."""
+def test_nve_settle_trajectory_equals_callback_path(mod):
+    """OpenMM's VerletIntegrator + SETTLE in double precision: the SMK device kernel on OpenCL follows the same
+    trajectory as the Python-callback path on the Reference platform (same integrator, same forces). Measured after
+    100 steps: 5e-9 nm / 3e-8 in the frames; OpenMM's own CustomCompoundBondForce on OpenCL differs from Reference
+    by 4e-9 nm / 6e-9 in the same run (the platforms' SETTLE and summation differ; the rounding grows with time)."""
     from dnarod.openmm.simulation import RodSimulation
+    from dnarod.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
-    ends = []
-    for platform, elastic, prec in (("Reference", "fast", None), ("OpenCL", "plugin", "double")):
-        sim = RodSimulation(model, integrator="verlet", temperature=300.0, elastic=elastic, platform=platform,
-                            precision=prec, seed=4, nonbonded=False, dt=0.01)
-        assert sim.rs.device == (platform == "OpenCL")
-        sim.advance(100)
-        ends.append(sim.node_pose())
-    assert np.max(np.abs(ends[0][0] - ends[1][0])) < 1e-7
-    assert np.max(np.abs(ends[0][1] - ends[1][1])) < 2e-7
+    ref = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="fast", platform="Reference", seed=4,
+                        nonbonded=False, dt=0.01)
+    st = ref.context.getState(getPositions=True, getVelocities=True)
+    rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
+    assert rs.device
+    integ = openmm.VerletIntegrator(0.01)
+    integ.setConstraintTolerance(1e-8)
+    ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("OpenCL"), {"Precision": "double"})
+    ctx.setPositions(st.getPositions())
+    ctx.setVelocities(st.getVelocities())
+    ref.advance(100)
+    integ.step(100)
+    c0, f0 = ref.node_pose()
+    c, f = P.node_poses(ctx.getState(getPositions=True).getPositions(asNumpy=True)._value)
+    assert np.max(np.abs(c - c0)) < 1e-7
+    assert np.max(np.abs(f - f0)) < 2e-7
+
+
+@pytest.mark.parametrize("precision, tol", [("double", 1e-10), ("mixed", 1e-6), ("single", 1e-4)])
+def test_rigid_body_steps_on_device_equal_host(mod, precision, tol):
+    """NVE: the rigid-body integrator's device steps on OpenCL follow its host steps on Reference (the same
+    splitting; measured after 100 steps: 3e-13 nm / 5e-13 in the frames in double, 2e-8 / 4e-8 mixed, 2e-6 / 3e-6
+    single), and keep every triangle rigid."""
+    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.openmm.system import build_system
+
+    model = random_model(8, scale=0.02, rot=0.05)
+    ref = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", platform="Reference", seed=4,
+                        nonbonded=False, dt=0.01)
+    st = ref.context.getState(getPositions=True, getVelocities=True)
+    rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
+    integ = plugin.rigid_body_integrator(rs.radius, 0.01, 300.0, 0.0, 7)
+    ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("OpenCL"), {"Precision": precision})
+    assert integ.usesDeviceKernel()
+    ctx.setPositions(st.getPositions())
+    ctx.setVelocities(st.getVelocities())
+    ref.advance(100)
+    integ.step(100)
+    c0, f0 = ref.node_pose()
+    p = ctx.getState(getPositions=True).getPositions(asNumpy=True)._value
+    c, f = P.node_poses(p)
+    assert np.max(np.abs(c - c0)) < tol
+    assert np.max(np.abs(f - f0)) < tol
+    tri = p.reshape(-1, 3, 3)
+    side = np.linalg.norm(tri[:, 0] - tri[:, 1], axis=1)
+    assert np.max(np.abs(side - np.sqrt(3) * rs.radius)) < (1e-12 if precision == "double" else 1e-5)
+    assert np.max(np.abs(c - model.positions)) > 1e-4  # the nodes did move
+
+
+def test_rigid_body_langevin_on_device(mod):
+    """Langevin on the device: a checkpoint repeats bit for bit (random numbers from OpenMM's generator, saved
+    with the Context), and node velocities and angular velocities have the Maxwell-Boltzmann variances kT/m,
+    kT/J_a (400 samples of 30 nodes 10 steps apart at friction 5/ps: within 10%; measured 0.97-1.02)."""
+    from dnarod.openmm.system import build_system
+    from dnarod.thermal import kT as kT_of
+
+    model = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 3)
+    rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
+    integ = plugin.rigid_body_integrator(rs.radius, 0.02, 300.0, 5.0, 11)
+    ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("OpenCL"), {"Precision": "mixed"})
+    ctx.setPositions(P.particle_positions(model.positions, model.frames, rs.radius))
+    assert integ.usesDeviceKernel()
+    integ.step(500)
+    blob = ctx.createCheckpoint()
+    integ.step(50)
+    a = ctx.getState(getPositions=True, getVelocities=True)
+    ctx.loadCheckpoint(blob)
+    integ.step(50)
+    b = ctx.getState(getPositions=True, getVelocities=True)
+    assert np.array_equal(a.getPositions(asNumpy=True)._value, b.getPositions(asNumpy=True)._value)
+    assert np.array_equal(a.getVelocities(asNumpy=True)._value, b.getVelocities(asNumpy=True)._value)
+    V, W = [], []
+    for _ in range(400):
+        integ.step(10)
+        s = ctx.getState(getPositions=True, getVelocities=True)
+        v, w = P.node_velocities(s.getPositions(asNumpy=True)._value, s.getVelocities(asNumpy=True)._value)
+        V.append(v)
+        W.append(w)
+    kT = kT_of(300.0)
+    rv = (np.var(V, axis=0) * model.mass[:, None] / kT).mean(axis=0)
+    rw = (np.var(W, axis=0) * model.inertia / kT).mean(axis=0)
+    assert np.all(np.abs(rv - 1) < 0.1) and np.all(np.abs(rw - 1) < 0.1), (rv, rw)
 
 
 def test_checkpoint_round_trip_on_device(mod):

@@ -13,7 +13,8 @@ What the plugin provides (:func:`smk_force`): ``dnarod.SMKForce``, the SMK step 
 closure of circular chains) on the three-particle nodes of :mod:`dnarod.openmm.particles`, evaluated in C++
 on the host on every platform (OpenMM's CustomCPPForceImpl), and on the device on GPU platforms (OpenCL,
 CUDA) whose Common-compute kernel library was built (:func:`device_kernel`; the build records which ones in
-``_build_info.DEVICE_KERNELS`` and why the others were not built).
+``_build_info.DEVICE_KERNELS`` and why the others were not built); that library also runs the rigid-body
+integrator's steps on the device.
 """
 from __future__ import annotations
 
@@ -27,8 +28,8 @@ from ..errors import ParameterError
 
 #: Host platforms on which ``elastic="auto"`` takes the plugin (SMKForce as host code, rigid-body integrator).
 PLUGIN_PLATFORMS = ("CPU", "Reference")
-#: GPU platforms on which ``elastic="auto"`` takes the plugin when its device kernel is loaded there
-#: (:func:`device_kernel`): SMKForce on the device inside OpenMM's own integrators (no host copies per step).
+#: GPU platforms on which ``elastic="auto"`` takes the plugin when its device kernels are loaded there
+#: (:func:`device_kernel`): SMKForce and the rigid-body integrator's steps on the device (no host copies per step).
 DEVICE_PLATFORMS = ("OpenCL", "CUDA")
 
 
@@ -178,8 +179,9 @@ def _load_device_kernel(platform):
         openmm.Platform.loadPluginLibrary(path)
     except Exception as exc:  # noqa: BLE001 - any load failure falls back to the host code
         return False, f"its {platform} kernel library failed to load ({type(exc).__name__}: {exc})"
-    if not openmm.Platform.getPlatformByName(platform).supportsKernels(["DnarodCalcSMKForce"]):
-        return False, f"its {platform} kernel library loaded but registered no kernel"
+    if not openmm.Platform.getPlatformByName(platform).supportsKernels(["DnarodCalcSMKForce",
+                                                                        "DnarodIntegrateRigidBodyStep"]):
+        return False, f"its {platform} kernel library loaded but did not register its kernels"
     return True, ""
 
 
@@ -190,8 +192,8 @@ def announce_device(platform, stream=None):
     _DEVICE_ANNOUNCED.add(platform)
     ok, why = device_kernel(platform)
     if ok:
-        msg = (f"dnarod: using the compiled OpenMM plugin's {platform} kernel (SMK force on the device, built "
-               f"against OpenMM {status().built_against})")
+        msg = (f"dnarod: using the compiled OpenMM plugin's {platform} kernels (SMK force and rigid-body steps on "
+               f"the device, built against OpenMM {status().built_against})")
     else:
         msg = f"dnarod: compiled OpenMM plugin not used on {platform} ({why}); using the portable path"
     print(msg, file=stream or sys.stderr)
@@ -260,7 +262,8 @@ def rigid_body_integrator(radius, dt, temperature=300.0, friction=1.0, seed=0, p
     ``V(dt) A(dt/2) O(dt) A(dt/2)`` for Langevin (BAOAB). Triangles stay exactly rigid without constraints;
     zero-mass (clamped) nodes stay put. The SMK loads of an ``SMKForce`` on the same nodes are evaluated
     inside the integrator; other forces through OpenMM. Its random-number state is checkpointed with the
-    Context.
+    Context. On a GPU platform with the plugin's device kernels (:func:`device_kernel`) whole steps run on the
+    device (forces from OpenMM there, random numbers from OpenMM's generator).
 
     Parameters
     ----------

@@ -117,9 +117,9 @@ class RodSimulation:
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         self.rs = build_system(model, platform, elastic, nonbonded, loads,
                                self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
-        if self.rs.elastic == "plugin" and not self.rs.device:
-            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). With
-            # the SMKForce on a device (rs.device) OpenMM's own integrators below keep the step on the device.
+        if self.rs.elastic == "plugin":
+            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
+            # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
             from .plugin import rigid_body_integrator
 
             integ = rigid_body_integrator(self.rs.radius, dt, self.temperature,

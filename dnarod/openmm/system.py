@@ -10,8 +10,8 @@ Forces (force groups in :data:`dnarod.openmm.forces.GROUPS`):
   ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the plugin, else the fast path, on the CPU and
   Reference platforms; on GPU platforms (CUDA, OpenCL, HIP), where a Python callback would copy positions
   off the device every step, it picks the plugin where its device kernel is loaded for that platform
-  (:func:`dnarod.openmm.plugin.device_kernel`: SMKForce on the device, OpenMM's own integrators with
-  SETTLE), else the portable expression;
+  (:func:`dnarod.openmm.plugin.device_kernel`: SMKForce and the rigid-body integrator's steps on the
+  device), else the portable expression;
 * non-local terms (:mod:`dnarod.openmm.nonbonded`), on by default: with the fast elastic path
   they are evaluated inside the elastic callback (one ``PythonForce``, force group
   ``"elastic"``; the per-term split is read from the callbacks), with the portable path by
@@ -79,8 +79,8 @@ class RodSystem:
     nonbonded : dict or None
         Resolved non-local numbers (Debye length, charge, cutoff, ...), ``None`` if off.
     device : bool
-        ``elastic == "plugin"`` on a GPU platform whose device kernel evaluates the SMKForce: the run uses
-        OpenMM's integrators (SETTLE), not the host-side rigid-body integrator.
+        ``elastic == "plugin"`` on a GPU platform where the plugin's device kernels are loaded: the SMKForce is
+        evaluated there and the rigid-body integrator steps there (no host copies per step).
     """
 
     system: openmm.System
