@@ -19,10 +19,10 @@ benchmark runs, not GPU speed. JSON to ``benchmarks/results/bench_gpu.json``.
 
     python benchmarks/bench_gpu.py --compare --platform OpenCL --sizes 1000,10000
 
-compares the two elastic forces on the device, bonded model only (no non-local terms, which are host
-code on both paths): the compiled plugin's SMK kernel (``elastic="plugin"``) against the portable
-CustomCompoundBondForce (``elastic="portable"``), both in LangevinMiddle + SETTLE, each size and path in its
-own process. Context creation is timed cold (a fresh, empty pocl kernel cache: ``POCL_CACHE_DIR`` set to a
+compares three device paths, bonded model only (no non-local terms, which are host code on every path):
+``plugin`` (the compiled plugin's SMK kernel and its rigid-body integrator's step kernel, no constraints),
+``plugin-settle`` (the SMK kernel inside OpenMM's LangevinMiddleIntegrator + SETTLE) and ``portable`` (the
+CustomCompoundBondForce in LangevinMiddle + SETTLE), each size and path in its own process. Context creation is timed cold (a fresh, empty pocl kernel cache: ``POCL_CACHE_DIR`` set to a
 new directory; OpenMM's OpenCL platform keeps no cache of its own) and warm (a second Context in the same
 process, kernels cached; both include building the System and the first evaluation), then on the warm one
 the elastic force alone (energy evaluations of its force group) and steps/s. JSON to ``benchmarks/results/bench_gpu_compare.json``.
@@ -98,6 +98,31 @@ def single(n, plat, budget, precision):
     return out
 
 
+def _plugin_settle(model, plat, precision):
+    """The plugin's SMK device kernel inside OpenMM's LangevinMiddleIntegrator + SETTLE (not the rigid-body
+    integrator), shaped like a RodSimulation for _rate."""
+    from types import SimpleNamespace
+
+    import openmm
+
+    from dnarod import modes
+    from dnarod.openmm.particles import particle_positions
+    from dnarod.openmm.platforms import platform_properties
+    from dnarod.modes import DEFAULT_OMEGA_DT
+    from dnarod.openmm.system import build_system
+
+    rs = build_system(model, plat, "plugin", nonbonded=False)
+    dt = DEFAULT_OMEGA_DT / modes.omega_max(model)
+    integ = openmm.LangevinMiddleIntegrator(300.0, 1.0, dt)
+    integ.setRandomNumberSeed(1)
+    t = time.perf_counter()
+    ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName(plat),
+                         platform_properties(plat, None, precision))
+    ctx.setPositions(particle_positions(model.positions, model.frames, rs.radius))
+    ctx.setVelocitiesToTemperature(300.0, 1)
+    return SimpleNamespace(context=ctx, integrator=integ, rs=rs, dt=dt, context_time=time.perf_counter() - t)
+
+
 def compare_single(n, plat, budget, precision, elastic):
     """Cold and warm Context creation and steps/s of one elastic path (bonded model) at n nodes."""
     from dnarod.forcefield import load_forcefield
@@ -108,8 +133,11 @@ def compare_single(n, plat, budget, precision, elastic):
     out = dict(n_nodes=n, platform=plat, precision=precision, elastic=elastic)
     for phase in ("cold", "warm"):
         c0, w0 = time.process_time(), time.perf_counter()
-        sim = RodSimulation(model, temperature=300.0, nonbonded=False, seed=1, platform=plat, precision=precision,
-                            elastic=elastic)
+        if elastic == "plugin-settle":
+            sim = _plugin_settle(model, plat, precision)
+        else:
+            sim = RodSimulation(model, temperature=300.0, nonbonded=False, seed=1, platform=plat,
+                                precision=precision, elastic=elastic)
         sim.context.getState(getEnergy=True)  # the first evaluation (lazy kernel set-up included)
         out[f"{phase}_context_wall_s"] = time.perf_counter() - w0
         out[f"{phase}_context_cpu_s"] = time.process_time() - c0
@@ -144,7 +172,7 @@ def compare(args, plat):
     sizes = sorted({int(s) for s in args.sizes.split(",")})
     results = []
     for n in sizes:
-        for elastic in ("plugin", "portable"):
+        for elastic in ("plugin", "plugin-settle", "portable"):
             t = time.perf_counter()
             with tempfile.TemporaryDirectory(prefix="pocl-cache-") as cache:
                 env = dict(os.environ, POCL_CACHE_DIR=cache)
@@ -159,23 +187,25 @@ def compare(args, plat):
             results[-1]["wall_s"] = time.perf_counter() - t
             print(f"measured {elastic} at {n} nodes in {results[-1]['wall_s']:.0f} s", file=sys.stderr)
     load = os.getloadavg()
-    print(f"platform {plat} ({args.precision} precision), bonded model, LangevinMiddle + SETTLE 300 K, default dt; "
+    print(f"platform {plat} ({args.precision} precision), bonded model, 300 K, friction 1/ps, default dt; "
           f"load average {load[0]:.2f} {load[1]:.2f} {load[2]:.2f}")
-    print(f"{'nodes':>7} {'elastic':>9} {'device':>6} {'cold ctx s':>10} {'warm ctx s':>10} {'force ev/CPU-s':>14} "
+    print(f"{'nodes':>7} {'elastic':>13} {'device':>6} {'cold ctx s':>10} {'warm ctx s':>10} {'force ev/CPU-s':>14} "
           f"{'steps/s':>9} {'node-st/s':>10} {'node-st/CPU-s':>13} {'ns/day':>9}")
     for r in results:
         if "error" in r:
-            print(f"{r['n_nodes']:>7} {r['elastic']:>9} error: {r['error']}")
+            print(f"{r['n_nodes']:>7} {r['elastic']:>13} error: {r['error']}")
             continue
-        print(f"{r['n_nodes']:>7} {r['elastic']:>9} {str(r['device']):>6} {r['cold_context_wall_s']:>10.2f} "
+        print(f"{r['n_nodes']:>7} {r['elastic']:>13} {str(r['device']):>6} {r['cold_context_wall_s']:>10.2f} "
               f"{r['warm_context_wall_s']:>10.2f} {r['force_evals_per_cpu_s']:>14.4g} "
               f"{r['steps_per_s']:>9.4g} {r['node_steps_per_s']:>10.4g} "
               f"{r['node_steps_per_cpu_s']:>13.4g} {r['ns_per_day']:>9.4g}")
     for n in sizes:
-        a = next((r for r in results if r["n_nodes"] == n and r["elastic"] == "plugin" and "error" not in r), None)
         b = next((r for r in results if r["n_nodes"] == n and r["elastic"] == "portable" and "error" not in r), None)
-        if a and b:
-            print(f"{n} nodes: plugin/portable steps/s {a['steps_per_s'] / b['steps_per_s']:.3g}x, per CPU-second "
+        for name in ("plugin", "plugin-settle"):
+            a = next((r for r in results if r["n_nodes"] == n and r["elastic"] == name and "error" not in r), None)
+            if not (a and b):
+                continue
+            print(f"{n} nodes: {name}/portable steps/s {a['steps_per_s'] / b['steps_per_s']:.3g}x, per CPU-second "
                   f"{a['node_steps_per_cpu_s'] / b['node_steps_per_cpu_s']:.3g}x; elastic force alone per "
                   f"CPU-second {a['force_evals_per_cpu_s'] / b['force_evals_per_cpu_s']:.3g}x; cold context "
                   f"{a['cold_context_wall_s']:.1f} s vs {b['cold_context_wall_s']:.1f} s, warm "
