@@ -6,7 +6,8 @@ why not, and the OpenMM version it was built against. At first use (never at imp
 checks that record against the OpenMM installed now and loads the extension; if anything is missing or
 does not match, dnarod uses its Python-callback path (:func:`dnarod.openmm.forces.elastic_python_force`)
 and says so once, naming the reason (and both OpenMM versions for a mismatch). ``DNAROD_PLUGIN=0`` in the
-environment switches the plugin off.
+environment switches the plugin off, ``DNAROD_DEVICE_KERNELS=0`` only its device kernels (the plugin then runs
+as host code on GPU platforms too).
 
 What the plugin provides (:func:`smk_force`): ``dnarod.SMKForce``, the SMK step energy of
 :mod:`dnarod.energy` (exact Cayley strains, full 6x6 stiffness and intrinsic strains per step, screw
@@ -157,6 +158,8 @@ def device_kernel(platform):
 def _load_device_kernel(platform):
     if platform not in DEVICE_PLATFORMS:
         return False, f"the plugin has no device kernel for the {platform} platform"
+    if os.environ.get("DNAROD_DEVICE_KERNELS", "").strip() == "0":
+        return False, "device kernels switched off by DNAROD_DEVICE_KERNELS=0"
     st = status()
     if not st.available:
         return False, f"the compiled plugin is not usable ({st.reason})"
