@@ -310,3 +310,28 @@ def test_cayley_limit_gives_nan_energy_on_device(mod, precision):
     assert force.usesDeviceKernel(ctx)
     assert np.isnan(st.getPotentialEnergy()._value)
     assert np.isfinite(st.getForces(asNumpy=True)._value).all()
+
+
+def test_full_model_on_the_device_path(mod):
+    """Non-local terms on (NodePairForce, host code on this path): at the same state the per-term energies on
+    OpenCL equal the plugin on Reference, and a short Langevin run on the device stays finite."""
+    from dnarod.openmm.simulation import RodSimulation
+
+    # 30 bp bent on three quarters of a circle of radius 2.16 nm: non-excluded node pairs 3.3-4.3 nm apart,
+    # some inside the Debye-Hueckel cutoff, so the non-local energy is not zero
+    base = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 3)
+    R = 40 * base.ds / (2 * np.pi)
+    phi = np.arange(base.n_nodes) * base.ds / R
+    cos, sin, zero = np.cos(phi), np.sin(phi), np.zeros_like(phi)
+    pos = R * np.stack([cos, sin, zero], axis=1)
+    d1, d2, d3 = np.stack([-cos, -sin, zero], 1), np.stack([zero, zero, zero + 1], 1), np.stack([-sin, cos, zero], 1)
+    model = base.with_pose(pos, np.stack([d1, d2, d3], axis=2))
+    sims = [RodSimulation(model, platform=p, precision=q, temperature=300.0, seed=2, elastic="plugin")
+            for p, q in (("Reference", None), ("OpenCL", "double"))]
+    assert sims[1].rs.device and sims[1].integrator.usesDeviceKernel() and not sims[0].rs.device
+    e = [s.energies() for s in sims]
+    for term in ("elastic", "nonbonded"):
+        assert abs(e[0][term] - e[1][term]) <= 1e-9 * max(1.0, abs(e[0][term])), (term, e)
+    assert e[0]["nonbonded"] > 0.0 and e[0]["elastic"] > 1.0
+    sims[1].advance(100)
+    assert np.isfinite(sims[1].energies()["potential"])
