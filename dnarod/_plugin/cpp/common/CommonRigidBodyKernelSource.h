@@ -9,10 +9,29 @@
 namespace dnarod {
 
 static const char* const commonRigidBodySource = R"DNAROD(
+// sin and cos: Taylor polynomials for |x| < 0.8 (truncation < 1e-19, as the host code; rotor angles per
+// sub-step are ~0.05 rad at the default step), the library functions beyond.
+DEVICE void dnarodSinCos(mixed x, mixed* s, mixed* c) {
+    if (fabs(x) < (mixed) 0.8f) {
+        const mixed x2 = x*x;
+        *s = x*(1 + x2*(-1/(mixed) 6 + x2*(1/(mixed) 120 + x2*(-1/(mixed) 5040 + x2*(1/(mixed) 362880 + x2*(
+                -1/(mixed) 39916800 + x2*(1/(mixed) 6227020800L + x2*(-1/(mixed) 1307674368000L + x2*(
+                1/(mixed) 355687428096000L)))))))));
+        *c = 1 + x2*(-1/(mixed) 2 + x2*(1/(mixed) 24 + x2*(-1/(mixed) 720 + x2*(1/(mixed) 40320 + x2*(
+                -1/(mixed) 3628800 + x2*(1/(mixed) 479001600 + x2*(-1/(mixed) 87178291200L + x2*(
+                1/(mixed) 20922789888000L + x2*(-1/(mixed) 6402373705728000L)))))))));
+    }
+    else {
+        *s = sin(x);
+        *c = cos(x);
+    }
+}
+
 // rotate frame columns b, d and body momenta pi_b, pi_d by angle scale * pi_a / J_a about body axis a
 DEVICE void dnarodSubFlow(mixed* L, mixed* pi, const mixed* iJ, int a, int b, int d, mixed scale) {
     const mixed x = scale*pi[a]*iJ[a];
-    const mixed s = sin(x), co = cos(x);
+    mixed s, co;
+    dnarodSinCos(x, &s, &co);
     for (int r = 0; r < 3; r++) {
         const mixed xb = L[3*r+b], xd = L[3*r+d];
         L[3*r+b] = co*xb + s*xd;
