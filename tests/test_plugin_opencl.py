@@ -9,8 +9,8 @@ Skipped with the reason when OpenCL or the kernel library is missing, except und
 installs pocl and the OpenCL headers as root on Debian), where either is a failure.
 
 Tolerances (stated, not tuned to pass):
-* ``double``: energy 1e-12 relative; node forces, torques and particle forces 1e-10 of the largest (forces are
-  accumulated in OpenMM's 64-bit fixed point, resolution 2^-32 kJ/mol/nm);
+* ``double``: energy 1e-10 relative (1e-12 against the host code), node forces, torques and particle forces 1e-10
+  of the largest (forces are accumulated in OpenMM's 64-bit fixed point, resolution 2^-32 kJ/mol/nm);
 * ``mixed`` and ``single`` (forces in single precision): 2e-5 relative (single epsilon 6e-8 times the ~10^2
   operations per step; measured 3e-7 to 2e-6).
 """
