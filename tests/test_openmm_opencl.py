@@ -1,4 +1,5 @@
-"""The portable path on OpenMM's OpenCL platform (pocl on a CPU in CI; any OpenCL device elsewhere).
+"""The portable path on OpenMM's OpenCL platform (pocl on a CPU in CI; any OpenCL device elsewhere), and
+the thermal check of the compiled plugin's device kernel there (its agreement tests: test_plugin_opencl.py).
 
 One Context per precision is shared by the module (OpenCL kernels compile for tens of seconds).
 Outside CI a missing OpenCL platform skips these tests with the reason; with ``CI=true`` it is
@@ -46,12 +47,12 @@ def model():
     return m.with_pose(pos, frm)
 
 
-def _sim(model, precision):
+def _sim(model, precision, elastic="portable"):
     from dnarod.openmm.simulation import RodSimulation, omega_max
 
     _require_opencl()
     return RodSimulation(model, platform="OpenCL", precision=precision, temperature=300, friction=1.0,
-                         nonbonded=False, seed=3, dt=0.2 / omega_max(model))
+                         nonbonded=False, seed=3, dt=0.2 / omega_max(model), elastic=elastic)
 
 
 @pytest.fixture(scope="module")
@@ -135,12 +136,29 @@ def test_checkpoint_round_trip_is_exact(mixed, tmp_path):
     assert np.array_equal(a.getVelocities(asNumpy=True)._value, b.getVelocities(asNumpy=True)._value)
 
 
-def test_langevin_strain_variances_match_the_exact_density(mixed, model):
+@pytest.fixture(scope="module")
+def device(model):
+    """The compiled plugin's SMK force on the device (skipped here when its OpenCL kernel is not usable; its
+    own tests in test_plugin_opencl.py fail under CI then)."""
+    from dnarod.openmm import plugin
+
+    _require_opencl()
+    ok, why = plugin.device_kernel("OpenCL")
+    if not ok:
+        pytest.skip(f"no OpenCL kernel of the compiled plugin: {why}")
+    sim = _sim(model, "mixed", elastic="auto")
+    assert sim.rs.elastic == "plugin" and sim.rs.device
+    return sim
+
+
+@pytest.mark.parametrize("path", ["mixed", "device"])
+def test_langevin_strain_variances_match_the_exact_density(path, model, request):
     """Bend and twist strain variances of a Langevin run against ``kT (ds K_eff)^-1`` times the
-    Haar factor of the exact step density (same check as the CPU engine's test)."""
+    Haar factor of the exact step density (same check as the CPU engine's test), on the portable
+    path and with the plugin's SMK force on the device (both mixed precision)."""
     from test_openmm_simulation import haar_gaussian_ratio
 
-    sim = mixed
+    sim = request.getfixturevalue(path)
     m = model
     sim.thermalize(300, seed=2)
     sim.advance(2000)  # equilibrate

@@ -242,9 +242,9 @@ def _opencl_available():
 
 @pytest.mark.skipif(not _opencl_available(), reason="no OpenCL platform (install pocl-opencl-icd for CPU OpenCL)")
 def test_plugin_force_and_integrator_on_opencl(mod):
-    """On OpenCL the forces run as host code (positions copied off the device every evaluation; no
-    Common-compute kernel yet): equal to dnarod.energy to 1e-11 in double precision, 1e-5 in single; the
-    rigid-body integrator follows the same NVE trajectory as on the CPU platform."""
+    """On OpenCL the SMK force (device kernel where built, host code otherwise; the device kernels have their own
+    tests in test_plugin_opencl.py) equals dnarod.energy to 1e-11 in double precision, 1e-5 in single; the plugin
+    path follows the same NVE trajectory as on the CPU platform."""
     model = random_model(11, circular=True)
     want = loads(model.positions, model.frames, model.params, model.ds, model.closure)
     for precision, rtol in (("double", 1e-11), ("single", 1e-5)):
@@ -267,6 +267,34 @@ def test_plugin_force_and_integrator_on_opencl(mod):
         sim.advance(50)
         ends.append(sim.node_pose()[0])
     assert np.max(np.abs(ends[0] - ends[1])) < 1e-4
+
+
+@pytest.mark.skipif(not _opencl_available(), reason="no OpenCL platform (install pocl-opencl-icd for CPU OpenCL)")
+def test_host_code_on_opencl_without_device_kernels(mod):
+    """DNAROD_DEVICE_KERNELS=0 (or no kernel library): on OpenCL the plugin runs as host code (SMK force through
+    CustomCPPForceImpl, rigid-body steps on host copies), said once, and follows the CPU platform's trajectory."""
+    code = """
+import numpy as np
+from dnarod.forcefield import load_forcefield
+from dnarod.openmm import plugin
+from dnarod.openmm.simulation import RodSimulation
+plain = load_forcefield("dna-default").model_from_sequence("ACGTACGTACGT")
+ends = []
+for platform in ("CPU", "OpenCL"):
+    sim = RodSimulation(plain, integrator="verlet", temperature=300.0, elastic="plugin", platform=platform,
+                        seed=4, nonbonded=False, dt=0.02)
+    assert not sim.rs.device and not sim.integrator.usesDeviceKernel()
+    sim.advance(50)
+    ends.append(sim.node_pose()[0])
+assert np.max(np.abs(ends[0] - ends[1])) < 1e-4
+plugin.announce_device("OpenCL")
+print("host-ok")
+"""
+    env = dict(os.environ, DNAROD_DEVICE_KERNELS="0")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
+    assert p.returncode == 0, p.stderr[-2000:]
+    assert "host-ok" in p.stdout
+    assert "compiled OpenMM plugin not used on OpenCL (device kernels switched off by DNAROD_DEVICE_KERNELS=0)" in p.stderr
 
 
 def test_system_with_plugin_forces_pickles_and_copies(mod):

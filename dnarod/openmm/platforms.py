@@ -3,11 +3,13 @@
 Automatic choice (``requested=None``), in order:
 
 1. **CUDA** (or HIP) when OpenMM has loaded that plugin (it only loads with a working driver;
-   ``pip install 'dnarod[cuda12]'`` brings ``openmm-cuda-12``), with the portable elastic path;
+   ``pip install 'dnarod[cuda12]'`` brings ``openmm-cuda-12``), with the compiled plugin's device
+   kernel where it was built for that platform (:func:`dnarod.openmm.plugin.device_kernel`), else
+   the portable elastic path;
 2. **OpenCL** when an OpenCL platform offers a *GPU* device (queried through the OpenCL ICD
-   loader, without creating an OpenMM Context). A CPU-only OpenCL implementation such as pocl
-   is never chosen automatically: it runs the portable path several times slower than the
-   CPU fast path (``benchmarks/bench_platforms.py``, ``bench_gpu.py``);
+   loader, without creating an OpenMM Context), with the same elastic choice. A CPU-only OpenCL
+   implementation such as pocl is never chosen automatically: it runs several times slower than
+   the CPU paths (``benchmarks/bench_platforms.py``, ``bench_gpu.py``);
 3. **the CPU fast path**: the numba/``PythonForce`` callbacks on the **Reference** platform (or
    on the **CPU** platform when ``threads`` is given). The CPU platform runs its integrator on a
    worker thread even with ``Threads=1``, so every step (and every Python callback) is handed
@@ -103,6 +105,16 @@ def platform_properties(name, threads=None, precision=None):
     return props
 
 
+def _gpu_elastic(name, elastic):
+    """Which elastic path ``elastic`` gives on GPU platform ``name`` (for the reason line)."""
+    if elastic in ("auto", "plugin"):
+        from .plugin import device_kernel
+
+        if device_kernel(name)[0]:
+            return "SMK force on the device (compiled plugin)"
+    return "portable elastic path"
+
+
 def choose_platform(requested=None, n_nodes=None, elastic="auto", threads=None, precision=None):
     """The OpenMM platform for a run, its properties and the reason for the choice.
 
@@ -133,12 +145,12 @@ def choose_platform(requested=None, n_nodes=None, elastic="auto", threads=None, 
         for gpu in ("CUDA", "HIP"):
             if gpu in names:
                 return (openmm.Platform.getPlatformByName(gpu), platform_properties(gpu, None, precision),
-                        f"{gpu} (GPU found; portable elastic path)")
+                        f"{gpu} (GPU found; {_gpu_elastic(gpu, elastic)})")
         if "OpenCL" in names:
             gpus = opencl_gpu_devices()
             if gpus:
                 return (openmm.Platform.getPlatformByName("OpenCL"), platform_properties("OpenCL", None, precision),
-                        f"OpenCL (GPU {gpus[0]}; portable elastic path)")
+                        f"OpenCL (GPU {gpus[0]}; {_gpu_elastic('OpenCL', elastic)})")
     if elastic == "portable":
         return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
                 "CPU (no GPU found; portable elastic path on the multithreaded CPU platform)")

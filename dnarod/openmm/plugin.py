@@ -6,12 +6,16 @@ why not, and the OpenMM version it was built against. At first use (never at imp
 checks that record against the OpenMM installed now and loads the extension; if anything is missing or
 does not match, dnarod uses its Python-callback path (:func:`dnarod.openmm.forces.elastic_python_force`)
 and says so once, naming the reason (and both OpenMM versions for a mismatch). ``DNAROD_PLUGIN=0`` in the
-environment switches the plugin off.
+environment switches the plugin off, ``DNAROD_DEVICE_KERNELS=0`` only its device kernels (the plugin then runs
+as host code on GPU platforms too).
 
 What the plugin provides (:func:`smk_force`): ``dnarod.SMKForce``, the SMK step energy of
 :mod:`dnarod.energy` (exact Cayley strains, full 6x6 stiffness and intrinsic strains per step, screw
 closure of circular chains) on the three-particle nodes of :mod:`dnarod.openmm.particles`, evaluated in C++
-on every platform (OpenMM's CustomCPPForceImpl).
+on the host on every platform (OpenMM's CustomCPPForceImpl), and on the device on GPU platforms (OpenCL,
+CUDA) whose Common-compute kernel library was built (:func:`device_kernel`; the build records which ones in
+``_build_info.DEVICE_KERNELS`` and why the others were not built); that library also runs the rigid-body
+integrator's steps on the device.
 """
 from __future__ import annotations
 
@@ -23,8 +27,11 @@ import numpy as np
 
 from ..errors import ParameterError
 
-#: Platforms on which ``elastic="auto"`` takes the plugin (it copies positions off a GPU every step).
+#: Host platforms on which ``elastic="auto"`` takes the plugin (SMKForce as host code, rigid-body integrator).
 PLUGIN_PLATFORMS = ("CPU", "Reference")
+#: GPU platforms on which ``elastic="auto"`` takes the plugin when its device kernels are loaded there
+#: (:func:`device_kernel`): SMKForce and the rigid-body integrator's steps on the device (no host copies per step).
+DEVICE_PLATFORMS = ("OpenCL", "CUDA")
 
 
 @dataclass(frozen=True)
@@ -93,10 +100,17 @@ def _load():
 
 
 def status():
-    """The :class:`PluginStatus` of this process (computed once)."""
+    """The :class:`PluginStatus` of this process (computed once).
+
+    Loading the extension also loads its device-kernel libraries into OpenMM (:func:`device_kernel`), so every
+    Context created afterwards on such a platform evaluates SMKForce on the device, whichever way the force
+    was made."""
     global _STATUS, _MODULE
     if _STATUS is None:
         _STATUS, _MODULE = _load()
+        if _STATUS.available:
+            for name in DEVICE_PLATFORMS:
+                device_kernel(name)
     return _STATUS
 
 
@@ -114,10 +128,86 @@ def announce(stream=None):
         print(status().message(), file=stream or sys.stderr)
 
 
+_DEVICE = {}
+_DEVICE_ANNOUNCED = set()
+
+
+def device_kernel(platform):
+    """Whether SMKForce runs on the device of a GPU platform here, and why not.
+
+    Loads the platform's kernel library built with the plugin (``dnarod/_plugin/libdnarod_opencl.so``, ...)
+    into OpenMM at the first call (``openmm.Platform.loadPluginLibrary``); never raises.
+
+    Parameters
+    ----------
+    platform : str
+        OpenMM platform name ("OpenCL", "CUDA").
+
+    Returns
+    -------
+    (bool, str)
+        True and "" if a Context on ``platform`` evaluates SMKForce with the device kernel; else False and the
+        reason (plugin not usable, kernel library not built and why, platform missing, library failed to load).
+    """
+    if platform in _DEVICE:
+        return _DEVICE[platform]
+    _DEVICE[platform] = out = _load_device_kernel(platform)
+    return out
+
+
+def _load_device_kernel(platform):
+    if platform not in DEVICE_PLATFORMS:
+        return False, f"the plugin has no device kernel for the {platform} platform"
+    if os.environ.get("DNAROD_DEVICE_KERNELS", "").strip() == "0":
+        return False, "device kernels switched off by DNAROD_DEVICE_KERNELS=0"
+    st = status()
+    if not st.available:
+        return False, f"the compiled plugin is not usable ({st.reason})"
+    from .._plugin import _build_info
+
+    built = getattr(_build_info, "DEVICE_KERNELS", {})
+    if platform not in built:
+        why = getattr(_build_info, "DEVICE_KERNELS_NOT_BUILT", {}).get(platform, "this build predates device kernels; "
+                                                                          "reinstall dnarod (pip install -e .)")
+        return False, f"its {platform} kernel library was not built: {why}"
+    import openmm
+
+    names = [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
+    if platform not in names:
+        return False, f"OpenMM has no {platform} platform here"
+    path = os.path.join(os.path.dirname(_MODULE.__file__), built[platform])
+    if not os.path.exists(path):
+        return False, f"its {platform} kernel library {path} is missing; reinstall dnarod (pip install -e .)"
+    try:
+        openmm.Platform.loadPluginLibrary(path)
+    except Exception as exc:  # noqa: BLE001 - any load failure falls back to the host code
+        return False, f"its {platform} kernel library failed to load ({type(exc).__name__}: {exc})"
+    if not openmm.Platform.getPlatformByName(platform).supportsKernels(["DnarodCalcSMKForce",
+                                                                        "DnarodIntegrateRigidBodyStep"]):
+        return False, f"its {platform} kernel library loaded but did not register its kernels"
+    return True, ""
+
+
+def announce_device(platform, stream=None):
+    """Print once per process and platform whether SMKForce runs on the device of ``platform`` (to stderr)."""
+    if platform in _DEVICE_ANNOUNCED:
+        return
+    _DEVICE_ANNOUNCED.add(platform)
+    ok, why = device_kernel(platform)
+    if ok:
+        msg = (f"dnarod: using the compiled OpenMM plugin's {platform} kernels (SMK force and rigid-body steps on "
+               f"the device, built against OpenMM {status().built_against})")
+    else:
+        msg = f"dnarod: compiled OpenMM plugin not used on {platform} ({why}); using the portable path"
+    print(msg, file=stream or sys.stderr)
+
+
 def _reset_for_tests():
     """Forget the cached status (tests change the environment)."""
     global _STATUS, _MODULE, _ANNOUNCED
     _STATUS, _MODULE, _ANNOUNCED = None, None, False
+    _DEVICE.clear()
+    _DEVICE_ANNOUNCED.clear()
 
 
 def smk_force(model, radius, particles=None):
@@ -175,7 +265,8 @@ def rigid_body_integrator(radius, dt, temperature=300.0, friction=1.0, seed=0, p
     ``V(dt) A(dt/2) O(dt) A(dt/2)`` for Langevin (BAOAB). Triangles stay exactly rigid without constraints;
     zero-mass (clamped) nodes stay put. The SMK loads of an ``SMKForce`` on the same nodes are evaluated
     inside the integrator; other forces through OpenMM. Its random-number state is checkpointed with the
-    Context.
+    Context. On a GPU platform with the plugin's device kernels (:func:`device_kernel`) whole steps run on the
+    device (forces from OpenMM there, random numbers from OpenMM's generator).
 
     Parameters
     ----------

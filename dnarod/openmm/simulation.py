@@ -118,7 +118,8 @@ class RodSimulation:
         self.rs = build_system(model, platform, elastic, nonbonded, loads,
                                self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
         if self.rs.elastic == "plugin":
-            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied).
+            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
+            # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
             from .plugin import rigid_body_integrator
 
             integ = rigid_body_integrator(self.rs.radius, dt, self.temperature,

@@ -8,8 +8,10 @@ Forces (force groups in :data:`dnarod.openmm.forces.GROUPS`):
 
 * elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.openmm.plugin`), ``"fast"`` (numba analytic loads through ``PythonForce``) or
   ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the plugin, else the fast path, on the CPU and
-  Reference platforms and the portable one on GPU platforms (CUDA, OpenCL, HIP), where a
-  Python callback would copy positions off the device every step;
+  Reference platforms; on GPU platforms (CUDA, OpenCL, HIP), where a Python callback would copy positions
+  off the device every step, it picks the plugin where its device kernel is loaded for that platform
+  (:func:`dnarod.openmm.plugin.device_kernel`: SMKForce and the rigid-body integrator's steps on the
+  device), else the portable expression;
 * non-local terms (:mod:`dnarod.openmm.nonbonded`), on by default: with the fast elastic path
   they are evaluated inside the elastic callback (one ``PythonForce``, force group
   ``"elastic"``; the per-term split is read from the callbacks), with the portable path by
@@ -69,13 +71,16 @@ class RodSystem:
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius, nm.
     elastic : str
-        ``"fast"`` or ``"portable"``.
+        ``"plugin"``, ``"fast"`` or ``"portable"``.
     clamped : list of int
         Clamped nodes.
     load_info : dict
         From :func:`dnarod.openmm.loads.build_load_forces`.
     nonbonded : dict or None
         Resolved non-local numbers (Debye length, charge, cutoff, ...), ``None`` if off.
+    device : bool
+        ``elastic == "plugin"`` on a GPU platform where the plugin's device kernels are loaded: the SMKForce is
+        evaluated there and the rigid-body integrator steps there (no host copies per step).
     """
 
     system: openmm.System
@@ -87,6 +92,7 @@ class RodSystem:
     nonbonded_callback: object = None
     elastic_callback: object = None
     residue_names: list = field(default_factory=list)
+    device: bool = False
 
     @property
     def topology(self):
@@ -117,11 +123,16 @@ class RodSystem:
 def choose_elastic(elastic, platform):
     """The elastic path for a platform: ``"auto"`` takes the compiled plugin on CPU/Reference when it is usable
     (saying once which path and why, :mod:`dnarod.openmm.plugin`), else the Python-callback ``"fast"`` path
-    there and the ``"portable"`` expression on GPU platforms."""
+    there; on OpenCL/CUDA the plugin when its device kernel is loaded for that platform (saying once which
+    path and why), else the ``"portable"`` expression, as on other GPU platforms."""
     if elastic == "auto":
         if platform in plugin.PLUGIN_PLATFORMS:
             plugin.announce()
             return "plugin" if plugin.status().available else "fast"
+        if platform in plugin.DEVICE_PLATFORMS:
+            plugin.announce_device(platform)
+            if plugin.device_kernel(platform)[0]:
+                return "plugin"
         return "fast" if platform in PYTHON_FORCE_PLATFORMS else "portable"
     if elastic not in ("fast", "portable", "plugin"):
         raise ParameterError(f"elastic must be 'auto', 'plugin', 'fast' or 'portable', got {elastic!r}")
@@ -181,10 +192,12 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         else:
             nb_numbers = None
     elastic_cb = None
+    device = elastic == "plugin" and platform not in plugin.PLUGIN_PLATFORMS and plugin.device_kernel(platform)[0]
     if elastic == "plugin":
         smk = plugin.smk_force(model, radius)
         system.addForce(smk)
-        elastic_cb = plugin.ElasticEnergy(smk)
+        # a device kernel does not record the last energy on the host: energies are read per force group
+        elastic_cb = None if device else plugin.ElasticEnergy(smk)
     elif elastic == "fast":
         # The non-local terms ride in the elastic callback (one State hand-over per step; group "elastic").
         elastic_cb = ElasticCallback(model, radius, nonbonded=nb_cb)
@@ -195,7 +208,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
     if nb_force is not None and elastic != "fast":  # fast: evaluated inside the elastic callback
         system.addForce(nb_force)
     return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,
-                     residue_names=base_pair_names(model))
+                     residue_names=base_pair_names(model), device=bool(device))
 
 
 def _check_nonbonded_overlaps(model, numbers):

@@ -1,5 +1,6 @@
 #include "RigidBodyIntegrator.h"
 #include "SMKForceImpl.h"
+#include "RigidBodyKernels.h"
 #include "NodePairForceImpl.h"
 #include "Workers.h"
 #include "openmm/Context.h"
@@ -217,6 +218,16 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
         sigPi[3 * k] = sigPi[3 * k + 1] = sqrt(0.5 * mass[k] * l2);
         sigPi[3 * k + 2] = sqrt(mass[k] * l2);
     }
+    // On a device platform with dnarod's kernel library the whole step runs there, every force through OpenMM.
+    onDevice = refData == nullptr && ctx.getPlatform().supportsKernels({IntegrateRigidBodyStepKernel::Name()});
+    if (onDevice) {
+        fused = nullptr;
+        pairs = nullptr;
+        otherGroups = groups;
+        haveOther = true;
+        deviceKernel = ctx.getPlatform().createKernel(IntegrateRigidBodyStepKernel::Name(), ctx);
+        static_cast<IntegrateRigidBodyStepKernel&>(deviceKernel.getImpl()).initialize(system, nodeP, nodeR, mass, seed);
+    }
 }
 
 // SMK loads of thread t's steps (its node range; the right loads of its last step go to its carry).
@@ -358,6 +369,11 @@ static inline __attribute__((always_inline)) void rotorBlock(RigidBodyIntegrator
 }
 
 void RigidBodyIntegrator::step(int steps) {
+    if (onDevice) {
+        static_cast<IntegrateRigidBodyStepKernel&>(deviceKernel.getImpl()).execute(
+            *context, steps, getStepSize(), temperature, friction, getIntegrationForceGroups());
+        return;
+    }
     run(steps);
 }
 

@@ -67,6 +67,8 @@ public:
      *  (computeKineticEnergy), and 1 if every value written to out is finite (else 0). After a step with only fused forces this reads the kept node state, and the
      *  loads computed here are the ones the next step starts from (they are not computed twice). */
     void getNodeReport(double* out, double* energies);
+    /** True if the steps run on the device (OpenCL/CUDA with dnarod's kernel library; every force by OpenMM). */
+    bool usesDeviceKernel() const { return onDevice; }
     /** Lanes of the blocked update (internal). */
     static const int BLOCK = 16;
     struct Block {
@@ -125,6 +127,8 @@ private:
     std::vector<double> carry, partE;
     // per-step constants for update()
     double stepDt = 0, stepCfric = 0, stepNoise = 0;
+    bool onDevice = false;
+    OpenMM::Kernel deviceKernel;  // IntegrateRigidBodyStepKernel (RigidBodyKernels.h) when onDevice
 };
 
 } // namespace dnarod

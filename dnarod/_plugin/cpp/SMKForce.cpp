@@ -196,6 +196,10 @@ double chainLoads(const vector<SMKForce::Step>& steps, double ds, const double* 
 
 ForceImpl* SMKForce::createImpl() const { return new SMKForceImpl(*this); }
 
+bool SMKForce::usesDeviceKernel(Context& context) {
+    return dynamic_cast<SMKForceImpl&>(getImplInContext(context)).usesDeviceKernel();
+}
+
 void SMKForce::updateParametersInContext(Context& context) {
     dynamic_cast<SMKForceImpl&>(getImplInContext(context)).updateParametersInContext(getContextImpl(context));
 }

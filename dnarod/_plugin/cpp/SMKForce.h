@@ -48,7 +48,10 @@ public:
     /** Push changed step parameters (setStepParameters) into a Context. */
     void updateParametersInContext(OpenMM::Context& context);
     bool usesPeriodicBoundaryConditions() const { return false; }
-    /** Energy of the last evaluation in any Context (kJ/mol; NaN at the Cayley limit). */
+    /** True if context evaluates this force with a device kernel (OpenCL/CUDA), false for host code. */
+    bool usesDeviceKernel(OpenMM::Context& context);
+    /** Energy of the last host evaluation in any Context (kJ/mol; NaN at the Cayley limit; not updated by a
+     *  device kernel: read the force group's energy from the Context there). */
     double getLastEnergy() const { return lastEnergy; }
     mutable double lastEnergy = 0.0;
 

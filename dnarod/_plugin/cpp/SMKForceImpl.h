@@ -1,8 +1,11 @@
 #ifndef DNAROD_SMKFORCEIMPL_H_
 #define DNAROD_SMKFORCEIMPL_H_
-// The SMKForce implementation: the same C++ computation on every platform (OpenMM's CustomCPPForceImpl).
+// The SMKForce implementation: host C++ on every platform (OpenMM's CustomCPPForceImpl), or, where the
+// platform has a device kernel for it (CalcSMKForceKernel: OpenCL, CUDA when dnarod's kernel library for it is
+// loaded), that kernel, which keeps positions and forces on the device.
 // RigidBodyIntegrator calls nodeLoads() directly to skip spreading the loads over particles.
 #include "SMKForce.h"
+#include "SMKKernels.h"
 #include "openmm/OpenMMException.h"
 #include "openmm/System.h"
 #include "openmm/internal/ContextImpl.h"
@@ -16,7 +19,6 @@ class SMKForceImpl : public OpenMM::CustomCPPForceImpl {
 public:
     SMKForceImpl(const SMKForce& owner) : OpenMM::CustomCPPForceImpl(owner), owner(owner) {}
     void initialize(OpenMM::ContextImpl& context) {
-        OpenMM::CustomCPPForceImpl::initialize(context);
         const OpenMM::System& system = context.getSystem();
         steps = owner.stepList();
         nodes = owner.nodeList();
@@ -36,6 +38,21 @@ public:
         L.resize(9 * nodes.size());
         F.resize(3 * nodes.size());
         tau.resize(3 * nodes.size());
+        const std::vector<std::string> names = {CalcSMKForceKernel::Name()};
+        onDevice = context.getPlatform().supportsKernels(names);
+        if (onDevice) {
+            deviceKernel = context.getPlatform().createKernel(CalcSMKForceKernel::Name(), context);
+            deviceImpl().initialize(system, owner);
+        } else {
+            OpenMM::CustomCPPForceImpl::initialize(context);
+        }
+    }
+    /** True if this Context evaluates the force with a device kernel (no host copies). */
+    bool usesDeviceKernel() const { return onDevice; }
+    double calcForcesAndEnergy(OpenMM::ContextImpl& context, bool includeForces, bool includeEnergy, int groups) {
+        if (!onDevice) return OpenMM::CustomCPPForceImpl::calcForcesAndEnergy(context, includeForces, includeEnergy, groups);
+        if ((groups & (1 << owner.getForceGroup())) == 0) return 0.0;
+        return deviceImpl().execute(context, includeForces, includeEnergy);
     }
     const SMKForce& getOwner() const { return owner; }
     double computeForce(OpenMM::ContextImpl& context, const std::vector<OpenMM::Vec3>& positions, std::vector<OpenMM::Vec3>& forces) {
@@ -81,6 +98,7 @@ public:
                 throw OpenMM::OpenMMException("SMKForce.updateParametersInContext: the nodes of a step changed");
         steps = s;
         version++;
+        if (onDevice) deviceImpl().copyParametersToContext(context, owner);
         context.systemChanged();
     }
     std::vector<std::pair<int, int> > getBondedParticles() const {
@@ -113,6 +131,11 @@ public:
     /** Incremented whenever the step parameters change (updateParametersInContext). */
     long long version = 0;
 private:
+    // The kernel library is a separate shared object (loaded by OpenMM), so the impl is reached by its fixed
+    // kernel name rather than a dynamic_cast across libraries.
+    CalcSMKForceKernel& deviceImpl() { return static_cast<CalcSMKForceKernel&>(deviceKernel.getImpl()); }
+    bool onDevice = false;
+    OpenMM::Kernel deviceKernel;
     const SMKForce& owner;
     std::vector<SMKForce::Step> steps;
     std::vector<SMKForce::Node> nodes;

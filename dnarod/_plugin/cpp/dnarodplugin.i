@@ -59,6 +59,7 @@ public:
     std::vector<double> getClosureQ() const;
     std::vector<double> getClosureT() const;
     void updateParametersInContext(OpenMM::Context& context);
+    bool usesDeviceKernel(OpenMM::Context& context);
     bool usesPeriodicBoundaryConditions() const;
     double getLastEnergy() const;
     %extend {
@@ -129,6 +130,7 @@ public:
             return Py_BuildValue("(dddddd)", e[0], e[1], e[2], e[3], e[4], e[5]);
         }
     }
+    bool usesDeviceKernel() const;
 };
 
 const char* builtAgainstOpenMM();
