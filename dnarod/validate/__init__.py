@@ -12,8 +12,12 @@ Checks (by name; each module states its system, reference and tolerances):
   (:mod:`.force_extension`);
 * ``torsion`` -- C_eff(F) of a stretched chain from the torque-turns slope and from twist fluctuations,
   against each other and Moroz & Nelson (:mod:`.torsion`);
-* ``buckling`` -- the torque plateau of a plectonemic chain (Marko's two-phase model; slow, not in ``quick``)
-  (:mod:`.buckling`).
+* ``buckling`` -- plateau torque, buckling point and extension slope of a plectonemic chain against Marko's
+  two-phase model with the model's A, C and plectoneme twist stiffness (:mod:`.buckling`);
+* ``plectonemes`` -- the writhe fraction of supercoiled rings at sigma ~ -0.05 against the two-phase relation
+  ``1 - P/C`` (:mod:`.plectonemes`);
+* ``nicked_ring`` -- ``<ΔLk²>`` of nicked rings (exact twist part, model writhe vs a worm-like-ring Monte Carlo
+  with the model's A and effective diameter) and the free-energy coefficient K (:mod:`.nicked_ring`).
 
 :func:`run_validation` runs a selection and writes ``report.md``, PNG plots and ``results.json``
 (``{"checks": {NAME: {"passed": bool, ...}}}``) to a folder.
@@ -37,6 +41,8 @@ CHECKS = {
     "force_extension": ("force_extension", "check_force_extension"),
     "torsion": ("torsion", "check_torsion"),
     "buckling": ("buckling", "check_buckling"),
+    "plectonemes": ("plectonemes", "check_plectonemes"),
+    "nicked_ring": ("nicked_ring", "check_nicked_ring"),
 }
 #: Checks of ``--quick`` (everything but the slow force-extension runs).
 QUICK_CHECKS = ("engines", "thermal", "dispersion", "helix", "paper_scheme", "torsion")
