@@ -30,7 +30,8 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
 buckling and takes length in short chains (see the README for the measured numbers). ``c_override`` replaces the
-model's C in the theory (the tests show the check failing with C halved); ``P_nm``/``P_err_nm`` skip the ring.
+model's C in the theory, in C_s and in P = C (1 - Wr/ΔLk) (the tests show the check failing with C halved);
+``P_nm``/``P_err_nm`` skip the ring.
 The earlier 2 pN nm plateau allowance is gone (600 bp: the two plateau torques agree within 3 SE without it).
 """
 from __future__ import annotations
@@ -71,12 +72,12 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from .torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
-    n_bp = n_bp or (200 if quick else 600)
+    n_bp = n_bp or (400 if quick else 600)
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lk0 = intrinsic_turns(model)
     pre_turns = 0.02 * lk0 if pre_turns is None else float(pre_turns)
     post_turns = (0.075 * lk0, 0.098 * lk0) if post_turns is None else tuple(post_turns)
-    time_ns = time_ns or (1.0 if quick else 6.0)
+    time_ns = time_ns or (2.0 if quick else 6.0)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
@@ -91,7 +92,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         ring_time_ns = ring_time_ns or (3.0 if quick else 10.0)
         ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
                                     temperature_K=temperature), root / f"ring{ring_n_bp}_{ring_delta_lk}")
-        P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C0)
+        P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th)
     rows = []
     for i, t in enumerate((pre_turns, *post_turns)):
         r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,

@@ -153,6 +153,19 @@ def gaussian_unconstrained_variance(var_constrained, var_other):
 
 
 def effective_diameter(nonbonded, ds, temperature, n_h=160, n_gamma=16, n_offset=3):
+    """The model's effective diameter (nm); see :func:`_effective_diameter` (results are cached per settings)."""
+    import dataclasses
+
+    key = (tuple(dataclasses.astuple(nonbonded)), float(ds), float(temperature), int(n_h), int(n_gamma), int(n_offset))
+    if key not in _DEFF_CACHE:
+        _DEFF_CACHE[key] = _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset)
+    return _DEFF_CACHE[key]
+
+
+_DEFF_CACHE = {}
+
+
+def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
     """The model's effective diameter (nm): Onsager's excluded volume of two long straight chains of its nodes.
 
     Two long rods crossing at angle gamma with closest distance h exclude ``2 L² |sin gamma| d(gamma)``, with
