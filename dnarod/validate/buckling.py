@@ -164,6 +164,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         ax[0, 0].legend(fontsize=7)
         ax[0, 1].errorbar(t, [r["relative_extension"] for r in rows],
                           yerr=[r["relative_extension_err"] for r in rows], fmt="s", capsize=3)
+        ax[0, 1].plot([0.0, th["buckling_delta_lk"], th["plectonemic_delta_lk"]], [th["zeta"], th["zeta"], 0.0], "C3-",
+                      label="Marko two-phase")
+        ax[0, 1].legend(fontsize=7)
         ax[0, 1].set_xlabel("Lk - Lk0 (turns)")
         ax[0, 1].set_ylabel("extension / L")
         res["plots"] = [save_figure(fig, out_dir, "buckling.png")]
