@@ -5,7 +5,7 @@ a closed chain of M straight segments of length b, bending energy ``g (1 - cos t
 ``g`` set so that ``<cos theta> = coth g - 1/g = exp(-b/A)`` (persistence length A exactly), segments closer
 than the diameter d (chain separation > ``exclude`` segments) forbidden, sampled by Metropolis crankshaft
 moves (a sub-chain rotated rigidly about the line through its two end vertices, which keeps the closure and
-the segment lengths). Written here because no maintained package samples worm-like rings; it shares nothing
+the segment lengths). Written here because none of the project's dependencies samples worm-like rings; it shares nothing
 with the rod model but A and d, so it is an independent reference for the model's ring writhe.
 
 Strand passage is not forbidden (a large crankshaft move may carry a segment through another), so the knot
