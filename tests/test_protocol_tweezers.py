@@ -170,7 +170,7 @@ def test_buckling_check_fails_without_plectonemes(tmp_path):
     from dnarod.validate.buckling import check_buckling
 
     r = check_buckling(tmp_path, n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.2, plots=False,
-                       member_root=tmp_path / "m")
+                       member_root=tmp_path / "m", P_nm=29.7, P_err_nm=3.0)
     assert not r["plateau"]["both_plectonemic"] and not r["passed"]
     assert r["pre_buckling"]["passed"]  # the linear torque law holds before buckling
 
@@ -179,7 +179,7 @@ def test_buckling_check_fails_without_plectonemes(tmp_path):
 def test_buckling_check_passes_on_a_plectonemic_chain_and_fails_before_buckling(tmp_path):
     from dnarod.validate.buckling import check_buckling
 
-    opts = dict(n_bp=200, time_ns=1.0, plots=False, member_root=tmp_path / "m")
+    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m")
     good = check_buckling(tmp_path, **opts)
     assert good["passed"], good
     bad = check_buckling(tmp_path, post_turns=(0.379, 0.76), **opts)

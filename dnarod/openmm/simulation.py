@@ -80,13 +80,17 @@ class RodSimulation:
         GPU platforms' precision (default mixed).
     constraint_tolerance : float
     initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
+    extra_forces : sequence of openmm.Force
+        Further forces on the particles (3 per node, :func:`dnarod.openmm.particles.particle_positions`),
+        added to the System before the Context is created (e.g. the tweezers walls of
+        :func:`dnarod.protocols.tweezers.tweezers_wall_forces`).
     """
 
     name = "openmm"
 
     def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
                  elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
-                 initial_velocities=None, omega_max=None, precision=None):
+                 initial_velocities=None, omega_max=None, precision=None, extra_forces=()):
         self.model = model
         self.temperature = float(temperature)
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -117,6 +121,8 @@ class RodSimulation:
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         self.rs = build_system(model, platform, elastic, nonbonded, loads,
                                self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
+        for f in extra_forces:  # added before the Context exists, so every elastic path (plugin included) sees them
+            self.rs.system.addForce(f)
         if self.rs.elastic == "plugin":
             # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
             # run on the device where the platform has the plugin's kernels (rs.device), else as host code.

@@ -14,6 +14,9 @@ Python::
     curve = hat_curve(turns=[-4, -2, 0, 2, 4], force_pN=0.5, n_bp=600, time_ns=2.0, outdir="hat")
     curve.rows, curve.files     # one dict per member; {"csv": ..., "png": ...}
 
+Nicked rings (Lk free): :func:`dnarod.protocols.nicked.run_nicked_member` samples the writhe of a ring free to
+writhe (soft twist, exactly reweighted) for ``<ΔLk²> = <ΔTw²> + <Wr²>``.
+
 Protocol objects for ensemble specs (``protocol = "dnarod.protocols:MAGNETIC_TWEEZERS"``):
 :data:`FORCE_EXTENSION`, :data:`MAGNETIC_TWEEZERS`, :data:`TORQUE_TURNS`, :data:`RINGS`.
 """
@@ -21,6 +24,7 @@ from __future__ import annotations
 
 from .curves import (Curve, force_extension, hat_curve, ring_supercoiling, run_protocol, torque_turns)  # noqa: F401
 from .ensemble_hooks import FORCE_EXTENSION, MAGNETIC_TWEEZERS, RINGS, TORQUE_TURNS  # noqa: F401
+from .nicked import run_nicked_member  # noqa: F401
 
 __all__ = ["Curve", "force_extension", "hat_curve", "torque_turns", "ring_supercoiling", "run_protocol",
-           "FORCE_EXTENSION", "MAGNETIC_TWEEZERS", "TORQUE_TURNS", "RINGS"]
+           "FORCE_EXTENSION", "MAGNETIC_TWEEZERS", "TORQUE_TURNS", "RINGS", "run_nicked_member"]

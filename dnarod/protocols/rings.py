@@ -8,8 +8,8 @@ detector of :mod:`dnarod.protocols.measure` with chain separations wrapping arou
 
 Nicked rings (free linking number) are not sampled by this module: a nick with zero twist stiffness
 still cannot let the strand pass 180 degrees of step rotation in the Cayley coordinates (the energy
-diverges there), so the linking number cannot change; the nicked-ring free energy needs a sum over
-topoisomers (not implemented).
+diverges there), so the linking number cannot change. Their ``<ΔLk²> = <ΔTw²> + <Wr²>`` is computed by
+:mod:`dnarod.protocols.nicked` (writhe of a ring free to writhe) and check ``nicked_ring``.
 
 Units: nm, turns, ps.
 """

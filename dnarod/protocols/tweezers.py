@@ -148,7 +148,7 @@ def _settings(s):
     out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
                friction_per_ps=None, sample_ps=None, platform="CPU", threads=1, electrostatics=True,
-               excluded_volume=True)
+               excluded_volume=True, elastic="auto")
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -214,15 +214,29 @@ WALL_K = 100.0
 WALL_SKIP = 3
 
 
-def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
-    """Add the surface and the bead to an OpenMM tweezers simulation (node 0 clamped, last node pulled along +z).
+def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP):
+    """The surface and the bead of a tweezers member as OpenMM forces (node 0 clamped, last node pulled along +z).
 
     Without them the chain could swing below its anchor or around the free end and change its linking
     number through the closure (a real surface and a micron bead forbid both). Surface: every node but the
     first ``skip`` stays above the plane ``z = z_0`` (``E = k/2 min(0, z - z_0)^2`` on its particles).
     Bead (a plane, the large-bead limit): every node but the last ``skip`` stays below the last node
     (``E = k/2 max(0, z_i - z_last)^2`` between one particle of each node and the last node's centroid).
-    Both in the "external" force group; the context is reinitialised with its state preserved.
+    Both in the "external" force group. Pass them as ``RodSimulation(..., extra_forces=...)`` so they exist
+    before the Context is created (every elastic path, the compiled plugin included, then sees them).
+
+    Parameters
+    ----------
+    model : RodModel
+        The member's start pose (z_0 = node 0's z, nm).
+    k : float
+        Wall stiffness, kJ/mol/nm^2.
+    skip : int
+        Nodes next to each end left alone.
+
+    Returns
+    -------
+    list of openmm.Force
     """
     import openmm
 
@@ -245,8 +259,17 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
         bead.addBond([g, last], [])
     bead.setForceGroup(GROUPS["external"])
     bead.setName("dnarod tweezers bead plane")
-    sim.rs.system.addForce(wall)
-    sim.rs.system.addForce(bead)
+    return [wall, bead]
+
+
+def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
+    """Add the walls of :func:`tweezers_wall_forces` to an existing simulation (``Context.reinitialize``).
+
+    Only for simulations on a path that can follow a reinitialised Context (``elastic="fast"`` or
+    ``"portable"``); members create their simulation with ``extra_forces`` instead.
+    """
+    for f in tweezers_wall_forces(model, k, skip):
+        sim.rs.system.addForce(f)
     sim.context.reinitialize(preserveState=True)
     sim.invalidate()
 
@@ -262,9 +285,11 @@ def sample_member(m, progress=None):
     nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
                            salt=float(s["salt_M"]))
     t0, c0 = time.perf_counter(), time.process_time()
+    # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
+    # is built) applies; settings["elastic"] can force another path
     sim = RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
-                        nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"])
-    add_tweezers_walls(sim, model)
+                        nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
+                        elastic=s["elastic"], extra_forces=tweezers_wall_forces(model))
     dt = sim.dt
     stride = max(1, int(round(m["sample_ps"] / dt)))
     n_eq = int(round(m["equilibration_ps"] / dt))
@@ -308,6 +333,7 @@ def sample_member(m, progress=None):
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     steps = n_eq + n_samp * stride
     cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
+                elastic_path=sim.rs.elastic,
                 sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
     return out, cost
 

@@ -12,8 +12,12 @@ Checks (by name; each module states its system, reference and tolerances):
   (:mod:`.force_extension`);
 * ``torsion`` -- C_eff(F) of a stretched chain from the torque-turns slope and from twist fluctuations,
   against each other and Moroz & Nelson (:mod:`.torsion`);
-* ``buckling`` -- the torque plateau of a plectonemic chain (Marko's two-phase model; slow, not in ``quick``)
-  (:mod:`.buckling`);
+* ``buckling`` -- plateau torque, buckling point and extension slope of a plectonemic chain against Marko's
+  two-phase model with the model's A, C and plectoneme twist stiffness (:mod:`.buckling`);
+* ``plectonemes`` -- the writhe fraction of supercoiled rings at sigma ~ -0.05 against the two-phase relation
+  ``1 - P/C`` (:mod:`.plectonemes`);
+* ``nicked_ring`` -- ``<ΔLk²>`` of nicked rings (exact twist part, model writhe vs a worm-like-ring Monte Carlo
+  with the model's A and effective diameter) and the free-energy coefficient K (:mod:`.nicked_ring`);
 * ``experiment`` -- the model's persistence length and effective torsional stiffness against measured DNA
   values (``data/experimental/``; exact, no simulation) (:mod:`.experiment`).
 
@@ -39,6 +43,8 @@ CHECKS = {
     "force_extension": ("force_extension", "check_force_extension"),
     "torsion": ("torsion", "check_torsion"),
     "buckling": ("buckling", "check_buckling"),
+    "plectonemes": ("plectonemes", "check_plectonemes"),
+    "nicked_ring": ("nicked_ring", "check_nicked_ring"),
     "experiment": ("experiment", "check_experiment"),
 }
 #: Checks of ``--quick`` (everything but the slow force-extension runs).

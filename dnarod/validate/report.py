@@ -75,13 +75,33 @@ def headline(name, r):
                     f"agree within {r['z_tolerance']} SE; theory {r['z_tolerance']} SE + "
                     f"{100 * r['theory_allowance_relative']:.0f}%")
         if name == "buckling":
-            pl = r["plateau"]
-            return (f"plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}+-"
-                    f"{_fmt(pl['standard_error'], '.2f')} pN nm at {_fmt(pl['mean_torque_pN_nm'], '.1f')} pN nm; "
-                    f"extension drop {_fmt(r['extension_drop']['difference'], '.3f')}; pre-buckling torque "
+            pl, mk = r["plateau"], r["marko"]
+            return (f"plateau {_fmt(pl['mean_torque_pN_nm'], '.1f')}+-{_fmt(pl['mean_torque_se'], '.1f')} pN nm vs Marko "
+                    f"two-phase {_fmt(mk['torque_pN_nm'], '.1f')}+-{_fmt(mk['torque_se_from_P'], '.1f')} pN nm (A "
+                    f"{_fmt(mk['persistence_length_nm'], '.1f')}, C_s {_fmt(mk['C_s_nm'], '.1f')}, P "
+                    f"{_fmt(mk['P_nm'], '.1f')} nm); plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}"
+                    f"+-{_fmt(pl['standard_error'], '.2f')}; buckling at ΔLk {_fmt(mk['buckling_delta_lk_measured'], '.2f')}"
+                    f" (Marko {_fmt(mk['buckling_delta_lk'], '.2f')}); slope {_fmt(mk['extension_slope_measured_nm_per_turn'], '.0f')}"
+                    f" nm/turn (Marko {_fmt(mk['extension_slope_nm_per_turn'], '.0f')}); pre-buckling torque "
                     f"{_fmt(r['pre_buckling']['torque_pN_nm'], '.1f')} vs linear law "
                     f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm",
-                    f"|dtau| <= {r['z_tolerance']} SE + {pl['allowance_pN_nm']} pN nm")
+                    f"|tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
+                    f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE")
+        if name == "plectonemes":
+            return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
+                    f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC {_fmt(r['reference_writhe_fraction'], '.3f')}"
+                    f"+-{_fmt(r['reference_writhe_fraction_err'], '.3f')} (A {_fmt(r['reference_persistence_length_nm'], '.1f')},"
+                    f" C {_fmt(r['reference_twist_persistence_nm'], '.1f')}, d {_fmt(r['effective_diameter_nm'], '.2f')} nm)",
+                    f"{r['z_tolerance']} SE + diameter systematic {_fmt(r['diameter_systematic'], '.3f')} "
+                    f"(= {_fmt(r['tolerance'], '.3f')})")
+        if name == "nicked_ring":
+            f = r["full"]
+            return (f"<Wr²> {_fmt(r['model_wr2'], '.4f')}+-{_fmt(r['model_wr2_err'], '.4f')} vs worm-like ring MC "
+                    f"{_fmt(r['reference_wr2'], '.4f')}+-{_fmt(r['reference_wr2_err'], '.4f')}; <ΔTw²> "
+                    f"{_fmt(r['twist_variance_exact_turns2'], '.4f')} (continuum {_fmt(r['twist_variance_continuum_turns2'], '.4f')});"
+                    f" K {_fmt(r['K_sampled_size'], '.0f')} at this size; {f['n_bp']} bp (exact twist + MC writhe): K "
+                    f"{_fmt(f['K'], '.0f')}+-{_fmt(f['K_err'], '.0f')} (classic {_fmt(r['classic_K'], '.0f')})",
+                    f"{r['z_tolerance']} SE + {100 * r['discrete_allowance_relative']:.0f}% (= {_fmt(r['tolerance'], '.4f')})")
     except (KeyError, TypeError, ValueError, IndexError):
         pass
     return "see results.json", "-"

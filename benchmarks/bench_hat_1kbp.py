@@ -1,0 +1,111 @@
+"""Cost of a 1-kbp hat curve: per-member cost, equilibration and autocorrelation time of the extension, and the
+extrapolated cost of a 12-turn curve with the extension to a target precision.
+
+Runs (or reuses) 1000-bp tweezers members at 0.5 pN from the protocol's static start, with a long production that
+includes the relaxation (``equilibration_ns`` small on purpose), then analyses ``samples.csv``: the extension in
+windows (when it stops drifting), its integrated autocorrelation time and standard deviation after a cut, and the
+simulated time a member needs for a standard error of ``target`` (relative, of the extension; and absolute, of
+x/L). Prints a table and writes ``benchmarks/results/hat_1kbp.json``.
+
+    python benchmarks/bench_hat_1kbp.py --turns 0,6 --time 40 [--root DIR]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def analyse(member_dir, cut_ns, windows=(0, 2, 5, 10, 20, 30, 1e9)):
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
+
+    res = json.loads((Path(member_dir) / "protocol_result.json").read_text())["result"]
+    d = np.genfromtxt(Path(member_dir) / "samples.csv", delimiter=",", names=True)
+    L = res["contour_length_nm"]
+    x, t = d["extension_nm"] / L, d["time_ps"] / 1000.0
+    win = []
+    for a, b in zip(windows[:-1], windows[1:]):
+        m = (t >= a) & (t < b)
+        if m.any():
+            win.append(dict(from_ns=a, to_ns=float(min(b, t[-1])), x_over_L=float(x[m].mean()),
+                            plectoneme_fraction=float(d["plectoneme_fraction"][m].mean())))
+    m = t >= cut_ns
+    y = x[m]
+    dt = float(t[1] - t[0])
+    tau = float(integrated_autocorrelation_time(y)) * dt
+    return dict(turns=res["turns"], force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"], cpu_s=res["cpu_s"],
+                simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0, ns_per_day_wall=res["ns_per_day"],
+                ns_per_day_cpu=res["n_steps"] * res["dt_ps"] / 1000.0 / res["cpu_s"] * 86400.0,
+                elastic_path=res.get("elastic_path"), friction_per_ps=res["friction_per_ps"],
+                tau_bend_estimate_ns=res["tau_bend_estimate_ps"] / 1000.0, windows=win, cut_ns=cut_ns,
+                x_over_L=float(y.mean()), sd_x_over_L=float(y.std()), tau_int_extension_ns=tau,
+                n_effective=float((t[m][-1] - t[m][0]) / (2 * tau)))
+
+
+def needed_ns(a, target_rel, target_abs):
+    """Production (ns) for SE(x/L) <= target_rel * x/L and for SE(x/L) <= target_abs (SE = sd sqrt(2 tau / T))."""
+    rel = 2 * a["tau_int_extension_ns"] * (a["sd_x_over_L"] / (target_rel * a["x_over_L"])) ** 2
+    ab = 2 * a["tau_int_extension_ns"] * (a["sd_x_over_L"] / target_abs) ** 2
+    return rel, ab
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--turns", default="0,6")
+    ap.add_argument("--force", type=float, default=0.5)
+    ap.add_argument("--time", type=float, default=40.0, help="ns per member (relaxation included)")
+    ap.add_argument("--cut", default="10,10", help="ns discarded per member (same order as --turns)")
+    ap.add_argument("--root", default="runs/bench_hat_1kbp")
+    ap.add_argument("--post-equilibration", type=float, default=None,
+                    help="ns of equilibration to assume for post-buckling members (default: the cut)")
+    ap.add_argument("--curve-members", type=int, default=12)
+    ap.add_argument("--target", type=float, default=0.03)
+    ap.add_argument("--out", default="benchmarks/results/hat_1kbp.json")
+    a = ap.parse_args(argv)
+    from dnarod.protocols.tweezers import run_member
+
+    turns = [float(t) for t in a.turns.split(",")]
+    cuts = [float(c) for c in a.cut.split(",")]
+    rows = []
+    for t, cut in zip(turns, cuts):
+        d = Path(a.root) / f"kbp_{t}"
+        run_member(dict(n_bp=1000, force_pN=a.force, turns=t, time_ns=a.time, equilibration_ns=0.2, seed=11,
+                        sample_ps=20.0), d)
+        r = analyse(d, cut)
+        r["production_ns_rel"], r["production_ns_abs"] = needed_ns(r, a.target, a.target)
+        rows.append(r)
+    # extrapolation: half the members pre-buckling (like turns[0]), half post-buckling (like turns[-1])
+    pre, post = rows[0], rows[-1]
+    half = a.curve_members / 2
+    ext = {}
+    for kind in ("rel", "abs"):
+        eq_post = post["cut_ns"] if a.post_equilibration is None else a.post_equilibration
+        total = half * (pre["cut_ns"] + pre[f"production_ns_{kind}"]) + half * (eq_post + post[f"production_ns_{kind}"])
+        ext[kind] = dict(total_simulated_ns=total,
+                         hours_2_dedicated_cores=total / (2 * np.mean([r["ns_per_day_cpu"] for r in rows])) * 24,
+                         hours_2_workers_as_measured=total / (2 * np.mean([r["ns_per_day_wall"] for r in rows])) * 24)
+    out = dict(date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average=os.getloadavg(), members=rows,
+               target=a.target, curve_members=a.curve_members, extrapolation=ext,
+               post_equilibration_ns=a.post_equilibration,
+               note="post-buckling equilibration from the static start is a lower bound if the windows still drift")
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(out, indent=1) + "\n")
+    print(f"{'turns':>6} {'wall s':>8} {'cpu s':>8} {'ns/day wall':>12} {'ns/day cpu':>11} {'x/L':>6} {'sd':>6} "
+          f"{'tau_int ns':>10} {'prod rel':>9} {'prod abs':>9}")
+    for r in rows:
+        print(f"{r['turns']:6.1f} {r['wall_s']:8.0f} {r['cpu_s']:8.0f} {r['ns_per_day_wall']:12.0f} "
+              f"{r['ns_per_day_cpu']:11.0f} {r['x_over_L']:6.3f} {r['sd_x_over_L']:6.3f} {r['tau_int_extension_ns']:10.2f} "
+              f"{r['production_ns_rel']:9.0f} {r['production_ns_abs']:9.0f}")
+        print("       windows:", ", ".join(f"{w['from_ns']:g}-{w['to_ns']:.0f} ns {w['x_over_L']:.3f}" for w in r["windows"]))
+    for k, e in ext.items():
+        print(f"12-member curve, SE {'relative' if k == 'rel' else 'absolute'} {a.target}: {e['total_simulated_ns']:.0f} ns "
+              f"simulated, {e['hours_2_dedicated_cores']:.2f} h on 2 dedicated cores, "
+              f"{e['hours_2_workers_as_measured']:.2f} h at the measured (shared) speed")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+"""Check ``plectonemes``: the fraction of the linking difference taken up as writhe in closed rings at sigma ~ -0.05.
+
+Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.protocols.rings`; OpenMM engine, WCA +
+Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0)`` with its standard error from the block
+error of Wr (the measured integrated autocorrelation time of Wr is reported).
+
+Reference (Vologodskii-type simulation with the model's parameters): the Monte Carlo worm-like ring of
+:mod:`dnarod.validate.wlc_ring_mc` at the same length and linking difference, with the model's exact persistence
+length A, its bare twist persistence C (the twist integrated out: ``E_tw = 2 pi² kT C (ΔLk - Wr)² / L``, as in
+Vologodskii et al.'s simulations of supercoiled rings) and a hard core of the model's effective diameter at this
+salt (:func:`dnarod.validate.supercoil_theory.effective_diameter`). Beside it, the two-phase relation
+``Wr/ΔLk = 1 - P/C`` is reported with P from the tweezers plateau when ``P_nm`` is given.
+
+Pass: ``|f_model - f_ref| <= Z_TOL * SE + DIAMETER_SYSTEMATIC``, SE the combined standard error of the two, and
+``DIAMETER_SYSTEMATIC`` the change of the reference when its hard core is swapped for the model's WCA core
+alone (:func:`effective_diameter` without electrostatics), i.e. the part of the soft screened repulsion that the
+hard-core reference cannot represent exactly (computed each run from two reference runs). ``c_override`` and
+``a_override`` give the reference wrong parameters (the tests show the check failing).
+"""
+from __future__ import annotations
+
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ._common import new_figure, save_figure
+
+NAME = "plectonemes"
+Z_TOL = 3.0
+
+
+def _reference(L, A, C, d, dlk, n, seed):
+    from ..analysis.polymer import integrated_autocorrelation_time
+    from .wlc_ring_mc import sample_ring_writhe
+
+    r = sample_ring_writhe(L, A, d, b_nm=3.4, n_samples=n, seed=seed, C_nm=C, delta_lk=dlk, equilibration_sweeps=300)
+    wr = r["wr"]
+    tau = max(float(integrated_autocorrelation_time(wr)), 0.5)
+    return float(wr.mean() / dlk), float(wr.std(ddof=1) * np.sqrt(2 * tau / len(wr)) / abs(dlk)), r
+
+
+def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=None, temperature=300.0, salt_M=0.15,
+                      seed=5, mc_samples=None, c_override=None, a_override=None, P_nm=None, plots=True,
+                      member_root=None):
+    """Run the check (see the module docstring)."""
+    from ..forcefield import load_forcefield
+    from ..openmm.nonbonded import NonbondedSettings
+    from ..protocols.rings import relaxed_twist, run_ring_member
+    from ..thermal import kT, persistence_length
+    from .supercoil_theory import effective_diameter, writhe_fraction_from_P
+    from .torsion import bare_twist_persistence
+
+    t0 = time.perf_counter()
+    n_bp = n_bp or (400 if quick else 600)
+    delta_lk = delta_lk or (-2 if quick else -3)
+    time_ns = time_ns or (3.0 if quick else 10.0)
+    mc_samples = mc_samples or (1500 if quick else 4000)
+    root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="plectonemes_", dir=out_dir))
+    ff = load_forcefield("dna-default")
+    ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
+    L = ring.ds * n_bp
+    A = persistence_length(ring.params, ring.ds, kT(temperature))
+    C = bare_twist_persistence(ff.model_from_sequence(n_nodes=4), temperature)
+    A_ref = A if a_override is None else float(a_override)
+    C_ref = C if c_override is None else float(c_override)
+    d_eff = effective_diameter(NonbondedSettings(salt=salt_M), ring.ds, temperature)
+    d_wca = effective_diameter(NonbondedSettings(salt=salt_M, electrostatics=False), ring.ds, temperature)
+    row = run_ring_member(dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed, temperature_K=temperature,
+                               salt_M=salt_M), root / f"ring{n_bp}_{delta_lk}")
+    tw0 = relaxed_twist(ring)
+    dlk = row["Lk"] - tw0
+    f_model = row["Wr"] / dlk
+    f_model_se = abs(row["Wr_err"] / dlk)
+    f_ref, f_ref_se, mc = _reference(L, A_ref, C_ref, d_eff, dlk, mc_samples, seed)
+    f_wca, _, _ = _reference(L, A_ref, C_ref, d_wca, dlk, mc_samples, seed + 1)
+    systematic = abs(f_ref - f_wca)
+    se = float(np.hypot(f_model_se, f_ref_se))
+    tol = Z_TOL * se + systematic
+    passed = bool(abs(f_model - f_ref) <= tol)
+    res = dict(model=f"dna-default ring, {n_bp} bp (L = {L:.1f} nm), ΔLk = Lk - Tw0 = {dlk:.3f} "
+                     f"(sigma {dlk / tw0:+.4f}), {salt_M} M, {temperature} K",
+               persistence_length_nm=A, twist_persistence_nm=C, reference_persistence_length_nm=A_ref,
+               reference_twist_persistence_nm=C_ref, effective_diameter_nm=d_eff, wca_effective_diameter_nm=d_wca,
+               delta_lk=dlk, sigma=dlk / tw0, model_writhe=row["Wr"], model_writhe_err=row["Wr_err"],
+               model_writhe_tau_ps=row["Wr_tau_ps"], model_writhe_fraction=f_model, model_writhe_fraction_err=f_model_se,
+               model_plectoneme_fraction=row["plectoneme_fraction"], model_production_ns=row["production_ps"] / 1000.0,
+               model_wall_s=row["wall_s"], model_cpu_s=row["cpu_s"],
+               reference_writhe_fraction=f_ref, reference_writhe_fraction_err=f_ref_se,
+               reference_writhe_fraction_wca_core=f_wca, diameter_systematic=systematic,
+               reference_segments=mc["segments"], reference_acceptance=mc["acceptance"],
+               standard_error=se, tolerance=tol, z_tolerance=Z_TOL, passed=passed)
+    if P_nm is not None:
+        res["two_phase_writhe_fraction"] = writhe_fraction_from_P(P_nm, C_ref)
+        res["two_phase_P_nm"] = float(P_nm)
+    if plots:
+        fig, ax = new_figure(1, 1, width=5.0, height=3.8)
+        a = ax[0, 0]
+        a.hist(mc["wr"], bins=40, density=True, histtype="step", label=f"worm-like ring MC (d {d_eff:.2f} nm)")
+        d = np.genfromtxt(root / f"ring{n_bp}_{delta_lk}" / "samples.csv", delimiter=",", names=True)
+        a.hist(d["Wr"], bins=40, density=True, histtype="step", label="model")
+        a.axvline(dlk, color="k", ls=":", label="ΔLk")
+        a.set_xlabel(f"Wr ({n_bp} bp ring)")
+        a.set_ylabel("density")
+        a.legend(fontsize=7)
+        res["plots"] = [save_figure(fig, out_dir, "plectonemes.png")]
+    res["runtime_s"] = time.perf_counter() - t0
+    return res

@@ -1,0 +1,225 @@
+"""Supercoiling theory with the model's own parameters: Marko's two-phase model, the plectoneme twist stiffness,
+the nicked-ring linking-number variance and the model's effective diameter.
+
+Units: nm, pN, pN nm, turns; ``kt`` in pN nm (4.14 at 300 K).
+
+**Two-phase model** (J. F. Marko, Phys. Rev. E 76:021926, 2007). A stretched chain at force f with linking
+difference ΔLk is split into an extended phase (free energy per length ``-g(f) + kT C_s Ω²/2``, Ω the excess
+twist rate in rad/nm, ``g = f - sqrt(kT f / A)`` the leading high-force free energy of the stretched worm-like
+chain and ``C_s`` the effective twist persistence length under tension) and a plectonemic phase (free energy per
+length ``kT P Ω²/2``, no extension). ``P`` is the plectoneme's effective twist stiffness, a parameter of the
+model (it is set by the bending, twist and self-repulsion of the interwound superhelix, i.e. by A, C and the
+effective diameter; the two-phase model does not derive it). Coexistence (common tangent in Ω) gives
+
+* torque ``tau* = sqrt(2 kT g / (1/P - 1/C_s))``, the same at the buckling point and all along the plateau;
+* extended / plectonemic twist rates ``Ω_s = tau*/(kT C_s)``, ``Ω_p = tau*/(kT P)``;
+* buckling linking difference ``ΔLk_b = Ω_s L / 2 pi`` (the end of the linear torque-turns regime);
+* extension slope past buckling ``dz/dΔLk = -2 pi zeta / (Ω_p - Ω_s)`` (nm per turn), ``zeta = 1 -
+  sqrt(kT/(4 A f))`` the relative extension of the extended phase.
+
+The model leaves out the plectoneme end loop (a constant nucleation free energy: it shifts the buckling point to
+higher ΔLk and causes the torque overshoot at buckling, but not the plateau torque) and the entropy of several
+plectonemes (which makes the torque rise slowly past buckling in long chains): the plateau torque is its
+firmest prediction, and the check ``buckling`` compares it.
+
+**Plectonemes in closed rings.** In the plectonemic phase the twist carries the torque,
+``tau = kT C Ω_tw = kT P Ω``, so a fraction ``P / C`` of the linking difference is twist and
+``Wr / ΔLk = 1 - P / C`` (rings: no tension, the bare C). Conversely a measured writhe fraction gives the
+model's P: ``P = C (1 - Wr/ΔLk)``.
+
+**Nicked rings.** With a nick (one step without twist stiffness) the twist of the intact steps and the shape of
+the axis are independent (bending isotropic, no twist-bend coupling: true of ``dna-default``), so ``<ΔLk²> =
+<ΔTw²> + <Wr²>``; the twist part is exactly ``L / (4 pi² C)`` (turns²) to leading order in the Cayley twist,
+and ``ΔG = (K RT / N) ΔLk²`` with ``K = N / (2 <ΔLk²>)`` for a ring of N bp.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import DnarodError
+
+TWO_PI = 2.0 * math.pi
+
+
+def wlc_free_energy_per_length(force_pN, A_nm, kt):
+    """``g(f) = f - sqrt(kT f / A)`` (pN): minus the free energy per length of a stretched worm-like chain."""
+    f = np.asarray(force_pN, float)
+    return f - np.sqrt(kt * f / A_nm)
+
+
+def extended_fraction(force_pN, A_nm, kt):
+    """Relative extension ``zeta = 1 - sqrt(kT / (4 A f))`` of the extended phase (inextensible, high force)."""
+    return 1.0 - 0.5 * np.sqrt(kt / (A_nm * np.asarray(force_pN, float)))
+
+
+def marko_two_phase(A_nm, C_s_nm, P_nm, force_pN, kt, L_nm):
+    """Marko's two-phase predictions for a chain of contour length L (see the module docstring).
+
+    Parameters
+    ----------
+    A_nm, C_s_nm, P_nm : float
+        Bending persistence length, effective twist persistence length at this force (e.g. Moroz-Nelson),
+        plectoneme twist stiffness; nm. ``P < C_s`` is required (else there is no buckling).
+    force_pN : float
+    kt : float
+        pN nm.
+    L_nm : float
+
+    Returns
+    -------
+    dict
+        ``torque_pN_nm`` (buckling and plateau), ``omega_s``/``omega_p`` (rad/nm), ``buckling_delta_lk``,
+        ``plectonemic_delta_lk`` (whole chain plectonemic), ``extension_slope_nm_per_turn``, ``g_pN``,
+        ``zeta``.
+    """
+    if not (0 < P_nm < C_s_nm):
+        raise DnarodError(f"two-phase model: the plectoneme twist stiffness P = {P_nm:.3g} nm must lie between 0 "
+                          f"and C_s = {C_s_nm:.3g} nm (else the chain never buckles)")
+    g = float(wlc_free_energy_per_length(force_pN, A_nm, kt))
+    tau = math.sqrt(2.0 * kt * g / (1.0 / P_nm - 1.0 / C_s_nm))
+    om_s, om_p = tau / (kt * C_s_nm), tau / (kt * P_nm)
+    zeta = float(extended_fraction(force_pN, A_nm, kt))
+    return dict(torque_pN_nm=tau, omega_s=om_s, omega_p=om_p, buckling_delta_lk=om_s * L_nm / TWO_PI,
+                plectonemic_delta_lk=om_p * L_nm / TWO_PI, extension_slope_nm_per_turn=-TWO_PI * zeta / (om_p - om_s),
+                g_pN=g, zeta=zeta)
+
+
+def plectoneme_P_from_writhe_fraction(writhe_fraction, C_nm):
+    """The plectoneme twist stiffness P (nm) implied by a plectonemic ring's writhe fraction: ``C (1 - Wr/ΔLk)``."""
+    return float(C_nm) * (1.0 - float(writhe_fraction))
+
+
+def writhe_fraction_from_P(P_nm, C_nm):
+    """Writhe fraction ``1 - P/C`` of a plectonemic ring."""
+    return 1.0 - float(P_nm) / float(C_nm)
+
+
+def twist_variance_linear(L_nm, C_nm):
+    """``<ΔTw²> = L / (4 pi² C)`` (turns²) of a free (nicked) chain of contour length L."""
+    return float(L_nm) / (4.0 * math.pi ** 2 * float(C_nm))
+
+
+def twist_variance_exact(model, temperature, n_samples=400_000, seed=0, steps=None):
+    """``<ΔTw²>`` (turns²) of the steps of a free chain from the model's exact step distribution.
+
+    Each step's twist angle is ``2 atan(ds Omega_3 / 2)`` (the Cayley twist); steps of a free chain are
+    independent (:func:`dnarod.thermal.sample_step_strains`), so the variance is the sum of the per-step
+    variances (sampled, ``n_samples`` per distinct step type; relative error ~ sqrt(2/n_samples)).
+
+    Parameters
+    ----------
+    model : RodModel
+    temperature : float
+        K.
+    steps : array_like of int, optional
+        Steps to include (default all).
+    """
+    from ..thermal import kT, sample_step_strains
+
+    rng = np.random.default_rng(seed)
+    p = model.params
+    idx = np.arange(p.n_steps) if steps is None else np.asarray(steps, int)
+    cache, total = {}, 0.0
+    for k in idx:
+        key = (p.stiffness[k].tobytes(), p.intrinsic[k].tobytes())
+        if key not in cache:
+            s = sample_step_strains(p.stiffness[k], p.intrinsic[k], model.ds, kT(temperature), n_samples, rng)
+            th = 2.0 * np.arctan(0.5 * model.ds * s[:, 2])
+            cache[key] = float(np.var(th)) / TWO_PI ** 2
+        total += cache[key]
+    return total
+
+
+def depew_wang_K(n_bp, var_lk):
+    """``K = N / (2 <ΔLk²>)`` of ``ΔG = (K RT / N) ΔLk²`` for a ring of N bp."""
+    return float(n_bp) / (2.0 * float(var_lk))
+
+
+def gaussian_unconstrained_variance(var_constrained, var_other):
+    """Variance of X when only ``X + Y`` fixed was sampled, Y Gaussian and independent of X.
+
+    Sampling X with ``X + Y = const`` and Y ~ N(·, var_other) independent of X multiplies X's density by a
+    Gaussian of variance ``var_other``; for Gaussian X the sampled variance is ``v v_o / (v + v_o)``, so
+    ``v = v_c v_o / (v_o - v_c)``. Used to undo the (small) constraint that the soft twist of a sampled ring
+    puts on its writhe.
+    """
+    vc, vo = float(var_constrained), float(var_other)
+    if vc >= vo:
+        raise DnarodError(f"constrained variance {vc:.3g} >= the constraint's variance {vo:.3g}: the twist is not "
+                          f"soft enough to leave the writhe free; soften it further")
+    return vc * vo / (vo - vc)
+
+
+def effective_diameter(nonbonded, ds, temperature, n_h=160, n_gamma=16, n_offset=3):
+    """The model's effective diameter (nm); see :func:`_effective_diameter` (results are cached per settings)."""
+    import dataclasses
+
+    key = (tuple(dataclasses.astuple(nonbonded)), float(ds), float(temperature), int(n_h), int(n_gamma), int(n_offset))
+    if key not in _DEFF_CACHE:
+        _DEFF_CACHE[key] = _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset)
+    return _DEFF_CACHE[key]
+
+
+_DEFF_CACHE = {}
+
+
+def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
+    """The model's effective diameter (nm): Onsager's excluded volume of two long straight chains of its nodes.
+
+    Two long rods crossing at angle gamma with closest distance h exclude ``2 L² |sin gamma| d(gamma)``, with
+    ``d(gamma) = int_0^inf <1 - exp(-U(h, gamma)/kT)> dh`` (average over the rods' sliding offsets along their
+    axes); the effective diameter is its isotropic average ``<|sin g| d(g)> / <|sin g|>`` (weight ``sin² g``):
+    the diameter of the hard rods with the same second virial coefficient, the definition of Stigter's effective
+    diameter. U is the model's own pair energy (WCA + screened Coulomb with its cutoff, node charges and Debye
+    length at this salt), summed over the node pairs of two straight chains long enough to hold every pair within the cutoff.
+
+    Parameters
+    ----------
+    nonbonded : NonbondedSettings
+    ds : float
+        nm per base pair.
+    temperature : float
+        K.
+
+    Returns
+    -------
+    float
+    """
+    from ..thermal import kT
+
+    p = nonbonded.resolve(ds, temperature)
+    kt = kT(temperature)
+    hs = np.linspace(0.0, p["cutoff"] + 0.5, n_h)
+    gam = (np.arange(n_gamma) + 0.5) * (0.5 * math.pi / n_gamma)  # (0, pi/2]; |sin| symmetric
+    d_g = np.empty(n_gamma)
+    for ig, g in enumerate(gam):
+        # chains long enough to hold every pair within the cutoff (angles below ~11 degrees, weight < 0.4 %,
+        # are treated as 11 degrees for the chain length only)
+        m = int(math.ceil((p["cutoff"] + 2.0) / max(math.sin(g), 0.2) / ds))
+        s = np.arange(-m, m + 1) * ds
+        acc = np.zeros(n_h)
+        for o1 in range(n_offset):
+            for o2 in range(n_offset):
+                a = s + o1 * ds / n_offset
+                b = s + o2 * ds / n_offset
+                x = a[:, None] - b[None, :] * math.cos(g)
+                y = -b[None, :] * math.sin(g)
+                r2p = x * x + y * y  # in-plane part; z = h
+                r = np.maximum(np.sqrt(r2p[None, :, :] + hs[:, None, None] ** 2), 1e-3)
+                u = np.zeros_like(r)
+                if p["eps"] > 0:
+                    w = r < p["rc_wca"]
+                    sr6 = (p["sigma"] / np.where(w, r, 1.0)) ** 6
+                    u += np.where(w, 4 * p["eps"] * (sr6 * sr6 - sr6) + p["eps"], 0.0)
+                if p["a_dh"] > 0:
+                    w = r < p["rc_dh"]
+                    rr = np.where(w, r, 1.0)
+                    shift = math.exp(-p["kappa"] * p["rc_dh"]) / p["rc_dh"]
+                    u += np.where(w, p["a_dh"] * (np.exp(-p["kappa"] * rr) / rr - shift), 0.0)
+                U = u.sum(axis=(1, 2))
+                acc += 1.0 - np.exp(-np.minimum(U / kt, 700.0))
+        d_g[ig] = np.trapezoid(acc / n_offset ** 2, hs)
+    w = np.sin(gam) ** 2
+    return float(np.sum(w * d_g) / np.sum(w))

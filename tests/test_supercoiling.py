@@ -1,0 +1,171 @@
+"""Supercoiling theory (two-phase model, effective diameter, nicked-ring twist variance), the worm-like-ring Monte
+Carlo reference, soft-twist nicked rings, and the validate checks buckling / plectonemes / nicked_ring.
+
+The check-level tests in the default run use recorded members (tests/data/supercoil: the protocol_result.json and
+samples.csv that the members wrote when the checks were run; the checks reuse a member whose settings match) so
+that they test the checks' decisions in seconds; the slow tests rerun the simulations.
+"""
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from dnarod.forcefield import load_forcefield
+from dnarod.validate import supercoil_theory as th
+
+DATA = Path(__file__).parent / "data" / "supercoil"
+FF = load_forcefield("dna-default")
+KT = 4.1419  # pN nm at 300 K
+
+
+def test_two_phase_torque_is_the_common_tangent():
+    """Marko's closed form against a direct minimisation of the two-phase free energy over the phase fraction."""
+    A, Cs, P, f, L = 50.0, 84.2, 29.7, 1.0, 200.0
+    r = th.marko_two_phase(A, Cs, P, f, KT, L)
+    g = f - math.sqrt(KT * f / A)
+
+    def free_energy(dlk):  # minimum over the extended fraction x of the coexisting state (per length)
+        om = 2 * math.pi * dlk / L
+        best = -g + KT * Cs * om * om / 2  # all extended
+        for x in np.linspace(0, 1, 20001)[:-1]:
+            # extended part carries om_s, plectonemic om_p with x om_s + (1-x) om_p = om, minimised over om_s
+            # (the optimum equalises the torques kT Cs om_s = kT P om_p)
+            om_s = om / (x + (1 - x) * Cs / P)
+            om_p = Cs / P * om_s
+            F = x * (-g + KT * Cs * om_s ** 2 / 2) + (1 - x) * KT * P * om_p ** 2 / 2
+            best = min(best, F)
+        return best
+
+    d1, d2 = 0.5 * (r["buckling_delta_lk"] + r["plectonemic_delta_lk"]), 0.6 * r["plectonemic_delta_lk"]
+    torque = (free_energy(d2) - free_energy(d1)) * L / (2 * math.pi * (d2 - d1))
+    assert torque == pytest.approx(r["torque_pN_nm"], rel=2e-3)
+    assert r["buckling_delta_lk"] == pytest.approx(r["torque_pN_nm"] * L / (2 * math.pi * KT * Cs))
+    # the plateau needs P < C_s: a refused parameter set is one clear error
+    with pytest.raises(Exception, match="P = "):
+        th.marko_two_phase(A, Cs, 90.0, f, KT, L)
+    # halving C changes the plateau torque by far more than the check's tolerance (~2 pN nm)
+    assert abs(th.marko_two_phase(A, Cs / 2, P, f, KT, L)["torque_pN_nm"] - r["torque_pN_nm"]) > 5.0
+
+
+def test_writhe_fraction_and_P_are_inverse():
+    assert th.plectoneme_P_from_writhe_fraction(th.writhe_fraction_from_P(25.0, 98.3), 98.3) == pytest.approx(25.0)
+
+
+def test_twist_variance_exact_matches_the_continuum_formula():
+    ring = FF.ring(n_nodes=300)
+    from dnarod.validate.torsion import bare_twist_persistence
+
+    C = bare_twist_persistence(FF.model_from_sequence(n_nodes=4), 300.0)
+    exact = th.twist_variance_exact(ring, 300.0)
+    assert exact == pytest.approx(th.twist_variance_linear(300 * FF.ds, C), rel=0.02)
+    assert th.depew_wang_K(300, exact) == pytest.approx(300 / (2 * exact))
+
+
+def test_effective_diameter_of_the_model():
+    from dnarod.openmm.nonbonded import NonbondedSettings
+
+    d15 = th.effective_diameter(NonbondedSettings(salt=0.15), FF.ds, 300.0)
+    coarse = dict(n_h=100, n_gamma=8, n_offset=2)  # converged to < 0.01 nm (the default grid agrees to 1e-5 nm)
+    d05 = th.effective_diameter(NonbondedSettings(salt=0.05), FF.ds, 300.0, **coarse)
+    dw = th.effective_diameter(NonbondedSettings(electrostatics=False), FF.ds, 300.0, **coarse)
+    assert 2.0 < dw < d15 < d05  # WCA core alone ~ sigma; screening shrinks the electrostatic part with salt
+    assert d15 == pytest.approx(2.31, abs=0.03) and d05 == pytest.approx(3.79, abs=0.05)
+
+
+def test_gaussian_constraint_is_undone_by_reweighting():
+    """X ~ N(0, v) sampled under a Gaussian factor p_Y(c - X): the reweighted moments are X's own."""
+    from dnarod.protocols.nicked import free_writhe_moments
+
+    rng = np.random.default_rng(1)
+    v, vo, c, mu = 0.3, 0.9, 0.4, 0.1
+    # density of X under the constraint: N(0, v) * N(c - x; mu, vo) -> Gaussian
+    prec = 1 / v + 1 / vo
+    x = rng.normal((c - mu) / vo / prec, prec ** -0.5, 200_000)
+    m = free_writhe_moments(x, c, mu, vo)
+    assert m["second_moment"] == pytest.approx(v, rel=0.03)
+    assert m["mean"] == pytest.approx(0.0, abs=0.01)
+    assert th.gaussian_unconstrained_variance(1 / prec, vo) == pytest.approx(v)
+    assert np.mean(x * x) < 0.8 * v  # the constraint matters: without reweighting the answer is wrong
+
+
+def test_soft_twist_model_keeps_the_shape_distribution():
+    """Covariance of the five non-twist strains unchanged; twist decoupled and softer; relaxed twist kept."""
+    from dnarod.protocols.nicked import soft_twist_model, twist_sum_moments
+
+    ring = FF.ring(n_nodes=60)
+    soft = soft_twist_model(ring, 16.0)
+    o = [0, 1, 3, 4, 5]
+    cov = np.linalg.inv(ring.params.stiffness[0])[np.ix_(o, o)]
+    cov_s = np.linalg.inv(soft.params.stiffness[0])[np.ix_(o, o)]
+    assert np.allclose(cov, cov_s, rtol=1e-12, atol=1e-15)
+    assert np.allclose(soft.params.stiffness[0][2, o], 0.0)
+    m_soft, v_soft = twist_sum_moments(soft, 300.0)
+    m_ring, v_ring = twist_sum_moments(ring, 300.0)
+    intrinsic = float(np.sum(2 * np.arctan(0.5 * FF.ds * ring.params.Omega0[:, 2])) / (2 * np.pi))
+    assert m_soft == pytest.approx(intrinsic, abs=0.01)
+    assert v_soft == pytest.approx(16 * v_ring, rel=0.1)
+
+
+def test_wlc_ring_monte_carlo():
+    from dnarod.validate.wlc_ring_mc import bending_coefficient, sample_ring_writhe
+
+    g = bending_coefficient(3.4, 50.0)
+    assert 1 / math.tanh(g) - 1 / g == pytest.approx(math.exp(-3.4 / 50.0), rel=1e-10)
+    r = sample_ring_writhe(68.0, 50.0, 2.31, n_samples=300, seed=1)
+    assert 0.2 < r["acceptance"] < 0.8
+    assert abs(r["wr"].mean()) < 0.02 and np.mean(r["wr"] ** 2) < 0.01  # a 68 nm ring barely writhes
+    # supercoiled: most of the linking difference goes into writhe, with the sign of ΔLk
+    s = sample_ring_writhe(136.0, 50.0, 2.31, n_samples=300, seed=2, C_nm=98.3, delta_lk=-2.0)
+    assert -2.0 < s["wr"].mean() < -1.0
+    # twist made cheap (C small): the writhe fraction drops
+    c = sample_ring_writhe(136.0, 50.0, 2.31, n_samples=300, seed=2, C_nm=20.0, delta_lk=-2.0)
+    assert c["wr"].mean() > s["wr"].mean() + 0.3
+
+
+def test_nicked_member_runs_and_keeps_its_linking_number(tmp_path):
+    from dnarod.protocols.nicked import run_nicked_member
+
+    r = run_nicked_member(dict(n_bp=100, time_ns=0.05, equilibration_ns=0.02, seed=3), tmp_path / "nick")
+    assert r["linking_number"] == round(r["linking_number"])
+    assert 0 <= r["wr2_free"] < 0.05 and r["wr2_free_err"] >= 0
+    assert (tmp_path / "nick" / "samples.csv").exists()
+
+
+def _recorded(tmp_path, name):
+    dst = tmp_path / name
+    shutil.copytree(DATA / name, dst)
+    return dst
+
+
+def test_buckling_check_against_marko_with_recorded_members(tmp_path):
+    """600 bp at 1 pN (recorded members): passes with the model's C, fails with C halved."""
+    from dnarod.validate.buckling import check_buckling
+
+    root = _recorded(tmp_path, "buckling_600bp")
+    good = check_buckling(tmp_path, plots=False, member_root=root)
+    assert good["marko"]["passed"] and good["passed"], good
+    bad = check_buckling(tmp_path, plots=False, member_root=root, c_override=0.5 * good["marko"]["twist_persistence_nm"])
+    assert not bad["marko"]["passed"] and not bad["passed"]
+
+
+def test_plectonemes_check_with_a_recorded_ring(tmp_path):
+    from dnarod.validate.plectonemes import check_plectonemes
+
+    root = _recorded(tmp_path, "plectonemes_400bp")
+    good = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800)
+    assert good["passed"], good
+    bad = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800,
+                            c_override=0.5 * good["twist_persistence_nm"])
+    assert not bad["passed"]
+
+
+@pytest.mark.slow
+def test_nicked_ring_check_quick_form(tmp_path):
+    from dnarod.validate.nicked_ring import check_nicked_ring
+
+    r = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m")
+    assert np.isfinite(r["K_sampled_size"]) and r["full"]["K"] > 0
+    bad = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m", a_override=25.0)
+    assert not bad["passed"]
