@@ -119,8 +119,8 @@ def kbp(budget):
 
 def threads(ns, budget, repeats):
     """The plugin (full model) on 1 and 2 threads of the CPU platform: node-steps per wall second and per CPU-second.
-    ``forced`` sets one node per thread as the minimum (two threads at every size); ``default`` is the integrator's
-    own choice (at most one thread per ``getMinNodesPerThread()`` nodes)."""
+    ``default``: the integrator's chunks of ``getNodesPerChunk()`` nodes (at most one thread per chunk, so 10^3
+    nodes stay on one thread); ``forced``: chunks of 256 nodes (two threads at every size)."""
     import openmm
 
     from dnarod.forcefield import load_forcefield
@@ -137,10 +137,10 @@ def threads(ns, budget, repeats):
         dt = RodSimulation(model, temperature=300.0, seed=1, threads=1).dt
         rs = build_system(model, "CPU", "plugin", True, (), 300.0)
         runs = {}
-        for label, nthreads, min_nodes in (("1", 1, None), ("2_forced", 2, 1), ("2_default", 2, None)):
+        for label, nthreads, chunk in (("1", 1, None), ("2_forced", 2, 256), ("2_default", 2, None)):
             integ = plugin.rigid_body_integrator(rs.radius, dt, 300.0, 1.0, 1)
-            if min_nodes is not None:
-                integ.setMinNodesPerThread(min_nodes)
+            if chunk is not None:
+                integ.setNodesPerChunk(chunk)
             ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("CPU"),
                                  {"Threads": str(nthreads)})
             ctx.setPositions(P.particle_positions(model.positions, model.frames, rs.radius))
@@ -150,7 +150,7 @@ def threads(ns, budget, repeats):
         for _ in range(repeats):
             for k, (ctx, integ) in runs.items():
                 rates[k].append(_rate(integ, n, budget))
-        r = dict(n_nodes=n, min_nodes_per_thread=runs["2_default"][1].getMinNodesPerThread())
+        r = dict(n_nodes=n, nodes_per_chunk=runs["2_default"][1].getNodesPerChunk())
         for k, v in rates.items():
             r[f"threads_{k}_used"] = runs[k][1].getNumThreads()
             r[f"threads_{k}_per_cpu_s"] = max(x[0] for x in v)

@@ -307,13 +307,13 @@ def test_node_report_equals_the_openmm_state_path(mod, integrator):
                                   getattr(ends[1], get)(asNumpy=True)._value)
 
 
-def threaded_context(mod, model, threads, friction, seed, min_nodes=16, circular=False):
+def threaded_context(mod, model, threads, friction, seed, chunk=16):
     """A CPU Context of the full model (SMK + node pairs) on the compiled integrator with `threads` threads."""
     from dnarod.openmm.system import build_system
 
     rs = build_system(model, "CPU", "plugin", True, (), 300.0)
     integ = plugin.rigid_body_integrator(rs.radius, 0.05, 300.0, friction, seed)
-    integ.setMinNodesPerThread(min_nodes)
+    integ.setNodesPerChunk(chunk)
     ctx = openmm.Context(rs.system, integ, openmm.Platform.getPlatformByName("CPU"), {"Threads": str(threads)})
     ctx.setPositions(P.particle_positions(model.positions, model.frames, rs.radius))
     ctx.setVelocitiesToTemperature(300.0, 5)
@@ -321,34 +321,32 @@ def threaded_context(mod, model, threads, friction, seed, min_nodes=16, circular
 
 
 @pytest.mark.parametrize("circular", [False, True])
-def test_threads_give_the_single_thread_trajectory_in_nve_and_are_deterministic(mod, circular):
-    """The node update and the SMK loads on two threads: in NVE (no random numbers) bit for bit the one-thread
-    trajectory (every node gets the same loads in the same order); with the thermostat, two runs on two threads
-    agree bit for bit, also across a checkpoint."""
+def test_results_do_not_depend_on_the_number_of_threads(mod, circular):
+    """The node update and the SMK loads in chunks (each with its own random-number stream) on one or two threads:
+    bit for bit the same trajectory, in NVE and with the thermostat, also across a checkpoint; in NVE also the
+    trajectory of one chunk (every node gets the same loads in the same order)."""
     ff = load_forcefield("dna-default")
     model = ff.ring(n_nodes=100) if circular else ff.model_from_sequence("ACGT" * 25)
-    ends = {}
-    for threads in (1, 2):
-        ctx, integ = threaded_context(mod, model, threads, 0.0, 3)
-        assert integ.getNumThreads() == threads and integ.usesFusedElasticForce()
-        integ.step(30)
-        integ.step(1)
-        ends[threads] = ctx.getState(getPositions=True, getVelocities=True, getEnergy=True)
-    for get in ("getPositions", "getVelocities"):
-        assert np.array_equal(getattr(ends[1], get)(asNumpy=True)._value, getattr(ends[2], get)(asNumpy=True)._value)
-    runs = []
-    for _ in range(2):
-        ctx, integ = threaded_context(mod, model, 2, 1.0, 8)
-        integ.step(20)
-        blob = ctx.createCheckpoint()
-        integ.step(20)
-        a = ctx.getState(getPositions=True, getVelocities=True)
-        ctx.loadCheckpoint(blob)
-        integ.step(20)
-        b = ctx.getState(getPositions=True, getVelocities=True)
-        assert np.array_equal(a.getPositions(asNumpy=True)._value, b.getPositions(asNumpy=True)._value)
-        runs.append(a.getPositions(asNumpy=True)._value)
-    assert np.array_equal(runs[0], runs[1])
-    # Fewer nodes than two threads' minimum: one thread.
-    _, integ = threaded_context(mod, model, 2, 1.0, 8, min_nodes=2048)
+    for friction in (0.0, 1.0):
+        ends = []
+        for threads, chunk in ((1, 16), (2, 16), (1, 1024)):
+            if friction and chunk == 1024:
+                continue  # other random-number streams
+            ctx, integ = threaded_context(mod, model, threads, friction, 3, chunk)
+            assert integ.getNumThreads() == threads and integ.usesFusedElasticForce()
+            integ.step(20)
+            blob = ctx.createCheckpoint()
+            integ.step(20)
+            a = ctx.getState(getPositions=True, getVelocities=True)
+            ctx.loadCheckpoint(blob)
+            integ.step(20)
+            b = ctx.getState(getPositions=True, getVelocities=True)
+            for get in ("getPositions", "getVelocities"):
+                assert np.array_equal(getattr(a, get)(asNumpy=True)._value, getattr(b, get)(asNumpy=True)._value)
+            ends.append(a)
+        for e in ends[1:]:
+            for get in ("getPositions", "getVelocities"):
+                assert np.array_equal(getattr(ends[0], get)(asNumpy=True)._value, getattr(e, get)(asNumpy=True)._value)
+    # One chunk: one thread whatever the platform's Threads.
+    _, integ = threaded_context(mod, model, 2, 1.0, 8, chunk=1024)
     assert integ.getNumThreads() == 1

@@ -14,7 +14,11 @@ namespace dnarod {
 
 class Gaussian {
 public:
-    Gaussian() { seed(1); tables(); }
+    Gaussian() {
+        seed(1);
+        const Tables& tb = tables();  // shared by every generator (computed once)
+        kn = tb.kn; wn = tb.wn; fn = tb.fn;
+    }
     void seed(uint64_t s) {
         for (int i = 0; i < 4; i++) {  // splitmix64
             s += 0x9E3779B97F4A7C15ULL;
@@ -90,28 +94,37 @@ private:
             if ((hz < 0 ? -hz : hz) < kn[iz]) return hz * wn[iz];
         }
     }
-    void tables() {
-        const double m1 = 2147483648.0;
-        double dn = 3.442619855899, tn = dn;
-        const double vn = 9.91256303526217e-3;
-        const double q = vn / std::exp(-0.5 * dn * dn);
-        kn[0] = (int64_t) ((dn / q) * m1);
-        kn[1] = 0;
-        wn[0] = q / m1;
-        wn[127] = dn / m1;
-        fn[0] = 1.0;
-        fn[127] = std::exp(-0.5 * dn * dn);
-        for (int i = 126; i >= 1; i--) {
-            dn = std::sqrt(-2.0 * std::log(vn / dn + std::exp(-0.5 * dn * dn)));
-            kn[i + 1] = (int64_t) ((dn / tn) * m1);
-            tn = dn;
-            fn[i] = std::exp(-0.5 * dn * dn);
-            wn[i] = dn / m1;
+    struct Tables {
+        int64_t kn[128];
+        double wn[128], fn[128];
+        Tables() {
+            const double m1 = 2147483648.0;
+            double dn = 3.442619855899, tn = dn;
+            const double vn = 9.91256303526217e-3;
+            const double q = vn / std::exp(-0.5 * dn * dn);
+            kn[0] = (int64_t) ((dn / q) * m1);
+            kn[1] = 0;
+            wn[0] = q / m1;
+            wn[127] = dn / m1;
+            fn[0] = 1.0;
+            fn[127] = std::exp(-0.5 * dn * dn);
+            for (int i = 126; i >= 1; i--) {
+                dn = std::sqrt(-2.0 * std::log(vn / dn + std::exp(-0.5 * dn * dn)));
+                kn[i + 1] = (int64_t) ((dn / tn) * m1);
+                tn = dn;
+                fn[i] = std::exp(-0.5 * dn * dn);
+                wn[i] = dn / m1;
+            }
         }
+    };
+    static const Tables& tables() {
+        static const Tables t;
+        return t;
     }
     uint64_t st[4];
-    int64_t kn[128];
-    double wn[128], fn[128];
+    const int64_t* kn;
+    const double* wn;
+    const double* fn;
 };
 
 } // namespace dnarod

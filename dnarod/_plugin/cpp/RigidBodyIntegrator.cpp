@@ -27,7 +27,7 @@ static const double S3 = 1.7320508075688772;
 // Unit offsets of the three particles in body coordinates (dnarod.openmm.particles.BODY_OFFSETS).
 static const double OFF[3][2] = {{1.0, 0.0}, {-0.5, 0.8660254037844386}, {-0.5, -0.8660254037844386}};
 
-// Seed of thread t's Gaussian stream (stream 0: the seed itself, as with one thread).
+// Seed of chunk t's Gaussian stream (stream 0: the seed itself, as with one chunk).
 static uint64_t streamSeed(uint64_t base, int t) {
     return t == 0 ? base : base ^ (0xD1B54A32D192ED03ULL * (uint64_t) t);
 }
@@ -42,10 +42,10 @@ RigidBodyIntegrator::RigidBodyIntegrator(double stepSize, double temperature, do
 
 RigidBodyIntegrator::~RigidBodyIntegrator() {}
 
-void RigidBodyIntegrator::setMinNodesPerThread(int m) {
-    if (context != nullptr) throw OpenMMException("RigidBodyIntegrator: set the nodes per thread before creating the Context");
-    if (m < 1) throw OpenMMException("RigidBodyIntegrator: nodes per thread must be >= 1");
-    minNodesPerThread = m;
+void RigidBodyIntegrator::setNodesPerChunk(int m) {
+    if (context != nullptr) throw OpenMMException("RigidBodyIntegrator: set the nodes per chunk before creating the Context");
+    if (m < 1) throw OpenMMException("RigidBodyIntegrator: nodes per chunk must be >= 1");
+    chunkNodes = (m + BLOCK - 1) / BLOCK * BLOCK;
 }
 
 void RigidBodyIntegrator::setTemperature(double t) {
@@ -181,8 +181,8 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     loadsValid = false;
     F.resize(3 * n);
     tau.resize(3 * n);
-    // Threads: the CPU platform's Threads property (what dnarod's --threads sets), at most one per
-    // minNodesPerThread nodes; each thread owns whole blocks of nodes and the SMK steps starting at them.
+    // Chunks of chunkNodes nodes (whole blocks), each with the SMK steps starting in it and its own Gaussian
+    // stream; threads: the CPU platform's Threads property (what dnarod's --threads sets), at most one per chunk.
     int threads = 1;
     if (name == "CPU") {
         try {
@@ -191,18 +191,17 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
             threads = 1;
         }
     }
-    const int nBlocks = (n + BLOCK - 1) / BLOCK;
-    numThreads = std::max(1, std::min(std::min(threads, n / minNodesPerThread), nBlocks));
-    nodeStart.assign(numThreads + 1, n);
-    for (int t = 0; t < numThreads; t++) nodeStart[t] = std::min(n, (int) ((long long) t * nBlocks / numThreads) * BLOCK);
+    numChunks = std::max(1, (n + chunkNodes - 1) / chunkNodes);
+    chunkStart.assign(numChunks + 1, n);
+    for (int ch = 0; ch < numChunks; ch++) chunkStart[ch] = ch * chunkNodes;
+    numThreads = std::max(1, std::min(threads, numChunks));
     chainRanges = fused != nullptr && fused->isChain() && fused->numSteps() >= n - 1;
     workers.reset(numThreads > 1 ? new Workers(numThreads) : nullptr);
-    blocks.resize(numThreads);
-    carry.assign(6 * numThreads, 0.0);
-    partE.assign(numThreads, 0.0);
+    carry.assign(6 * numChunks, 0.0);
+    partE.assign(numChunks, 0.0);
     baseSeed = seed != 0 ? (uint64_t) seed : ((uint64_t) std::random_device()() << 32) ^ std::random_device()();
-    normals.resize(numThreads);
-    for (int t = 0; t < numThreads; t++) normals[t].seed(streamSeed(baseSeed, t));
+    normals.resize(numChunks);
+    for (int ch = 0; ch < numChunks; ch++) normals[ch].seed(streamSeed(baseSeed, ch));
     invMass.assign(n, 0.0);
     invJ12.assign(n, 0.0);
     for (int k = 0; k < n; k++)
@@ -230,34 +229,41 @@ void RigidBodyIntegrator::initialize(ContextImpl& ctx) {
     }
 }
 
-// SMK loads of thread t's steps (its node range; the right loads of its last step go to its carry).
-void RigidBodyIntegrator::loadsRange(int t) {
-    const int k0 = nodeStart[t], k1 = nodeStart[t + 1];
+// SMK steps of chunk ch: those starting in its node range (the last chunk also takes the closure step).
+void RigidBodyIntegrator::chunkSteps(int ch, int& begin, int& end) const {
+    begin = chunkStart[ch];
+    end = ch == numChunks - 1 ? fused->numSteps() : chunkStart[ch + 1];
+}
+
+// SMK loads of chunk ch's steps (the right loads of its last step go to its carry).
+void RigidBodyIntegrator::loadsRange(int ch) {
+    const int k0 = chunkStart[ch], k1 = chunkStart[ch + 1];
     std::fill(F.begin() + 3 * k0, F.begin() + 3 * k1, 0.0);
     std::fill(tau.begin() + 3 * k0, tau.begin() + 3 * k1, 0.0);
-    const int end = t == numThreads - 1 ? fused->numSteps() : k1;
-    int bad;
-    partE[t] = fused->nodeLoadsRange(k0, end, c.data(), L.data(), F.data(), tau.data(), &carry[6 * t],
-                                     &carry[6 * t + 3], bad);
+    int begin, end, bad;
+    chunkSteps(ch, begin, end);
+    partE[ch] = fused->nodeLoadsRange(begin, end, c.data(), L.data(), F.data(), tau.data(), &carry[6 * ch],
+                                      &carry[6 * ch + 3], bad);
 }
 
 // Node loads (lab force F, torque tau about the centre) at the current positions, c and L already set.
 void RigidBodyIntegrator::loads(bool needOther) {
     lastE[0] = lastE[1] = lastE[2] = 0.0;
-    if (fused != nullptr && numThreads > 1 && chainRanges) {
-        // Threads on disjoint ranges of the chain; the loads a range puts on the first node of the next (or, for
-        // the closure, on node 0) are added afterwards. Every node gets the same two SMK terms as with one
-        // thread and 0 + a + b = 0 + b + a, so the loads are bitwise those of one thread.
-        parallel([this](int t) { loadsRange(t); });
-        for (int t = 0; t < numThreads; t++) {
-            const int end = t == numThreads - 1 ? fused->numSteps() : nodeStart[t + 1];
-            int left, right;
+    if (fused != nullptr && chainRanges) {
+        // Chunks of the chain (on any threads); the loads a chunk puts on the first node of the next (or, for the
+        // closure, on node 0) are added afterwards. Every node gets the same two SMK terms as in one pass over
+        // the chain and 0 + a + b = 0 + b + a, so the loads are bitwise those of one pass.
+        parallel([this](int ch) { loadsRange(ch); });
+        for (int ch = 0; ch < numChunks; ch++) {
+            int begin, end, left, right;
+            chunkSteps(ch, begin, end);
+            if (end <= begin) continue;
             fused->stepNodes(end - 1, left, right);
             for (int a = 0; a < 3; a++) {
-                F[3 * right + a] += carry[6 * t + a];
-                tau[3 * right + a] += carry[6 * t + 3 + a];
+                F[3 * right + a] += carry[6 * ch + a];
+                tau[3 * right + a] += carry[6 * ch + 3 + a];
             }
-            lastE[0] += partE[t];
+            lastE[0] += partE[ch];
         }
     } else {
         std::fill(F.begin(), F.end(), 0.0);
@@ -379,7 +385,6 @@ void RigidBodyIntegrator::step(int steps) {
 
 DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
-    const int n = getNumNodes();
     const double dt = getStepSize();
     const double cfric = exp(-friction * dt);
     const double kT = KB * temperature;
@@ -411,8 +416,7 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
         const bool useCache = cacheValid && !other && refData != nullptr;
         const bool write = other || refData == nullptr || s == steps - 1;
         if (!useCache) {
-            if (numThreads == 1) nodePoses(0, n, pos, c.data(), L.data());
-            else parallel([&](int t) { nodePoses(nodeStart[t], nodeStart[t + 1], pos, c.data(), L.data()); });
+            parallel([&](int ch) { nodePoses(chunkStart[ch], chunkStart[ch + 1], pos, c.data(), L.data()); });
         }
         // The loads at the kept node state were computed already if a report asked for them (same inputs, same
         // result: skipping them changes nothing).
@@ -422,8 +426,7 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
         stepDt = dt;
         stepCfric = cfric;
         stepNoise = noise;
-        if (numThreads == 1) update(0, pos, vel, useCache, write);
-        else parallel([&](int t) { update(t, pos, vel, useCache, write); });
+        parallel([&](int ch) { update(ch, pos, vel, useCache, write); });
         if (refData == nullptr) {
             context->setPositions(posBuf);
             context->setVelocities(velBuf);
@@ -438,7 +441,7 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
     }
 }
 
-// The node update of thread t's nodes (all of them with one thread): kick, drift, rotor (and thermostat), and
+// The node update of chunk t's nodes: kick, drift, rotor (and thermostat, from the chunk's own stream), and
 // with write the rigid particles.
 DNAROD_CLONES void RigidBodyIntegrator::update(int t, vector<Vec3>* pos, vector<Vec3>* vel, bool useCache, bool write) {
     const int n = getNumNodes();
@@ -447,9 +450,9 @@ DNAROD_CLONES void RigidBodyIntegrator::update(int t, vector<Vec3>* pos, vector<
     Gaussian& normal = normals[t];
     // Nodes in blocks of BLOCK lanes: the rotor's sub-flows are long dependent chains per node, so each
     // sub-flow runs over all lanes of a block at once (independent work the compiler vectorises).
-    for (int b0 = nodeStart[t]; b0 < nodeStart[t + 1]; b0 += BLOCK) {
+    Block B;
+    for (int b0 = chunkStart[t]; b0 < chunkStart[t + 1]; b0 += BLOCK) {
         const int nb = std::min(BLOCK, n - b0);
-        Block& B = blocks[t];
         double bound = 0.0;
         for (int j = 0; j < BLOCK; j++) {
             const int k = b0 + j;
@@ -518,7 +521,7 @@ DNAROD_CLONES void RigidBodyIntegrator::update(int t, vector<Vec3>* pos, vector<
             for (int a = 0; a < 3; a++)
                 for (int j = 0; j < BLOCK; j++) B.c[a][j] += hdt * B.P[a][j] * B.im[j];
             rotorBlock(B, hdt, poly);
-            // Normals in the order P[0][0], pi[0][0], P[0][1], ... (one stream per thread).
+            // Normals in the order P[0][0], pi[0][0], P[0][1], ... (one stream per chunk).
             double z[6 * BLOCK];
             normal.fill(z, 6 * nb);
             for (int a = 0; a < 3; a++)
@@ -563,7 +566,8 @@ DNAROD_CLONES void RigidBodyIntegrator::update(int t, vector<Vec3>* pos, vector<
 }
 
 void RigidBodyIntegrator::parallel(const std::function<void(int)>& f) {
-    workers->run(f);
+    if (workers) workers->run(numChunks, f);
+    else for (int ch = 0; ch < numChunks; ch++) f(ch);
 }
 
 DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int k0, int k1, const vector<Vec3>* pos, double* cOut,
@@ -766,7 +770,7 @@ double RigidBodyIntegrator::computeKineticEnergy() {
 void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
     // Stream 0 first and a flag byte (bit 0: node state follows; bit 1: the other threads' streams follow it).
     normals[0].save(stream);
-    const char valid = (cacheValid ? 1 : 0) | (numThreads > 1 ? 2 : 0);
+    const char valid = (cacheValid ? 1 : 0) | (numChunks > 1 ? 2 : 0);
     stream.write(&valid, 1);
     if (cacheValid) {
         stream.write((const char*) c.data(), sizeof(double) * c.size());
@@ -778,10 +782,10 @@ void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
         stream.write((const char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
         stream.write((const char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
     }
-    if (numThreads > 1) {
-        const int extra = numThreads - 1;
+    if (numChunks > 1) {
+        const int extra = numChunks - 1;
         stream.write((const char*) &extra, sizeof(extra));
-        for (int t = 1; t < numThreads; t++) normals[t].save(stream);
+        for (int ch = 1; ch < numChunks; ch++) normals[ch].save(stream);
     }
 }
 
@@ -804,13 +808,13 @@ void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
         stream.read((char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
         stream.read((char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
     }
-    // The other threads' streams; a checkpoint of another thread count gives what it has, the rest are reseeded
-    // (deterministic for a given pair of thread counts).
+    // The other chunks' streams (a checkpoint written with another chunk size gives what it has; the rest are
+    // reseeded).
     int extra = 0;
     if (flags & 2) stream.read((char*) &extra, sizeof(extra));
     Gaussian scratch;
-    for (int t = 1; t <= extra; t++) (t < numThreads ? normals[t] : scratch).load(stream);
-    for (int t = extra + 1; t < numThreads; t++) normals[t].seed(streamSeed(baseSeed, t));
+    for (int ch = 1; ch <= extra; ch++) (ch < numChunks ? normals[ch] : scratch).load(stream);
+    for (int ch = extra + 1; ch < numChunks; ch++) normals[ch].seed(streamSeed(baseSeed, ch));
     cacheValid = valid;
     loadsValid = false;
 }

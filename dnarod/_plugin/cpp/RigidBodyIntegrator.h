@@ -50,12 +50,13 @@ public:
     /** True if the node-pair (WCA + Debye-Hueckel) forces are evaluated inside the integrator. */
     bool usesFusedPairForce() const { return pairs != nullptr; }
     /** Threads the node update and the SMK loads run on in the bound Context: the CPU platform's Threads
-     *  property, at most one thread per getMinNodesPerThread() nodes (1 on other platforms). Results are
-     *  deterministic for a given number of threads. */
+     *  property, at most one per chunk of nodes (1 on other platforms). The work is split into chunks of
+     *  getNodesPerChunk() nodes, each with its own random-number stream, whichever thread runs it: results do
+     *  not depend on the number of threads. */
     int getNumThreads() const { return numThreads; }
-    /** Nodes per thread below which fewer threads are used (default 2048; set before creating the Context). */
-    int getMinNodesPerThread() const { return minNodesPerThread; }
-    void setMinNodesPerThread(int m);
+    /** Nodes per chunk (default 1024, a multiple of 16; set before creating the Context). */
+    int getNodesPerChunk() const { return chunkNodes; }
+    void setNodesPerChunk(int m);
     /** Number of doubles per node written by getNodeReport. */
     static const int REPORT_STRIDE = 18;
     /** The node state at the current positions for reporters, without an OpenMM State: per node (out, n*18
@@ -89,6 +90,7 @@ private:
     void update(int t, std::vector<OpenMM::Vec3>* pos, std::vector<OpenMM::Vec3>* vel, bool useCache, bool write);
     void nodePoses(int k0, int k1, const std::vector<OpenMM::Vec3>* pos, double* cOut, double* LOut) const;
     void parallel(const std::function<void(int)>& f);
+    void chunkSteps(int ch, int& begin, int& end) const;
     void otherLoads(const double* cc, const std::vector<OpenMM::Vec3>* pos, double* FF, double* tt);
     double temperature, friction;
     int seed;
@@ -114,16 +116,15 @@ private:
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
     std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)
-    // Threads: node range [nodeStart[t], nodeStart[t+1]) (whole blocks) and its SMK steps, its own Gaussian
-    // stream (stream 0 is the single-thread one), its block buffer, the loads on the right node of its last step
-    // (carry, 6 doubles) and its part of the SMK energy.
-    int numThreads = 1, minNodesPerThread = 2048;
+    // Chunks: node range [chunkStart[c], chunkStart[c+1]) (whole blocks) and the SMK steps starting in it, its
+    // own Gaussian stream (stream 0 is the one of a single chunk), the loads on the right node of its last step
+    // (carry, 6 doubles) and its part of the SMK energy. Threads claim chunks (Workers).
+    int numThreads = 1, chunkNodes = 1024, numChunks = 1;
     bool chainRanges = false;
     uint64_t baseSeed = 0;
     std::unique_ptr<Workers> workers;
-    std::vector<int> nodeStart;
+    std::vector<int> chunkStart;
     std::vector<Gaussian> normals;
-    std::vector<Block> blocks;
     std::vector<double> carry, partE;
     // per-step constants for update()
     double stepDt = 0, stepCfric = 0, stepNoise = 0;

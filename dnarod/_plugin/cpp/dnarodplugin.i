@@ -99,8 +99,8 @@ public:
     bool usesFusedElasticForce() const;
     bool usesFusedPairForce() const;
     int getNumThreads() const;
-    int getMinNodesPerThread() const;
-    void setMinNodesPerThread(int m);
+    int getNodesPerChunk() const;
+    void setNodesPerChunk(int m);
     %extend {
         /* Node state and energies at the current positions (RigidBodyIntegrator::getNodeReport) written into
            out, a writable C-contiguous float64 buffer of n_nodes * 18 values (a numpy array of shape
