@@ -217,8 +217,9 @@ def elastic_compound_forces(model, radius, split=None, order=None):
         Triangle circumradius of every node, nm.
     split : bool or None
         One force per row of the Cholesky factor; ``None``: split a force whose factor has more
-        than :data:`MAX_ENTRIES_PER_FORCE` entries, and always the closing step's force (its
-        screw makes the expression about 1.5x larger).
+        than :data:`MAX_ENTRIES_PER_FORCE` entries, and every force of a circular chain (the
+        closing step's screw makes its expression about twice as large, so a circular chain
+        needs the faster compile).
     order : sequence of int, optional
         Strain order of the factorisation (default :data:`STRAIN_ORDER`).
 
@@ -241,7 +242,8 @@ def elastic_compound_forces(model, radius, split=None, order=None):
             continue
         used = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
         all_rows = sorted({a for a, _ in used})
-        do_split = (image or len(used) > MAX_ENTRIES_PER_FORCE) if split is None else bool(split)
+        circular = model.closure is not None
+        do_split = (circular or len(used) > MAX_ENTRIES_PER_FORCE) if split is None else bool(split)
         row_groups = [[a] for a in all_rows] if do_split else [all_rows]
         closure = model.closure if image else None
         for rows in row_groups:
