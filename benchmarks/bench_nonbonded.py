@@ -13,6 +13,10 @@ the size, each size in its own process (optionally pinned with ``taskset``):
   of a difference);
 * list rebuilds per 1000 steps and listed pairs per node.
 
+Rates are measured on the Python-callback path (``--elastic fast``, the default here: the in-callback share
+needs its Python non-bonded code; ``--elastic plugin`` gives the share by difference only), each measurement
+sized to ``--budget`` CPU seconds of the process (a wall budget shrinks the sample on a loaded machine).
+
 Usage: ``python benchmarks/bench_nonbonded.py [--sizes 1000,10000,...] [--budget S] [--pin CPU] [--json OUT]``.
 """
 from __future__ import annotations
