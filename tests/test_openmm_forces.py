@@ -94,28 +94,29 @@ def state_loads(ctx):
     return st.getPotentialEnergy()._value, F, tau
 
 
+def portable_context(model):
+    """A Reference Context with the portable forces of ``model`` (default split)."""
+    return reference_context(model, elastic_compound_forces(model, P.triangle_radius(model.mass, model.inertia)))
+
+
 @pytest.fixture(scope="module")
 def portable_open(open_full):
-    r = P.triangle_radius(open_full.mass, open_full.inertia)
-    return reference_context(open_full, elastic_compound_forces(open_full, r))
+    return portable_context(open_full)
 
 
 @pytest.fixture(scope="module")
 def portable_circular(circular):
-    r = P.triangle_radius(circular.mass, circular.inertia)
-    return reference_context(circular, elastic_compound_forces(circular, r))
+    return portable_context(circular)
 
 
 @pytest.fixture(scope="module")
 def portable_circular_full(circular_full):
-    r = P.triangle_radius(circular_full.mass, circular_full.inertia)
-    return reference_context(circular_full, elastic_compound_forces(circular_full, r))
+    return portable_context(circular_full)
 
 
 @pytest.fixture(scope="module")
 def portable_open_sized(open_sized):
-    r = P.triangle_radius(open_sized.mass, open_sized.inertia)
-    return reference_context(open_sized, elastic_compound_forces(open_sized, r))
+    return portable_context(open_sized)
 
 
 # --- particles -------------------------------------------------------------------------
