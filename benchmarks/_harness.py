@@ -29,15 +29,18 @@ def cpu_seconds():
     return t.user + t.system + t.children_user + t.children_system
 
 
-def timed_steps(integrator, budget, warmup=2, probe=1, min_steps=2):
-    """Step ``integrator`` for about ``budget`` wall seconds; returns ``(steps, cpu_s, wall_s)``.
+def timed_steps(integrator, budget, warmup=2, probe=1, min_steps=2, clock="wall"):
+    """Step ``integrator`` for about ``budget`` seconds; returns ``(steps, cpu_s, wall_s)``.
 
-    ``warmup`` steps first, then ``probe`` steps are timed to size the measured run.
+    ``warmup`` steps first, then ``probe`` steps are timed to size the measured run, by wall time
+    or (``clock="cpu"``) by CPU time of this process, which keeps the number of measured steps
+    independent of the machine's load.
     """
     integrator.step(warmup)
-    t = time.perf_counter()
+    now = time.process_time if clock == "cpu" else time.perf_counter
+    t = now()
     integrator.step(probe)
-    one = max((time.perf_counter() - t) / probe, 1e-6)
+    one = max((now() - t) / probe, 1e-6)
     steps = max(min_steps, int(budget / one))
     c0, w0 = time.process_time(), time.perf_counter()
     integrator.step(steps)

@@ -14,8 +14,9 @@ without a GPU):
 node-steps per CPU-second of the process (best of interleaved repeats, so machine load hits
 all alike; wall-clock figures in the JSON), the ratios to the floor, the time to build a
 simulation (fastest-mode estimate, system, OpenMM Context) and the peak resident memory. Then a
-1 kbp duplex at 300 K with the default time step through the run loop (``dnarod.run.simulate_engine``:
-trajectory every 1 ps, energies, checkpoints): steps per CPU-second and ns/day. No oxDNA figure is
+1 kbp duplex at 300 K with the default time step, bare and through the run loop (``dnarod.run.simulate_engine``:
+trajectory every 1 ps, energies, checkpoints): steps per CPU-second and ns/day, for the default
+(``elastic="auto"``), the Python-callback path and the compiled plugin, each in its own process of the same run. No oxDNA figure is
 computed here (oxDNA is not run by this script; the README quotes a side-by-side measurement with its date).
 
 Targets: bonded >= 40% of the floor at 10^4 nodes; full <= 2x bonded cost at 10^4; 1 kbp full

@@ -14,6 +14,9 @@ Figures: steps per CPU-second (all threads of the process, ``time.process_time``
 wall-second, best of interleaved repeats (so machine load hits all alike; sizes >= 10^5 are run
 once each, one simulation at a time, to bound memory), and node-steps per CPU-second.
 
+``--elastic`` picks the elastic path run on every platform (default ``fast``, the Python-callback path
+whose thread hand-off this compares; ``plugin`` for the compiled plugin).
+
 Usage: ``python benchmarks/bench_platforms.py [--sizes 100,1000,...] [--budget S] [--pin CPU] [--json OUT]``.
 """
 from __future__ import annotations

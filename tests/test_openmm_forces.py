@@ -94,28 +94,29 @@ def state_loads(ctx):
     return st.getPotentialEnergy()._value, F, tau
 
 
+def portable_context(model):
+    """A Reference Context with the portable forces of ``model`` (default split)."""
+    return reference_context(model, elastic_compound_forces(model, P.triangle_radius(model.mass, model.inertia)))
+
+
 @pytest.fixture(scope="module")
 def portable_open(open_full):
-    r = P.triangle_radius(open_full.mass, open_full.inertia)
-    return reference_context(open_full, elastic_compound_forces(open_full, r))
+    return portable_context(open_full)
 
 
 @pytest.fixture(scope="module")
 def portable_circular(circular):
-    r = P.triangle_radius(circular.mass, circular.inertia)
-    return reference_context(circular, elastic_compound_forces(circular, r))
+    return portable_context(circular)
 
 
 @pytest.fixture(scope="module")
 def portable_circular_full(circular_full):
-    r = P.triangle_radius(circular_full.mass, circular_full.inertia)
-    return reference_context(circular_full, elastic_compound_forces(circular_full, r))
+    return portable_context(circular_full)
 
 
 @pytest.fixture(scope="module")
 def portable_open_sized(open_sized):
-    r = P.triangle_radius(open_sized.mass, open_sized.inertia)
-    return reference_context(open_sized, elastic_compound_forces(open_sized, r))
+    return portable_context(open_sized)
 
 
 # --- particles -------------------------------------------------------------------------
@@ -276,8 +277,8 @@ def test_cpu_fast_path_within_precision(open_full):
 
 @pytest.mark.parametrize("which", ["open_full", "circular_full"])
 def test_portable_single_force_and_row_split_give_the_same_energy_and_loads(which, request):
-    """One force per Cholesky row (the default for a full K; faster to compile) and one force for all rows
-    both equal dnarod.energy; the closing step is split by default too."""
+    """One force per Cholesky row (the default for a full K and for circular chains; faster to compile) and one
+    force for all rows both equal dnarod.energy."""
     m = request.getfixturevalue(which)
     r = P.triangle_radius(m.mass, m.inertia)
     closing = m.closure is not None
@@ -289,6 +290,13 @@ def test_portable_single_force_and_row_split_give_the_same_energy_and_loads(whic
         assert abs(E_mm - E) <= 1e-12 * abs(E)
         assert np.abs(F_mm - F).max() <= 1e-10 * np.abs(F).max()
         assert np.abs(tau_mm - tau).max() <= 1e-10 * np.abs(tau).max()
+
+
+def test_circular_dna_default_is_split_and_open_is_not(ff, circular):
+    r = P.triangle_radius(circular.mass, circular.inertia)
+    assert len(elastic_compound_forces(circular, r)) == 6 + 6
+    m = ff.model_from_sequence("ACGTTGCAGT")
+    assert len(elastic_compound_forces(m, P.triangle_radius(m.mass, m.inertia))) == 1
 
 
 def test_portable_expression_keeps_only_the_used_entries(ff):

@@ -1,7 +1,8 @@
 """The portable path on OpenMM's OpenCL platform (pocl on a CPU in CI; any OpenCL device elsewhere), and
 the thermal check of the compiled plugin's device kernel there (its agreement tests: test_plugin_opencl.py).
 
-One Context per precision is shared by the module (OpenCL kernels compile for tens of seconds).
+One Context per precision is shared by the module (with a cold pocl cache the kernels compile for several
+CPU-seconds, tens of seconds by wall clock on a loaded machine).
 Outside CI a missing OpenCL platform skips these tests with the reason; with ``CI=true`` it is
 a failure (``.ci/run`` installs pocl when it runs as root on Debian).
 

@@ -205,10 +205,11 @@ def elastic_compound_forces(model, radius, split=None, order=None):
     coordinates, then compiling every derivative with common-subexpression elimination) grows
     faster than linearly with the expression, so a large energy compiles faster as several
     forces: one per row ``v_a^2`` of the Cholesky factor. The rows then no longer share the
-    strain subexpressions at run time, so a step of the portable force costs about 3x more on
+    strain subexpressions at run time, so an evaluation of the portable force costs 2-3x more on
     the Reference/CPU platforms (on GPU platforms OpenMM runs all bonded forces in one kernel).
-    The closing step of a circular chain is its own force (one bond) whose screw is written
-    into the expression as numbers. Measured in ``benchmarks/bench_portable.py``.
+    The closing step of a circular chain has its own forces (one bond) whose screw is written
+    into the expression as numbers. Measured in ``benchmarks/bench_portable.py`` and
+    ``docs/platforms.md``.
 
     Parameters
     ----------
@@ -217,8 +218,9 @@ def elastic_compound_forces(model, radius, split=None, order=None):
         Triangle circumradius of every node, nm.
     split : bool or None
         One force per row of the Cholesky factor; ``None``: split a force whose factor has more
-        than :data:`MAX_ENTRIES_PER_FORCE` entries, and always the closing step's force (its
-        screw makes the expression about 1.5x larger).
+        than :data:`MAX_ENTRIES_PER_FORCE` entries, and every force of a circular chain (the
+        closing step's screw makes its expression about twice as large, so a circular chain
+        needs the faster compile).
     order : sequence of int, optional
         Strain order of the factorisation (default :data:`STRAIN_ORDER`).
 
@@ -235,13 +237,14 @@ def elastic_compound_forces(model, radius, split=None, order=None):
                                                  radius[ka], radius[k1], order)
     uniform = bool(np.all(radius == radius[0]))
     forces = []
-    blocks = [(np.arange(n - 1), False)] + ([(np.array([n - 1]), True)] if model.closure is not None else [])
+    circular = model.closure is not None
+    blocks = [(np.arange(n - 1), False)] + ([(np.array([n - 1]), True)] if circular else [])
     for steps, image in blocks:
         if steps.size == 0:
             continue
         used = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
         all_rows = sorted({a for a, _ in used})
-        do_split = (image or len(used) > MAX_ENTRIES_PER_FORCE) if split is None else bool(split)
+        do_split = (circular or len(used) > MAX_ENTRIES_PER_FORCE) if split is None else bool(split)
         row_groups = [[a] for a in all_rows] if do_split else [all_rows]
         closure = model.closure if image else None
         for rows in row_groups:
