@@ -8,6 +8,7 @@ simulated time a member needs for a standard error of ``target`` (relative, of t
 x/L). Prints a table and writes ``benchmarks/results/hat_1kbp.json``.
 
     python benchmarks/bench_hat_1kbp.py --turns 0,6 --time 40 [--root DIR]
+    python benchmarks/bench_hat_1kbp.py --turns 0,6 --cut 10,40 --dirs runs/bench_hat_1kbp/kbp_0.0,runs/bench_hat_1kbp/kbp_6.0_long
 """
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 
-def analyse(member_dir, cut_ns, windows=(0, 2, 5, 10, 20, 30, 1e9)):
+def analyse(member_dir, cut_ns, windows=(0, 2, 5, 10, 20, 30, 40, 50, 60, 70, 1e9)):
     from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     res = json.loads((Path(member_dir) / "protocol_result.json").read_text())["result"]
@@ -65,16 +66,20 @@ def main(argv=None):
     ap.add_argument("--curve-members", type=int, default=12)
     ap.add_argument("--target", type=float, default=0.03)
     ap.add_argument("--out", default="benchmarks/results/hat_1kbp.json")
+    ap.add_argument("--dirs", default=None, help="comma-separated finished member folders to analyse instead of "
+                                                  "running (same order as --turns/--cut)")
     a = ap.parse_args(argv)
     from dnarod.protocols.tweezers import run_member
 
     turns = [float(t) for t in a.turns.split(",")]
     cuts = [float(c) for c in a.cut.split(",")]
     rows = []
-    for t, cut in zip(turns, cuts):
-        d = Path(a.root) / f"kbp_{t}"
-        run_member(dict(n_bp=1000, force_pN=a.force, turns=t, time_ns=a.time, equilibration_ns=0.2, seed=11,
-                        sample_ps=20.0), d)
+    dirs = a.dirs.split(",") if a.dirs else [None] * len(turns)
+    for t, cut, given in zip(turns, cuts, dirs):
+        d = Path(given) if given else Path(a.root) / f"kbp_{t}"
+        if not given:
+            run_member(dict(n_bp=1000, force_pN=a.force, turns=t, time_ns=a.time, equilibration_ns=0.2, seed=11,
+                            sample_ps=20.0), d)
         r = analyse(d, cut)
         r["production_ns_rel"], r["production_ns_abs"] = needed_ns(r, a.target, a.target)
         rows.append(r)

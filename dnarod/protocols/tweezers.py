@@ -2,7 +2,7 @@
 
 Geometry (magnetic tweezers): node 0 is clamped (position and orientation: the surface), the last node
 carries a constant pulling force F along +z (the bead), walls keep the chain above the surface plane and
-below the bead (:func:`add_tweezers_walls`; without them the chain unwinds around its ends) and, for
+below the bead (:func:`tweezers_wall_forces`; without them the chain unwinds around its ends) and, for
 rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` whose target is the last
 node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free (force-extension).
 

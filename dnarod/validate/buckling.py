@@ -17,6 +17,8 @@ model in the other plectonemic geometry, a closed ring: ``P = C (1 - Wr/ΔLk)``.
 
 Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing else:
 
+0. the post-buckling members are equilibrated: the means of extension and torque over the two halves of their
+   production agree within ``Z_TOL`` SE (plectonemes grow for tens of ns after buckling from the straight start);
 1. both post-buckling members are plectonemic (detector of :mod:`dnarod.protocols.measure`);
 2. their torques agree (the plateau is flat): ``|Δtau| <= Z_TOL SE``;
 3. the extension falls between them by more than ``Z_TOL SE``;
@@ -45,6 +47,20 @@ from ._common import new_figure, save_figure
 NAME = "buckling"
 Z_TOL = 3.0
 LINEAR_ALLOWANCE = 0.15
+
+
+def drift_z(samples_csv, column):
+    """z-score of the difference between the means of the two halves of a member's samples (block errors)."""
+    from ..analysis.polymer import integrated_autocorrelation_time
+
+    d = np.genfromtxt(samples_csv, delimiter=",", names=True)
+    halves = np.array_split(np.asarray(d[column], float), 2)
+    se = []
+    for h in halves:
+        tau = integrated_autocorrelation_time(h)
+        tau = tau if np.isfinite(tau) and tau > 0.5 else 0.5
+        se.append(h.std(ddof=1) * np.sqrt(2 * tau / len(h)))
+    return float((halves[1].mean() - halves[0].mean()) / np.hypot(*se))
 
 
 def plectoneme_twist_stiffness(ring_row, C_nm):
@@ -77,7 +93,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     lk0 = intrinsic_turns(model)
     pre_turns = 0.02 * lk0 if pre_turns is None else float(pre_turns)
     post_turns = (0.075 * lk0, 0.098 * lk0) if post_turns is None else tuple(post_turns)
-    time_ns = time_ns or (2.0 if quick else 6.0)
+    time_ns = time_ns or (2.0 if quick else 30.0)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
@@ -93,11 +109,14 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
                                     temperature_K=temperature), root / f"ring{ring_n_bp}_{ring_delta_lk}")
         P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th)
-    rows = []
+    rows, drifts = [], []
     for i, t in enumerate((pre_turns, *post_turns)):
         r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
                             temperature_K=temperature, seed=seed + i), root / f"turns{t:+.3f}")
         rows.append(r)
+        csv = root / f"turns{t:+.3f}" / "samples.csv"
+        drifts.append(dict(turns=r["turns"], extension_z=drift_z(csv, "extension_nm"),
+                           torque_z=drift_z(csv, "twist_torque_pN_nm")))
     pre, p1, p2 = rows
     lin = kt_pn * c_mn * 2 * np.pi * pre["delta_lk"] / L
     lin_ok = abs(pre["twist_torque_pN_nm"] - lin) <= Z_TOL * pre["twist_torque_pN_nm_err"] + LINEAR_ALLOWANCE * abs(lin)
@@ -126,7 +145,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     marko_ok = abs(tau_pl - th["torque_pN_nm"]) <= marko_tol
     slope_meas = dx * L / (p2["delta_lk"] - p1["delta_lk"])
     dlk_b_meas = tau_pl * L / (kt_pn * c_mn * 2 * np.pi)
-    passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok)
+    # equilibrated: no drift between the halves of the post-buckling members' production (plectonemes grow slowly)
+    settled = all(abs(d["extension_z"]) <= Z_TOL and abs(d["torque_z"]) <= Z_TOL for d in drifts[1:])
+    passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled)
     res = dict(model=f"dna-default open chain, {n_bp} bp (L = {L:.1f} nm, Lk0 = {lk0:.2f}), {force_pN} pN, 0.15 M",
                temperature_K=temperature, production_ns_per_member=time_ns,
                members=[{k: r[k] for k in ("turns", "delta_lk", "relative_extension", "relative_extension_err",
@@ -149,7 +170,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                           extension_slope_nm_per_turn=th["extension_slope_nm_per_turn"],
                           extension_slope_measured_nm_per_turn=slope_meas,
                           plectonemic_delta_lk=th["plectonemic_delta_lk"]),
-               z_tolerance=Z_TOL, passed=passed)
+               drift=dict(members=drifts, settled=bool(settled)), z_tolerance=Z_TOL, passed=passed)
     if plots:
         fig, ax = new_figure(2, 1, width=4.5, height=3.6)
         t = [r["delta_lk"] for r in rows]

@@ -84,8 +84,10 @@ def headline(name, r):
                     f" (Marko {_fmt(mk['buckling_delta_lk'], '.2f')}); slope {_fmt(mk['extension_slope_measured_nm_per_turn'], '.0f')}"
                     f" nm/turn (Marko {_fmt(mk['extension_slope_nm_per_turn'], '.0f')}); pre-buckling torque "
                     f"{_fmt(r['pre_buckling']['torque_pN_nm'], '.1f')} vs linear law "
-                    f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm",
-                    f"|tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
+                    f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm; drift z (extension, torque) of the "
+                    f"post-buckling members " + ", ".join(f"({_fmt(d['extension_z'], '.1f')}, {_fmt(d['torque_z'], '.1f')})"
+                                                          for d in r["drift"]["members"][1:]),
+                    f"drift |z| <= {r['z_tolerance']}; |tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
                     f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE")
         if name == "plectonemes":
             return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"

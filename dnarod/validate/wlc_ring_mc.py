@@ -1,6 +1,8 @@
 """Reference simulation: the writhe distribution of a worm-like ring with a hard-core diameter (Monte Carlo).
 
-The classic method of the supercoiling literature (Vologodskii et al., Nature 280:294, 1979; Klenin et al.):
+The classic method of the supercoiling literature (Vologodskii, Anshelevich, Lukashin & Frank-Kamenetskii,
+"Statistical mechanics of supercoils and the torsional stiffness of the DNA double helix", 1979: abstract read,
+journal details from memory, Nature 280:294):
 a closed chain of M straight segments of length b, bending energy ``g (1 - cos theta)`` at each vertex with
 ``g`` set so that ``<cos theta> = coth g - 1/g = exp(-b/A)`` (persistence length A exactly), segments closer
 than the diameter d (chain separation > ``exclude`` segments) forbidden, sampled by Metropolis crankshaft
