@@ -193,14 +193,14 @@ CASES += [
     ("rebuild-truncated-model", ["rebuild", "{w}/trunc.npz", "-o", "{w}/x.pdb", "--no-minimize"],
      ["trunc.npz", "cannot read"], None),
     ("analyze-binary-dcd", ["analyze", "{w}/bad.dcd", "-t", "{w}/run/trajectory.pdb", "-o", "{w}/n", "--no-plots"],
-     ["bad.dcd", "cannot read"], None),
+     ["bad.dcd", "not a DCD file"], None),
     ("analyze-step-zero", ["analyze", DTRAJ, "--step", "0", "-o", "{w}/n", "--no-plots"], ["--step 0"], None),
     ("analyze-one-block", ["analyze", DTRAJ, "--blocks", "1", "-o", "{w}/n", "--no-plots"], ["--blocks 1"], None),
     ("analyze-stop-negative", ["analyze", DTRAJ, "--stop", "-1", "-o", "{w}/n", "--no-plots"], ["--stop -1"], None),
     ("analyze-temperature-zero", ["analyze", DTRAJ, "--temperature", "0", "-o", "{w}/n", "--no-plots"],
      ["--temperature 0"], None),
     ("analyze-exclude-all-steps", ["analyze", DTRAJ, "--exclude-ends", "100", "-o", "{w}/n", "--no-plots"],
-     ["exclude_ends=100"], None),
+     ["--exclude-ends 100", "no steps"], None),
     ("ensemble-timeout-nan", ["ensemble", str(ROOT / "examples" / "force_extension.toml"), "-o", "{w}/n",
                               "--scheduler", "tcp://127.0.0.1:1", "--timeout", "nan"], ["--timeout nan"], None),
     ("ensemble-scheduler-malformed", ["ensemble", str(ROOT / "examples" / "force_extension.toml"), "-o", "{w}/n",
@@ -308,13 +308,15 @@ def test_api_bad_run_arguments_raise_dnarod_errors(tmp_path, bad):
     assert not (tmp_path / "r").exists()
 
 
-def test_api_bad_outdir_model_and_protocol_values(tmp_path, work):
+def test_api_bad_outdir_model_and_protocol_values(work):
     from dnarod.analysis.report import analyze
     from dnarod.errors import DnarodError
     from dnarod.model import RodModel
     from dnarod.protocols import hat_curve, ring_supercoiling
     from dnarod.run import RunSpec, run
 
+    tmp_path = work / "api"
+    tmp_path.mkdir()
     with pytest.raises(DnarodError, match="output folder"):
         run(RunSpec(source=SEQ, engine="lax", excluded_volume=False, electrostatics=False), None)
     for name in ("empty.npz", "trunc.npz"):

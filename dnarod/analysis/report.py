@@ -233,9 +233,18 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     out = Path(out) if out else Path(input_path).with_name(Path(input_path).stem + "_analysis")
     out, stale = prepare_report_folder(out, overwrite)
     traj, model, kind = load_input(input_path, topology, duplex, start, stop, step)
+    ff = load_forcefield(forcefield or "dna-default")
+    # refused here, before the old report's files go and before anything is printed
+    if traj.n_frames == 0:
+        raise DnarodError(f"{input_path}: no frame left with --start {start} --stop {stop} --step {step}; widen the "
+                          f"range")
+    closed = bool(circular or traj.metadata.get("circular") or (model is not None and model.closure is not None))
+    n_steps = traj.n_nodes - 1
+    if exclude_ends is not None and not closed and n_steps - 2 * int(exclude_ends) < 1:
+        raise DnarodError(f"--exclude-ends {exclude_ends} leaves no steps of {n_steps}; use at most "
+                          f"{max((n_steps - 1) // 2, 0)}")
     for p in stale:  # overwrite: the old report's files go once the input has been read
         p.unlink(missing_ok=True)
-    ff = load_forcefield(forcefield or "dna-default")
     closure = model.closure if model is not None else None
     circular = circular or bool(traj.metadata.get("circular"))
     if circular and closure is None:
