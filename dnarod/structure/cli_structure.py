@@ -248,20 +248,20 @@ def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, al
     """A dnarod model (.npz) from a structure INPUT (nodes at its base-pair frames) or from --sequence."""
     from .builders import model_from_sequence, model_from_structure
 
-    _output_path(output, "-o", (".npz",), "a dnarod model", overwrite)
     if sequence is not None and not re.fullmatch(r"[ACGTacgt]+", sequence):
         bad = re.search(r"[^ACGTacgt]", sequence)
         raise StructureError(f"--sequence {sequence!r}: " + (f"{bad.group()!r} is not a DNA base (A, C, G, T)" if bad
                                                               else "empty; give the strand-I letters A, C, G, T"))
     if (input_path is None) == (sequence is None):
         raise StructureError("build: give either INPUT (a PDB/mmCIF file) or --sequence, not both or neither")
+    if sequence is not None and (intrinsic == "structure" or duplex is not None):
+        raise StructureError("build: --intrinsic structure and --duplex need a structure INPUT, not --sequence")
+    if duplex is not None and duplex < 1:
+        raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
+    _output_path(output, "-o", (".npz",), "a dnarod model", overwrite)
     if sequence is not None:
-        if intrinsic == "structure" or duplex is not None:
-            raise StructureError("build: --intrinsic structure and --duplex need a structure INPUT, not --sequence")
         m = model_from_sequence(sequence, forcefield)
     else:
-        if duplex is not None and duplex < 1:
-            raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
         ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
         m = model_from_structure(analysis=ana, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
                                  intrinsic=intrinsic)
