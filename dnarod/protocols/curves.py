@@ -136,6 +136,9 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
              "torque_turns": hooks.TORQUE_TURNS, "rings": hooks.RINGS}.get(kind)
     if proto is None:
         raise DnarodError(f"unknown protocol {kind!r}; choose force_extension, magnetic_tweezers, torque_turns, rings")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise DnarodError(f"workers {workers!r}: give a number of dask workers >= 0 (0: one after another in this "
+                          f"process)")
     base = dict(base)
     if kind in ("magnetic_tweezers", "torque_turns"):
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
