@@ -153,6 +153,10 @@ CASES = [
      ["already holds an analysis report", "--overwrite"], None),
 ]
 
+def _spec_overstretching(w):
+    (w / "f80.toml").write_text('[ensemble]\nname = "x"\n[base]\nsource = "ACGTACGTAC"\nforce_pN = 80\n')
+
+
 DTRAJ = "{w}/run/trajectory.dtraj"
 PROTO = ["--source", "40", "--time", "0.001", "--workers", "0", "-o", "{w}/n"]
 # Held-out style cases, one per class: usage errors (click's own), out-of-range and non-finite numbers, huge
@@ -205,6 +209,8 @@ CASES += [
                               "--scheduler", "tcp://127.0.0.1:1", "--timeout", "nan"], ["--timeout nan"], None),
     ("ensemble-scheduler-malformed", ["ensemble", str(ROOT / "examples" / "force_extension.toml"), "-o", "{w}/n",
                                       "--scheduler", "garbage"], ["--scheduler garbage", "tcp://HOST:PORT"], None),
+    ("ensemble-force-overstretching", ["ensemble", "{w}/f80.toml", "-o", "{w}/n", "--workers", "0"],
+     ["--pull 80", "overstretch"], _spec_overstretching),
     ("protocol-time-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--time", "-1"], ["time_ns", "> 0"], None),
     ("protocol-force-nan", ["protocol", "force-extension", "--force", "nan", *PROTO], ["--force", "finite"], None),
     ("protocol-delta-lk-inf", ["protocol", "rings", "--delta-lk", "inf", *PROTO], ["--delta-lk", "finite"], None),
