@@ -26,6 +26,28 @@ def _floats(text, what):
     return vals
 
 
+#: The settings keys the protocol commands fill from their options (for messages in the options' names).
+_OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "temperature_K": "--temperature",
+                  "salt_M": "--salt", "seed": "--seed", "force_pN": "--force", "turns": "--turns",
+                  "delta_lk": "--delta-lk", "rotation_clamp_kJ_mol": "--clamp-k", "source": "--source",
+                  "forcefield": "--forcefield"}
+
+
+def _run_protocol(*args, **kw):
+    """:func:`dnarod.protocols.curves.run_protocol`, its settings errors named by the command's options."""
+    import re
+
+    from .curves import run_protocol
+
+    try:
+        return run_protocol(*args, **kw)
+    except DnarodError as exc:
+        m = re.match(r"\[(base|axes)\] (\w+)(.*)", str(exc), re.S)
+        if m and m.group(2) in _OPTION_OF_KEY:
+            raise DnarodError(f"{_OPTION_OF_KEY[m.group(2)]} ({m.group(2)}){m.group(3)}") from None
+        raise
+
+
 def _check_run_options(workers, out):
     """Refuse a negative worker count and an output folder that holds something other than a protocol's
     results (a run, a report, any other files), before anything runs."""
@@ -93,7 +115,7 @@ def protocol():
 def force_extension_cmd(forces, turns, workers, out, **kw):
     """Extension vs force with a torsionally free bead end."""
     _check_run_options(workers, out)
-    from .curves import run_protocol
+    run_protocol = _run_protocol
 
     if turns not in (None, "", "0"):
         raise DnarodError(f"--turns {turns}: turns need a rotation clamp; the force-extension bead end is "
@@ -110,7 +132,7 @@ def force_extension_cmd(forces, turns, workers, out, **kw):
 def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _check_run_options(workers, out)
-    from .curves import run_protocol
+    run_protocol = _run_protocol
 
     c = run_protocol("magnetic_tweezers", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
@@ -125,7 +147,7 @@ def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
 def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _check_run_options(workers, out)
-    from .curves import run_protocol
+    run_protocol = _run_protocol
 
     c = run_protocol("torque_turns", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
@@ -138,7 +160,7 @@ def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
 def rings_cmd(delta_lk, workers, out, **kw):
     """Closed rings: Tw, Wr and plectonemes vs linking difference."""
     _check_run_options(workers, out)
-    from .curves import run_protocol
+    run_protocol = _run_protocol
 
     vals = _floats(delta_lk, "--delta-lk")
     if any(v != int(v) for v in vals):
