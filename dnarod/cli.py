@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import errno
 import sys
+import warnings
 
 import click
 
@@ -19,12 +20,64 @@ USER_OS_ERRORS = {errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.EACCES, errno
                   errno.ENAMETOOLONG, errno.ENOENT, errno.EROFS}
 
 
+#: click >= 8.2 raises this for a bare group (it shows the help); older click has no such class.
+_NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
+class OneLineUsageError(click.ClickException):
+    """A command-line usage error (unknown option, a value that is not a number, a missing argument) shown
+    as one line, ``dnarod: error: ...``, with exit status 2 (click's own shows the usage block too)."""
+
+    exit_code = 2
+
+    def show(self, file=None):
+        click.echo(f"dnarod: error: {self.format_message()}", err=True)
+
+
+def _one_line_usage(exc):
+    """The one-line form of a click usage error: the command, the message and where the help is."""
+    ctx = exc.ctx
+    msg = " ".join(exc.format_message().split())
+    where = ctx.command_path if ctx is not None else "dnarod"
+    return OneLineUsageError(f"{where}: {msg} (see `{where} --help`)")
+
+
 class DnarodGroup(click.Group):
     """A click group that turns dnarod's input errors into one-line messages and exit status 2."""
 
+    def make_context(self, info_name, args, parent=None, **extra):
+        try:
+            return super().make_context(info_name, args, parent=parent, **extra)
+        except _NO_ARGS_IS_HELP:
+            raise  # a bare `dnarod` (or `dnarod protocol`) prints its help
+        except click.UsageError as exc:
+            raise _one_line_usage(exc) from None
+
     def invoke(self, ctx):
+        # Python warnings (numpy's "Mean of empty slice", ...) are held back until the command ends: a refused
+        # input then prints its one line alone, a finished command prints them after its output.
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("default")
+            rv = self._invoke_one_line(ctx)
+        for w in caught:
+            click.echo(f"dnarod: warning: {w.message}", err=True)
+        return rv
+
+    def _invoke_one_line(self, ctx):
         try:
             return super().invoke(ctx)
+        except _NO_ARGS_IS_HELP:
+            raise
+        except click.UsageError as exc:
+            raise _one_line_usage(exc) from None
+        except MemoryError:
+            click.echo("dnarod: error: not enough memory for this input (a node count, a sequence or a file too "
+                       "large?); give a smaller one", err=True)
+            sys.exit(2)
+        except EOFError as exc:
+            click.echo(f"dnarod: error: an input file ended too early ({exc or 'end of file'}): is it empty or "
+                       f"truncated?", err=True)
+            sys.exit(2)
         except DnarodError as exc:
             click.echo(f"dnarod: error: {str(exc).splitlines()[0] if str(exc) else type(exc).__name__}", err=True)
             sys.exit(2)

@@ -407,8 +407,10 @@ def load_forcefield(name_or_path):
     where = p.name
     try:
         doc = tomllib.loads(p.read_text())
-    except OSError as exc:
-        raise ParameterError(f"{p}: cannot read force field ({exc})") from None
+    except IsADirectoryError:
+        raise ParameterError(f"{p}: a folder, not a force-field .toml file") from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{p}: cannot read force field ({type(exc).__name__}: not a TOML text file?)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ParameterError(f"{p}: not valid TOML ({exc})") from None
     kind = doc.get("kind")

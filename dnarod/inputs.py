@@ -10,6 +10,8 @@ from .errors import ParameterError
 SEQUENCE_RE = re.compile(r"[ACGTacgt]+")
 #: Suffixes of plain sequence files (FASTA or bare letters).
 SEQUENCE_SUFFIXES = {".fa", ".fasta", ".fna", ".seq", ".txt"}
+#: Most nodes a model may have (10^8 nodes take ~20 GB for the pose alone).
+MAX_NODES = 10**8
 
 
 def read_sequence_file(path):
@@ -55,6 +57,25 @@ def _is_file(p):
         return p.is_file()
     except OSError:  # e.g. a name longer than the file system allows: not a file
         return False
+
+
+def _check_ring_twist(relaxed, delta_lk):
+    """Refuse a linking difference whose twist per step leaves the rod model's Cayley chart (beyond it the
+    twist would wrap around by whole turns and the ring would silently hold another linking number)."""
+    import numpy as np
+
+    from .protocols.rings import relaxed_twist
+    from .rotations import MAX_CAYLEY_ANGLE
+
+    lk0 = float(relaxed_twist(relaxed))
+    n = relaxed.n_nodes
+    per_step = 2 * np.pi * abs(lk0 + delta_lk) / n
+    if per_step > 0.8 * MAX_CAYLEY_ANGLE:
+        most = int(0.8 * MAX_CAYLEY_ANGLE * n / (2 * np.pi) - abs(lk0))
+        raise ParameterError(f"--delta-lk {delta_lk}: sigma = {delta_lk / lk0:+.3g} (Lk0 = {lk0:.1f}) twists each of the "
+                             f"{n} steps by {np.degrees(per_step):.0f} deg, beyond the rod model's range "
+                             f"({np.degrees(0.8 * MAX_CAYLEY_ANGLE):.0f} deg); use |delta-lk| <= {max(most, 0)} "
+                             f"(real DNA denatures beyond |sigma| ~ 0.1)")
 
 
 def load_model(source, forcefield="dna-default", circular=False, ring=False, delta_lk=0, duplex=None,
@@ -137,6 +158,11 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
     kw = dict(n_nodes=int(source)) if sequence is None else dict(sequence=sequence)
     if kw.get("n_nodes", 2) < 2:
         raise ParameterError(f"node count {source}: a chain needs at least 2 nodes")
+    if kw.get("n_nodes", 0) > MAX_NODES or len(sequence or "") > MAX_NODES:
+        raise ParameterError(f"{source[:20]}{'...' if len(source) > 20 else ''}: {kw.get('n_nodes') or len(sequence)} "
+                             f"nodes is more than {MAX_NODES:.0e}; give a shorter chain")
     if ring:
+        if delta_lk:
+            _check_ring_twist(ff.ring(**kw), delta_lk)
         return ff.ring(**kw, delta_linking_number=delta_lk)
     return ff.model_from_sequence(**kw, circular=circular)

@@ -11,6 +11,7 @@ Units: nm, amu, amu nm^2, kJ/mol. Shapes: positions ``(n_nodes, 3)``, frames
 from __future__ import annotations
 
 import json
+import zipfile
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -218,7 +219,8 @@ class RodModel:
                 params = StepParameters(z["stiffness"], z["intrinsic"], meta["step_names"])
                 return cls(z["positions"], z["frames"], params, meta["ds"], z["mass"], z["inertia"],
                            closure=closure, sequence=meta.get("sequence"), metadata=meta.get("metadata", {}))
-        except (OSError, KeyError, ValueError) as exc:
+        except (OSError, KeyError, ValueError, EOFError, zipfile.BadZipFile) as exc:
             if isinstance(exc, ParameterError):
                 raise
-            raise ParameterError(f"{path}: cannot read dnarod model file ({exc})") from exc
+            raise ParameterError(f"{path}: cannot read dnarod model file ({exc or type(exc).__name__}); give a "
+                                 f".npz written by `dnarod build` or a run's final_model.npz") from None

@@ -35,6 +35,13 @@ def work(base, tmp_path):
     shutil.copy(base / "model.npz", tmp_path / "model.npz")
     (tmp_path / "afile").write_text("a regular file\n")
     (tmp_path / "bad.fa").write_text(">seq\nACGTACGT\nACGXT\n")
+    junk = np.random.default_rng(1).integers(0, 256, 3000, dtype=np.uint8).tobytes()
+    (tmp_path / "binary.bin").write_bytes(junk)
+    (tmp_path / "binary.toml").write_bytes(junk)
+    (tmp_path / "bad.dcd").write_bytes(junk)
+    (tmp_path / "empty.npz").write_bytes(b"")
+    (tmp_path / "trunc.npz").write_bytes((tmp_path / "model.npz").read_bytes()[:300])
+    (tmp_path / "exists.pdb").write_text("REMARK mine\n")
     return tmp_path
 
 
@@ -146,6 +153,76 @@ CASES = [
      ["already holds an analysis report", "--overwrite"], None),
 ]
 
+def _spec_overstretching(w):
+    (w / "f80.toml").write_text('[ensemble]\nname = "x"\n[base]\nsource = "ACGTACGTAC"\nforce_pN = 80\n')
+
+
+DTRAJ = "{w}/run/trajectory.dtraj"
+PROTO = ["--source", "40", "--time", "0.001", "--workers", "0", "-o", "{w}/n"]
+# Held-out style cases, one per class: usage errors (click's own), out-of-range and non-finite numbers, huge
+# sizes, unreadable/empty/truncated/binary/wrong-format files, conflicting options, outputs that exist.
+CASES += [
+    ("usage-not-a-number", ["simulate", SEQ, "--time", "abc", "-o", "{w}/n"], ["--time", "not a valid float"], None),
+    ("usage-unknown-command", ["bogus"], ["No such command", "bogus"], None),
+    ("usage-unknown-option", ["protocol", "hat", "--bogus", "--turns", "0", "-o", "{w}/n"], ["--bogus"], None),
+    ("usage-missing-argument", ["simulate", "-o", "{w}/n"], ["Missing argument", "SOURCE"], None),
+    ("time-huge", ["simulate", SEQ, "-o", "{w}/n", *QUICK, "--time", "1e300"], ["--time", "steps, more than"], None),
+    ("dt-tiny", ["simulate", SEQ, "-o", "{w}/n", *QUICK, "--dt", "1e-30"], ["--dt", "steps, more than"], None),
+    ("time-nan", ["simulate", SEQ, "-o", "{w}/n", *QUICK, "--time", "nan"], ["--time nan"], None),
+    ("salt-zero", ["simulate", SEQ, "-o", "{w}/n", *QUICK, "--salt", "0"], ["--salt 0"], None),
+    ("threads-huge", ["simulate", SEQ, "-o", "{w}/n", *QUICK, "--threads", "100000"], ["--threads 100000"], None),
+    ("node-count-huge", ["simulate", "1000000000000", "-o", "{w}/n", *QUICK], ["nodes is more than"], None),
+    ("ring-delta-lk-huge", ["simulate", "ACGT" * 10, "--ring", "--delta-lk", "100000", "-o", "{w}/n", *QUICK],
+     ["--delta-lk", "sigma"], None),
+    ("verlet-with-friction", ["simulate", SEQ, "--integrator", "verlet", "--friction", "5", "-o", "{w}/n", *QUICK],
+     ["--integrator verlet", "--friction 5"], None),
+    ("platform-unknown", ["simulate", SEQ, "--platform", "Foo", "-o", "{w}/n", *QUICK], ["--platform Foo",
+                                                                                         "not installed"], None),
+    ("platform-wrong-case", ["simulate", SEQ, "--platform", "cpu", "-o", "{w}/n", *QUICK], ["did you mean CPU"], None),
+    ("out-empty", ["simulate", SEQ, "-o", "", *QUICK], ["output folder", "-o"], None),
+    ("source-empty-npz", ["simulate", "{w}/empty.npz", "-o", "{w}/n", *QUICK], ["empty.npz", "cannot read"], None),
+    ("source-truncated-npz", ["simulate", "{w}/trunc.npz", "-o", "{w}/n", *QUICK], ["trunc.npz", "cannot read"],
+     None),
+    ("forcefield-binary", ["simulate", SEQ, "-f", "{w}/binary.toml", "-o", "{w}/n", *QUICK], ["binary.toml"], None),
+    ("forcefields-binary", ["forcefields", "{w}/binary.toml"], ["binary.toml", "cannot read"], None),
+    ("steps-binary-pairs-file", ["steps", str(PDB), "--pairs", "{w}/binary.bin"], ["binary.bin", "line"], None),
+    ("steps-csv-empty-name", ["steps", str(PDB), "--csv", ""], ["--csv", "file name"], None),
+    ("build-sequence-space", ["build", "--sequence", "AC GT", "-o", "{w}/m.npz"], ["--sequence", "' '"], None),
+    ("build-onto-existing", ["build", "--sequence", "ACGTACGT", "-o", "{w}/model.npz"], ["exists", "--overwrite"],
+     None),
+    ("build-wrong-suffix", ["build", "--sequence", "ACGTACGT", "-o", "{w}/m.pdb"], ["-o", ".npz"], None),
+    ("rebuild-wrong-suffix", ["rebuild", "{w}/model.npz", "-o", "{w}/x.xyz", "--no-minimize"], ["-o", ".pdb"], None),
+    ("rebuild-onto-existing", ["rebuild", "{w}/model.npz", "-o", "{w}/exists.pdb", "--no-minimize"],
+     ["exists", "--overwrite"], None),
+    ("rebuild-truncated-model", ["rebuild", "{w}/trunc.npz", "-o", "{w}/x.pdb", "--no-minimize"],
+     ["trunc.npz", "cannot read"], None),
+    ("analyze-binary-dcd", ["analyze", "{w}/bad.dcd", "-t", "{w}/run/trajectory.pdb", "-o", "{w}/n", "--no-plots"],
+     ["bad.dcd", "not a DCD file"], None),
+    ("analyze-step-zero", ["analyze", DTRAJ, "--step", "0", "-o", "{w}/n", "--no-plots"], ["--step 0"], None),
+    ("analyze-one-block", ["analyze", DTRAJ, "--blocks", "1", "-o", "{w}/n", "--no-plots"], ["--blocks 1"], None),
+    ("analyze-stop-negative", ["analyze", DTRAJ, "--stop", "-1", "-o", "{w}/n", "--no-plots"], ["--stop -1"], None),
+    ("analyze-temperature-zero", ["analyze", DTRAJ, "--temperature", "0", "-o", "{w}/n", "--no-plots"],
+     ["--temperature 0"], None),
+    ("analyze-exclude-all-steps", ["analyze", DTRAJ, "--exclude-ends", "100", "-o", "{w}/n", "--no-plots"],
+     ["--exclude-ends 100", "no steps"], None),
+    ("ensemble-timeout-nan", ["ensemble", str(ROOT / "examples" / "force_extension.toml"), "-o", "{w}/n",
+                              "--scheduler", "tcp://127.0.0.1:1", "--timeout", "nan"], ["--timeout nan"], None),
+    ("ensemble-scheduler-malformed", ["ensemble", str(ROOT / "examples" / "force_extension.toml"), "-o", "{w}/n",
+                                      "--scheduler", "garbage"], ["--scheduler garbage", "tcp://HOST:PORT"], None),
+    ("ensemble-force-overstretching", ["ensemble", "{w}/f80.toml", "-o", "{w}/n", "--workers", "0"],
+     ["--pull 80", "overstretch"], _spec_overstretching),
+    ("protocol-time-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--time", "-1"], ["time_ns", "> 0"], None),
+    ("protocol-force-nan", ["protocol", "force-extension", "--force", "nan", *PROTO], ["--force", "finite"], None),
+    ("protocol-delta-lk-inf", ["protocol", "rings", "--delta-lk", "inf", *PROTO], ["--delta-lk", "finite"], None),
+    ("protocol-seed-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--seed", "-1"], ["seed"], None),
+    ("protocol-temperature-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--temperature", "-1"],
+     ["temperature_K"], None),
+    ("protocol-workers-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--workers", "-1"], ["--workers -1"],
+     None),
+    ("protocol-into-run-folder", ["protocol", "hat", "--turns", "0", *PROTO, "-o", "{w}/run"],
+     ["not a protocol folder"], None),
+]
+
 
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
 def test_misuse_is_one_line_exit_2_and_changes_nothing(work, case):
@@ -214,3 +291,49 @@ def test_resume_says_where_it_resumed_and_lists_every_file(work):
     for name in ("run.json", "trajectory.dtraj", "energies.csv", "checkpoint.npz", "final_model.npz",
                  "trajectory.pdb", "trajectory.dcd"):
         assert name in wrote, name
+
+
+API_BAD = [
+    dict(time_ns=1e300), dict(seed="x"), dict(seed=1.5), dict(threads="x"), dict(duplex="x"), dict(delta_lk=1.5),
+    dict(forcefield=None), dict(elastic="x"), dict(circular="yes"), dict(extra=None), dict(loads="junk"),
+]
+
+
+@pytest.mark.parametrize("bad", API_BAD, ids=[next(iter(b)) + "=" + repr(next(iter(b.values()))) for b in API_BAD])
+def test_api_bad_run_arguments_raise_dnarod_errors(tmp_path, bad):
+    """run(RunSpec(...)) with a bad argument raises a DnarodError naming it, and writes nothing."""
+    from dnarod.errors import DnarodError
+    from dnarod.run import RunSpec, run
+
+    spec = RunSpec(**{**dict(source=SEQ, engine="lax", time_ns=0.001, excluded_volume=False, electrostatics=False,
+                             seed=1), **bad})
+    with pytest.raises(DnarodError) as exc:
+        run(spec, tmp_path / "r", progress=False)
+    name = next(iter(bad)).replace("_ns", "").replace("_", "-")
+    assert name.split("-")[0] in str(exc.value) and "\n" not in str(exc.value)
+    assert not (tmp_path / "r").exists()
+
+
+def test_api_bad_outdir_model_and_protocol_values(work):
+    from dnarod.analysis.report import analyze
+    from dnarod.errors import DnarodError
+    from dnarod.model import RodModel
+    from dnarod.protocols import hat_curve, ring_supercoiling
+    from dnarod.run import RunSpec, run
+
+    tmp_path = work / "api"
+    tmp_path.mkdir()
+    with pytest.raises(DnarodError, match="output folder"):
+        run(RunSpec(source=SEQ, engine="lax", excluded_volume=False, electrostatics=False), None)
+    for name in ("empty.npz", "trunc.npz"):
+        with pytest.raises(DnarodError, match="cannot read dnarod model"):
+            RodModel.load(work / name)
+    with pytest.raises(DnarodError, match="expected a number"):
+        hat_curve("abc", tmp_path / "h", source="40", base=dict(time_ns=0.001), workers=0)
+    with pytest.raises(DnarodError, match="unknown key 'tim_ns'"):
+        hat_curve([0], tmp_path / "h", source="40", base=dict(tim_ns=0.001), workers=0)
+    with pytest.raises(DnarodError, match="delta_lk"):
+        ring_supercoiling([0.5], tmp_path / "r", source="40", workers=0)
+    with pytest.raises(DnarodError, match="--step 0"):
+        analyze(str(work / "run" / "trajectory.dtraj"), out=str(tmp_path / "a"), step=0, plots=False)
+    assert not any(tmp_path.iterdir())

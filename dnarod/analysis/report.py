@@ -88,20 +88,125 @@ def load_input(path, topology=None, duplex=1, start=None, stop=None, step=None):
     from ..structure.trajectory import is_structure_file, read_node_trajectory
     from .allatom import load_allatom
 
-    nodes = read_node_trajectory(path, topology)  # oxDNA (--topology X.top) or a dnarod CG export (PDB/DCD)
+    _check_magic(path)
+    try:
+        with _c_stderr_held():
+            nodes = read_node_trajectory(path, topology)  # oxDNA (--topology X.top) or a dnarod CG export (PDB/DCD)
+    except DnarodError:
+        raise
+    except (OSError, ValueError, EOFError, IndexError, KeyError, UnicodeDecodeError) as exc:
+        raise StructureError(_unreadable(path, topology, exc)) from None
     if nodes is not None:
         return nodes[slice(start, stop, step)], None, "dnarod"
     duplex = int(duplex)
     if duplex < 1:
         raise DnarodError(f"--duplex {duplex}: duplexes are numbered from 1 (see `dnarod pairs TOPOLOGY`)")
     duplex -= 1
-    if topology is None:
-        if not is_structure_file(path):
-            raise StructureError(f"{path}: an all-atom trajectory needs --topology (PDB, PSF, PRMTOP, GRO, ...)")
-        traj, _ = load_allatom(path, None, duplex, start, stop, step)
-    else:
-        traj, _ = load_allatom(topology, path, duplex, start, stop, step)
+    if topology is None and not is_structure_file(path):
+        raise StructureError(f"{path}: an all-atom trajectory needs --topology (PDB, PSF, PRMTOP, GRO, ...)")
+    try:
+        with _c_stderr_held():
+            if topology is None:
+                traj, _ = load_allatom(path, None, duplex, start, stop, step)
+            else:
+                traj, _ = load_allatom(topology, path, duplex, start, stop, step)
+    except DnarodError:
+        raise
+    except (OSError, ValueError, EOFError, IndexError, KeyError, UnicodeDecodeError) as exc:
+        raise StructureError(_unreadable(path, topology, exc)) from None
     return traj, None, "all-atom"
+
+
+class _c_stderr_held:
+    """Hold back what C readers (MDAnalysis's dcdplugin) print straight to file descriptors 1 and 2: replayed
+    after a successful read, dropped when the read fails (the error is then one line of ours)."""
+
+    def __enter__(self):
+        import os
+        import sys
+        import tempfile
+
+        self.held = []
+        for fd in (1, 2):
+            try:
+                (sys.stdout if fd == 1 else sys.stderr).flush()
+                saved = os.dup(fd)
+            except (OSError, ValueError, AttributeError):
+                continue
+            tmp = tempfile.TemporaryFile()
+            os.dup2(tmp.fileno(), fd)
+            self.held.append((fd, saved, tmp))
+        return self
+
+    def __exit__(self, kind, exc, tb):
+        import os
+
+        for fd, saved, tmp in self.held:
+            os.dup2(saved, fd)
+            os.close(saved)
+            if kind is None:
+                tmp.seek(0)
+                data = tmp.read()
+                if data:
+                    os.write(fd, data)
+            tmp.close()
+        return False
+
+
+def _check_magic(path):
+    """Refuse a DCD or XTC file whose first bytes are not the format's, before a C reader prints its own
+    complaint on stderr (DCD: a Fortran record of 84 bytes holding "CORD"; XTC: the magic number 1995)."""
+    suffix = path.suffix.lower()
+    if suffix not in (".dcd", ".xtc"):
+        return
+    with open(path, "rb") as fh:
+        head = fh.read(8)
+    if suffix == ".dcd":
+        ok = len(head) == 8 and head[4:8] == b"CORD" and int.from_bytes(head[:4], "little") in (84, 84 << 24)
+    else:
+        ok = len(head) >= 4 and int.from_bytes(head[:4], "big") == 1995
+    if not ok:
+        kind = "empty" if not head else f"not a {suffix[1:].upper()} file (its first bytes are not the format's)"
+        raise StructureError(f"{path}: {kind}; give a complete trajectory written by OpenMM, mdtraj, MDAnalysis or "
+                             f"`dnarod simulate --export`")
+
+
+def _unreadable(path, topology, exc):
+    """One line for a trajectory or topology file its reader (MDAnalysis, mdtraj) could not read."""
+    what = " ".join(str(exc).split())[:160] or type(exc).__name__
+    top = f" with topology {topology}" if topology else ""
+    return (f"{path}{top}: cannot read it as a trajectory ({what}); check that the file is complete and matches "
+            f"its --topology")
+
+
+def _check_arguments(input_path, temperature, start, stop, step, exclude_ends, n_blocks, duplex):
+    """Refuse bad analysis arguments with one line naming the option, before anything is read or written."""
+    import math
+
+    if not isinstance(input_path, (str, Path)) or not str(input_path).strip():
+        raise DnarodError(f"INPUT {input_path!r}: give a trajectory or structure file")
+
+    def integer(opt, v, ok, what):
+        if v is None:
+            return
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not ok(int(v)):
+            raise DnarodError(f"{opt} {v!r}: must be {what}")
+
+    integer("--start", start, lambda k: k >= 0, "a frame number >= 0 (frames count from 0)")
+    integer("--stop", stop, lambda k: k >= 1, "a frame number >= 1 (the analysis stops before it)")
+    integer("--step", step, lambda k: k >= 1, "an integer >= 1 (every STEP-th frame)")
+    integer("--exclude-ends", exclude_ends, lambda k: k >= 0, "an integer >= 0 (steps left out at each end)")
+    integer("--blocks", n_blocks, lambda k: k >= 2, "an integer >= 2 (blocks for the error bars)")
+    integer("--duplex", duplex, lambda k: k >= 1, "an integer >= 1 (duplexes are numbered from 1, see `dnarod pairs`)")
+    if start is not None and stop is not None and stop <= start:
+        raise DnarodError(f"--start {start} --stop {stop}: no frame left; --stop must be above --start")
+    if temperature is not None:
+        try:
+            t = float(temperature)
+        except (TypeError, ValueError):
+            t = float("nan")
+        if not (math.isfinite(t) and t > 0):
+            raise DnarodError(f"--temperature {temperature}: must be a positive temperature in K")
 
 
 def analyze(input_path, topology=None, forcefield=None, out=None, circular=False, temperature=None,
@@ -124,12 +229,22 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     from .steps import StepAnalysis
     from .stiffness import StiffnessFit
 
+    _check_arguments(input_path, temperature, start, stop, step, exclude_ends, n_blocks, duplex)
     out = Path(out) if out else Path(input_path).with_name(Path(input_path).stem + "_analysis")
     out, stale = prepare_report_folder(out, overwrite)
     traj, model, kind = load_input(input_path, topology, duplex, start, stop, step)
+    ff = load_forcefield(forcefield or "dna-default")
+    # refused here, before the old report's files go and before anything is printed
+    if traj.n_frames == 0:
+        raise DnarodError(f"{input_path}: no frame left with --start {start} --stop {stop} --step {step}; widen the "
+                          f"range")
+    closed = bool(circular or traj.metadata.get("circular") or (model is not None and model.closure is not None))
+    n_steps = traj.n_nodes - 1
+    if exclude_ends is not None and not closed and n_steps - 2 * int(exclude_ends) < 1:
+        raise DnarodError(f"--exclude-ends {exclude_ends} leaves no steps of {n_steps}; use at most "
+                          f"{max((n_steps - 1) // 2, 0)}")
     for p in stale:  # overwrite: the old report's files go once the input has been read
         p.unlink(missing_ok=True)
-    ff = load_forcefield(forcefield or "dna-default")
     closure = model.closure if model is not None else None
     circular = circular or bool(traj.metadata.get("circular"))
     if circular and closure is None:

@@ -34,6 +34,14 @@ def ensemble_cmd(spec, outdir, scheduler, workers, timeout, overwrite, dashboard
 
     if workers is not None and workers < 0:
         raise ParameterError(f"--workers {workers}: give a number of worker processes (0: run in this process)")
+    import math
+    import re
+
+    if not (math.isfinite(timeout) and timeout > 0):
+        raise ParameterError(f"--timeout {timeout}: give the seconds to wait for --scheduler (a number > 0)")
+    if scheduler is not None and not re.fullmatch(r"([a-z][a-z0-9+.-]*://)?[^\s:/]+:\d+/?", scheduler):
+        raise ParameterError(f"--scheduler {scheduler}: not a scheduler address; write tcp://HOST:PORT "
+                             f"(e.g. tcp://127.0.0.1:8786)")
     if workers is not None and scheduler:
         raise ParameterError("--workers sizes a local cluster; with --scheduler the cluster's workers are used")
     # dask logs lost connections with tracebacks; this command reports them itself, in one line

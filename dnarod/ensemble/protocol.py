@@ -21,7 +21,6 @@ from __future__ import annotations
 import importlib
 from types import SimpleNamespace
 
-import numpy as np
 
 from .schema import SpecError
 
@@ -57,31 +56,19 @@ def build_runspec(settings):
     with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run.
     """
     from ..inputs import load_model
-    from ..units import PN
-
     RunSpec, _ = _run_api()
     s = settings
-    L = _loads_module()
     loads = []
     force, torque, rclamp = s.get("force_pN", 0.0), s.get("torque_pN_nm", 0.0), s.get("rotation_clamp_kJ_mol")
     if s.get("clamp_first") or force or torque or rclamp is not None:
         model = load_model(s["source"], s.get("forcefield", "dna-default"), s.get("circular", False),
                            s.get("ring", False), s.get("delta_lk", 0))
-        n = model.n_nodes
-        axis = model.positions[-1] - model.positions[0]
-        if np.linalg.norm(axis) == 0:
-            axis = model.frames[0][:, 2]
-        axis = axis / np.linalg.norm(axis)
-        if s.get("clamp_first"):
-            loads.append(L.Clamp(0))
-        if force:
-            loads.append(L.PullingForce(n - 1, force * PN * axis))
-            if not s.get("clamp_first"):
-                loads.append(L.PullingForce(0, -force * PN * axis))
-        if torque:
-            loads.append(L.Torque(n - 1, torque * PN * axis))
-        if rclamp is not None:
-            loads.append(L.RotationClamp(n - 1, rclamp, axis=axis, turns=s.get("turns", 0.0)))
+        # the command line's set-up and checks (overstretching, a torque with no equilibrium, turns without
+        # a clamp, loads on a closed ring): the same loads, in the same order, as before
+        from ..run.setup import tweezers_loads
+
+        loads = list(tweezers_loads(model, force or None, torque or None, rclamp, s.get("turns", 0.0),
+                                    bool(s.get("clamp_first")), ()))
     kw = dict(source=s["source"], forcefield=s.get("forcefield", "dna-default"), engine=s.get("engine", "openmm"),
               time_ns=s.get("time_ns", 1.0), temperature=s.get("temperature_K", 300.0),
               friction=s.get("friction_per_ps", 1.0), dt=s.get("dt_ps"), seed=s.get("seed"), loads=tuple(loads),

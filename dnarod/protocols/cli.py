@@ -12,13 +12,58 @@ from ..errors import DnarodError
 
 
 def _floats(text, what):
+    import math
+
     try:
         vals = [float(v) for v in str(text).replace(" ", "").split(",") if v != ""]
     except ValueError:
         raise DnarodError(f"{what}: expected comma-separated numbers, got {text!r}") from None
     if not vals:
         raise DnarodError(f"{what}: give at least one value")
+    bad = [v for v in vals if not math.isfinite(v)]
+    if bad:
+        raise DnarodError(f"{what} {text}: {bad[0]} is not a finite number")
     return vals
+
+
+#: The settings keys the protocol commands fill from their options (for messages in the options' names).
+_OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "temperature_K": "--temperature",
+                  "salt_M": "--salt", "seed": "--seed", "force_pN": "--force", "turns": "--turns",
+                  "delta_lk": "--delta-lk", "rotation_clamp_kJ_mol": "--clamp-k", "source": "--source",
+                  "forcefield": "--forcefield"}
+
+
+def _run_protocol(*args, **kw):
+    """:func:`dnarod.protocols.curves.run_protocol`, its settings errors named by the command's options."""
+    import re
+
+    from .curves import run_protocol
+
+    try:
+        return run_protocol(*args, **kw)
+    except DnarodError as exc:
+        m = re.match(r"\[(base|axes)\] (\w+)(.*)", str(exc), re.S)
+        if m and m.group(2) in _OPTION_OF_KEY:
+            raise DnarodError(f"{_OPTION_OF_KEY[m.group(2)]} ({m.group(2)}){m.group(3)}") from None
+        raise
+
+
+def _check_run_options(workers, out):
+    """Refuse a negative worker count and an output folder that holds something other than a protocol's
+    results (a run, a report, any other files), before anything runs."""
+    from pathlib import Path
+
+    from ..io_utils import check_dir_path
+
+    if workers < 0:
+        raise DnarodError(f"--workers {workers}: give a number of dask workers >= 0 (0: one after another in this "
+                          f"process)")
+    out = Path(out)
+    check_dir_path(out, what="output folder")
+    if out.is_dir() and any(out.iterdir()) and not ((out / "curve.csv").exists() or (out / "members").is_dir()
+                                                    or (out / "ensemble.json").exists()):
+        raise DnarodError(f"{out}: not a protocol folder (no curve.csv or members/) and not empty; choose a new or "
+                          f"empty -o folder")
 
 
 def _common(f):
@@ -69,7 +114,8 @@ def protocol():
 @_common
 def force_extension_cmd(forces, turns, workers, out, **kw):
     """Extension vs force with a torsionally free bead end."""
-    from .curves import run_protocol
+    _check_run_options(workers, out)
+    run_protocol = _run_protocol
 
     if turns not in (None, "", "0"):
         raise DnarodError(f"--turns {turns}: turns need a rotation clamp; the force-extension bead end is "
@@ -85,7 +131,8 @@ def force_extension_cmd(forces, turns, workers, out, **kw):
 @_common
 def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
-    from .curves import run_protocol
+    _check_run_options(workers, out)
+    run_protocol = _run_protocol
 
     c = run_protocol("magnetic_tweezers", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
@@ -99,7 +146,8 @@ def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
 @_common
 def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
-    from .curves import run_protocol
+    _check_run_options(workers, out)
+    run_protocol = _run_protocol
 
     c = run_protocol("torque_turns", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
@@ -111,7 +159,8 @@ def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
 @_common
 def rings_cmd(delta_lk, workers, out, **kw):
     """Closed rings: Tw, Wr and plectonemes vs linking difference."""
-    from .curves import run_protocol
+    _check_run_options(workers, out)
+    run_protocol = _run_protocol
 
     vals = _floats(delta_lk, "--delta-lk")
     if any(v != int(v) for v in vals):

@@ -61,6 +61,7 @@ def _members(kind, axes, base):
     for n, v in zip(names, values):
         if not v:
             raise DnarodError(f"{n}: give at least one value")
+    base, values = _checked_settings(base, names, values)
     members = [dict(base, **dict(zip(names, combo))) for combo in product(*values)]
     from ..forcefield import load_forcefield
 
@@ -80,6 +81,37 @@ def _members(kind, axes, base):
             check_tweezers(m.get("force_pN", 0.0), m.get("turns"), rotation_clamp=kind != "force_extension",
                            lk0=lk0, torque_pN_nm=m.get("torque_pN_nm"))
     return members
+
+
+def _checked_settings(base, names, values):
+    """``base`` and the axis values checked against the ensemble schema (the keys the members read): an
+    unknown key, a value of the wrong type, a non-finite or out-of-range number is one line naming it."""
+    from ..ensemble.schema import RUN_KEYS, coerce, unknown_key
+    from .ensemble_hooks import protocol_keys
+
+    known = {**RUN_KEYS, **protocol_keys()}
+    out = {}
+    for key, value in base.items():
+        if key not in known:
+            raise unknown_key("base", key, known)
+        out[key] = None if value is None else _checked(coerce("base", key, known[key], value), "base", key)
+    vals = []
+    for n, v in zip(names, values):
+        if n not in known:
+            raise unknown_key("axes", n, known)
+        vals.append([_checked(coerce("axes", n, known[n], x), "axes", n) for x in v])
+    return out, vals
+
+
+def _checked(value, table, key):
+    """Ranges the schema leaves to the run layer, refused here before any member runs."""
+    if key == "seed" and not 0 <= value < 2**31:
+        raise DnarodError(f"[{table}] seed: must be an integer in [0, 2^31), got {value}")
+    if key in ("time_ns", "equilibration_ns", "salt_M") and not value > 0:
+        raise DnarodError(f"[{table}] {key}: must be > 0, got {value:g}")
+    if key == "temperature_K" and not value > 0:
+        raise DnarodError(f"[{table}] temperature_K: must be > 0 K, got {value:g}")
+    return value
 
 
 def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True):
@@ -108,6 +140,9 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
              "torque_turns": hooks.TORQUE_TURNS, "rings": hooks.RINGS}.get(kind)
     if proto is None:
         raise DnarodError(f"unknown protocol {kind!r}; choose force_extension, magnetic_tweezers, torque_turns, rings")
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise DnarodError(f"workers {workers!r}: give a number of dask workers >= 0 (0: one after another in this "
+                          f"process)")
     base = dict(base)
     if kind in ("magnetic_tweezers", "torque_turns"):
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
@@ -311,5 +346,5 @@ def torque_turns(turns, outdir, force_pN=1.0, source="600", **kw):
 
 def ring_supercoiling(delta_lk, outdir, source="600", **kw):
     """Closed rings over a list of linking differences: Tw, Wr, writhe fraction, plectonemes."""
-    return run_protocol("rings", {"delta_lk": [int(d) for d in delta_lk]}, dict(kw.pop("base", {}), source=str(source)),
+    return run_protocol("rings", {"delta_lk": list(delta_lk)}, dict(kw.pop("base", {}), source=str(source)),
                         outdir, **kw)

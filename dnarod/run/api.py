@@ -170,9 +170,18 @@ def make_engine(spec, model, dt, seed, omega):
                          seed=seed, threads=spec.threads, omega_max=omega)
 
 
+#: Most steps a run accepts: 10^12 steps take years at any speed this code reaches; more is a typo
+#: (a --time in ps, a --dt in fs) that would otherwise run "forever" without a word.
+MAX_STEPS = 10**12
+
+
 def intervals(spec, dt):
     """(n_steps, frame interval, checkpoint interval) in steps."""
-    n_steps = max(1, int(round(spec.time_ns * 1000.0 / dt)))
+    steps = spec.time_ns * 1000.0 / dt
+    if not steps <= MAX_STEPS:
+        raise ParameterError(f"--time {spec.time_ns:g} ns at --dt {dt:g} ps is {steps:.3g} steps, more than "
+                             f"{MAX_STEPS:.0e}; give a shorter --time (ns) or a larger --dt (ps)")
+    n_steps = max(1, int(round(steps)))
     fi = max(1, int(round(spec.frame_interval_ps / dt)))
     ci = 10 * fi if spec.checkpoint_interval_ps is None else int(round(spec.checkpoint_interval_ps / dt))
     return n_steps, fi, ci
@@ -233,6 +242,8 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     spec.check()
     if resume and overwrite:
         raise ParameterError("choose --resume (continue the run) or --overwrite (replace it), not both")
+    if not isinstance(outdir, (str, Path)) or not str(outdir).strip():
+        raise ParameterError(f"output folder {outdir!r}: give a folder path (-o DIR)")
     outdir = Path(outdir)
     check_dir_path(outdir, what="output folder")
     paths = {k: outdir / v for k, v in RUN_FILES.items()}
@@ -248,6 +259,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     start = start_model(spec, model, seed)
     omega = default_omega_max(start if start is not None else model, spec.loads)
     dt = choose_dt(spec, model, omega)
+    intervals(spec, dt)  # refuses an absurd number of steps before anything is written
     fp = fingerprint(spec, model, dt, seed)
     run_id = _run_id(fp)
     engine = make_engine(spec, start if start is not None else model, dt, seed, omega)

@@ -27,8 +27,9 @@ _OPTIONS = [
                  help="Total simulated time, ns (with --resume: the new total)."),
     click.option("--dt", type=float, default=None, help="Time step, ps [default: 0.4/omega_max of the model]."),
     click.option("-T", "--temperature", type=float, default=300.0, show_default=True, help="K."),
-    click.option("--friction", type=float, default=1.0, show_default=True,
-                 help="Langevin collision rate, 1/ps; 0 runs NVE (constant energy) from Maxwell velocities."),
+    click.option("--friction", type=float, default=None,
+                 help="Langevin collision rate, 1/ps; 0 runs NVE (constant energy) from Maxwell velocities "
+                      "[default: 1.0]."),
     click.option("--integrator", type=click.Choice(["langevin", "verlet"]), default="langevin", show_default=True,
                  help="verlet: NVE (the same as --friction 0)."),
     click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU platform "
@@ -92,7 +93,12 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
     if minimize and equilibrium:
         raise ParameterError("choose --minimize or --equilibrium, not both")
     if integrator == "verlet":
+        if friction not in (None, 0.0):
+            raise ParameterError(f"--integrator verlet runs NVE (no friction) but --friction {friction:g} was given; "
+                                 f"drop one of them")
         friction = 0.0
+    elif friction is None:
+        friction = 1.0
     nb_default = engine == "openmm"
     spec = RunSpec(source=source, forcefield=forcefield, engine=engine, time_ns=time_ns, temperature=temperature,
                    friction=friction, dt=dt, seed=seed, salt=salt,

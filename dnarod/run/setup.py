@@ -70,6 +70,17 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
         raise ParameterError(f"--rotation-clamp {rotation_clamp:g}: the stiffness must be positive (kJ/mol)")
     if turns and rotation_clamp is None:
         raise ParameterError("--turns needs --rotation-clamp (the clamp is what turns)")
+    if turns is not None and not np.isfinite(turns):
+        raise ParameterError(f"--turns {turns}: must be a finite number")
+    if turns:
+        from ..protocols.tweezers import intrinsic_turns
+
+        lk0 = float(intrinsic_turns(model))
+        # an untwisted rod (uniform force fields): the limit is a quarter turn per step
+        if abs(turns) > (abs(lk0) if abs(lk0) >= 1 else n / 4):
+            raise ParameterError(f"--turns {turns:g} is more than the {lk0:.1f} helical turns of this {n}-node chain "
+                                 f"(sigma = {turns / lk0:+.3g}): the rod model cannot hold it (real DNA denatures "
+                                 f"beyond |sigma| ~ 0.1); use |turns| <= {0.1 * abs(lk0):.2g} for real DNA")
     from ..protocols.tweezers import MAX_FORCE_PN  # below overstretching (~65 pN), which the rod model lacks
 
     if pull is not None and abs(pull) > MAX_FORCE_PN:

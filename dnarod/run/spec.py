@@ -6,7 +6,8 @@ from __future__ import annotations
 
 import hashlib
 import math
-from dataclasses import asdict, dataclass, field, fields, replace
+from pathlib import Path
+from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 
@@ -14,6 +15,9 @@ from ..errors import ParameterError
 
 ENGINES = ("openmm", "lax")
 STARTS = ("intrinsic", "equilibrium", "minimized")
+ELASTIC = ("auto", "plugin", "fast", "portable")
+#: Largest accepted monovalent salt, mol/L (saturated NaCl is ~6 M).
+MAX_SALT = 6.0
 
 
 @dataclass(frozen=True)
@@ -126,6 +130,17 @@ class RunSpec:
                 raise ParameterError(f"{opt} {v:g}: must be {what}")
             return x
 
+        def integer(opt, v, cond, what):
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer, float, np.floating, str)):
+                raise ParameterError(f"{opt} {v!r}: must be an integer ({what})")
+            try:
+                x = float(v)
+            except (TypeError, ValueError):
+                raise ParameterError(f"{opt} {v!r}: must be an integer ({what})") from None
+            if not (math.isfinite(x) and x == int(x) and cond(int(x))):
+                raise ParameterError(f"{opt} {v}: must be an integer {what}")
+            return int(x)
+
         if self.source is None:
             raise ParameterError("no source: give a structure, model, sequence, sequence file or node count")
         if self.engine not in ENGINES:
@@ -143,21 +158,57 @@ class RunSpec:
         if self.checkpoint_interval_ps is not None:
             finite("checkpoint_interval_ps", self.checkpoint_interval_ps, lambda x: x >= 0,
                    ">= 0 ps (0: only at the end)", "--checkpoint-interval")
-        finite("salt", self.salt, lambda x: x > 0, "a positive salt concentration in mol/L")
+        finite("salt", self.salt, lambda x: 0 < x <= MAX_SALT,
+               f"a salt concentration in mol/L above 0 and at most {MAX_SALT:g} (Debye-Hueckel screening is "
+               f"meaningless beyond)")
+        if self.threads is not None and self.platform not in (None, "CPU"):
+            raise ParameterError(f"--threads applies to OpenMM's CPU platform, not --platform {self.platform}; drop "
+                                 f"one of them")
         if self.engine == "lax":
             if self.nonbonded:
                 raise ParameterError("the lax engine has no excluded volume or electrostatics: pass "
                                      "--no-excluded-volume --no-electrostatics (or use --engine openmm)")
             if self.platform not in (None, "CPU"):
                 raise ParameterError(f"--platform {self.platform}: the lax engine runs on the CPU (numba)")
-        if self.duplex is not None and int(self.duplex) < 1:
-            raise ParameterError(f"--duplex {self.duplex}: duplexes are numbered from 1")
+        if self.duplex is not None:
+            integer("--duplex", self.duplex, lambda k: k >= 1, "from 1 (duplexes are numbered from 1)")
         if self.intrinsic not in ("sequence", "structure"):
             raise ParameterError(f"--intrinsic {self.intrinsic!r}: choose 'sequence' or 'structure'")
-        if self.threads is not None and int(self.threads) < 1:
-            raise ParameterError(f"--threads {self.threads}: must be >= 1")
-        if self.seed is not None and not (0 <= int(self.seed) < 2**31):
-            raise ParameterError(f"--seed {self.seed}: must be an integer in [0, 2^31)")
+        if self.threads is not None:
+            import os
+
+            most = 4 * (os.cpu_count() or 1)
+            integer("--threads", self.threads, lambda k: 1 <= k <= most, f"from 1 to {most} (4 per core here)")
+        if self.seed is not None:
+            integer("--seed", self.seed, lambda k: 0 <= k < 2**31, "in [0, 2^31)")
+        integer("--delta-lk", self.delta_lk, lambda k: True, "(the linking number of a closed ring is an integer)")
+        if not isinstance(self.forcefield, (str, Path)):
+            raise ParameterError(f"--forcefield {self.forcefield!r}: give a bundled force-field name or a .toml path")
+        if self.elastic not in ELASTIC:
+            raise ParameterError(f"--elastic {self.elastic!r}: choose one of {', '.join(ELASTIC)}")
+        if self.platform is not None and not isinstance(self.platform, str):
+            raise ParameterError(f"--platform {self.platform!r}: give an OpenMM platform name (CPU, Reference, "
+                                 f"CUDA, HIP, OpenCL)")
+        if self.engine == "openmm" and self.platform is not None:
+            from ..openmm.platforms import platform_names
+
+            names = platform_names()
+            if self.platform not in names:
+                near = [n for n in names if n.lower() == self.platform.lower()]
+                hint = f"; did you mean {near[0]}?" if near else ""
+                raise ParameterError(f"--platform {self.platform}: OpenMM platform not installed here (available: "
+                                     f"{', '.join(names)}){hint}")
+        for name in ("circular", "ring", "velocities", "export", "xtc", "excluded_volume", "electrostatics"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise ParameterError(f"{name} {getattr(self, name)!r}: must be True or False")
+        if not isinstance(self.loads, (tuple, list)):
+            raise ParameterError(f"loads {self.loads!r}: give a tuple of dnarod.loads objects")
+        for ld in self.loads:
+            if not is_dataclass(ld) or isinstance(ld, type):
+                raise ParameterError(f"loads: {ld!r} is not a dnarod.loads object (PullingForce, Torque, Clamp, "
+                                     f"RotationClamp, Trap, ...)")
+        if not isinstance(self.extra, dict):
+            raise ParameterError(f"extra {self.extra!r}: must be a dict")
         return self
 
     def to_json(self):

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import io
+import re
 
 import click
 import numpy as np
@@ -33,12 +34,15 @@ PAIR_COLUMNS = ("bp", "name", "shear_A", "stretch_A", "stagger_A", "buckle_deg",
 
 def _read_pairs_file(path):
     pairs = []
-    with open(path) as fh:
+    with open(path, errors="replace") as fh:  # a binary file fails the line check below, naming the line
         for k, line in enumerate(fh, 1):
             line = line.split("#")[0].replace(",", " ").strip()
             if not line:
                 continue
             parts = line.split()
+            if "\ufffd" in line or "\x00" in line:
+                raise StructureError(f"{path}, line {k}: binary data; --pairs takes a text file of residue-id pairs "
+                                     f"like 'A:1 B:24', one per line")
             if len(parts) != 2:
                 raise StructureError(f"{path}, line {k}: expected two residue ids like 'A:1 B:24', got {line!r}")
             pairs.append((parts[0], parts[1]))
@@ -76,6 +80,25 @@ def _analyze(path, model, altloc, pairs_file, maps, ignore):
     pairs = _read_pairs_file(pairs_file) if pairs_file else None
     return analyze_structure(path, model=model, altloc=altloc, pairs=pairs, extra_residues=_parse_map(maps),
                              ignore_residues=ignore)
+
+
+def _output_path(path, option, suffixes, kind, overwrite):
+    """Refuse an empty output path, a suffix the writer does not produce and (without ``--overwrite``) a file
+    that exists: a name the user gave is never silently replaced or filled with another format."""
+    from pathlib import Path
+
+    if path is None:
+        return None
+    if not str(path).strip():
+        raise StructureError(f"{option} '': give a file name")
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise StructureError(f"{option} {path}: {kind} is written as {' or '.join(suffixes)}; give a file name "
+                             f"ending in {suffixes[0]}")
+    if p.exists() and not overwrite:
+        raise StructureError(f"{option} {path}: the file exists; pass --overwrite to replace it or choose another "
+                             f"name")
+    return path
 
 
 def _emit(rows, columns, csv_path, title_lines, notes, fmt):
@@ -181,6 +204,7 @@ def steps(input_path, csv_path, forcefield, duplex, model, altloc, pairs_file, m
     """Step parameters (3DNA convention) and SMK strains of every base-pair step of INPUT (PDB/mmCIF)."""
     from ..forcefield import load_forcefield
 
+    _output_path(csv_path, "--csv", (".csv",), "a table", True)
     ff = load_forcefield(forcefield)
     ana = _only_duplex(_analyze(input_path, model, altloc, pairs_file, maps, ignore), duplex)
     rows = step_rows(ana, ff.ds)
@@ -195,6 +219,7 @@ def steps(input_path, csv_path, forcefield, duplex, model, altloc, pairs_file, m
 @structure_options
 def pairs(input_path, csv_path, duplex, model, altloc, pairs_file, maps, ignore):
     """Base pairs of INPUT (PDB/mmCIF) and their six parameters (3DNA convention)."""
+    _output_path(csv_path, "--csv", (".csv",), "a table", True)
     ana = _only_duplex(_analyze(input_path, model, altloc, pairs_file, maps, ignore), duplex)
     rows = pair_rows(ana)
     if not csv_path:  # the readable table also names the residues and the pair class
@@ -215,21 +240,28 @@ def pairs(input_path, csv_path, duplex, model, altloc, pairs_file, maps, ignore)
 @click.option("--intrinsic", type=click.Choice(["sequence", "structure"]), default="sequence", show_default=True,
               help="Intrinsic shape: the force field's for the sequence, or the structure's own step parameters "
                    "(stiffness still from --forcefield).")
+@click.option("--overwrite", is_flag=True, help="Replace an existing model file.")
 @duplex_option
 @structure_options
-def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, altloc, pairs_file, maps, ignore):
+def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, altloc, pairs_file, maps, ignore,
+          overwrite):
     """A dnarod model (.npz) from a structure INPUT (nodes at its base-pair frames) or from --sequence."""
     from .builders import model_from_sequence, model_from_structure
 
+    if sequence is not None and not re.fullmatch(r"[ACGTacgt]+", sequence):
+        bad = re.search(r"[^ACGTacgt]", sequence)
+        raise StructureError(f"--sequence {sequence!r}: " + (f"{bad.group()!r} is not a DNA base (A, C, G, T)" if bad
+                                                              else "empty; give the strand-I letters A, C, G, T"))
     if (input_path is None) == (sequence is None):
         raise StructureError("build: give either INPUT (a PDB/mmCIF file) or --sequence, not both or neither")
+    if sequence is not None and (intrinsic == "structure" or duplex is not None):
+        raise StructureError("build: --intrinsic structure and --duplex need a structure INPUT, not --sequence")
+    if duplex is not None and duplex < 1:
+        raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
+    _output_path(output, "-o", (".npz",), "a dnarod model", overwrite)
     if sequence is not None:
-        if intrinsic == "structure" or duplex is not None:
-            raise StructureError("build: --intrinsic structure and --duplex need a structure INPUT, not --sequence")
         m = model_from_sequence(sequence, forcefield)
     else:
-        if duplex is not None and duplex < 1:
-            raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
         ana = _analyze(input_path, model, altloc, pairs_file, maps, ignore)
         m = model_from_structure(analysis=ana, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
                                  intrinsic=intrinsic)
@@ -247,12 +279,14 @@ def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, al
 @click.option("--minimize/--no-minimize", default=True, show_default=True,
               help="Close the backbone with Amber14 (default); --no-minimize writes the rigid placement only "
                    "(standard bases in the frames, fibre backbone; O3'-P links not closed).")
-def rebuild(model_path, output, hydrogens, minimize):
+@click.option("--overwrite", is_flag=True, help="Replace an existing output file.")
+def rebuild(model_path, output, hydrogens, minimize, overwrite):
     """An all-atom PDB/mmCIF from a dnarod model file (.npz): standard bases in the node frames and a
     backbone closed by restrained Amber14 minimisation (OBC2), checked bond by bond."""
     from ..model import RodModel
     from .rebuild import rebuild_model
 
+    _output_path(output, "-o", (".pdb", ".cif", ".mmcif"), "an all-atom structure", overwrite)
     m = RodModel.load(model_path)
     if not minimize:
         if output.lower().endswith((".cif", ".mmcif")):

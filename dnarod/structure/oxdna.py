@@ -105,7 +105,7 @@ def read_configurations(path, n):
     path = Path(path)
     times, frames = [], []
     try:
-        fh = open(path)
+        fh = open(path, errors="replace")  # a binary file then fails the format checks, naming the line
     except OSError as exc:
         raise StructureError(f"{path}: cannot read ({exc})") from None
     with fh:
