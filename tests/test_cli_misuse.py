@@ -213,6 +213,8 @@ CASES += [
      ["--pull 80", "overstretch"], _spec_overstretching),
     ("protocol-time-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--time", "-1"], ["time_ns", "> 0"], None),
     ("protocol-force-nan", ["protocol", "force-extension", "--force", "nan", *PROTO], ["--force", "finite"], None),
+    ("protocol-force-empty-entry", ["protocol", "force-extension", "--force", "1,,2", *PROTO], ["--force", "empty entry"],
+     None),
     ("protocol-delta-lk-inf", ["protocol", "rings", "--delta-lk", "inf", *PROTO], ["--delta-lk", "finite"], None),
     ("protocol-seed-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--seed", "-1"], ["seed"], None),
     ("protocol-temperature-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--temperature", "-1"],
@@ -241,6 +243,26 @@ def test_misuse_is_one_line_exit_2_and_changes_nothing(work, case):
     after = _snapshot(work)
     for p, data in before.items():
         assert after.get(p) == data, f"{p} changed"
+    assert not (work / "n").exists() or not any((work / "n").iterdir())
+
+
+@pytest.mark.parametrize("var", ["DNAROD_PLUGIN", "DNAROD_DEVICE_KERNELS"])
+def test_misspelt_switch_is_refused(work, monkeypatch, var):
+    """An on/off environment switch with another value than 0/1 is one line, exit 2 (not silently "on")."""
+    from dnarod.openmm import plugin
+
+    monkeypatch.setenv(var, "banana")
+    monkeypatch.setattr(plugin, "_STATUS", None)
+    monkeypatch.setattr(plugin, "_DEVICE", {})
+    args = ["simulate", SEQ, "-o", str(work / "n"), *QUICK]
+    if var == "DNAROD_DEVICE_KERNELS":
+        args += ["--platform", "OpenCL"]
+    r = CliRunner().invoke(main, args)
+    if var == "DNAROD_DEVICE_KERNELS" and "banana" not in r.stderr:
+        pytest.skip(f"no OpenCL platform or plugin here: {r.stderr.strip()[:200]}")
+    assert r.exit_code == 2, (r.output, r.exception)
+    err = r.stderr.strip()
+    assert "\n" not in err and f"{var}='banana'" in err, err
     assert not (work / "n").exists() or not any((work / "n").iterdir())
 
 

@@ -66,6 +66,13 @@ _MODULE = None
 _ANNOUNCED = False
 
 
+def _check_switch(name):
+    """An on/off environment switch must be unset, empty, 0 or 1 (a typo must not silently mean "on")."""
+    value = os.environ.get(name, "").strip()
+    if value not in ("", "0", "1"):
+        raise ParameterError(f"environment variable {name}={value!r}: use 0 (off) or 1 (on), or unset it")
+
+
 def _installed_openmm():
     import openmm.version
 
@@ -73,8 +80,9 @@ def _installed_openmm():
 
 
 def _load():
-    """Load the extension; returns ``(PluginStatus, module or None)``. Never raises."""
+    """Load the extension; returns ``(PluginStatus, module or None)``. Never raises, except ParameterError for a misspelt DNAROD_PLUGIN switch."""
     installed = _installed_openmm()
+    _check_switch("DNAROD_PLUGIN")
     if os.environ.get("DNAROD_PLUGIN", "").strip() == "0":
         return PluginStatus(False, "switched off by DNAROD_PLUGIN=0", "", installed), None
     try:
@@ -158,6 +166,7 @@ def device_kernel(platform):
 def _load_device_kernel(platform):
     if platform not in DEVICE_PLATFORMS:
         return False, f"the plugin has no device kernel for the {platform} platform"
+    _check_switch("DNAROD_DEVICE_KERNELS")
     if os.environ.get("DNAROD_DEVICE_KERNELS", "").strip() == "0":
         return False, "device kernels switched off by DNAROD_DEVICE_KERNELS=0"
     st = status()

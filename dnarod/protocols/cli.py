@@ -14,8 +14,11 @@ from ..errors import DnarodError
 def _floats(text, what):
     import math
 
+    parts = str(text).replace(" ", "").split(",")
+    if len(parts) > 1 and "" in parts:
+        raise DnarodError(f"{what}: empty entry in {text!r}; give comma-separated numbers such as 0.5,1,2")
     try:
-        vals = [float(v) for v in str(text).replace(" ", "").split(",") if v != ""]
+        vals = [float(v) for v in parts if v != ""]
     except ValueError:
         raise DnarodError(f"{what}: expected comma-separated numbers, got {text!r}") from None
     if not vals:
