@@ -129,7 +129,8 @@ class RebuildReport:
             f"O3'-P: {10 * self.o3p_range[0]:.3f}-{10 * self.o3p_range[1]:.3f} A (Amber14 "
             f"{10 * self.o3p_equilibrium:.3f} A; before closure {10 * self.placement_o3p_range[0]:.2f}-"
             f"{10 * self.placement_o3p_range[1]:.2f} A)",
-            f"angles: largest deviation from Amber14 equilibrium {self.max_angle_deviation:.1f} deg ({self.worst_angle})",
+            f"angles: largest deviation from Amber14 equilibrium {self.max_angle_deviation:.1f} deg "
+            f"({self.worst_angle})",
             f"closest non-bonded heavy atoms: {10 * self.min_nonbonded:.2f} A ({self.min_nonbonded_pair})",
             f"base-pair frames kept within {10 * self.frame_origin_error:.4f} A and {self.frame_angle_error:.4f} deg",
             f"energy {self.energy:.1f} kJ/mol; closure {self.seconds:.2f} s wall, {self.cpu_seconds:.2f} s CPU",
