@@ -129,7 +129,8 @@ class RebuildReport:
             f"O3'-P: {10 * self.o3p_range[0]:.3f}-{10 * self.o3p_range[1]:.3f} A (Amber14 "
             f"{10 * self.o3p_equilibrium:.3f} A; before closure {10 * self.placement_o3p_range[0]:.2f}-"
             f"{10 * self.placement_o3p_range[1]:.2f} A)",
-            f"angles: largest deviation from Amber14 equilibrium {self.max_angle_deviation:.1f} deg ({self.worst_angle})",
+            f"angles: largest deviation from Amber14 equilibrium {self.max_angle_deviation:.1f} deg "
+            f"({self.worst_angle})",
             f"closest non-bonded heavy atoms: {10 * self.min_nonbonded:.2f} A ({self.min_nonbonded_pair})",
             f"base-pair frames kept within {10 * self.frame_origin_error:.4f} A and {self.frame_angle_error:.4f} deg",
             f"energy {self.energy:.1f} kJ/mol; closure {self.seconds:.2f} s wall, {self.cpu_seconds:.2f} s CPU",
@@ -740,10 +741,12 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         d, i, j = min(close)
         dmin, pair = d, f"{_atom_name(atoms_list[i])} - {_atom_name(atoms_list[j])}"
     if dmin < MIN_NONBONDED:
+        placed_d = np.linalg.norm(targets[-1][i] - targets[-1][j])
         where = _where(_pair_of(atoms_list[i].residue, n), _pair_of(atoms_list[j].residue, n))
-        raise StructureError(f"rebuild: atoms {pair} ({where}) are {10 * dmin:.2f} A apart after minimisation "
-                             f"(under {10 * MIN_NONBONDED:.1f} A, short by {10 * (MIN_NONBONDED - dmin):.2f} A); the "
-                             f"frames put two nucleotides into each other")
+        raise StructureError(f"rebuild: atoms {pair} ({where}) are {10 * dmin:.3f} A apart after minimisation "
+                             f"(under {10 * MIN_NONBONDED:.1f} A, short by {10 * (MIN_NONBONDED - dmin):.3f} A); the "
+                             f"frames put two nucleotides into each other (placed {10 * placed_d:.2f} A apart; the "
+                             f"frames must move them further apart)")
     mid, morg = _pair_frames_of(top, pos, n, seq1, seq2)
     shift, turn = np.linalg.norm(morg - O, axis=-1), _rotation_angle(mid, F)
     bad = np.flatnonzero((shift > FRAME_ORIGIN_TOL) | (turn > FRAME_ANGLE_TOL))

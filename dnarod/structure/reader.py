@@ -450,8 +450,11 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
     if modified_nts:
         notes.append(f"modified nucleotides modelled as their parent base: {', '.join(modified_nts)}")
     if not nucleotides:
+        found = [f"{n} {w}" for w, n in counts.items() if n]
+        if ligands:
+            found.append(f"{len(ligands)} nucleotide-like ligands not in a chain")
         raise StructureError(f"{source}: no nucleic acid found in model {model} "
-                             f"({atom_counter} atoms; {', '.join([f'{n} {w}' for w, n in counts.items() if n] + ([f'{len(ligands)} nucleotide-like ligands not in a chain'] if ligands else [])) or 'none recognised'})")
+                             f"({atom_counter} atoms; {', '.join(found) or 'none recognised'})")
     return NucleicStructure(source, int(model), n_models, atom_counter, nucleotides, skipped, notes)
 
 
