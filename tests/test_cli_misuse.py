@@ -187,6 +187,7 @@ CASES += [
     ("forcefields-binary", ["forcefields", "{w}/binary.toml"], ["binary.toml", "cannot read"], None),
     ("steps-binary-pairs-file", ["steps", str(PDB), "--pairs", "{w}/binary.bin"], ["binary.bin", "line"], None),
     ("steps-csv-empty-name", ["steps", str(PDB), "--csv", ""], ["--csv", "file name"], None),
+    ("steps-altloc-absent", ["steps", str(PDB), "--altloc", "ZZ"], ["altloc 'ZZ'", "does not occur"], None),
     ("build-sequence-space", ["build", "--sequence", "AC GT", "-o", "{w}/m.npz"], ["--sequence", "' '"], None),
     ("build-onto-existing", ["build", "--sequence", "ACGTACGT", "-o", "{w}/model.npz"], ["exists", "--overwrite"],
      None),

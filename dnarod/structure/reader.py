@@ -364,6 +364,7 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
     counts = {"water": 0, "amino acid": 0, "hydrogen atoms": 0, "other (ions, ligands)": 0}
     others = set()
     nucleotides, skipped, seen, ligands, modified_nts = [], [], {}, [], []
+    alt_codes = set()  # altloc codes present in the nucleotides (an asked-for code must be one of them)
     atom_counter = 0
     try:
         linked = _linked_residues(st[model - 1])
@@ -411,6 +412,7 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
                     pos = atom.pos
                     raw.append((aname, atom.altloc.strip("\0 "), float(atom.occ),
                                 (pos.x, pos.y, pos.z), first_index + k))
+                alt_codes.update(r[1] for r in raw if r[1])
                 atoms, index = _choose_altloc(raw, altloc, source, label)
                 if not atoms:
                     skipped.append(f"{label}: no heavy atoms; skipped")
@@ -436,6 +438,10 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
                 nucleotides.append(nt)
                 if modified:
                     modified_nts.append(f"{nt.rid} {nt.resname}->{base}")
+        if altloc is not None and altloc not in alt_codes:
+            present = ", ".join(sorted(alt_codes)) if alt_codes else "none"
+            raise StructureError(f"{source}: altloc {altloc!r} does not occur in the nucleotides (altlocs present: "
+                                 f"{present}); give one of those or leave altloc unset")
     except UnicodeDecodeError:
         raise StructureError(f"{source}: non-ASCII bytes in a chain, residue or atom name near atom "
                              f"{atom_counter}; PDB/mmCIF names must be plain text") from None
