@@ -22,9 +22,6 @@ Units: nm, turns, ps.
 from __future__ import annotations
 
 import dataclasses
-import json
-import time
-from pathlib import Path
 
 import numpy as np
 
@@ -170,57 +167,31 @@ def run_nicked_member(settings, member_dir, progress=None):
     :func:`smoothed_axis`) and of the node polygon (``wr2_free_node_polygon``), the unweighted ones,
     the soft chain's total-twist moments, the integrated autocorrelation time of Wr², and the cost.
     """
-    from ..analysis.polymer import bending_relaxation_time, integrated_autocorrelation_time
-    from ..analysis.writhe import twist, writhe
+    from ..analysis.polymer import integrated_autocorrelation_time
+    from ..analysis.writhe import writhe
     from ..forcefield import load_forcefield
-    from ..io_utils import ensure_dir, jsonable, write_text_atomic
-    from ..openmm.nonbonded import NonbondedSettings
-    from ..openmm.simulation import RodSimulation
+    from ..io_utils import jsonable
     from ..thermal import kT, persistence_length
-    from .tweezers import auto_friction
+    from .rings import cached_member, sample_ring, write_member
 
     s = _settings(settings)
-    member_dir = ensure_dir(Path(member_dir), "member folder")
-    done = member_dir / "protocol_result.json"
     key = jsonable(s)
-    if done.exists():
-        old = json.loads(done.read_text())
-        if old.get("settings") == key:
-            return old["result"]
+    cached, done = cached_member(member_dir, key)
+    if cached is not None:
+        return cached
     ff = load_forcefield(s["forcefield"])
     ring = ff.ring(n_nodes=int(s["n_bp"]), delta_linking_number=0)
     T = float(s["temperature_K"])
     model = soft_twist_model(ring, float(s["softening"]), T)
     tw_mean, tw_var = twist_sum_moments(model, T)
     lp = persistence_length(ring.params, ring.ds, kT(T))
-    fr = auto_friction(model, 0.0, T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
-    L = model.ds * model.n_nodes
-    tau = bending_relaxation_time(L, lp, T, float(np.mean(model.mass)) / model.ds, fr)
-    eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
-    sample = float(np.clip(min(tau / 20.0, 1000.0 * float(s["time_ns"]) / 400.0), 1.0, 100.0)) \
-        if s["sample_ps"] is None else float(s["sample_ps"])
-    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
-                           salt=float(s["salt_M"]))
-    t0, c0 = time.perf_counter(), time.process_time()
-    sim = RodSimulation(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
-                        threads=s["threads"])
-    dt = sim.dt
-    stride = max(1, int(round(sample / dt)))
-    n_eq = int(round(eq / dt))
-    n_samp = max(20, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
-    sim.advance(n_eq)
-    out = {c: np.empty(n_samp) for c in COLUMNS}
-    for i in range(n_samp):
-        sim.advance(stride)
-        pos, frm = sim.node_pose()
-        tw, wr = twist(pos, frm[:, :, 0]), writhe(pos)
-        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
-        out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
+
+    def record(out, i, pos, frm):
         out["Wr_axis"][i] = writhe(smoothed_axis(pos))
-        out["radius_of_gyration_nm"][i] = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
-        if progress:
-            progress(i + 1, n_samp)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+
+    out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.05, samples_per_ns=400.0,
+                           max_sample_ps=100.0, min_samples=20, progress=progress)
+    stride, dt, n_samp = run.pop("stride"), run["dt_ps"], run["n_samples"]
     lk_int = np.rint(out["Lk"])
     if np.ptp(lk_int) != 0:
         raise DnarodError(f"nicked-ring member: the linking number changed during the run ({sorted(set(lk_int))}); "
@@ -230,9 +201,8 @@ def run_nicked_member(settings, member_dir, progress=None):
     mom_fine = free_writhe_moments(out["Wr"], lk, tw_mean, tw_var)
     tau_wr2 = integrated_autocorrelation_time(out["Wr_axis"] ** 2)
     tau_wr = integrated_autocorrelation_time(out["Wr_axis"])
-    steps = n_eq + n_samp * stride
     res = dict(n_bp=model.n_nodes, temperature_K=T, salt_M=float(s["salt_M"]), seed=int(s["seed"]),
-               contour_length_nm=L, softening=float(s["softening"]), linking_number=lk,
+               softening=float(s["softening"]), linking_number=lk,
                soft_twist_mean_turns=tw_mean, soft_twist_variance_turns2=tw_var,
                wr2_free=mom["second_moment"], wr2_free_err=mom["second_moment_err"], wr_mean_free=mom["mean"],
                wr_mean_free_err=mom["mean_err"], wr2_unweighted=mom["unweighted_second_moment"],
@@ -241,11 +211,6 @@ def run_nicked_member(settings, member_dir, progress=None):
                wr_tau_ps=float(tau_wr * stride * dt) if np.isfinite(tau_wr) else None,
                wr2_tau_ps=float(tau_wr2 * stride * dt) if np.isfinite(tau_wr2) else None,
                n_effective=float(n_samp / (2 * tau_wr2)) if np.isfinite(tau_wr2) and tau_wr2 > 0 else None,
-               radius_of_gyration_nm=float(out["radius_of_gyration_nm"].mean()),
-               friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq, production_ps=n_samp * stride * dt,
-               wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps, n_samples=n_samp, sample_ps=stride * dt,
-               ns_per_day=steps * dt * 1e-3 / wall * 86400.0, elastic_path=sim.rs.elastic)
-    lines = [",".join(COLUMNS)] + [",".join(f"{out[c][i]:.10g}" for c in COLUMNS) for i in range(n_samp)]
-    write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")
-    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+               radius_of_gyration_nm=float(out["radius_of_gyration_nm"].mean()), **run)
+    write_member(member_dir, done, key, COLUMNS, out, res)
     return jsonable(res)

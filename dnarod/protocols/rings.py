@@ -56,40 +56,50 @@ def check_ring(delta_lk, lk0):
                           f"calibration; use |delta_lk| <= {int(MAX_SIGMA * lk0)}")
 
 
-def run_ring_member(settings, member_dir, progress=None):
-    """Run (or reuse) one ring member; writes ``samples.csv`` and ``protocol_result.json``, returns the row."""
-    from ..analysis.polymer import bending_relaxation_time, integrated_autocorrelation_time
-    from ..analysis.writhe import twist, writhe
-    from ..forcefield import load_forcefield
-    from ..io_utils import ensure_dir, jsonable, write_text_atomic
-    from ..openmm.nonbonded import NonbondedSettings
-    from ..openmm.simulation import RodSimulation
-    from ..thermal import kT, persistence_length
-    from .measure import plectoneme_state
-    from .tweezers import auto_friction
+def cached_member(member_dir, key):
+    """``(result or None, path)``: the stored result of a member folder if it was run with settings ``key``."""
+    from ..io_utils import ensure_dir
 
-    s = _settings(settings)
-    member_dir = ensure_dir(Path(member_dir), "member folder")
-    done = member_dir / "protocol_result.json"
-    key = jsonable(s)
+    done = ensure_dir(Path(member_dir), "member folder") / "protocol_result.json"
     if done.exists():
         old = json.loads(done.read_text())
         if old.get("settings") == key:
-            return old["result"]
-    ff = load_forcefield(s["forcefield"])
-    tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
-    tw0 = relaxed_twist(tw0_model)
-    check_ring(s["delta_lk"], tw0)
-    model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
-                    delta_linking_number=int(s["delta_lk"]))
+            return old["result"], done
+    return None, done
+
+
+def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per_ns, max_sample_ps, min_samples,
+                progress=None):
+    """Run one ring member (closed or nicked) and sample it: the plan and loop both ring protocols share.
+
+    Friction: :func:`~dnarod.protocols.tweezers.auto_friction` unless ``s["friction_per_ps"]`` is set;
+    equilibration: five slowest bending relaxation times (``s["equilibration_ns"]`` overrides); a sample
+    every ``min(tau * tau_fraction, time / samples_per_ns)`` ps, clipped to [1, ``max_sample_ps``]
+    (``s["sample_ps"]`` overrides), at least ``min_samples`` samples. Each sample fills ``time_ps``, ``Tw``,
+    ``Wr``, ``Lk`` (turns) and ``radius_of_gyration_nm`` of ``out``; ``record(out, i, positions, frames)``
+    fills the caller's other columns.
+
+    Returns
+    -------
+    out : dict of str to ndarray, shape (n_samples,)
+    run : dict
+        ``friction_per_ps, tau_bend_estimate_ps, equilibration_ps, production_ps, wall_s, cpu_s, dt_ps,
+        n_steps, n_samples, sample_ps, ns_per_day, contour_length_nm`` and ``stride`` (steps per sample) and
+        ``elastic_path``.
+    """
+    from ..analysis.polymer import bending_relaxation_time
+    from ..analysis.writhe import twist, writhe
+    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.simulation import RodSimulation
+    from .tweezers import auto_friction
+
     T = float(s["temperature_K"])
-    lp = persistence_length(model.params, model.ds, kT(T))
     fr = auto_friction(model, 0.0, T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
     L = model.ds * model.n_nodes
     tau = bending_relaxation_time(L, lp, T, float(np.mean(model.mass)) / model.ds, fr)
     eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
-    sample = float(np.clip(min(tau / 10.0, 1000.0 * float(s["time_ns"]) / 200.0), 1.0, 200.0)) \
-        if s["sample_ps"] is None else float(s["sample_ps"])
+    sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
+                           max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
     nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
                            salt=float(s["salt_M"]))
     t0, c0 = time.perf_counter(), time.process_time()
@@ -98,27 +108,71 @@ def run_ring_member(settings, member_dir, progress=None):
     dt = sim.dt
     stride = max(1, int(round(sample / dt)))
     n_eq = int(round(eq / dt))
-    n_samp = max(4, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
+    n_samp = max(min_samples, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
     sim.advance(n_eq)
-    out = {c: np.empty(n_samp) for c in COLUMNS}
+    out = {c: np.empty(n_samp) for c in columns}
     for i in range(n_samp):
         sim.advance(stride)
         pos, frm = sim.node_pose()
         tw, wr = twist(pos, frm[:, :, 0]), writhe(pos)
         out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
         out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
-        f, length, plec = plectoneme_state(pos, model.ds, circular=True)
-        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
         out["radius_of_gyration_nm"][i] = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
+        if record is not None:
+            record(out, i, pos, frm)
         if progress:
             progress(i + 1, n_samp)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     steps = n_eq + n_samp * stride
+    run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq,
+               production_ps=n_samp * stride * dt, wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps,
+               n_samples=n_samp, sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0,
+               stride=stride, elastic_path=sim.rs.elastic)
+    return out, run
+
+
+def write_member(member_dir, done, key, columns, out, res):
+    """Write ``samples.csv`` (the sampled columns) and ``protocol_result.json`` of a member atomically."""
+    from ..io_utils import jsonable, write_text_atomic
+
+    n = len(out[columns[0]])
+    lines = [",".join(columns)] + [",".join(f"{out[c][i]:.10g}" for c in columns) for i in range(n)]
+    write_text_atomic(Path(member_dir) / "samples.csv", "\n".join(lines) + "\n")
+    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+
+
+def run_ring_member(settings, member_dir, progress=None):
+    """Run (or reuse) one ring member; writes ``samples.csv`` and ``protocol_result.json``, returns the row."""
+    from ..analysis.polymer import integrated_autocorrelation_time
+    from ..forcefield import load_forcefield
+    from ..io_utils import jsonable
+    from ..thermal import kT, persistence_length
+    from .measure import plectoneme_state
+
+    s = _settings(settings)
+    key = jsonable(s)
+    cached, done = cached_member(member_dir, key)
+    if cached is not None:
+        return cached
+    ff = load_forcefield(s["forcefield"])
+    tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
+    tw0 = relaxed_twist(tw0_model)
+    check_ring(s["delta_lk"], tw0)
+    model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
+                    delta_linking_number=int(s["delta_lk"]))
+    T = float(s["temperature_K"])
+    lp = persistence_length(model.params, model.ds, kT(T))
+
+    def record(out, i, pos, frm):
+        f, length, plec = plectoneme_state(pos, model.ds, circular=True)
+        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
+
+    out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.1, samples_per_ns=200.0,
+                           max_sample_ps=200.0, min_samples=4, progress=progress)
+    stride, dt = run.pop("stride"), run["dt_ps"]
+    run.pop("elastic_path")
     res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
-               seed=int(s["seed"]), contour_length_nm=L, relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0,
-               friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq, production_ps=n_samp * stride * dt,
-               wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps, n_samples=n_samp, sample_ps=stride * dt,
-               ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
+               seed=int(s["seed"]), relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0, **run)
     for c in COLUMNS[1:]:
         x = out[c]
         res[c] = float(x.mean())
@@ -130,7 +184,5 @@ def run_ring_member(settings, member_dir, progress=None):
     res["delta_lk_measured"] = res["Lk"] - round(tw0)
     d = res["Lk"] - tw0
     res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
-    lines = [",".join(COLUMNS)] + [",".join(f"{out[c][i]:.10g}" for c in COLUMNS) for i in range(n_samp)]
-    write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")
-    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+    write_member(member_dir, done, key, COLUMNS, out, res)
     return jsonable(res)
