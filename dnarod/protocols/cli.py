@@ -127,34 +127,46 @@ def force_extension_cmd(forces, turns, workers, out, **kw):
     _report(c, "force_pN", ["relative_extension"])
 
 
+def _clamp_options(default_force):
+    """The options of the rotation-clamp protocols (force list, turns list, clamp stiffness)."""
+    options = [click.option("--force", "forces", default=default_force, show_default=True,
+                            help="Force(s), pN, comma-separated."),
+               click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
+               click.option("--clamp-k", type=float, default=250.0, show_default=True,
+                            help="Rotation clamp stiffness, kJ/mol.")]
+
+    def decorate(f):
+        for option in reversed(options):
+            f = option(f)
+        return f
+
+    return decorate
+
+
+def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns):
+    """Run a rotation-clamp protocol over forces x turns and print its curve."""
+    _check_run_options(workers, out)
+    c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
+                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
+    _report(c, "turns", columns)
+
+
 @protocol.command("hat")
-@click.option("--force", "forces", default="0.5", show_default=True, help="Force(s), pN, comma-separated.")
-@click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6).")
-@click.option("--clamp-k", type=float, default=250.0, show_default=True, help="Rotation clamp stiffness, kJ/mol.")
+@_clamp_options("0.5")
 @_common
 def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
-    _check_run_options(workers, out)
-    run_protocol = _run_protocol
-
-    c = run_protocol("magnetic_tweezers", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
-                     _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
-    _report(c, "turns", ["relative_extension", "Wr", "plectoneme_fraction"])
+    _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
+                 ["relative_extension", "Wr", "plectoneme_fraction"])
 
 
 @protocol.command("torque-turns")
-@click.option("--force", "forces", default="1.0", show_default=True, help="Force(s), pN, comma-separated.")
-@click.option("--turns", required=True, help="Turns, comma-separated.")
-@click.option("--clamp-k", type=float, default=250.0, show_default=True, help="Rotation clamp stiffness, kJ/mol.")
+@_clamp_options("1.0")
 @_common
 def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
-    _check_run_options(workers, out)
-    run_protocol = _run_protocol
-
-    c = run_protocol("torque_turns", {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
-                     _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
-    _report(c, "turns", ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"])
+    _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"])
 
 
 @protocol.command("rings")
