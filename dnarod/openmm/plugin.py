@@ -219,6 +219,18 @@ def _reset_for_tests():
     _DEVICE_ANNOUNCED.clear()
 
 
+def _module_and_particles(model, particles, what, advice=""):
+    """The loaded plugin module and the (n_nodes, 3) particle indices of the nodes (default 3k, 3k+1, 3k+2);
+    ParameterError naming ``what`` if the plugin is not usable here."""
+    mod = module()
+    if mod is None:
+        raise ParameterError(f"{what} needs the compiled OpenMM plugin, which is not usable here "
+                             f"({status().reason}){advice}")
+    n = model.n_nodes
+    idx = np.arange(3 * n).reshape(n, 3) if particles is None else np.asarray(particles, int).reshape(n, 3)
+    return mod, idx
+
+
 def smk_force(model, radius, particles=None):
     """The SMK step energy of a model as a compiled ``SMKForce``.
 
@@ -243,12 +255,8 @@ def smk_force(model, radius, particles=None):
     """
     from .forces import GROUPS
 
-    mod = module()
-    if mod is None:
-        raise ParameterError(f"elastic='plugin' needs the compiled OpenMM plugin, which is not usable here "
-                             f"({status().reason}); use elastic='auto' or 'fast'")
+    mod, idx = _module_and_particles(model, particles, "elastic='plugin'", "; use elastic='auto' or 'fast'")
     n = model.n_nodes
-    idx = np.arange(3 * n).reshape(n, 3) if particles is None else np.asarray(particles, int).reshape(n, 3)
     f = mod.SMKForce()
     for k in range(n):
         f.addNode(int(idx[k, 0]), int(idx[k, 1]), int(idx[k, 2]), float(radius[k]))
@@ -332,12 +340,8 @@ def node_pair_force(model, numbers, particles=None):
     """
     from .forces import GROUPS
 
-    mod = module()
-    if mod is None:
-        raise ParameterError(f"the compiled non-bonded force needs the OpenMM plugin, which is not usable here "
-                             f"({status().reason})")
+    mod, idx = _module_and_particles(model, particles, "the compiled non-bonded force")
     n = model.n_nodes
-    idx = np.arange(3 * n).reshape(n, 3) if particles is None else np.asarray(particles, int).reshape(n, 3)
     f = mod.NodePairForce()
     for k in range(n):
         f.addNode(int(idx[k, 0]), int(idx[k, 1]), int(idx[k, 2]))

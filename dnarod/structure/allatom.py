@@ -289,6 +289,18 @@ def _retarget(force, context, groups, pos, placed):
     force.updateParametersInContext(context)
 
 
+def _sugar_stereocentres(topology):
+    """Yield ``(residue index, centre name, (centre, a, b, c) atom indices)`` for every sugar stereocentre of
+    ``SUGAR_CHIRAL`` present in ``topology`` (``N`` is the glycosidic N9 of purines, N1 of pyrimidines)."""
+    for res in topology.residues():
+        idx = {a.name: a.index for a in res.atoms()}
+        for centre, a, b, c in SUGAR_CHIRAL:
+            if c == "N":
+                c = "N9" if "N9" in idx else "N1"
+            if all(x in idx for x in (centre, a, b, c)):
+                yield res.index, centre, (idx[centre], idx[a], idx[b], idx[c])
+
+
 def _hold_chirality(system, topology, positions, k=CHIRAL_K):
     """Flat-bottom restraints that keep each sugar stereocentre's improper dihedral on its side.
 
@@ -301,18 +313,13 @@ def _hold_chirality(system, topology, positions, k=CHIRAL_K):
     f = openmm.CustomTorsionForce("kc*min(0, s*theta)^2")
     f.addGlobalParameter("kc", k)
     f.addPerTorsionParameter("s")
-    for res in topology.residues():
-        idx = {a.name: a.index for a in res.atoms()}
-        for centre, a, b, c in SUGAR_CHIRAL:
-            if c == "N":
-                c = "N9" if "N9" in idx else "N1"
-            if all(x in idx for x in (centre, a, b, c)):
-                q = [idx[a], idx[b], idx[centre], idx[c]]
-                x = positions[q]
-                b0, b1, b2 = x[1] - x[0], x[2] - x[1], x[3] - x[2]
-                n1, n2 = np.cross(b0, b1), np.cross(b1, b2)
-                sign = np.sign(np.dot(np.cross(n1, n2), b1)) or 1.0
-                f.addTorsion(*q, [float(sign)])
+    for _, _, (i_centre, i_a, i_b, i_c) in _sugar_stereocentres(topology):
+        q = [i_a, i_b, i_centre, i_c]
+        x = positions[q]
+        b0, b1, b2 = x[1] - x[0], x[2] - x[1], x[3] - x[2]
+        n1, n2 = np.cross(b0, b1), np.cross(b1, b2)
+        sign = np.sign(np.dot(np.cross(n1, n2), b1)) or 1.0
+        f.addTorsion(*q, [float(sign)])
     f.setForceGroup(31)
     system.addForce(f)
 
@@ -470,15 +477,9 @@ def _exclusion_pairs(n, bonds):
 def _chirality(topology, xyz):
     """Signed volumes at the sugar stereocentres: {(residue index, centre): sign}."""
     out = {}
-    for res in topology.residues():
-        idx = {a.name: a.index for a in res.atoms()}
-        for centre, a, b, c in SUGAR_CHIRAL:
-            if c == "N":
-                c = "N9" if "N9" in idx else "N1"
-            if all(x in idx for x in (centre, a, b, c)):
-                o = xyz[idx[centre]]
-                v = np.linalg.det(np.array([xyz[idx[a]] - o, xyz[idx[b]] - o, xyz[idx[c]] - o]))
-                out[(res.index, centre)] = np.sign(v)
+    for res_index, centre, (i_centre, i_a, i_b, i_c) in _sugar_stereocentres(topology):
+        o = xyz[i_centre]
+        out[(res_index, centre)] = np.sign(np.linalg.det(np.array([xyz[i_a] - o, xyz[i_b] - o, xyz[i_c] - o])))
     return out
 
 

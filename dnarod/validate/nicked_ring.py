@@ -40,12 +40,8 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                       salt_M=0.15, seed=41, a_override=None, mc_samples=None, full_mc_samples=None, plots=True,
                       member_root=None):
     """Run the check (see the module docstring)."""
-    from ..forcefield import load_forcefield
-    from ..openmm.nonbonded import NonbondedSettings
     from ..protocols.nicked import run_nicked_member
-    from ..thermal import kT, persistence_length
-    from .supercoil_theory import depew_wang_K, effective_diameter, twist_variance_exact, twist_variance_linear
-    from .torsion import bare_twist_persistence
+    from .supercoil_theory import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
     from .wlc_ring_mc import sample_ring_writhe
 
     t0 = time.perf_counter()
@@ -54,12 +50,8 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     mc_samples = mc_samples or (4000 if quick else 20000)
     full_mc_samples = full_mc_samples or (1000 if quick else 5000)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="nicked_", dir=out_dir))
-    ff = load_forcefield("dna-default")
-    ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
-    L = ring.ds * n_bp
-    A = persistence_length(ring.params, ring.ds, kT(temperature))
-    C = bare_twist_persistence(ff.model_from_sequence(n_nodes=4), temperature)
-    d_eff = effective_diameter(NonbondedSettings(salt=salt_M), ring.ds, temperature)
+    rc = ring_constants(n_bp, temperature, salt_M)
+    ff, ring, L, A, C, d_eff = rc["ff"], rc["ring"], rc["L"], rc["A"], rc["C"], rc["d_eff"]
     A_ref = A if a_override is None else float(a_override)
     md = run_nicked_member(dict(n_bp=n_bp, time_ns=time_ns, seed=seed, temperature_K=temperature, salt_M=salt_M),
                            root / f"ring{n_bp}")

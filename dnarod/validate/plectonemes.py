@@ -45,12 +45,9 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                       seed=5, mc_samples=None, c_override=None, a_override=None, P_nm=None, plots=True,
                       member_root=None):
     """Run the check (see the module docstring)."""
-    from ..forcefield import load_forcefield
     from ..openmm.nonbonded import NonbondedSettings
     from ..protocols.rings import relaxed_twist, run_ring_member
-    from ..thermal import kT, persistence_length
-    from .supercoil_theory import effective_diameter, writhe_fraction_from_P
-    from .torsion import bare_twist_persistence
+    from .supercoil_theory import effective_diameter, ring_constants, writhe_fraction_from_P
 
     t0 = time.perf_counter()
     n_bp = n_bp or (400 if quick else 600)
@@ -58,14 +55,10 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     time_ns = time_ns or (3.0 if quick else 10.0)
     mc_samples = mc_samples or (1500 if quick else 4000)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="plectonemes_", dir=out_dir))
-    ff = load_forcefield("dna-default")
-    ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
-    L = ring.ds * n_bp
-    A = persistence_length(ring.params, ring.ds, kT(temperature))
-    C = bare_twist_persistence(ff.model_from_sequence(n_nodes=4), temperature)
+    rc = ring_constants(n_bp, temperature, salt_M)
+    ring, L, A, C, d_eff = rc["ring"], rc["L"], rc["A"], rc["C"], rc["d_eff"]
     A_ref = A if a_override is None else float(a_override)
     C_ref = C if c_override is None else float(c_override)
-    d_eff = effective_diameter(NonbondedSettings(salt=salt_M), ring.ds, temperature)
     d_wca = effective_diameter(NonbondedSettings(salt=salt_M, electrostatics=False), ring.ds, temperature)
     row = run_ring_member(dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed, temperature_K=temperature,
                                salt_M=salt_M), root / f"ring{n_bp}_{delta_lk}")

@@ -152,6 +152,28 @@ def gaussian_unconstrained_variance(var_constrained, var_other):
     return vc * vo / (vo - vc)
 
 
+def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default"):
+    """A relaxed ``forcefield`` ring of ``n_bp`` nodes and the constants the ring checks compare with.
+
+    Returns
+    -------
+    dict
+        ``ff`` (the force field), ``ring`` (RodModel, ΔLk = 0), ``L`` (contour length, nm), ``A`` (the exact
+        bending persistence length, nm), ``C`` (the bare torsional persistence length, nm) and ``d_eff`` (the
+        effective diameter of the model's WCA + Debye-Hückel pair energy at ``salt_M``, nm).
+    """
+    from ..forcefield import load_forcefield
+    from ..openmm.nonbonded import NonbondedSettings
+    from ..thermal import kT, persistence_length
+    from .torsion import bare_twist_persistence
+
+    ff = load_forcefield(forcefield)
+    ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
+    return dict(ff=ff, ring=ring, L=ring.ds * n_bp, A=persistence_length(ring.params, ring.ds, kT(temperature)),
+                C=bare_twist_persistence(ff.model_from_sequence(n_nodes=4), temperature),
+                d_eff=effective_diameter(NonbondedSettings(salt=salt_M), ring.ds, temperature))
+
+
 def effective_diameter(nonbonded, ds, temperature, n_h=160, n_gamma=16, n_offset=3):
     """The model's effective diameter (nm); see :func:`_effective_diameter` (results are cached per settings)."""
     import dataclasses

@@ -331,37 +331,33 @@ static inline void sinCos(double x, double& s, double& c) {
 }
 
 // Exact free-rotor sub-flow of every lane by angle scale * pi_a / J_a about body axis a: rotates frame columns
-// b, d and body momenta pi_b, pi_d. poly: all angles are below 0.8 rad (then the polynomial sin/cos).
-static inline __attribute__((always_inline)) void subBlock(RigidBodyIntegrator::Block& B, int a, int b, int d, double scale, bool poly) {
-    if (poly) {
-        for (int j = 0; j < RigidBodyIntegrator::BLOCK; j++) {
-            const double x = scale * B.pi[a][j] * B.iJ[a][j];
-            double s, co;
+// b, d and body momenta pi_b, pi_d. POLY: all angles are below 0.8 rad (then the polynomial sin/cos); a template
+// parameter, so each variant's lane loop is compiled (and vectorised) without a branch inside it.
+template <bool POLY>
+static inline __attribute__((always_inline)) void subBlockT(RigidBodyIntegrator::Block& B, int a, int b, int d, double scale) {
+    for (int j = 0; j < RigidBodyIntegrator::BLOCK; j++) {
+        const double x = scale * B.pi[a][j] * B.iJ[a][j];
+        double s, co;
+        if (POLY)
             sinCosPoly(x, s, co);
-            for (int r = 0; r < 3; r++) {
-                const double xb = B.L[3 * r + b][j], xd = B.L[3 * r + d][j];
-                B.L[3 * r + b][j] = co * xb + s * xd;
-                B.L[3 * r + d][j] = co * xd - s * xb;
-            }
-            const double qb = B.pi[b][j], qd = B.pi[d][j];
-            B.pi[b][j] = co * qb + s * qd;
-            B.pi[d][j] = co * qd - s * qb;
-        }
-    } else {
-        for (int j = 0; j < RigidBodyIntegrator::BLOCK; j++) {
-            const double x = scale * B.pi[a][j] * B.iJ[a][j];
-            double s, co;
+        else
             sinCos(x, s, co);
-            for (int r = 0; r < 3; r++) {
-                const double xb = B.L[3 * r + b][j], xd = B.L[3 * r + d][j];
-                B.L[3 * r + b][j] = co * xb + s * xd;
-                B.L[3 * r + d][j] = co * xd - s * xb;
-            }
-            const double qb = B.pi[b][j], qd = B.pi[d][j];
-            B.pi[b][j] = co * qb + s * qd;
-            B.pi[d][j] = co * qd - s * qb;
+        for (int r = 0; r < 3; r++) {
+            const double xb = B.L[3 * r + b][j], xd = B.L[3 * r + d][j];
+            B.L[3 * r + b][j] = co * xb + s * xd;
+            B.L[3 * r + d][j] = co * xd - s * xb;
         }
+        const double qb = B.pi[b][j], qd = B.pi[d][j];
+        B.pi[b][j] = co * qb + s * qd;
+        B.pi[d][j] = co * qd - s * qb;
     }
+}
+
+static inline __attribute__((always_inline)) void subBlock(RigidBodyIntegrator::Block& B, int a, int b, int d, double scale, bool poly) {
+    if (poly)
+        subBlockT<true>(B, a, b, d, scale);
+    else
+        subBlockT<false>(B, a, b, d, scale);
 }
 
 // Free rotor for time h: R1(h/2) R2(h/2) R3(h) R2(h/2) R1(h/2) (dnarod.integrators.splitting.rotor_flow).
