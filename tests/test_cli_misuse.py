@@ -222,6 +222,10 @@ CASES += [
      ["temperature_K"], None),
     ("protocol-workers-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--workers", "-1"], ["--workers -1"],
      None),
+    ("torque-with-zero-pull", ["simulate", SEQ, "-o", "{w}/n", *QUICK, "--pull", "0", "--torque", "5"],
+     ["--torque 5", "--pull absent or 0"], None),
+    ("protocol-ring-too-small", ["protocol", "rings", "--delta-lk", "0", *PROTO, "--source", "5"],
+     ["5-node ring", "kT of elastic energy per step"], None),
     ("protocol-into-run-folder", ["protocol", "hat", "--turns", "0", *PROTO, "-o", "{w}/run"],
      ["not a protocol folder"], None),
 ]

@@ -69,17 +69,25 @@ def _members(kind, axes, base):
     src = str(base.get("source", "")).strip()
     if not src:
         raise DnarodError("source: give a node count (e.g. 600) or a sequence")
+    from ..run.api import check_start_pose
+
+    seq, n_nodes = (None, int(src)) if src.isdigit() else (src, None)
     if kind == "rings":
-        ring = ff.ring(None if src.isdigit() else src, n_nodes=int(src) if src.isdigit() else None)
+        ring = ff.ring(seq, n_nodes=n_nodes)
         tw0 = relaxed_twist(ring)
         for m in members:
             check_ring(m.get("delta_lk", 0), tw0)
+        # the start pose every member runs from, checked as `dnarod simulate` checks it (a tiny ring heats up)
+        for dlk in sorted({int(m.get("delta_lk", 0)) for m in members}):
+            for T in sorted({float(m.get("temperature_K") or 300.0) for m in members}):
+                check_start_pose(ff.ring(seq, n_nodes=n_nodes, delta_linking_number=dlk), T)
     else:
-        model = ff.model_from_sequence(None if src.isdigit() else src, n_nodes=int(src) if src.isdigit() else None)
+        model = ff.model_from_sequence(seq, n_nodes=n_nodes)
         lk0 = intrinsic_turns(model)
         for m in members:
             check_tweezers(m.get("force_pN", 0.0), m.get("turns"), rotation_clamp=kind != "force_extension",
                            lk0=lk0, torque_pN_nm=m.get("torque_pN_nm"))
+        check_start_pose(model, 300.0)
     return members
 
 

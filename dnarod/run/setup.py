@@ -86,9 +86,10 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
     if pull is not None and abs(pull) > MAX_FORCE_PN:
         raise ParameterError(f"--pull {pull:g} pN is above {MAX_FORCE_PN:g} pN: DNA overstretches near 65 pN, a "
                              f"transition the elastic rod model does not have; use forces up to {MAX_FORCE_PN:g} pN")
-    if torque is not None and torque != 0 and pull is None and not clamp_first:
-        raise ParameterError(f"--torque {torque:g} on a free chain with neither --pull nor --clamp-first has no "
-                             f"equilibrium (the chain spins up without bound); add --clamp-first and/or --pull")
+    if torque is not None and torque != 0 and not pull and not clamp_first:  # --pull 0 pulls nothing
+        raise ParameterError(f"--torque {torque:g} on a free chain with no pulling force (--pull absent or 0) and no "
+                             f"--clamp-first has no equilibrium (the chain spins up without bound); add --clamp-first "
+                             f"and/or --pull")
     axis = pull_axis(model)
     loads = []
     if clamp_first:
