@@ -1,8 +1,8 @@
 """Measured DNA values bundled in ``data/experimental/`` (the one home of the experimental tables), in MD units.
 
-The tables are in the experimentalist's units (pN, nm, pN nm, pN nm^2, mol/L) with their sources; this module
-reads them and converts at this edge with :mod:`dnarod.units` (forces in kJ/mol/nm, torques and energies in
-kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm). Every value was read in a stored copy of its source
+The tables are in the experimentalist's units (pN, nm, Angstrom, pN nm, pN nm^2, deg, mol/L) with their sources;
+this module reads them and converts at this edge with :mod:`dnarod.units` (forces in kJ/mol/nm, torques and
+energies in kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm, angles in rad). Every value was read in a stored copy of its source
 (``data/README.md`` says where); quantities that could not be read are listed in :data:`MISSING` and the
 functions for them return an empty list rather than a remembered number.
 
@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..units import PN
+from ..units import NM_PER_ANGSTROM, PN
 
 #: Quantities the issue asks for that could not be read in any stored source (so nothing is bundled for them),
 #: or of which only a weaker form could be read (the entry says what is still missing).
@@ -275,15 +275,22 @@ def effective_diameter_second_virial_reference():
     for r in read_table("dna_diameter.csv"):
         if r["quantity"] != "effective_diameter_second_virial_pb":
             continue
-        out.append(_m(r, r["quantity"], r["value"], r["unit"], salt_M=_f(r.get("salt_M")),
+        to_nm = NM_PER_ANGSTROM if r["unit"] == "Angstrom" else 1.0  # the abstract states 50 Angstrom
+        out.append(_m(r, r["quantity"], float(r["value"]) * to_nm, "nm", salt_M=_f(r.get("salt_M")),
                       approximate=r.get("approximate") == "yes"))
     return out
 
 
 def plectoneme_geometry_reference(quantity=None):
     """Measured geometry of plectonemic supercoiled DNA (``plectoneme_geometry.csv``): superhelix diameters (nm)
-    at 10 and 100 mM Na+ (Hammermann et al. 2000, SANS) and the opening angle (``deg``; Zakharova et al. 2002).
-    ``quantity`` selects one kind (``"superhelix_diameter"``, ``"opening_angle"``)."""
-    return [_m(r, r["quantity"], r["value"], r["unit"], _f(r.get("uncertainty")), salt_M=_f(r.get("salt_M")),
-               approximate=r.get("approximate") == "yes")
-            for r in read_table("plectoneme_geometry.csv") if quantity in (None, r["quantity"])]
+    at 10 and 100 mM Na+ (Hammermann et al. 2000, SANS) and the opening angle (tabulated in degrees, returned in
+    rad; Zakharova et al. 2002). ``quantity`` selects one kind (``"superhelix_diameter"``, ``"opening_angle"``)."""
+    out = []
+    for r in read_table("plectoneme_geometry.csv"):
+        if quantity not in (None, r["quantity"]):
+            continue
+        f, unit = (np.pi / 180.0, "rad") if r["unit"] == "deg" else (1.0, r["unit"])
+        unc = _f(r.get("uncertainty"))
+        out.append(_m(r, r["quantity"], float(r["value"]) * f, unit, None if unc is None else unc * f,
+                      salt_M=_f(r.get("salt_M")), approximate=r.get("approximate") == "yes"))
+    return out
