@@ -82,7 +82,8 @@ def test_round4_values_read_from_the_tables():
     assert "not measured" in d.conditions
     # Hammermann et al. 2000 (SANS): superhelix diameter 16.0 +- 0.9 nm at 10 mM, 9.0 +- 0.7 nm at 100 mM Na+
     sh = ex.plectoneme_geometry_reference("superhelix_diameter")
-    assert [(m.value, m.uncertainty, m.salt_M, m.unit) for m in sh] == [(16.0, 0.9, 0.010, "nm"), (9.0, 0.7, 0.100, "nm")]
+    assert [(m.value, m.uncertainty, m.salt_M, m.unit) for m in sh] == [(16.0, 0.9, 0.010, "nm"),
+                                                                         (9.0, 0.7, 0.100, "nm")]
     (oa,) = ex.plectoneme_geometry_reference("opening_angle")  # "close to 58 degrees", returned in rad
     assert oa.value == pytest.approx(np.radians(58.0), rel=1e-12) and (oa.unit, oa.approximate) == ("rad", True)
     # Rybenkov, Vologodskii & Cozzarelli 1997: "changed >1.5-fold" with ionic conditions (a bound, not K)

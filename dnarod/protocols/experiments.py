@@ -2,9 +2,9 @@
 
 The tables are in the experimentalist's units (pN, nm, Angstrom, pN nm, pN nm^2, deg, mol/L) with their sources;
 this module reads them and converts at this edge with :mod:`dnarod.units` (forces in kJ/mol/nm, torques and
-energies in kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm, angles in rad). Every value was read in a stored copy of its source
-(``data/README.md`` says where); quantities that could not be read are listed in :data:`MISSING` and the
-functions for them return an empty list rather than a remembered number.
+energies in kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm, angles in rad). Every value was read in a
+stored copy of its source (``data/README.md`` says where); quantities that could not be read are listed in
+:data:`MISSING` and the functions for them return an empty list rather than a remembered number.
 
 Used by the protocol plots (:mod:`dnarod.protocols.curves`) and by the "vs experiment" validation
 (:mod:`dnarod.validate.experiment`); other checks can call the ``*_reference`` functions.
@@ -250,7 +250,8 @@ def supercoiling_free_energy_ionic_variation():
     """Lower bound on how much the supercoiling free energy changes with NaCl/MgCl2 (Rybenkov et al. 1997:
     "changed >1.5-fold"; a ratio, ``value`` 1.5 is a lower bound). Not a value of K."""
     return [_m(r, r["quantity"], r["value"], "1", approximate=r.get("approximate") == "yes")
-            for r in read_table("supercoiling.csv") if r["quantity"] == "supercoiling_free_energy_ionic_variation_min_ratio"]
+            for r in read_table("supercoiling.csv")
+            if r["quantity"] == "supercoiling_free_energy_ionic_variation_min_ratio"]
 
 
 def dna_diameter_reference():

@@ -269,6 +269,7 @@ def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
     c.set_xscale("log")
     c.set_xlabel("monovalent salt (mM)")
     c.set_ylabel("diameter (nm)")
-    c.set_title("effective and superhelix diameters" + (f"; Wr/dLk {w['model']:.2f} vs ~{w['measured']:g}" if w else ""), fontsize=9)
+    c.set_title("effective and superhelix diameters"
+                + (f"; Wr/dLk {w['model']:.2f} vs ~{w['measured']:g}" if w else ""), fontsize=9)
     c.legend(fontsize=6)
     return save_figure(fig, out_dir, "experiment.png")

@@ -18,8 +18,8 @@ shearable chain; measured: the reference moves by less than its 7 % error betwee
 102 nm). The free energy coefficient K is then reported at the sampled size and, from the exact twist part and
 the reference writhe, at ``full_n_bp`` (default 3000 bp, the issue's "few kbp"), beside the measured Depew-Wang /
 Horowitz-Wang K when one is tabulated (:func:`dnarod.protocols.experiments.supercoiling_free_energy_reference`;
-none could be read, so ``measured_K`` is None and no K is quoted). ``a_override`` gives the reference a wrong persistence length (the
-tests show the check failing).
+none could be read, so ``measured_K`` is None and no K is quoted). ``a_override`` gives the reference a wrong
+persistence length (the tests show the check failing).
 """
 from __future__ import annotations
 
