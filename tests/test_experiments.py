@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from dnarod.protocols import experiments as ex
-from dnarod.units import PN
+from dnarod.units import NM_PER_ANGSTROM, PN
 
 
 def test_tables_carry_a_source_url_and_verification_for_every_row():
@@ -61,7 +61,6 @@ def test_torsional_values_in_md_units():
 
 
 def test_missing_quantities_return_nothing_rather_than_a_remembered_number():
-    assert ex.writhe_fraction_reference() == []
     assert ex.supercoiling_free_energy_reference() == []
     assert ex.effective_diameter_reference() == []
     assert set(ex.MISSING) >= {"buckling_torque", "writhe_fraction", "supercoiling_free_energy", "effective_diameter"}
@@ -69,6 +68,47 @@ def test_missing_quantities_return_nothing_rather_than_a_remembered_number():
     assert w.value == 0.5 and w.approximate
     (b,) = ex.buckling_reference()
     assert b.quantity == "initial_loop_to_per_turn_extension_ratio" and b.value == 2.0
+
+
+def test_round4_values_read_from_the_tables():
+    # Witz & Stasiak 2010 (review, quoting its refs): "Usually ~70% of the dLk are compensated by the acquired writhe"
+    (w,) = ex.writhe_fraction_reference()
+    assert (w.value, w.unit, w.uncertainty, w.salt_M, w.approximate) == (0.7, "1", None, None, True)
+    assert "20026582" in w.url and ex.cite_short(w.source) == "Witz & Stasiak 2010"
+    # 50 Angstrom hard cylinder with the Poisson-Boltzmann second virial coefficient at 150 mM (computed value),
+    # tabulated in Angstrom as stated and returned in nm
+    (d,) = ex.effective_diameter_second_virial_reference()
+    assert d.value == pytest.approx(50.0 * NM_PER_ANGSTROM) and (d.unit, d.salt_M) == ("nm", 0.15)
+    assert "not measured" in d.conditions
+    # Hammermann et al. 2000 (SANS): superhelix diameter 16.0 +- 0.9 nm at 10 mM, 9.0 +- 0.7 nm at 100 mM Na+
+    sh = ex.plectoneme_geometry_reference("superhelix_diameter")
+    assert [(m.value, m.uncertainty, m.salt_M, m.unit) for m in sh] == [(16.0, 0.9, 0.010, "nm"),
+                                                                         (9.0, 0.7, 0.100, "nm")]
+    (oa,) = ex.plectoneme_geometry_reference("opening_angle")  # "close to 58 degrees", returned in rad
+    assert oa.value == pytest.approx(np.radians(58.0), rel=1e-12) and (oa.unit, oa.approximate) == ("rad", True)
+    # Rybenkov, Vologodskii & Cozzarelli 1997: "changed >1.5-fold" with ionic conditions (a bound, not K)
+    (r,) = ex.supercoiling_free_energy_ionic_variation()
+    assert r.value == 1.5 and r.unit == "1"
+
+
+def test_writhe_fraction_comparison_fails_with_wrong_values():
+    from dnarod.validate.experiment import WRITHE_ROUNDING, Z_TOL, compare_writhe_fraction
+
+    ok = compare_writhe_fraction(0.731, 0.030, "400-bp ring")  # the quick plectonemes ring (README)
+    assert ok["passed"] and ok["tolerance"] == pytest.approx(Z_TOL * 0.030 + WRITHE_ROUNDING)
+    assert ok["difference"] == pytest.approx(0.031)
+    for f in (0.55, 0.85):
+        assert not compare_writhe_fraction(f, 0.02)["passed"], f
+
+
+def test_effective_diameter_comparison():
+    from dnarod.validate.experiment import compare_effective_diameter
+
+    bad = compare_effective_diameter(2.31, 0.15)
+    assert not bad["agrees"] and bad["ratio"] == pytest.approx(0.462) and bad["reference_nm"] == 5.0
+    assert compare_effective_diameter(5.0, 0.15)["agrees"] and compare_effective_diameter(4.1, 0.15)["agrees"]
+    assert not compare_effective_diameter(3.9, 0.15)["agrees"]
+    assert compare_effective_diameter(2.31, 0.5) is None  # nothing read at 0.5 M
 
 
 def test_short_citations():
@@ -84,6 +124,9 @@ def _rows(kind):
         return [dict(force_pN=f, relative_extension=float(extensible_wlc_extension(f, 50.0, 1100.0, 4.14)),
                      relative_extension_err=0.005, n_bp=600, temperature_K=300.0, salt_M=0.15)
                 for f in (0.1, 1.0, 10.0)]
+    if kind == "rings":
+        return [dict(delta_lk=d, Wr=0.72 * d, Wr_err=0.05, Tw_minus_Tw0=0.28 * d, Tw_minus_Tw0_err=0.05, n_bp=600,
+                     temperature_K=300.0, salt_M=0.15) for d in (-3.0, -2.0, 0.0)]
     return [dict(turns=t, twist_torque_pN_nm=20.0 * t, twist_torque_pN_nm_err=1.0, clamp_torque_pN_nm=20.0 * t,
                  clamp_torque_pN_nm_err=2.0, relative_extension=0.8, relative_extension_err=0.01, force_pN=1.0,
                  contour_length_nm=101.66, n_bp=300, temperature_K=300.0, salt_M=0.15) for t in (-1.0, 0.0, 1.0)]
@@ -93,6 +136,7 @@ def _rows(kind):
     ("force_extension", ["Wang et al. 1997", "Wenner et al. 2002", "bracketing 150 mM"]),
     ("torque_turns", ["103 nm at 6.5 pN", "Bryant et al. 2003", "run at 1.0 pN"]),
     ("magnetic_tweezers", ["x/L at 1 pN from measured lp 46-59 nm"]),
+    ("rings", ["Wr = ~0.7 dLk (Witz & Stasiak 2010, quoted; salt not stated; run at 150 mM)"]),
 ])
 def test_protocol_plots_draw_the_measured_values(tmp_path, monkeypatch, kind, expected):
     import matplotlib.axes
@@ -120,6 +164,8 @@ def test_protocol_plots_draw_the_measured_values(tmp_path, monkeypatch, kind, ex
         assert e in joined, joined
     if kind == "magnetic_tweezers":
         assert any("no measured hat-curve points" in t for t in texts)
+    if kind == "rings":
+        assert not any("no measured" in t for t in texts)
 
 
 def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(tmp_path):
@@ -133,9 +179,31 @@ def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(
     # Moroz-Nelson with the model's A = 50 nm, C = 98.3 nm at 6.5 pN, against 103 +- 4 nm measured
     assert six["model_nm"] == pytest.approx(92.8, abs=0.1) and six["measured_nm"] == 103.0
     assert (tmp_path / "experiment.png").stat().st_size > 5000
-    assert set(r["not_compared"]) == set(ex.MISSING)
-    for kw in (dict(lp_override=44.0), dict(lp_override=62.0), dict(c_override=60.0), dict(c_override=150.0)):
+    assert set(r["not_compared"]) == set(ex.MISSING) | {"writhe_fraction_model"}
+    # the model's own effective diameter at 0.15 M (2.31 nm) disagrees with the 5 nm PB value: reported, not gating
+    assert r["model_effective_diameter_nm"] == pytest.approx(2.31, abs=0.01)
+    assert not r["effective_diameter"]["agrees"] and r["disagreements"] and "DISAGREES" in r["headline"]
+    for kw in (dict(lp_override=44.0), dict(lp_override=62.0), dict(c_override=60.0), dict(c_override=150.0),
+               dict(writhe_fraction_model=(0.5, 0.02, "wrong")), dict(gate_effective_diameter=True)):
         assert not check_experiment(tmp_path, plots=False, **kw)["passed"], kw
+    good = check_experiment(tmp_path, plots=False, writhe_fraction_model=(0.731, 0.030, "ring"), d_override=4.8,
+                            gate_effective_diameter=True)
+    assert good["passed"] and good["writhe_fraction"]["passed"] and good["effective_diameter"]["agrees"]
+    assert "writhe_fraction_model" not in good["not_compared"]
+
+
+def test_run_validation_hands_the_plectonemes_writhe_fraction_to_experiment(tmp_path, monkeypatch):
+    from dnarod import validate as V
+    from dnarod.validate import plectonemes
+
+    def stub(out_dir, quick=False, **kw):
+        return dict(passed=True, model="stub ring", model_writhe_fraction=0.72, model_writhe_fraction_err=0.02)
+
+    monkeypatch.setattr(plectonemes, "check_plectonemes", stub)
+    res = V.run_validation(tmp_path, checks=["plectonemes", "experiment"],
+                           options={"experiment": dict(d_override=2.31, plots=False)})
+    w = res["checks"]["experiment"]["writhe_fraction"]
+    assert w["model"] == 0.72 and w["passed"] and "stub ring" in w["model_description"]
 
 
 def test_experiment_check_in_the_report(tmp_path):

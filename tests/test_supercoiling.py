@@ -161,6 +161,8 @@ def test_plectonemes_check_with_a_recorded_ring(tmp_path):
     root = _recorded(tmp_path, "plectonemes_400bp")
     good = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800)
     assert good["passed"], good
+    w = good["vs_experiment"]  # against the "usually ~70%" read (reported; gating in check experiment)
+    assert w["measured"] == 0.7 and w["model"] == pytest.approx(good["model_writhe_fraction"]) and w["passed"]
     bad = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800,
                             c_override=0.5 * good["twist_persistence_nm"])
     assert not bad["passed"]
@@ -172,5 +174,6 @@ def test_nicked_ring_check_quick_form(tmp_path):
 
     r = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m")
     assert np.isfinite(r["K_sampled_size"]) and r["full"]["K"] > 0
+    assert r["measured_K"] is None and "none read" in r["measured_K_source"]  # no K could be read
     bad = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m", a_override=25.0)
     assert not bad["passed"]

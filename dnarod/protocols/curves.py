@@ -29,7 +29,8 @@ EXPERIMENTS = {
     # the force-extension relation of the measured persistence lengths
     "magnetic_tweezers": ["force_extension_parameters.csv"],
     "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv"],
-    "rings": ["ring_writhe_fraction.csv"],  # not bundled: no writhe fraction could be read (experiments.MISSING)
+    # a review's "usually ~70%" of dLk as writhe (secondary; the primary measurements are in experiments.MISSING)
+    "rings": ["ring_writhe_fraction.csv"],
 }
 
 
@@ -271,7 +272,8 @@ def _draw_experiment(a, kind, name, rows):
     * hat curves: no measured hat-curve points could be read (the axes say so); at zero turns a bar spans the
       relative extension that the measured persistence lengths bracketing the run's salt give at the run's force
       (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further);
-    * rings: no measured writhe fraction could be read; the axes say so.
+    * rings: the line ``Wr = f dLk`` for the writhe fraction read ("usually ~70%", a review quoting its sources;
+      no superhelical density or salt stated, the label says so beside the run's salt).
     """
     from ..thermal import kT
     from ..units import PN
@@ -320,8 +322,13 @@ def _draw_experiment(a, kind, name, rows):
     if kind == "rings" and name == "ring_writhe_fraction.csv":
         dl = np.array([float(r.get("delta_lk") or 0.0) for r in rows])
         xx = np.linspace(min(dl.min(), 0.0), max(dl.max(), 0.0), 20)
+        salt = rows[0].get("salt_M")
         for m in ex.writhe_fraction_reference():
-            a.plot(xx, m.value * xx, ":", lw=1, label=f"Wr = {m.value:g} dLk ({ex.cite_short(m.source)})")
+            cond = ("; " + (f"{1000 * m.salt_M:g} mM" if m.salt_M is not None else "salt not stated")
+                    + ("" if m.uncertainty is None else f"; +-{m.uncertainty:g}"))
+            a.plot(xx, m.value * xx, ":", lw=1,
+                   label=f"Wr = {'~' if m.approximate else ''}{m.value:g} dLk ({ex.cite_short(m.source)}, quoted"
+                         f"{cond}; run at {1000 * float(salt or 0.15):g} mM)")
 
 
 def _note_missing(a, kind):

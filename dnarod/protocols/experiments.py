@@ -1,10 +1,10 @@
 """Measured DNA values bundled in ``data/experimental/`` (the one home of the experimental tables), in MD units.
 
-The tables are in the experimentalist's units (pN, nm, pN nm, pN nm^2, mol/L) with their sources; this module
-reads them and converts at this edge with :mod:`dnarod.units` (forces in kJ/mol/nm, torques and energies in
-kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm). Every value was read in a stored copy of its source
-(``data/README.md`` says where); quantities that could not be read are listed in :data:`MISSING` and the
-functions for them return an empty list rather than a remembered number.
+The tables are in the experimentalist's units (pN, nm, Angstrom, pN nm, pN nm^2, deg, mol/L) with their sources;
+this module reads them and converts at this edge with :mod:`dnarod.units` (forces in kJ/mol/nm, torques and
+energies in kJ/mol, torsional rigidities in kJ/mol nm, lengths in nm, angles in rad). Every value was read in a
+stored copy of its source (``data/README.md`` says where); quantities that could not be read are listed in
+:data:`MISSING` and the functions for them return an empty list rather than a remembered number.
 
 Used by the protocol plots (:mod:`dnarod.protocols.curves`) and by the "vs experiment" validation
 (:mod:`dnarod.validate.experiment`); other checks can call the ``*_reference`` functions.
@@ -17,20 +17,26 @@ from pathlib import Path
 
 import numpy as np
 
-from ..units import PN
+from ..units import NM_PER_ANGSTROM, PN
 
-#: Quantities the issue asks for that could not be read in any stored source (so nothing is bundled).
+#: Quantities the issue asks for that could not be read in any stored source (so nothing is bundled for them),
+#: or of which only a weaker form could be read (the entry says what is still missing).
 MISSING = {
     "force_extension_points": "the individual force-extension points of Wang et al. (1997) and Bouchiat et al. "
                               "(1999), Wang's fitted stretch modulus and Bouchiat's fitted persistence length",
     "buckling_torque": "buckling torques, post-buckling torque plateaus and buckling turns of Mosconi et al. (2009), "
-                       "Forth et al. (2008) and Lipfert et al. (2010/2011) (their abstracts state no numbers)",
-    "writhe_fraction": "the writhe fraction Wr/dLk of plectonemic rings at sigma ~ -0.05 (Boles, White & "
-                       "Cozzarelli 1990; Vologodskii et al.)",
+                       "Forth et al. (2008), Lipfert et al. (2010/2011/2014) and the magnetic-torque-tweezers data "
+                       "set of Data in Brief (PMC7154992): the stored copies show abstracts and figure captions "
+                       "without numbers",
+    "writhe_fraction": "the measured writhe fraction of Boles, White & Cozzarelli (1990) and Vologodskii et al. with "
+                       "its superhelical density and uncertainty (only a review's 'usually ~70%' could be read, "
+                       "ring_writhe_fraction.csv)",
     "supercoiling_free_energy": "the Depew-Wang (1975) / Horowitz-Wang (1984) coefficient K of "
-                                "dG = (K R T / N) dLk^2",
-    "effective_diameter": "the salt-dependent effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
-                          "and of Stigter (1977)",
+                                "dG = (K R T / N) dLk^2 (only Rybenkov et al. 1997's 'changed >1.5-fold' with "
+                                "ionic conditions could be read)",
+    "effective_diameter": "the measured (knotting) effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
+                          "and Stigter's (1977) values vs salt (only a Poisson-Boltzmann second-virial diameter, "
+                          "5 nm at 150 mM, quoted in a Biophys J abstract could be read)",
 }
 
 
@@ -216,9 +222,14 @@ def buckling_reference():
 
 
 def writhe_fraction_reference():
-    """Measured writhe fraction Wr/dLk of supercoiled rings: rows of ``ring_writhe_fraction.csv`` (columns
-    ``writhe_fraction``, ``sigma``); empty, because no value could be read (:data:`MISSING`)."""
-    return [_m(r, "writhe_fraction", r["writhe_fraction"], "1", salt_M=_f(r.get("salt_M")))
+    """Writhe fraction Wr/dLk of supercoiled closed circular DNA (``ring_writhe_fraction.csv``; ratio, unit ``"1"``).
+
+    One secondary value could be read: "usually ~70%" (Witz & Stasiak 2010, a review quoting its own references;
+    no superhelical density, salt or uncertainty stated, so ``uncertainty`` and ``salt_M`` are None and
+    ``approximate`` is True). The primary measurements remain in :data:`MISSING`.
+    """
+    return [_m(r, "writhe_fraction", r["writhe_fraction"], "1", uncertainty=_f(r.get("uncertainty")),
+               salt_M=_f(r.get("salt_M")), approximate=r.get("approximate") == "yes")
             for r in read_table("ring_writhe_fraction.csv")]
 
 
@@ -229,9 +240,18 @@ def writhe_variance_reference():
 
 
 def supercoiling_free_energy_reference():
-    """The Depew-Wang / Horowitz-Wang coefficient K: empty, no value could be read (:data:`MISSING`)."""
+    """The Depew-Wang / Horowitz-Wang coefficient K (``supercoiling.csv`` rows ``supercoiling_free_energy_K``):
+    empty, no value could be read (:data:`MISSING`)."""
     return [_m(r, r["quantity"], r["value"], "1") for r in read_table("supercoiling.csv")
             if r["quantity"] == "supercoiling_free_energy_K"]
+
+
+def supercoiling_free_energy_ionic_variation():
+    """Lower bound on how much the supercoiling free energy changes with NaCl/MgCl2 (Rybenkov et al. 1997:
+    "changed >1.5-fold"; a ratio, ``value`` 1.5 is a lower bound). Not a value of K."""
+    return [_m(r, r["quantity"], r["value"], "1", approximate=r.get("approximate") == "yes")
+            for r in read_table("supercoiling.csv")
+            if r["quantity"] == "supercoiling_free_energy_ionic_variation_min_ratio"]
 
 
 def dna_diameter_reference():
@@ -246,3 +266,32 @@ def dna_diameter_reference():
 def effective_diameter_reference():
     """Measured salt-dependent effective diameters (Rybenkov et al. 1993): empty, none could be read."""
     return [m for m in dna_diameter_reference() if m.quantity == "effective_diameter"]
+
+
+def effective_diameter_second_virial_reference():
+    """Computed effective diameters (nm) with the model's definition -- hard rods with the same second virial
+    coefficient as the electrostatic potential -- read in a stored source: 5.0 nm at 0.15 M from the
+    Poisson-Boltzmann potential (Biophys J abstract, ``dna_diameter.csv``), with its salt (mol/L)."""
+    out = []
+    for r in read_table("dna_diameter.csv"):
+        if r["quantity"] != "effective_diameter_second_virial_pb":
+            continue
+        to_nm = NM_PER_ANGSTROM if r["unit"] == "Angstrom" else 1.0  # the abstract states 50 Angstrom
+        out.append(_m(r, r["quantity"], float(r["value"]) * to_nm, "nm", salt_M=_f(r.get("salt_M")),
+                      approximate=r.get("approximate") == "yes"))
+    return out
+
+
+def plectoneme_geometry_reference(quantity=None):
+    """Measured geometry of plectonemic supercoiled DNA (``plectoneme_geometry.csv``): superhelix diameters (nm)
+    at 10 and 100 mM Na+ (Hammermann et al. 2000, SANS) and the opening angle (tabulated in degrees, returned in
+    rad; Zakharova et al. 2002). ``quantity`` selects one kind (``"superhelix_diameter"``, ``"opening_angle"``)."""
+    out = []
+    for r in read_table("plectoneme_geometry.csv"):
+        if quantity not in (None, r["quantity"]):
+            continue
+        f, unit = (np.pi / 180.0, "rad") if r["unit"] == "deg" else (1.0, r["unit"])
+        unc = _f(r.get("uncertainty"))
+        out.append(_m(r, r["quantity"], float(r["value"]) * f, unit, None if unc is None else unc * f,
+                      salt_M=_f(r.get("salt_M")), approximate=r.get("approximate") == "yes"))
+    return out

@@ -19,7 +19,9 @@ Checks (by name; each module states its system, reference and tolerances):
 * ``nicked_ring`` -- ``<ΔLk²>`` of nicked rings (exact twist part, model writhe vs a worm-like-ring Monte Carlo
   with the model's A and effective diameter) and the free-energy coefficient K (:mod:`.nicked_ring`);
 * ``experiment`` -- the model's persistence length and effective torsional stiffness against measured DNA
-  values (``data/experimental/``; exact, no simulation) (:mod:`.experiment`).
+  values (``data/experimental/``; exact, no simulation), its effective diameter against a computed reference
+  (reported), and -- when ``plectonemes`` ran before it -- the ring's writhe fraction against the value read
+  (:mod:`.experiment`).
 
 :func:`run_validation` runs a selection and writes ``report.md``, PNG plots and ``results.json``
 (``{"checks": {NAME: {"passed": bool, ...}}}``) to a folder.
@@ -96,8 +98,14 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None):
         if echo:
             echo(f"running {n} ...")
         tc = time.perf_counter()
+        kw = dict(options.get(n, {}))
+        prev = results["checks"].get("plectonemes", {})
+        if n == "experiment" and "writhe_fraction_model" not in kw and "model_writhe_fraction" in prev:
+            # the model's measured writhe fraction, compared with the measured one by check experiment
+            kw["writhe_fraction_model"] = (prev["model_writhe_fraction"], prev["model_writhe_fraction_err"],
+                                           f"check plectonemes: {prev.get('model', '')}")
         try:
-            r = check_function(n)(out_dir, quick=quick, **options.get(n, {}))
+            r = check_function(n)(out_dir, quick=quick, **kw)
         except Exception as exc:  # noqa: BLE001 - a crashing check is a failed check, reported
             r = {"passed": False, "error": f"{type(exc).__name__}: {exc}", "traceback": traceback.format_exc()}
         r["runtime_s"] = time.perf_counter() - tc

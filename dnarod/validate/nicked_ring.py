@@ -16,9 +16,10 @@ Pass: model and reference ``<Wr²>`` agree within ``Z_TOL`` combined standard er
 (relative: what separates a 3.4-nm-segment hard-core ring from the model's soft, 0.34-nm-step, extensible and
 shearable chain; measured: the reference moves by less than its 7 % error between 3.4 and 1.7 nm segments at
 102 nm). The free energy coefficient K is then reported at the sampled size and, from the exact twist part and
-the reference writhe, at ``full_n_bp`` (default 3000 bp, the issue's "few kbp"), beside the classic K ≈ 1100
-(whose source is in ``data/README.md``). ``a_override`` gives the reference a wrong persistence length (the
-tests show the check failing).
+the reference writhe, at ``full_n_bp`` (default 3000 bp, the issue's "few kbp"), beside the measured Depew-Wang /
+Horowitz-Wang K when one is tabulated (:func:`dnarod.protocols.experiments.supercoiling_free_energy_reference`;
+none could be read, so ``measured_K`` is None and no K is quoted). ``a_override`` gives the reference a wrong
+persistence length (the tests show the check failing).
 """
 from __future__ import annotations
 
@@ -33,7 +34,6 @@ from ._common import new_figure, save_figure
 NAME = "nicked_ring"
 Z_TOL = 3.0
 DISCRETE_ALLOWANCE = 0.10
-CLASSIC_K = 1100.0  # the Depew-Wang / Horowitz-Wang coefficient, quoted for comparison only (source: data/README.md)
 
 
 def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3000, temperature=300.0,
@@ -80,6 +80,12 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     wr2_full, wr2_full_se = float(wf.mean()), float(wf.std(ddof=1) * np.sqrt(2 * tau_f / len(wf)))
     K_full = depew_wang_K(full_n_bp, tw_full + wr2_full)
     K_full_se = K_full * wr2_full_se / (tw_full + wr2_full)
+    from ..protocols import experiments as ex
+
+    measured = ex.supercoiling_free_energy_reference()  # empty: no K could be read (experiments.MISSING)
+    measured_K = measured[0].value if measured else None
+    measured_K_source = (ex.cite_short(measured[0].source) if measured
+                         else "none read: " + ex.MISSING["supercoiling_free_energy"])
     res = dict(model=f"dna-default ring, {n_bp} bp (L = {L:.1f} nm), {salt_M} M, {temperature} K",
                persistence_length_nm=A, reference_persistence_length_nm=A_ref, twist_persistence_nm=C,
                effective_diameter_nm=d_eff,
@@ -97,7 +103,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                full=dict(n_bp=full_n_bp, twist_variance_turns2=tw_full, reference_wr2=wr2_full,
                          reference_wr2_err=wr2_full_se, K=K_full, K_err=K_full_se,
                          writhe_share=wr2_full / (tw_full + wr2_full), segments=mcf["segments"]),
-               classic_K=CLASSIC_K, passed=passed)
+               measured_K=measured_K, measured_K_source=measured_K_source, passed=passed)
     if plots:
         fig, ax = new_figure(1, 1, width=5.0, height=3.8)
         a = ax[0, 0]

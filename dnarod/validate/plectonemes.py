@@ -9,7 +9,9 @@ Reference (Vologodskii-type simulation with the model's parameters): the Monte C
 length A, its bare twist persistence C (the twist integrated out: ``E_tw = 2 pi² kT C (ΔLk - Wr)² / L``, as in
 Vologodskii et al.'s simulations of supercoiled rings) and a hard core of the model's effective diameter at this
 salt (:func:`dnarod.validate.supercoil_theory.effective_diameter`). Beside it, the two-phase relation
-``Wr/ΔLk = 1 - P/C`` is reported with P from the tweezers plateau when ``P_nm`` is given.
+``Wr/ΔLk = 1 - P/C`` is reported with P from the tweezers plateau when ``P_nm`` is given, and the model's
+fraction against the "usually ~70%" read in a review (``vs_experiment``, reported here, gating in check
+``experiment``; :func:`dnarod.validate.experiment.compare_writhe_fraction`).
 
 Pass: ``|f_model - f_ref| <= Z_TOL * SE + DIAMETER_SYSTEMATIC``, SE the combined standard error of the two, and
 ``DIAMETER_SYSTEMATIC`` the change of the reference when its hard core is swapped for the model's WCA core
@@ -84,6 +86,10 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                reference_writhe_fraction_wca_core=f_wca, diameter_systematic=systematic,
                reference_segments=mc["segments"], reference_acceptance=mc["acceptance"],
                standard_error=se, tolerance=tol, z_tolerance=Z_TOL, passed=passed)
+    from .experiment import compare_writhe_fraction
+
+    # against the value read (reported here; check experiment gates on it when run in the same validation)
+    res["vs_experiment"] = compare_writhe_fraction(f_model, f_model_se, res["model"])
     if P_nm is not None:
         res["two_phase_writhe_fraction"] = writhe_fraction_from_P(P_nm, C_ref)
         res["two_phase_P_nm"] = float(P_nm)
@@ -94,6 +100,10 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
         d = np.genfromtxt(root / f"ring{n_bp}_{delta_lk}" / "samples.csv", delimiter=",", names=True)
         a.hist(d["Wr"], bins=40, density=True, histtype="step", label="model")
         a.axvline(dlk, color="k", ls=":", label="ΔLk")
+        if res["vs_experiment"]:
+            w = res["vs_experiment"]
+            a.axvline(w["measured"] * dlk, color="C3", ls="--",
+                      label=f"~{w['measured']:g} ΔLk ({w['source']}, quoted; σ and salt not stated)")
         a.set_xlabel(f"Wr ({n_bp} bp ring)")
         a.set_ylabel("density")
         a.legend(fontsize=7)

@@ -102,7 +102,8 @@ def headline(name, r):
                     f"{_fmt(r['reference_wr2'], '.4f')}+-{_fmt(r['reference_wr2_err'], '.4f')}; <ΔTw²> "
                     f"{_fmt(r['twist_variance_exact_turns2'], '.4f')} (continuum {_fmt(r['twist_variance_continuum_turns2'], '.4f')});"
                     f" K {_fmt(r['K_sampled_size'], '.0f')} at this size; {f['n_bp']} bp (exact twist + MC writhe): K "
-                    f"{_fmt(f['K'], '.0f')}+-{_fmt(f['K_err'], '.0f')} (classic {_fmt(r['classic_K'], '.0f')})",
+                    f"{_fmt(f['K'], '.0f')}+-{_fmt(f['K_err'], '.0f')} (measured K: "
+                    f"{'none read' if r.get('measured_K') is None else _fmt(r['measured_K'], '.0f')})",
                     f"{r['z_tolerance']} SE + {100 * r['discrete_allowance_relative']:.0f}% (= {_fmt(r['tolerance'], '.4f')})")
     except (KeyError, TypeError, ValueError, IndexError):
         pass
