@@ -744,7 +744,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     n = len(seq1)
     t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_utime
     p_fib = fibre_pair_parameters()
-    p_in = p_fib if bp_params is None else np.broadcast_to(np.asarray(bp_params, float), (n, 6))
+    p_in = np.broadcast_to(p_fib if bp_params is None else np.asarray(bp_params, float), (n, 6))
     core, flank = int(window), int(flank)
     if core < 1 or flank < 1:
         raise StructureError(f"rebuild: window ({window}) and flank ({flank}) must be at least 1 bp")
