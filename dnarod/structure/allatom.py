@@ -1,6 +1,6 @@
 """A chemically valid all-atom duplex from base-pair (node) frames, ready for MD.
 
-Two stages:
+Three stages:
 
 1. **Placement** (:func:`dnarod.structure.rebuild.rebuild_coordinates`): each base is the
    standard base (Olson et al. 2001) in the base frame that the pair frame and the six pair
@@ -21,6 +21,13 @@ Two stages:
    firm restraints only (why: see :data:`POLISH_BOND_SCALE`). Before each stage the
    targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
    (:func:`_retarget`), so holding a frame does not strain its ring bonds.
+3. **Windows** (duplexes longer than ``WINDOW_CORE + 2 * WINDOW_FLANK`` bp): the closure (2) is run on
+   overlapping windows, each a core of ``WINDOW_CORE`` bp with ``WINDOW_FLANK`` bp on each side,
+   every window built and closed as a duplex of its own (its own fibre-to-input path); each atom is
+   taken from the window whose core holds its base pair, and the whole duplex is then polished as in
+   the closure's last step (covalent terms, stiffened bonds, firm restraints) with a capped iteration count, which brings the links where two cores meet to Amber14's
+   lengths. Each window costs the same whatever the length, so the rebuild is linear in length (one
+   closure of the whole grew faster: 0.6 s CPU per bp at 12 bp, 1.0 at 24, over 11 at 147).
 
 Before the closure, frames that put ring atoms of two bases closer than any placement within the
 frame tolerance could separate to 2.2 A are refused at once (:func:`_placed_clash`), naming the
