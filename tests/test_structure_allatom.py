@@ -208,7 +208,7 @@ def test_windowed_rebuild_that_cannot_close_names_the_step():
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("GATCCG")
     pos = m.positions.copy()
-    pos[3:] += 2.0 * m.frames[2][:, 2]  # pull the helix apart between pairs 3 and 4
+    pos[3:] += 1.3 * m.frames[2][:, 2]  # pull pairs 3 and 4 apart (N-N 16.7 A: within the 11 bonds' 17.4 A reach)
     with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
                                              r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
         rebuild_allatom(m.frames, pos, m.sequence, window=2, flank=1)
@@ -291,10 +291,30 @@ def test_rebuild_that_cannot_close_names_the_step():
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("GATCCG")
     pos = m.positions.copy()
-    pos[3:] += 2.0 * m.frames[2][:, 2]  # pull the helix apart between pairs 3 and 4
+    pos[3:] += 1.3 * m.frames[2][:, 2]  # pull pairs 3 and 4 apart (N-N 16.7 A: within the 11 bonds' 17.4 A reach)
     with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
                                              r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
         rebuild_allatom(m.frames, pos, m.sequence)
+
+
+def test_gap_beyond_any_backbone_is_refused_before_minimising():
+    """Pairs 3 and 4 pulled 2 nm apart: their glycosidic N atoms are further apart than the 11-bond
+    sugar-phosphate path can reach, so the rebuild refuses at once, naming the step and the shortfall."""
+    import re
+    import time
+
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCG")
+    pos = m.positions.copy()
+    pos[3:] += 2.0 * m.frames[2][:, 2]
+    t0 = time.perf_counter()
+    with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 \(strand I, A:3 - A:4\): the "
+                                             r"input frames put their glycosidic N atoms (\d+\.\d+) A apart") as exc:
+        rebuild_allatom(m.frames, pos, m.sequence, window=2, flank=1)
+    assert time.perf_counter() - t0 < 5.0
+    d, span, move, short = map(float, re.search(r"(\d+\.\d+) A apart; .* at most (\d+\.\d+) A, (\d+\.\d+) A more .*: "
+                                                r"(\d+\.\d+) A too far", str(exc.value)).groups())
+    assert abs(d - span - move - short) < 0.02 and 16.0 < span < 18.0  # 11 bonds of about 1.5 A
 
 
 def test_cli_rebuild_writes_pdb_and_cif(tmp_path):

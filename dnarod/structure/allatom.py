@@ -419,6 +419,62 @@ def _placed_clash(xyz, atoms, F, O, n):
         f"{10 * (MIN_NONBONDED - reach):.2f} A further apart")
 
 
+# Amber14 (OL15/parm99 OS-P) O3'-P equilibrium length, nm (the report measures it from the force field: 1.610 A)
+O3P_EQUILIBRIUM = 0.1610
+_GAP_PATH_3 = ("N", "C1'", "C2'", "C3'", "O3'")          # from the base of nucleotide i to its O3'
+_GAP_PATH_5 = ("P", "O5'", "C5'", "C4'", "O4'", "C1'", "N")  # from the P of nucleotide i+1 to its base
+
+
+def _placed_gap(xyz, atoms, O, n, bond_tolerance):
+    """Refuse frames that put two successive nucleotides of a strand further apart than any backbone reaches.
+
+    The glycosidic N (N9 of purines, N1 of pyrimidines) of each base is a ring atom, held with its pair
+    frame: it moves at most ``FRAME_ORIGIN_TOL + 2 rho sin(FRAME_ANGLE_TOL / 2) + RING_SLACK`` (see
+    :func:`_placed_clash`). The shortest covalent path between the N atoms of nucleotides i and i+1 of a
+    strand is N-C1'-C2'-C3'-O3'-P-O5'-C5'-C4'-O4'-C1'-N (11 bonds); with every bond within
+    ``bond_tolerance`` of its length (the template's, O3'-P Amber14's) the two N atoms can be at most the
+    sum of those lengths apart. If the frames put them further apart even after both moves, no closure
+    can pass the checks: raise before minimising, naming the step, the distance and the shortfall.
+    """
+    from .rebuild import nucleotide_template
+
+    def path_length(letter, names):
+        tn, tx = nucleotide_template(letter)
+        ix = {a: i for i, a in enumerate(tn)}
+        gly = "N9" if "N9" in ix else "N1"
+        pts = [tx[ix[gly if a == "N" else a]] for a in names]
+        return float(sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+
+    res = {}
+    for i, (chain, num, rname, aname, _) in enumerate(atoms):
+        res.setdefault((chain, num), {"letter": rname[-1]})[aname] = i
+    worst = None
+    for (chain, num), r in res.items():
+        nxt = res.get((chain, num + 1))
+        if nxt is None:
+            continue
+        g1 = r.get("N9", r.get("N1"))
+        g2 = nxt.get("N9", nxt.get("N1"))
+        k1, k2 = _pair_of(num, n) - 1, _pair_of(num + 1, n) - 1
+        move = [FRAME_ORIGIN_TOL + 2 * np.linalg.norm(xyz[g] - O[k]) * np.sin(np.radians(FRAME_ANGLE_TOL) / 2)
+                + RING_SLACK for g, k in ((g1, k1), (g2, k2))]
+        span = (path_length(r["letter"], _GAP_PATH_3) + O3P_EQUILIBRIUM + path_length(nxt["letter"], _GAP_PATH_5)
+                + 11 * bond_tolerance)
+        d = float(np.linalg.norm(xyz[g1] - xyz[g2]))
+        short = d - sum(move) - span
+        if short > 0 and (worst is None or short > worst[0]):
+            worst = (short, d, span, sum(move), chain, num, min(k1, k2) + 1)
+    if worst is None:
+        return
+    short, d, span, move, chain, num, step = worst
+    raise StructureError(
+        f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if chain == 'A' else 'II'}, "
+        f"{chain}:{num} - {chain}:{num + 1}): the input frames put their glycosidic N atoms {10 * d:.2f} A apart; "
+        f"the sugar-phosphate path between them (11 bonds, each within {10 * bond_tolerance:.2f} A of its length) "
+        f"spans at most {10 * span:.2f} A, {10 * (move):.2f} A more with both pairs moved by the frame tolerance: "
+        f"{10 * short:.2f} A too far for any backbone; the frames must bring the two pairs that much closer")
+
+
 def _soft_repulsion(system, topology, bonds):
     """A capped repulsion between atoms beyond 1-4 neighbours, for the covalent-only stage."""
     import openmm
@@ -745,6 +801,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         raise StructureError(f"rebuild: bp_frames must have shape (n, 3, 3), got {F.shape}")
     xyz, atoms = rebuild_coordinates(F, O, sequence, bp_params, sequence2)
     _placed_clash(xyz, atoms, F, O, len(F))
+    _placed_gap(xyz, atoms, O, len(F), bond_tolerance)
     seq1 = "".join(str(sequence).split()).upper()
     comp = {"A": "T", "T": "A", "G": "C", "C": "G"}
     seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
@@ -818,25 +875,52 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     lengths = np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1)
     dev = np.abs(lengths - r0)
     atoms_list = list(top.atoms())
-    lk = {(a.index, b.index): k for k, (a, b) in enumerate(links)}
     bond_index = {(int(i), int(j)): k for k, (i, j) in enumerate(bonds)}
     o3p = []
     for (a, b) in links:
         k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
         o3p.append((lengths[k], r0[k]))
     o3p = np.array(o3p)
-    link_dev = [dev[bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))] for a, b in links]
-    for a, b in [links[int(np.argmax(link_dev))]] if links else []:  # the worst link
-        k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
-        if dev[k] > bond_tolerance:
-            r1, r2 = a.residue, b.residue
-            j = lk[(a.index, b.index)]
-            step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
-            raise StructureError(
-                f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
-                f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
-                f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A); the two "
-                f"base-pair frames are too far apart or too distorted for a DNA backbone")
+    link_k = [bond_index.get((a.index, b.index), bond_index.get((b.index, a.index))) for a, b in links]
+    def step_of(j):
+        r1, r2 = links[j][0].residue, links[j][1].residue
+        return int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
+
+    def gap_near(pairs):
+        """The O3'-P link touching base pairs ``pairs`` (1-based) that the frames placed furthest off."""
+        js = [j for j in range(len(links)) if {step_of(j), step_of(j) + 1} & set(pairs)]
+        if not js:
+            return ""
+        j = max(js, key=lambda j: abs(place[j] - r0[link_k[j]]))
+        if abs(place[j] - r0[link_k[j]]) < 0.05:
+            return ""
+        return (f" (the input frames placed the O3'-P link of step {step_of(j)}-{step_of(j) + 1}, strand "
+                f"{'I' if links[j][0].residue.chain.id == 'A' else 'II'}, at {10 * place[j]:.2f} A; Amber14 "
+                f"{10 * r0[link_k[j]]:.2f} A, off by {10 * abs(place[j] - r0[link_k[j]]):.2f} A)")
+
+    # a backbone that did not close: name the link whose frames put it furthest from Amber14's length among
+    # the links next to a bond left off (a gap also strains the neighbouring links, more so where two
+    # windows meet, so the worst link after minimisation need not be the step the frames broke)
+    off = dev > bond_tolerance
+    bad_res = {atoms_list[int(i)].residue.index for i in bonds[off].ravel()}
+    near = [j for j, (a, b) in enumerate(links) if a.residue.index in bad_res or b.residue.index in bad_res]
+    if near:
+        j = max(near, key=lambda j: (abs(place[j] - r0[link_k[j]]), dev[link_k[j]]))
+        a, b = links[j]
+        k = link_k[j]
+        r1, r2 = a.residue, b.residue
+        step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
+        local = [q for q in np.flatnonzero(off) if {atoms_list[bonds[q, 0]].residue.index,
+                                                     atoms_list[bonds[q, 1]].residue.index} & {r1.index, r2.index}]
+        w = max(local, key=lambda q: dev[q]) if local else k
+        worst_there = "" if w == k else (
+            f"; worst bond there {_atom_name(atoms_list[bonds[w, 0]])}-{atoms_list[bonds[w, 1]].name} "
+            f"{10 * lengths[w]:.2f} A, off by {10 * dev[w]:.2f} A")
+        raise StructureError(
+            f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
+            f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
+            f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A{worst_there}); "
+            f"the two base-pair frames are too far apart or too distorted for a DNA backbone")
     worst = int(np.argmax(dev))
     if dev[worst] > bond_tolerance:
         a, b = atoms_list[bonds[worst, 0]], atoms_list[bonds[worst, 1]]
@@ -848,7 +932,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         r, centre = flipped[0]
         res = list(top.residues())[r]
         raise StructureError(f"rebuild: the sugar of {res.chain.id}:{res.id} changed chirality at {centre} while "
-                             f"closing the backbone; the frames are too distorted")
+                             f"closing the backbone; the frames are too distorted{gap_near([_pair_of(res, n)])}")
     heavy = np.array([a.element.symbol != "H" for a in atoms_list])
     excl = _exclusion_pairs(len(atoms_list), bonds)
     from scipy.spatial import cKDTree
@@ -876,7 +960,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         k = int(bad[np.argmax(shift[bad] / FRAME_ORIGIN_TOL + turn[bad] / FRAME_ANGLE_TOL)])
         raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg while "
                              f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} deg); "
-                             f"the frames are too distorted for an Amber14 backbone")
+                             f"the frames are too distorted for an Amber14 backbone{gap_near([k + 1])}")
     ang_dev, worst_angle = _angle_deviation(system, pos, atoms_list)
     report = RebuildReport(
         max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"
