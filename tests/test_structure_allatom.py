@@ -45,8 +45,10 @@ def _check(res, frames, origins, n):
     return rep
 
 
-def _md(path, n_steps):
-    """Langevin MD (300 K, 2 fs, H bonds constrained) of a written file in OBC2: (x0, x1, topology)."""
+def _md(path, n_steps, cutoff=None):
+    """Langevin MD (300 K, 2 fs, H bonds constrained) of a written file in OBC2: (x0, x1, topology).
+
+    ``cutoff`` (nm): a non-periodic cut-off for large structures (default none)."""
     import openmm
     import openmm.app as app
     import openmm.unit as u
@@ -55,7 +57,11 @@ def _md(path, n_steps):
 
     pdb = app.PDBFile(str(path))
     ff = app.ForceField("amber14-all.xml", "implicit/obc2.xml")
-    system = ff.createSystem(pdb.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds)
+    if cutoff is None:
+        system = ff.createSystem(pdb.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds)
+    else:
+        system = ff.createSystem(pdb.topology, nonbondedMethod=app.CutoffNonPeriodic, constraints=app.HBonds,
+                                 nonbondedCutoff=cutoff * u.nanometer)
     for k in reversed(range(system.getNumForces())):  # the native GBSAOBCForce: same model, much faster
         if isinstance(system.getForce(k), openmm.CustomGBForce):
             system.removeForce(k)
@@ -173,11 +179,45 @@ def test_rebuild_thermal_snapshots_many_seeds():
 
 
 @pytest.mark.slow
-def test_1kx5_rebuild():
+def test_1kx5_rebuild(tmp_path):
+    """The nucleosome's 147 crystal nodes: closed in overlapping windows, every check, 10 ps of MD."""
     m = model_from_structure(DATA / "1KX5.pdb")
     res = rebuild_allatom(m.frames, m.positions, m.sequence, np.array(m.metadata["bp_params"]),
                           m.metadata["sequence2"])
+    rep = _check(res, m.frames, m.positions, m.n_nodes)
+    assert rep.placement_o3p_range[0] < 0.05 and rep.placement_o3p_range[1] > 0.35  # the rigid placement was broken
+    out = tmp_path / "r.pdb"
+    res.write(out)
+    d = analyze_structure(out).duplexes[0]
+    assert d.n_bp == 147 and np.abs(d.bp_origins - m.positions).max() < 0.005
+    _stable(*_md(out, 5000, cutoff=2.0))
+
+
+def test_windowed_closure_on_a_short_duplex(tmp_path):
+    """The windowed path (cores of 4 bp, flanks of 2: three windows on 12 bp) meets every tolerance, including
+    the links where two windows meet, is accepted by Amber14's createSystem and runs 1 ps."""
+    m = _thermal("CGCGAATTCGCG", 4)
+    res = rebuild_allatom(m.frames, m.positions, m.sequence, window=4, flank=2)
     _check(res, m.frames, m.positions, m.n_nodes)
+    res.write(tmp_path / "w.pdb")
+    _stable(*_md(tmp_path / "w.pdb", 500))
+
+
+def test_windowed_rebuild_that_cannot_close_names_the_step():
+    """With windows (cores of 2 bp, flanks of 1) a gap still names its step and by how much the link is off."""
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCG")
+    pos = m.positions.copy()
+    pos[3:] += 1.3 * m.frames[2][:, 2]  # pull pairs 3 and 4 apart (N-N 16.7 A: within the 11 bonds' 17.4 A reach)
+    with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
+                                             r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
+        rebuild_allatom(m.frames, pos, m.sequence, window=2, flank=1)
+
+
+def test_window_sizes_must_be_positive():
+    m = load_forcefield("dna-default").model_from_sequence("GATCCG")
+    with pytest.raises(StructureError, match=r"window \(0\) and flank \(1\) must be at least 1 bp"):
+        rebuild_allatom(m.frames, m.positions, m.sequence, window=0, flank=1)
 
 
 def test_frames_that_overlap_two_bases_are_refused_before_minimising():
@@ -251,10 +291,30 @@ def test_rebuild_that_cannot_close_names_the_step():
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("GATCCG")
     pos = m.positions.copy()
-    pos[3:] += 2.0 * m.frames[2][:, 2]  # pull the helix apart between pairs 3 and 4
+    pos[3:] += 1.3 * m.frames[2][:, 2]  # pull pairs 3 and 4 apart (N-N 16.7 A: within the 11 bonds' 17.4 A reach)
     with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
                                              r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
         rebuild_allatom(m.frames, pos, m.sequence)
+
+
+def test_gap_beyond_any_backbone_is_refused_before_minimising():
+    """Pairs 3 and 4 pulled 2 nm apart: their glycosidic N atoms are further apart than the 11-bond
+    sugar-phosphate path can reach, so the rebuild refuses at once, naming the step and the shortfall."""
+    import re
+    import time
+
+    ff = load_forcefield("dna-default")
+    m = ff.model_from_sequence("GATCCG")
+    pos = m.positions.copy()
+    pos[3:] += 2.0 * m.frames[2][:, 2]
+    t0 = time.perf_counter()
+    with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 \(strand I, A:3 - A:4\): the "
+                                             r"input frames put their glycosidic N atoms (\d+\.\d+) A apart") as exc:
+        rebuild_allatom(m.frames, pos, m.sequence, window=2, flank=1)
+    assert time.perf_counter() - t0 < 5.0
+    d, span, move, short = map(float, re.search(r"(\d+\.\d+) A apart; .* at most (\d+\.\d+) A, (\d+\.\d+) A more .*: "
+                                                r"(\d+\.\d+) A too far", str(exc.value)).groups())
+    assert abs(d - span - move - short) < 0.02 and 16.0 < span < 18.0  # 11 bonds of about 1.5 A
 
 
 def test_cli_rebuild_writes_pdb_and_cif(tmp_path):

@@ -1,6 +1,6 @@
 """A chemically valid all-atom duplex from base-pair (node) frames, ready for MD.
 
-Two stages:
+Three stages:
 
 1. **Placement** (:func:`dnarod.structure.rebuild.rebuild_coordinates`): each base is the
    standard base (Olson et al. 2001) in the base frame that the pair frame and the six pair
@@ -21,6 +21,13 @@ Two stages:
    firm restraints only (why: see :data:`POLISH_BOND_SCALE`). Before each stage the
    targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
    (:func:`_retarget`), so holding a frame does not strain its ring bonds.
+3. **Windows** (duplexes longer than ``WINDOW_CORE + 2 * WINDOW_FLANK`` bp): the closure (2) is run on
+   overlapping windows, each a core of ``WINDOW_CORE`` bp with ``WINDOW_FLANK`` bp on each side,
+   every window built and closed as a duplex of its own (its own fibre-to-input path); each atom is
+   taken from the window whose core holds its base pair, and the whole duplex is then polished as in
+   the closure's last step (covalent terms, stiffened bonds, firm restraints) with a capped iteration count, which brings the links where two cores meet to Amber14's
+   lengths. Each window costs the same whatever the length, so the rebuild is linear in length (one
+   closure of the whole grew faster: 0.6 s CPU per bp at 12 bp, 1.0 at 24, over 11 at 147).
 
 Before the closure, frames that put ring atoms of two bases closer than any placement within the
 frame tolerance could separate to 2.2 A are refused at once (:func:`_placed_clash`), naming the
@@ -38,14 +45,18 @@ Units: nm, kJ/mol inside; files in Angstrom (PDB) through OpenMM's writers.
 """
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, field
+from functools import lru_cache
 
 import numpy as np
 
 from ..errors import StructureError
 from .frames import standard_bases
 from .rebuild import fibre_pair_parameters, rebuild_coordinates
+
+_log = logging.getLogger(__name__)
 
 FORCEFIELD_FILES = ("amber14/DNA.OL15.xml",)
 RESTRAINT_K = 2.0e5        # kJ/mol/nm^2 on each base ring atom (final, firm)
@@ -69,6 +80,13 @@ BOND_TOLERANCE = 0.005     # nm: largest accepted deviation of a bond from its A
 # unchanged within 0.3 deg on 355D and a thermal snapshot).
 POLISH_BOND_SCALE = 4.0
 RING_SLACK = 0.005         # nm: ring atoms' allowed departure from the rigid standard base (refitted shape)
+# Windows. Why: one closure of the whole duplex costs more than linearly in its length (L-BFGS needs more
+# iterations as the system grows, and the fibre-to-input path moves a long, bent duplex far), 0.6 s CPU
+# per bp at 12 bp, 1.0 at 24 and more than 11 at 147; closing overlapping windows of a fixed size and
+# polishing the whole briefly makes the cost linear in length.
+WINDOW_CORE = 12           # bp whose atoms each window's closure keeps
+WINDOW_FLANK = 4           # bp closed on each side of a core and discarded (1.35 nm, beyond MIN_CUTOFF)
+POLISH_ITERATIONS = 1000   # L-BFGS iterations per round of the global polish after the windows
 MIN_NONBONDED = 0.22       # nm: shortest accepted heavy-atom distance beyond 1-3 neighbours
 SUGAR_CHIRAL = (("C1'", "O4'", "C2'", "N"), ("C3'", "C4'", "C2'", "O3'"), ("C4'", "O4'", "C3'", "C5'"))
 
@@ -176,6 +194,14 @@ def _topology(atoms, xyz):
     return top
 
 
+@lru_cache(maxsize=1)
+def _amber_forcefield():
+    """OpenMM's Amber14 DNA force field (parsed once: every window of a long rebuild uses it twice)."""
+    import openmm.app as app
+
+    return app.ForceField(*FORCEFIELD_FILES)
+
+
 def _add_obc2(system, topology):
     """OBC2 implicit solvent as OpenMM's native GBSAOBCForce (Amber igb=5 parameters).
 
@@ -209,7 +235,7 @@ def amber_system(topology, constraints=None, cutoff=None):
     import openmm
     import openmm.app as app
 
-    ff = app.ForceField(*FORCEFIELD_FILES)
+    ff = _amber_forcefield()
     try:
         if cutoff is None:
             system = ff.createSystem(topology, nonbondedMethod=app.NoCutoff, constraints=constraints)
@@ -393,6 +419,62 @@ def _placed_clash(xyz, atoms, F, O, n):
         f"{10 * (MIN_NONBONDED - reach):.2f} A further apart")
 
 
+# Amber14 (OL15/parm99 OS-P) O3'-P equilibrium length, nm (the report measures it from the force field: 1.610 A)
+O3P_EQUILIBRIUM = 0.1610
+_GAP_PATH_3 = ("N", "C1'", "C2'", "C3'", "O3'")          # from the base of nucleotide i to its O3'
+_GAP_PATH_5 = ("P", "O5'", "C5'", "C4'", "O4'", "C1'", "N")  # from the P of nucleotide i+1 to its base
+
+
+def _placed_gap(xyz, atoms, O, n, bond_tolerance):
+    """Refuse frames that put two successive nucleotides of a strand further apart than any backbone reaches.
+
+    The glycosidic N (N9 of purines, N1 of pyrimidines) of each base is a ring atom, held with its pair
+    frame: it moves at most ``FRAME_ORIGIN_TOL + 2 rho sin(FRAME_ANGLE_TOL / 2) + RING_SLACK`` (see
+    :func:`_placed_clash`). The shortest covalent path between the N atoms of nucleotides i and i+1 of a
+    strand is N-C1'-C2'-C3'-O3'-P-O5'-C5'-C4'-O4'-C1'-N (11 bonds); with every bond within
+    ``bond_tolerance`` of its length (the template's, O3'-P Amber14's) the two N atoms can be at most the
+    sum of those lengths apart. If the frames put them further apart even after both moves, no closure
+    can pass the checks: raise before minimising, naming the step, the distance and the shortfall.
+    """
+    from .rebuild import nucleotide_template
+
+    def path_length(letter, names):
+        tn, tx = nucleotide_template(letter)
+        ix = {a: i for i, a in enumerate(tn)}
+        gly = "N9" if "N9" in ix else "N1"
+        pts = [tx[ix[gly if a == "N" else a]] for a in names]
+        return float(sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)))
+
+    res = {}
+    for i, (chain, num, rname, aname, _) in enumerate(atoms):
+        res.setdefault((chain, num), {"letter": rname[-1]})[aname] = i
+    worst = None
+    for (chain, num), r in res.items():
+        nxt = res.get((chain, num + 1))
+        if nxt is None:
+            continue
+        g1 = r.get("N9", r.get("N1"))
+        g2 = nxt.get("N9", nxt.get("N1"))
+        k1, k2 = _pair_of(num, n) - 1, _pair_of(num + 1, n) - 1
+        move = [FRAME_ORIGIN_TOL + 2 * np.linalg.norm(xyz[g] - O[k]) * np.sin(np.radians(FRAME_ANGLE_TOL) / 2)
+                + RING_SLACK for g, k in ((g1, k1), (g2, k2))]
+        span = (path_length(r["letter"], _GAP_PATH_3) + O3P_EQUILIBRIUM + path_length(nxt["letter"], _GAP_PATH_5)
+                + 11 * bond_tolerance)
+        d = float(np.linalg.norm(xyz[g1] - xyz[g2]))
+        short = d - sum(move) - span
+        if short > 0 and (worst is None or short > worst[0]):
+            worst = (short, d, span, sum(move), chain, num, min(k1, k2) + 1)
+    if worst is None:
+        return
+    short, d, span, move, chain, num, step = worst
+    raise StructureError(
+        f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if chain == 'A' else 'II'}, "
+        f"{chain}:{num} - {chain}:{num + 1}): the input frames put their glycosidic N atoms {10 * d:.2f} A apart; "
+        f"the sugar-phosphate path between them (11 bonds, each within {10 * bond_tolerance:.2f} A of its length) "
+        f"spans at most {10 * span:.2f} A, {10 * (move):.2f} A more with both pairs moved by the frame tolerance: "
+        f"{10 * short:.2f} A too far for any backbone; the frames must bring the two pairs that much closer")
+
+
 def _soft_repulsion(system, topology, bonds):
     """A capped repulsion between atoms beyond 1-4 neighbours, for the covalent-only stage."""
     import openmm
@@ -566,8 +648,105 @@ def _rotation_angle(A, B):
     return np.degrees(np.arccos(np.clip(c, -1.0, 1.0)))
 
 
+def _hydrogenated(atoms, xyz, platform):
+    """OpenMM topology with hydrogens (Amber14 templates) of a placement: ``(topology, positions nm, tmap)``.
+
+    ``tmap[k]`` is the index in the new topology of heavy atom k of ``atoms``.
+    """
+    import openmm
+    import openmm.app as app
+
+    top = _topology(atoms, xyz)
+    modeller = app.Modeller(top, xyz * openmm.unit.nanometer)
+    ff = _amber_forcefield()
+    modeller.addHydrogens(ff, platform=openmm.Platform.getPlatformByName(platform or "CPU"))
+    top = modeller.topology
+    pos = np.array(modeller.getPositions().value_in_unit(openmm.unit.nanometer))
+    index = {(a.residue.chain.id, int(a.residue.id), a.name): a.index for a in top.atoms()}
+    tmap = np.array([index[(c, num, name)] for c, num, _, name, _ in atoms])
+    return top, pos, tmap
+
+
+def _covalent_system(system, topology, positions, restraint_k, bonds):
+    """The covalent terms of ``system`` with firm base restraints, sugar chirality holds and a capped repulsion.
+
+    Returns ``(covalent system, restraint force, restraint groups)`` (see :func:`_restrain`).
+    """
+    import openmm
+
+    covalent = openmm.System()
+    for i in range(system.getNumParticles()):
+        covalent.addParticle(system.getParticleMass(i))
+    for f in system.getForces():
+        if isinstance(f, (openmm.HarmonicBondForce, openmm.HarmonicAngleForce, openmm.PeriodicTorsionForce)):
+            covalent.addForce(openmm.XmlSerializer.deserialize(openmm.XmlSerializer.serialize(f)))
+    cforce, cgroups = _restrain(covalent, topology, positions, restraint_k)
+    _hold_chirality(covalent, topology, positions)
+    _soft_repulsion(covalent, topology, bonds)
+    return covalent, cforce, cgroups
+
+
+def _close(F, O, seq1, seq2, p_in, restraint_k, bond_tolerance, max_iterations, platform):
+    """Staged backbone closure of one duplex (the whole input, or one window of it).
+
+    ``F`` (m, 3, 3), ``O`` (m, 3) nm, ``p_in`` (m, 6) pair parameters. Returns ``(topology, positions nm,
+    Amber14 system (restraints in force group 31), placement on the input frames nm)``; no checks.
+    """
+    import openmm
+
+    xyz, atoms = rebuild_coordinates(F, O, seq1, p_in, seq2)
+    # placements along the path from the fibre (backbone nearly closed) to the input frames and pair parameters
+    p_fib = fibre_pair_parameters()
+    stages = [rebuild_coordinates(Ft, Ot, seq1, (1.0 - t) * p_fib + t * p_in, seq2)[0] if t < 1.0 else xyz
+              for t, (Ft, Ot) in zip(HOMOTOPY, _homotopy(F, O, HOMOTOPY))]
+    top, pos, tmap = _hydrogenated(atoms, stages[0], platform)
+    targets = []
+    for x in stages:
+        full = pos.copy()
+        full[tmap] = x
+        targets.append(full)
+    heavy_ref = pos.copy()
+    # stage 1: covalent terms only (HarmonicBond/Angle, PeriodicTorsion) + restraints
+    system, _ = amber_system(top, cutoff=MIN_CUTOFF)
+    bonds, r0 = _bond_table(system, top)
+    covalent, cforce, cgroups = _covalent_system(system, top, heavy_ref, restraint_k, bonds)
+    pos, _ = _minimise(covalent, pos, 1.0, max_iterations, platform)
+    # stage 2: the full force field + restraints; the base targets follow the path from the fibre
+    # to the input frames (soft restraints), then firm up on the input; before each stage the
+    # targets take the bases' relaxed internal geometry on the exact placed frames (_retarget)
+    force, groups = _restrain(system, top, heavy_ref, RESTRAINT_SCHEDULE[0])
+    _hold_chirality(system, top, heavy_ref)
+    ctx = _context(system, pos, platform)
+    plan = [(RESTRAINT_SCHEDULE[0], x) for x in targets[:-1]] + [(k, targets[-1]) for k in RESTRAINT_SCHEDULE]
+    for k, target in plan:
+        ctx.setParameter("kr", k)
+        _retarget(force, ctx, groups, pos, target)
+        pos, _ = _relax(ctx, 0.1, max_iterations)
+    ctx.setParameter("kr", restraint_k)
+    for _ in range(1 + EXTRA_ROUNDS):  # L-BFGS can stop early on large systems: restart while a bond is off
+        _retarget(force, ctx, groups, pos, targets[-1])
+        pos, _ = _relax(ctx, 0.01, max_iterations)
+        d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
+        if d.max() <= bond_tolerance:
+            break
+    del ctx
+    if d.max() > 0.2 * bond_tolerance:
+        # stage 3: polish with the covalent terms (bonds POLISH_BOND_SCALE times stiffer), the capped
+        # repulsion and the firm base restraints only, so that the bonds reach Amber14's lengths and the
+        # frames their tolerance. Why not the full force field here: its non-bonded terms turn base pairs
+        # against the firm restraints (up to 2 deg on a 10-bp thermal snapshot), and restraints firm enough
+        # to stop that strain the ring bonds.
+        _scale_bonds(covalent, POLISH_BOND_SCALE)
+        cctx = _context(covalent, pos, platform)
+        _retarget(cforce, cctx, cgroups, pos, targets[-1])
+        pos, _ = _relax(cctx, 0.01, max_iterations)
+        del cctx
+    return top, pos, system, targets[-1]
+
+
 def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=None, restraint_k=RESTRAINT_K,
-                    bond_tolerance=BOND_TOLERANCE, max_iterations=0, platform=None):
+                    bond_tolerance=BOND_TOLERANCE, max_iterations=0, platform=None, window=WINDOW_CORE,
+                    flank=WINDOW_FLANK, polish_iterations=POLISH_ITERATIONS):
     """All-atom duplex with a closed, Amber14-valid backbone from base-pair frames.
 
     Parameters
@@ -588,9 +767,16 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     bond_tolerance : float
         Largest accepted deviation of a covalent bond from Amber14's equilibrium, nm.
     max_iterations : int
-        Minimiser iteration cap per stage (0: until converged).
+        Minimiser iteration cap per stage of each window's closure (0: until converged).
     platform : str, optional
         OpenMM platform name (default CPU).
+    window : int
+        Base pairs whose atoms each window's closure keeps (the window's core).
+    flank : int
+        Base pairs closed on each side of a core and then discarded. A duplex of at most
+        ``window + 2 * flank`` pairs is closed in one piece.
+    polish_iterations : int
+        Minimiser iteration cap per round of the global polish after the windows.
 
     Returns
     -------
@@ -608,7 +794,6 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     import resource
 
     import openmm
-    import openmm.app as app
 
     F = np.asarray(bp_frames, float)
     O = np.asarray(bp_origins, float)
@@ -616,106 +801,126 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         raise StructureError(f"rebuild: bp_frames must have shape (n, 3, 3), got {F.shape}")
     xyz, atoms = rebuild_coordinates(F, O, sequence, bp_params, sequence2)
     _placed_clash(xyz, atoms, F, O, len(F))
+    _placed_gap(xyz, atoms, O, len(F), bond_tolerance)
     seq1 = "".join(str(sequence).split()).upper()
     comp = {"A": "T", "T": "A", "G": "C", "C": "G"}
     seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
     n = len(seq1)
     t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_utime
-    # placements along the path from the fibre (backbone nearly closed) to the input frames and pair parameters
     p_fib = fibre_pair_parameters()
-    p_in = p_fib if bp_params is None else np.broadcast_to(np.asarray(bp_params, float), (n, 6))
-    stages = [rebuild_coordinates(Ft, Ot, seq1, (1.0 - t) * p_fib + t * p_in, seq2)[0] if t < 1.0 else xyz
-              for t, (Ft, Ot) in zip(HOMOTOPY, _homotopy(F, O, HOMOTOPY))]
-    top = _topology(atoms, stages[0])
-    modeller = app.Modeller(top, stages[0] * openmm.unit.nanometer)
-    ff = app.ForceField(*FORCEFIELD_FILES)
-    modeller.addHydrogens(ff, platform=openmm.Platform.getPlatformByName(platform or "CPU"))
-    top = modeller.topology
-    pos = np.array(modeller.getPositions().value_in_unit(openmm.unit.nanometer))
-    index = {(a.residue.chain.id, int(a.residue.id), a.name): a.index for a in top.atoms()}
-    tmap = np.array([index[(c, num, name)] for c, num, _, name, _ in atoms])
-    targets = []
-    for x in stages:
-        full = pos.copy()
-        full[tmap] = x
-        targets.append(full)
+    p_in = np.broadcast_to(p_fib if bp_params is None else np.asarray(bp_params, float), (n, 6))
+    core, flank = int(window), int(flank)
+    if core < 1 or flank < 1:
+        raise StructureError(f"rebuild: window ({window}) and flank ({flank}) must be at least 1 bp")
+    windowed = n > core + 2 * flank
+    if not windowed:
+        top, pos, system, placed = _close(F, O, seq1, seq2, p_in, restraint_k, bond_tolerance, max_iterations,
+                                          platform)
+        chiral0 = _chirality(top, placed)
+        bonds, r0 = _bond_table(system, top)
+    else:
+        # the whole duplex's topology (hydrogens) on the input placement; every atom is then taken from the
+        # window whose core holds its base pair
+        top, placed, tmap = _hydrogenated(atoms, xyz, platform)
+        placed[tmap] = xyz
+        chiral0 = _chirality(top, placed)
+        pos = placed.copy()
+        index = {(a.residue.chain.id, int(a.residue.id), a.name): a.index for a in top.atoms()}
+        taken = np.zeros(len(pos), bool)
+        for a in range(0, n, core):
+            b = min(n, a + core)
+            lo, hi = max(0, a - flank), min(n, b + flank)
+            wtop, wpos, _, _ = _close(F[lo:hi], O[lo:hi], seq1[lo:hi], seq2[lo:hi], p_in[lo:hi], restraint_k,
+                                      bond_tolerance, max_iterations, platform)
+            m = hi - lo
+            _log.debug("rebuild: window %d-%d (core %d-%d) closed, %.1f s", lo + 1, hi, a + 1, b,
+                       time.perf_counter() - t0)
+            for at in wtop.atoms():
+                k = lo + _pair_of(at.residue, m)  # 1-based pair of the whole duplex
+                if a < k <= b:
+                    rid = k if at.residue.chain.id == "A" else 2 * n + 1 - k
+                    i = index[(at.residue.chain.id, rid, at.name)]
+                    pos[i], taken[i] = wpos[at.index], True
+        if not taken.all():  # cannot happen with standard residues; guards the atom bookkeeping
+            miss = list(top.atoms())[int(np.flatnonzero(~taken)[0])]
+            raise StructureError(f"rebuild: no window placed atom {_atom_name(miss)}")
+        system, _ = amber_system(top, cutoff=MIN_CUTOFF)
+        bonds, r0 = _bond_table(system, top)
+        # global polish, capped: where two windows meet, the link and its neighbours come from different
+        # windows (each closed with the same frames, so they differ by little); the covalent terms with
+        # stiffened bonds, the capped repulsion, the firm base restraints and the sugar chirality hold
+        # bring them to Amber14's lengths without the non-bonded terms turning the pairs (see stage 3)
+        covalent, cforce, cgroups = _covalent_system(system, top, placed, restraint_k, bonds)
+        _scale_bonds(covalent, POLISH_BOND_SCALE)
+        cctx = _context(covalent, pos, platform)
+        for _ in range(1 + EXTRA_ROUNDS):
+            _retarget(cforce, cctx, cgroups, pos, placed)
+            pos, _ = _relax(cctx, 0.01, polish_iterations)
+            d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
+            if d.max() <= 0.2 * bond_tolerance:
+                break
+        del cctx
+    ctx = _context(system, pos, platform)
+    energy = ctx.getState(getEnergy=True, groups={g for g in range(31)}).getPotentialEnergy().value_in_unit(
+        openmm.unit.kilojoule_per_mole)
+    del ctx
     links = _links(top)
     if len(links) != 2 * (n - 1):
         raise StructureError(f"rebuild: expected {2 * (n - 1)} O3'-P links, the topology has {len(links)}")
-    place = np.array([np.linalg.norm(targets[-1][a.index] - targets[-1][b.index]) for a, b in links])
-    chiral0 = _chirality(top, pos)
-    heavy_ref = pos.copy()
-    # stage 1: covalent terms only (HarmonicBond/Angle, PeriodicTorsion) + restraints
-    system, _ = amber_system(top, cutoff=MIN_CUTOFF)
-    bonds, r0 = _bond_table(system, top)
-    covalent = openmm.System()
-    for i in range(system.getNumParticles()):
-        covalent.addParticle(system.getParticleMass(i))
-    for f in system.getForces():
-        if isinstance(f, (openmm.HarmonicBondForce, openmm.HarmonicAngleForce, openmm.PeriodicTorsionForce)):
-            covalent.addForce(openmm.XmlSerializer.deserialize(openmm.XmlSerializer.serialize(f)))
-    cforce, cgroups = _restrain(covalent, top, heavy_ref, restraint_k)
-    _hold_chirality(covalent, top, pos)
-    _soft_repulsion(covalent, top, bonds)
-    pos, _ = _minimise(covalent, pos, 1.0, max_iterations, platform)
-    # stage 2: the full force field + restraints; the base targets follow the path from the fibre
-    # to the input frames (soft restraints), then firm up on the input; before each stage the
-    # targets take the bases' relaxed internal geometry on the exact placed frames (_retarget)
-    force, groups = _restrain(system, top, heavy_ref, RESTRAINT_SCHEDULE[0])
-    _hold_chirality(system, top, heavy_ref)
-    ctx = _context(system, pos, platform)
-    plan = [(RESTRAINT_SCHEDULE[0], x) for x in targets[:-1]] + [(k, targets[-1]) for k in RESTRAINT_SCHEDULE]
-    for k, target in plan:
-        ctx.setParameter("kr", k)
-        _retarget(force, ctx, groups, pos, target)
-        pos, energy = _relax(ctx, 0.1, max_iterations)
-    ctx.setParameter("kr", restraint_k)
-    for _ in range(1 + EXTRA_ROUNDS):  # L-BFGS can stop early on large systems: restart while a bond is off
-        _retarget(force, ctx, groups, pos, targets[-1])
-        pos, energy = _relax(ctx, 0.01, max_iterations)
-        d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
-        if d.max() <= bond_tolerance:
-            break
-    if d.max() > 0.2 * bond_tolerance:
-        # stage 3: polish with the covalent terms (bonds POLISH_BOND_SCALE times stiffer), the capped
-        # repulsion and the firm base restraints only, so that the bonds reach Amber14's lengths and the
-        # frames their tolerance; the energy reported is still the full force field's. Why not the full
-        # force field here: its non-bonded terms turn base pairs against the firm restraints (up to 2 deg
-        # on a 10-bp thermal snapshot), and restraints firm enough to stop that strain the ring bonds.
-        _scale_bonds(covalent, POLISH_BOND_SCALE)
-        cctx = _context(covalent, pos, platform)
-        _retarget(cforce, cctx, cgroups, pos, targets[-1])
-        pos, _ = _relax(cctx, 0.01, max_iterations)
-        del cctx
-        ctx.setPositions(pos)
-        energy = ctx.getState(getEnergy=True, groups={g for g in range(31)}).getPotentialEnergy().value_in_unit(
-            openmm.unit.kilojoule_per_mole)
-    del ctx
+    place = np.array([np.linalg.norm(placed[a.index] - placed[b.index]) for a, b in links])
+    targets = [placed]
     seconds = time.perf_counter() - t0
     cpu = resource.getrusage(resource.RUSAGE_SELF).ru_utime - c0
     # checks
     lengths = np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1)
     dev = np.abs(lengths - r0)
     atoms_list = list(top.atoms())
-    lk = {(a.index, b.index): k for k, (a, b) in enumerate(links)}
     bond_index = {(int(i), int(j)): k for k, (i, j) in enumerate(bonds)}
     o3p = []
     for (a, b) in links:
         k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
         o3p.append((lengths[k], r0[k]))
     o3p = np.array(o3p)
-    link_dev = [dev[bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))] for a, b in links]
-    for a, b in [links[int(np.argmax(link_dev))]] if links else []:  # the worst link
-        k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
-        if dev[k] > bond_tolerance:
-            r1, r2 = a.residue, b.residue
-            j = lk[(a.index, b.index)]
-            step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
-            raise StructureError(
-                f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
-                f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
-                f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A); the two "
-                f"base-pair frames are too far apart or too distorted for a DNA backbone")
+    link_k = [bond_index.get((a.index, b.index), bond_index.get((b.index, a.index))) for a, b in links]
+    def step_of(j):
+        r1, r2 = links[j][0].residue, links[j][1].residue
+        return int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
+
+    def gap_near(pairs):
+        """The O3'-P link touching base pairs ``pairs`` (1-based) that the frames placed furthest off."""
+        js = [j for j in range(len(links)) if {step_of(j), step_of(j) + 1} & set(pairs)]
+        if not js:
+            return ""
+        j = max(js, key=lambda j: abs(place[j] - r0[link_k[j]]))
+        if abs(place[j] - r0[link_k[j]]) < 0.05:
+            return ""
+        return (f" (the input frames placed the O3'-P link of step {step_of(j)}-{step_of(j) + 1}, strand "
+                f"{'I' if links[j][0].residue.chain.id == 'A' else 'II'}, at {10 * place[j]:.2f} A; Amber14 "
+                f"{10 * r0[link_k[j]]:.2f} A, off by {10 * abs(place[j] - r0[link_k[j]]):.2f} A)")
+
+    # a backbone that did not close: name the link whose frames put it furthest from Amber14's length among
+    # the links next to a bond left off (a gap also strains the neighbouring links, more so where two
+    # windows meet, so the worst link after minimisation need not be the step the frames broke)
+    off = dev > bond_tolerance
+    bad_res = {atoms_list[int(i)].residue.index for i in bonds[off].ravel()}
+    near = [j for j, (a, b) in enumerate(links) if a.residue.index in bad_res or b.residue.index in bad_res]
+    if near:
+        j = max(near, key=lambda j: (abs(place[j] - r0[link_k[j]]), dev[link_k[j]]))
+        a, b = links[j]
+        k = link_k[j]
+        r1, r2 = a.residue, b.residue
+        step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
+        local = [q for q in np.flatnonzero(off) if {atoms_list[bonds[q, 0]].residue.index,
+                                                     atoms_list[bonds[q, 1]].residue.index} & {r1.index, r2.index}]
+        w = max(local, key=lambda q: dev[q]) if local else k
+        worst_there = "" if w == k else (
+            f"; worst bond there {_atom_name(atoms_list[bonds[w, 0]])}-{atoms_list[bonds[w, 1]].name} "
+            f"{10 * lengths[w]:.2f} A, off by {10 * dev[w]:.2f} A")
+        raise StructureError(
+            f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
+            f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
+            f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A{worst_there}); "
+            f"the two base-pair frames are too far apart or too distorted for a DNA backbone")
     worst = int(np.argmax(dev))
     if dev[worst] > bond_tolerance:
         a, b = atoms_list[bonds[worst, 0]], atoms_list[bonds[worst, 1]]
@@ -727,7 +932,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         r, centre = flipped[0]
         res = list(top.residues())[r]
         raise StructureError(f"rebuild: the sugar of {res.chain.id}:{res.id} changed chirality at {centre} while "
-                             f"closing the backbone; the frames are too distorted")
+                             f"closing the backbone; the frames are too distorted{gap_near([_pair_of(res, n)])}")
     heavy = np.array([a.element.symbol != "H" for a in atoms_list])
     excl = _exclusion_pairs(len(atoms_list), bonds)
     from scipy.spatial import cKDTree
@@ -755,7 +960,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         k = int(bad[np.argmax(shift[bad] / FRAME_ORIGIN_TOL + turn[bad] / FRAME_ANGLE_TOL)])
         raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg while "
                              f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} deg); "
-                             f"the frames are too distorted for an Amber14 backbone")
+                             f"the frames are too distorted for an Amber14 backbone{gap_near([k + 1])}")
     ang_dev, worst_angle = _angle_deviation(system, pos, atoms_list)
     report = RebuildReport(
         max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"
