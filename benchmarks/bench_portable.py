@@ -1,9 +1,11 @@
 """Benchmark: how fast the portable elastic force (CustomCompoundBondForce) compiles, per platform.
 
-For three stiffness structures -- ``dna-default`` (diagonal + twist-stretch coupling, 7 of 21
+For the stiffness structures ``dna-default`` (diagonal + twist-stretch coupling, 7 of 21
 entries), ``full`` (a different random SPD 6x6 matrix with all 21 entries and random intrinsic
-strains on every step: sequence-dependent) and ``circular`` (dna-default closed by a screw, two
-forces, the closing one with the image rotation) -- on 100 nodes, each measured in a fresh process:
+strains on every step: sequence-dependent) and ``olson1998`` (the bundled sequence-dependent
+21-entry set), open and circular (``circular``: dna-default closed by its helical screw;
+``full-circular``: ``full`` closed by a general screw; ``olson1998-circular``), on 100 and
+1000 nodes (``--nodes``), each measured in a fresh process:
 
 * OpenMM Context creation (CPU seconds of the whole process and wall seconds) on Reference, CPU
   and OpenCL (if present; pocl's kernel cache on disk makes repeated runs faster, so on OpenCL
@@ -14,10 +16,12 @@ forces, the closing one with the image rotation) -- on 100 nodes, each measured 
   and of the 18 coordinate derivatives after Lepton's ``optimize()``, as OpenMM's Reference and
   CPU kernels build them.
 
-``--baseline REV`` also measures the expression of ``dnarod/openmm/forces.py`` at git revision
-REV (e.g. the one before the Cholesky form).
+``--baseline REV`` also measures the portable force of ``dnarod/openmm/forces.py`` at git revision
+REV (e.g. the one before the closing step moved onto node 0's image particles; revisions without
+``add_closure_image`` write the closing step's screw into its own expressions).
 
-Usage: ``python benchmarks/bench_portable.py [--platforms Reference,CPU,OpenCL] [--baseline REV] [--json OUT]``.
+Usage: ``python benchmarks/bench_portable.py [--platforms Reference,CPU,OpenCL] [--nodes 100,1000]
+[--baseline REV] [--json OUT]``.
 """
 from __future__ import annotations
 
@@ -56,8 +60,8 @@ def _forces_module(rev):
     return mod
 
 
-def _model(case):
-    """100 nodes: ``dna-default`` (open), ``full`` (random full K and intrinsic strains per step, open),
+def _model(case, n_nodes=100):
+    """``n_nodes`` nodes: ``dna-default`` (open), ``full`` (random full K and intrinsic strains per step, open),
     ``circular`` (dna-default closed by its helical screw), ``full-circular`` (``full`` closed by a general
     screw), ``olson1998`` and ``olson1998-circular`` (sequence-dependent full K of the bundled set)."""
     from dnarod.forcefield import load_forcefield
@@ -69,7 +73,7 @@ def _model(case):
     circular = case.endswith("circular")
     ff = load_forcefield("olson1998" if case.startswith("olson") else "dna-default")
     rng = np.random.default_rng(7)
-    seq = "".join(rng.choice(list("ACGT"), 100))
+    seq = "".join(rng.choice(list("ACGT"), n_nodes))
     m = ff.model_from_sequence(seq, circular=circular)
     params, closure = m.params, m.closure
     if case.startswith("full"):
@@ -124,7 +128,7 @@ def trivial(plat):
     return out
 
 
-def single(case, plat, rev):
+def single(case, plat, rev, n_nodes=100):
     import openmm
 
     from dnarod.energy import energy
@@ -133,17 +137,22 @@ def single(case, plat, rev):
     if case == "trivial":
         return trivial(plat)
     forces = _forces_module(rev)
-    m = _model(case)
+    m = _model(case, n_nodes)
     r = P.triangle_radius(m.mass, m.inertia)
-    out = dict(case=case, platform=plat, revision=rev or "working tree")
+    out = dict(case=case, platform=plat, revision=rev or "working tree", n_nodes=n_nodes)
     times = []
     for _ in range(2 if plat == "OpenCL" else 1):
         system = openmm.System()
         for mass in np.repeat(m.mass / 3, 3):
             system.addParticle(mass)
-        for f in forces.elastic_compound_forces(m, r):
+        x = P.particle_positions(m.positions, m.frames, r)
+        kw = {}
+        if m.closure is not None and hasattr(forces, "add_closure_image"):  # the closing step on node 0's image
+            kw["image"] = forces.add_closure_image(system, m)
+            x = np.vstack([x, P.closure_image_positions(x, m.closure)])
+        for f in forces.elastic_compound_forces(m, r, **kw):
             system.addForce(f)
-        t, state = _context_time(system, plat, P.particle_positions(m.positions, m.frames, r))
+        t, state = _context_time(system, plat, x)
         times.append(t)
     E = state.getPotentialEnergy()._value
     out["context_cpu_s"], out["context_wall_s"] = times[0]
@@ -172,11 +181,11 @@ def _lepton_tool():
     return exe
 
 
-def _run(case, plat, rev, env=None):
-    p = subprocess.run([sys.executable, __file__, "--single", case, plat, rev or "-"], capture_output=True, text=True,
-                       timeout=3600, env=env)
+def _run(case, plat, rev, n_nodes, env=None):
+    p = subprocess.run([sys.executable, __file__, "--single", case, plat, rev or "-", str(n_nodes)],
+                       capture_output=True, text=True, timeout=3600, env=env)
     if p.returncode != 0:
-        return dict(case=case, platform=plat, revision=rev or "working tree",
+        return dict(case=case, platform=plat, revision=rev or "working tree", n_nodes=n_nodes,
                     error=(p.stderr.strip().splitlines() or ["failed"])[-1])
     return json.loads(p.stdout.strip().splitlines()[-1])
 
@@ -188,11 +197,12 @@ def main():
     ap.add_argument("--baseline", default=None, help="git revision whose expression is measured as 'before'")
     ap.add_argument("--baseline-platforms", default="Reference", help="platforms for the baseline (slow to compile)")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_portable.json"))
-    ap.add_argument("--single", nargs=3, default=None, help=argparse.SUPPRESS)
+    ap.add_argument("--nodes", default="100,1000", help="chain lengths (comma-separated)")
+    ap.add_argument("--single", nargs=4, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.single is not None:
-        case, plat, rev = args.single
-        print(json.dumps(single(case, plat, None if rev == "-" else rev)))
+        case, plat, rev, n_nodes = args.single
+        print(json.dumps(single(case, plat, None if rev == "-" else rev, int(n_nodes))))
         return
     import openmm
 
@@ -203,47 +213,49 @@ def main():
     results = []
     counted = {}
     load = [os.getloadavg()]
-    for rev in revs:
-        for case in ["trivial"] + args.cases.split(","):
-            if case == "trivial" and rev is not None:
-                continue
-            for plat in (plats if rev is None else [p for p in args.baseline_platforms.split(",") if p in have]):
-                if plat == "OpenCL":
-                    # cold: a fresh, empty pocl kernel cache (first Context compiles every kernel); warm: a new
-                    # process on the cache the cold run filled (what every later run sees)
-                    with tempfile.TemporaryDirectory() as cache:
-                        env = dict(os.environ, POCL_CACHE_DIR=cache)
-                        cold = _run(case, plat, rev, env)
-                        r = _run(case, plat, rev, env)
-                    if "error" not in r and "error" not in cold:
-                        r["cold_context_cpu_s"], r["cold_context_wall_s"] = cold["context_cpu_s"], cold["context_wall_s"]
-                else:
-                    r = _run(case, plat, rev)
-                if tool is not None and "expressions" in r:
-                    counts = []
-                    for expr in r["expressions"]:
-                        if expr not in counted:
-                            q = subprocess.run([str(tool), "6"], input=expr, capture_output=True, text=True)
-                            counted[expr] = json.loads(q.stdout)
-                        counts.append(counted[expr])
-                    r["lepton"] = counts
-                    r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
-                                                                                "derivative_tree_nodes")}
-                r.pop("expressions", None)
-                results.append(r)
-                print(f"measured {case} on {plat} ({rev or 'working tree'})", file=sys.stderr)
+    # the working tree and the baseline alternate case by case, so before and after see the same load
+    jobs = [(n_nodes, case, rev) for n_nodes in map(int, args.nodes.split(","))
+            for case in ["trivial"] + args.cases.split(",") for rev in revs
+            if not (case == "trivial" and (rev is not None or n_nodes != int(args.nodes.split(",")[0])))]
+    for n_nodes, case, rev in jobs:
+        for plat in (plats if rev is None else [p for p in args.baseline_platforms.split(",") if p in have]):
+            if plat == "OpenCL":
+                # cold: a fresh, empty pocl kernel cache (first Context compiles every kernel); warm: a new
+                # process on the cache the cold run filled (what every later run sees)
+                with tempfile.TemporaryDirectory() as cache:
+                    env = dict(os.environ, POCL_CACHE_DIR=cache)
+                    cold = _run(case, plat, rev, n_nodes, env)
+                    r = _run(case, plat, rev, n_nodes, env)
+                if "error" not in r and "error" not in cold:
+                    r["cold_context_cpu_s"], r["cold_context_wall_s"] = cold["context_cpu_s"], cold["context_wall_s"]
+            else:
+                r = _run(case, plat, rev, n_nodes)
+            if tool is not None and "expressions" in r:
+                counts = []
+                for expr in r["expressions"]:
+                    if expr not in counted:
+                        q = subprocess.run([str(tool), "6"], input=expr, capture_output=True, text=True)
+                        counted[expr] = json.loads(q.stdout)
+                    counts.append(counted[expr])
+                r["lepton"] = counts
+                r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
+                                                                            "derivative_tree_nodes")}
+            r.pop("expressions", None)
+            results.append(r)
+            print(f"measured {case} ({n_nodes} nodes) on {plat} ({rev or 'working tree'}), "
+                  f"load {os.getloadavg()[0]:.1f}", file=sys.stderr)
     load.append(os.getloadavg())
-    print("portable force (100 nodes): Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
+    print("portable force: Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
           "filled), cold (empty cache); energy vs dnarod.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
     for r in results:
         if "error" in r:
-            print(f"{r['revision'][:12]:>12} {r['case']:>18} {r['platform']:>9} error: {r['error']}")
+            print(f"{r['revision'][:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} error: {r['error']}")
             continue
         lep = r.get("lepton_total")
         lep = f"{lep['energy_tree_nodes']}/{lep['derivative_tree_nodes']}" if lep else ""
         cold = f" cold {r['cold_context_cpu_s']:6.2f} ({r['cold_context_wall_s']:6.2f})" if "cold_context_cpu_s" in r else ""
         err = f"rel.err {r['energy_rel_error']:.1e}" if "energy_rel_error" in r else ""
-        print(f"{r.get('revision', '')[:12]:>12} {r['case']:>18} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
+        print(f"{r.get('revision', '')[:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
               f"({r['context_wall_s']:6.2f}){cold} forces {r.get('n_forces', 1):>2} {err} {lep}")
     H.write_results(args.json, "bench_portable", load_average_start_end=load, openmm=openmm.__version__,
                     results=results, target="Context creation < 2 s on every platform for any stiffness")

@@ -69,6 +69,15 @@ def circular_full(ff):
 
 
 @pytest.fixture(scope="module")
+def ring_full():
+    """A plain ring (identity closure) with the sequence-dependent olson1998 K (21 entries), supercoiled by
+    Delta Lk = +2."""
+    rng = np.random.default_rng(13)
+    base = load_forcefield("olson1998").ring("ACGTTGCAGTCATGCA", delta_linking_number=2)
+    return perturbed(base, rng, scale=0.02, rot=0.05)
+
+
+@pytest.fixture(scope="module")
 def open_sized(open_full):
     """``open_full`` with nodes of different sizes (triangle radius varies from node to node)."""
     scale = 1.0 + 0.3 * np.sin(np.arange(open_full.n_nodes))
@@ -84,8 +93,9 @@ def reference_context(model, forces):
         system.addParticle(m)
     x = P.particle_positions(model.positions, model.frames, r)
     if model.closure is not None and any(isinstance(f, openmm.CustomCompoundBondForce) for f in forces):
-        assert add_closure_image(system, model) == 3 * model.n_nodes
-        x = np.vstack([x, P.closure_image_positions(x, model.closure)])
+        if add_closure_image(system, model):  # 0 for a plain ring: node 0 is its own image
+            assert system.getNumParticles() == 3 * model.n_nodes + 3
+            x = np.vstack([x, P.closure_image_positions(x, model.closure)])
     for f in forces:
         system.addForce(f)
     ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("Reference"))
@@ -121,6 +131,11 @@ def portable_circular(circular):
 @pytest.fixture(scope="module")
 def portable_circular_full(circular_full):
     return portable_context(circular_full)
+
+
+@pytest.fixture(scope="module")
+def portable_ring_full(ring_full):
+    return portable_context(ring_full)
 
 
 @pytest.fixture(scope="module")
@@ -201,7 +216,7 @@ def test_numba_kernel_equals_analytic_loads(which, request):
 
 # --- portable path on the Reference platform ----------------------------------------------
 PORTABLE = {"open_full": "portable_open", "circular": "portable_circular", "circular_full": "portable_circular_full",
-            "open_sized": "portable_open_sized"}
+            "ring_full": "portable_ring_full", "open_sized": "portable_open_sized"}
 
 
 @pytest.mark.parametrize("which", list(PORTABLE))
@@ -313,6 +328,16 @@ def test_circular_chain_compiles_the_open_expressions_with_the_closing_bond_to_t
     assert closed[0].getNumBonds() == n and opened[0].getNumBonds() == n - 1
     assert list(closed[0].getBondParameters(n - 1)[0]) == [3 * n - 3, 3 * n - 2, 3 * n - 1, 3 * n, 3 * n + 1, 3 * n + 2]
     assert list(elastic_compound_forces(circular, r, image=100)[0].getBondParameters(n - 1)[0])[3:] == [100, 101, 102]
+
+
+def test_plain_ring_closes_on_node_0_itself(ring_full):
+    """The identity closure of a ring (any Delta Lk) needs no image particles: the closing bond ends on node 0."""
+    r = P.triangle_radius(ring_full.mass, ring_full.inertia)
+    n = ring_full.n_nodes
+    system = openmm.System()
+    assert add_closure_image(system, ring_full) == 0 and system.getNumParticles() == 0
+    for f in elastic_compound_forces(ring_full, r):
+        assert list(f.getBondParameters(n - 1)[0]) == [3 * n - 3, 3 * n - 2, 3 * n - 1, 0, 1, 2]
 
 
 def test_closure_image_sites_follow_node_0_by_the_screw(ff, circular):

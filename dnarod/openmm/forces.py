@@ -209,7 +209,8 @@ def elastic_compound_forces(model, radius, split=None, order=None, image=None):
         Strain order of the factorisation (default :data:`STRAIN_ORDER`).
     image : int, optional
         Circular chain: index of the first of the three image particles of node 0 (default
-        ``3 n_nodes``, where :func:`add_closure_image` puts them); the System must hold them.
+        ``3 n_nodes``, where :func:`add_closure_image` puts them; ``0``, node 0 itself, for the
+        identity closure of a plain ring); the System must hold them.
 
     Returns
     -------
@@ -226,7 +227,7 @@ def elastic_compound_forces(model, radius, split=None, order=None, image=None):
     uniform = bool(np.all(radius == radius[0]))
     second = [[3 * j, 3 * j + 1, 3 * j + 2] for j in k1]
     if circular:  # the closing step's second node is the screw image of node 0
-        first = 3 * n if image is None else int(image)
+        first = (0 if is_identity(model.closure) else 3 * n) if image is None else int(image)
         second[-1] = [first, first + 1, first + 2]
     forces = []
     if steps.size == 0:
@@ -253,6 +254,11 @@ def elastic_compound_forces(model, radius, split=None, order=None, image=None):
     return forces
 
 
+def is_identity(closure):
+    """True for the plain ring closure (``Q = I``, ``t = 0`` exactly): node 0 is its own image."""
+    return bool(np.array_equal(closure.Q, np.eye(3)) and not np.any(closure.t))
+
+
 def add_closure_image(system, model):
     """Add the screw image of node 0 to ``system`` for the portable path of a circular chain.
 
@@ -273,10 +279,13 @@ def add_closure_image(system, model):
     Returns
     -------
     int
-        Index of the first image particle.
+        Index of the first image particle; ``0`` (node 0 itself, nothing added) for the identity
+        closure of a plain ring (:func:`is_identity`).
     """
     if model.closure is None:
         raise ParameterError("add_closure_image needs a circular model (model.closure is None)")
+    if is_identity(model.closure):
+        return 0
     Q = np.asarray(model.closure.Q, float)
     t = openmm.Vec3(*map(float, model.closure.t))
     rows = [openmm.Vec3(*map(float, Q[i])) for i in range(3)]

@@ -33,7 +33,7 @@ design A0 and the ``.dtraj`` format); particle i has velocity ``v + (L omega) x 
 
 Particle order: node k owns particles ``3k, 3k+1, 3k+2``. With the portable elastic path a
 circular chain's System holds three more, massless particles ``3n, 3n+1, 3n+2``: the closure
-screw's image of node 0's particles (:func:`closure_image_positions`,
+screw's image of node 0's particles (none for a plain ring, whose closure is the identity) (:func:`closure_image_positions`,
 :func:`dnarod.openmm.forces.add_closure_image`).
 """
 from __future__ import annotations

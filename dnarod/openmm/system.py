@@ -83,8 +83,8 @@ class RodSystem:
         evaluated there and the rigid-body integrator steps there (no host copies per step).
     image : int or None
         Portable path of a circular chain: index of the first of the three massless image particles of node 0
-        (``3 n``; :func:`dnarod.openmm.forces.add_closure_image`), else ``None``. The nodes' particles are
-        always ``0 .. 3n-1``.
+        (``3 n``; :func:`dnarod.openmm.forces.add_closure_image`), else ``None`` (also for a plain ring, whose
+        closing step ends on node 0 itself). The nodes' particles are always ``0 .. 3n-1``.
     """
 
     system: openmm.System
@@ -209,9 +209,10 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         elastic_cb = ElasticCallback(model, radius, nonbonded=nb_cb)
         system.addForce(elastic_python_force(model, radius, callback=elastic_cb))
     else:
-        image = add_closure_image(system, model) if model.closure is not None else None
-        for f in elastic_compound_forces(model, radius, image=image):
+        first = add_closure_image(system, model) if model.closure is not None else None
+        for f in elastic_compound_forces(model, radius, image=first):
             system.addForce(f)
+        image = first or None  # 0: a plain ring's node 0 is its own image (no particles added)
     if nb_force is not None and elastic != "fast":  # fast: evaluated inside the elastic callback
         if image is not None:  # the callback sees the nodes' particles only
             nb_force.setParticles(list(range(3 * n)))
