@@ -4,7 +4,8 @@ For the stiffness structures ``dna-default`` (diagonal + twist-stretch coupling,
 entries), ``full`` (a different random SPD 6x6 matrix with all 21 entries and random intrinsic
 strains on every step: sequence-dependent) and ``olson1998`` (the bundled sequence-dependent
 21-entry set), open and circular (``circular``: dna-default closed by its helical screw;
-``full-circular``: ``full`` closed by a general screw; ``olson1998-circular``), on 100 and
+``full-circular``: ``full`` closed by a general screw; ``olson1998-circular``; ``olson1998-ring``: a
+plain planar ring, identity closure, supercoiled by Delta Lk = +2), on 100 and
 1000 nodes (``--nodes``), each measured in a fresh process:
 
 * OpenMM Context creation (CPU seconds of the whole process and wall seconds) on Reference, CPU
@@ -40,7 +41,7 @@ import numpy as np
 import _harness as H
 
 ROOT = Path(__file__).resolve().parents[1]
-CASES = ("dna-default", "full", "circular", "full-circular", "olson1998", "olson1998-circular")
+CASES = ("dna-default", "full", "circular", "full-circular", "olson1998", "olson1998-circular", "olson1998-ring")
 
 
 def _forces_module(rev):
@@ -63,7 +64,8 @@ def _forces_module(rev):
 def _model(case, n_nodes=100):
     """``n_nodes`` nodes: ``dna-default`` (open), ``full`` (random full K and intrinsic strains per step, open),
     ``circular`` (dna-default closed by its helical screw), ``full-circular`` (``full`` closed by a general
-    screw), ``olson1998`` and ``olson1998-circular`` (sequence-dependent full K of the bundled set)."""
+    screw), ``olson1998`` and ``olson1998-circular`` (sequence-dependent full K of the bundled set),
+    ``olson1998-ring`` (a plain ring, identity closure, Delta Lk = +2)."""
     from dnarod.forcefield import load_forcefield
     from dnarod.model import RodModel
     from dnarod.parameters import StepParameters
@@ -74,7 +76,10 @@ def _model(case, n_nodes=100):
     ff = load_forcefield("olson1998" if case.startswith("olson") else "dna-default")
     rng = np.random.default_rng(7)
     seq = "".join(rng.choice(list("ACGT"), n_nodes))
-    m = ff.model_from_sequence(seq, circular=circular)
+    if case.endswith("ring"):
+        m = ff.ring(seq, delta_linking_number=2)
+    else:
+        m = ff.model_from_sequence(seq, circular=circular)
     params, closure = m.params, m.closure
     if case.startswith("full"):
         A = rng.normal(size=(m.n_steps, 6, 6))
@@ -149,7 +154,8 @@ def single(case, plat, rev, n_nodes=100):
         kw = {}
         if m.closure is not None and hasattr(forces, "add_closure_image"):  # the closing step on node 0's image
             kw["image"] = forces.add_closure_image(system, m)
-            x = np.vstack([x, P.closure_image_positions(x, m.closure)])
+            if kw["image"]:  # 0: a plain ring's node 0 is its own image
+                x = np.vstack([x, P.closure_image_positions(x, m.closure)])
         for f in forces.elastic_compound_forces(m, r, **kw):
             system.addForce(f)
         t, state = _context_time(system, plat, x)
