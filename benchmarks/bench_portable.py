@@ -196,6 +196,27 @@ def _run(case, plat, rev, n_nodes, env=None):
     return json.loads(p.stdout.strip().splitlines()[-1])
 
 
+def _run_batch(cases, plat, rev, n_nodes):
+    """All ``cases`` in one process (``--batch``), the trivial System first (it pays the platform's start-up).
+    OpenCL: a fresh, empty pocl cache for the process; each case's first Context is reported as ``cold``
+    (OpenMM's own kernels are then already cached by the trivial System, so this is what dnarod's forces add
+    cold), its second as warm."""
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, POCL_CACHE_DIR=cache)
+        p = subprocess.run([sys.executable, __file__, "--single", "+".join(["trivial"] + cases), plat, rev or "-",
+                            str(n_nodes)], capture_output=True, text=True, timeout=7200, env=env)
+    out = [json.loads(line) for line in p.stdout.splitlines() if line.startswith("{")]
+    if p.returncode != 0:
+        out.append(dict(case="+".join(cases), platform=plat, revision=rev or "working tree", n_nodes=n_nodes,
+                        error=(p.stderr.strip().splitlines() or ["failed"])[-1]))
+    for r in out:
+        r["batch"] = True
+        if plat == "OpenCL" and "second_context_cpu_s" in r:
+            r["cold_context_cpu_s"], r["cold_context_wall_s"] = r["context_cpu_s"], r["context_wall_s"]
+            r["context_cpu_s"], r["context_wall_s"] = r["second_context_cpu_s"], r["second_context_wall_s"]
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--platforms", default="Reference,CPU,OpenCL")
@@ -204,11 +225,17 @@ def main():
     ap.add_argument("--baseline-platforms", default="Reference", help="platforms for the baseline (slow to compile)")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_portable.json"))
     ap.add_argument("--nodes", default="100,1000", help="chain lengths (comma-separated)")
+    ap.add_argument("--batch", action="store_true",
+                    help="one process per (nodes, revision, platform) for all cases (much less start-up work on a "
+                         "loaded machine); on OpenCL each case's first Context is the cold one (see _run_batch)")
+    ap.add_argument("--baseline-cases", default=None, help="cases measured at the baseline (default: all)")
+    ap.add_argument("--baseline-nodes", default=None, help="chain lengths measured at the baseline (default: all)")
     ap.add_argument("--single", nargs=4, default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.single is not None:
-        case, plat, rev, n_nodes = args.single
-        print(json.dumps(single(case, plat, None if rev == "-" else rev, int(n_nodes))))
+        cases, plat, rev, n_nodes = args.single
+        for case in cases.split("+"):
+            print(json.dumps(single(case, plat, None if rev == "-" else rev, int(n_nodes))), flush=True)
         return
     import openmm
 
@@ -219,10 +246,25 @@ def main():
     results = []
     counted = {}
     load = [os.getloadavg()]
+    bcases = args.cases.split(",") if args.baseline_cases is None else args.baseline_cases.split(",")
+    bnodes = args.nodes if args.baseline_nodes is None else args.baseline_nodes
+    if args.batch:
+        for n_nodes in map(int, args.nodes.split(",")):
+            for rev in revs:
+                if rev is not None and str(n_nodes) not in bnodes.split(","):
+                    continue
+                for plat in (plats if rev is None else [p for p in args.baseline_platforms.split(",") if p in have]):
+                    rs = _run_batch(args.cases.split(",") if rev is None else bcases, plat, rev, n_nodes)
+                    if n_nodes != int(args.nodes.split(",")[0]) or rev is not None:
+                        rs = [r for r in rs if not r["case"].startswith("trivial")]
+                    results.extend(rs)
+                    print(f"measured {n_nodes} nodes on {plat} ({rev or 'working tree'}), load "
+                          f"{os.getloadavg()[0]:.1f}", file=sys.stderr)
     # the working tree and the baseline alternate case by case, so before and after see the same load
-    jobs = [(n_nodes, case, rev) for n_nodes in map(int, args.nodes.split(","))
+    jobs = [] if args.batch else [(n_nodes, case, rev) for n_nodes in map(int, args.nodes.split(","))
             for case in ["trivial"] + args.cases.split(",") for rev in revs
-            if not (case == "trivial" and (rev is not None or n_nodes != int(args.nodes.split(",")[0])))]
+            if not (case == "trivial" and (rev is not None or n_nodes != int(args.nodes.split(",")[0])))
+            and (rev is None or (case in bcases and str(n_nodes) in bnodes.split(",")))]
     for n_nodes, case, rev in jobs:
         for plat in (plats if rev is None else [p for p in args.baseline_platforms.split(",") if p in have]):
             if plat == "OpenCL":
@@ -236,21 +278,22 @@ def main():
                     r["cold_context_cpu_s"], r["cold_context_wall_s"] = cold["context_cpu_s"], cold["context_wall_s"]
             else:
                 r = _run(case, plat, rev, n_nodes)
-            if tool is not None and "expressions" in r:
-                counts = []
-                for expr in r["expressions"]:
-                    if expr not in counted:
-                        q = subprocess.run([str(tool), "6"], input=expr, capture_output=True, text=True)
-                        counted[expr] = json.loads(q.stdout)
-                    counts.append(counted[expr])
-                r["lepton"] = counts
-                r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
-                                                                            "derivative_tree_nodes")}
-            r.pop("expressions", None)
             results.append(r)
             print(f"measured {case} ({n_nodes} nodes) on {plat} ({rev or 'working tree'}), "
                   f"load {os.getloadavg()[0]:.1f}", file=sys.stderr)
     load.append(os.getloadavg())
+    for r in results:  # after the timings (the counter's own work does not load the measured processes)
+        if tool is not None and "expressions" in r:
+            counts = []
+            for expr in r["expressions"]:
+                if expr not in counted:
+                    q = subprocess.run([str(tool), "6"], input=expr, capture_output=True, text=True)
+                    counted[expr] = json.loads(q.stdout)
+                counts.append(counted[expr])
+            r["lepton"] = counts
+            r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
+                                                                        "derivative_tree_nodes")}
+        r.pop("expressions", None)
     print("portable force: Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
           "filled), cold (empty cache); energy vs dnarod.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
     for r in results:
