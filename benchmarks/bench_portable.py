@@ -260,6 +260,9 @@ def main():
                     results.extend(rs)
                     print(f"measured {n_nodes} nodes on {plat} ({rev or 'working tree'}), load "
                           f"{os.getloadavg()[0]:.1f}", file=sys.stderr)
+                    H.write_results(args.json, "bench_portable", partial=True, openmm=openmm.__version__,
+                                    load_average_start_now=[load[0], os.getloadavg()],
+                                    results=[{k: v for k, v in r.items() if k != "expressions"} for r in results])
     # the working tree and the baseline alternate case by case, so before and after see the same load
     jobs = [] if args.batch else [(n_nodes, case, rev) for n_nodes in map(int, args.nodes.split(","))
             for case in ["trivial"] + args.cases.split(",") for rev in revs

@@ -18,7 +18,6 @@ import time
 
 import numpy as np
 
-from ..units import md_value
 import scipy.linalg
 
 from ._common import new_figure, save_figure

@@ -19,7 +19,6 @@ import time
 
 import numpy as np
 
-from ..units import md_value
 
 from ._common import rotation_angle
 
