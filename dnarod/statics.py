@@ -62,9 +62,9 @@ def _openmm_loads(model, loads, angles):
 
     def fn(pos, frm):
         x = particle_positions(pos, frm, radius)
-        sim.context.setPositions(x)
+        sim.set_particle_positions(x)
         st = sim.context.getState(getForces=True)
-        F, tau = particle_forces_to_loads(x, st.getForces(asNumpy=True)._value)
+        F, tau = particle_forces_to_loads(x, sim.node_particles(st.getForces(asNumpy=True)))
         return np.nan, F, tau
 
     return fn

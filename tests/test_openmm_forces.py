@@ -12,7 +12,8 @@ from dnarod.errors import ParameterError
 from dnarod.forcefield import load_forcefield
 from dnarod.model import RodModel
 from dnarod.openmm import particles as P
-from dnarod.openmm.forces import elastic_compound_forces, elastic_particle_kernel, elastic_python_force
+from dnarod.openmm.forces import (add_closure_image, elastic_compound_forces, elastic_particle_kernel,
+                                  elastic_python_force)
 from dnarod.parameters import StepParameters
 from dnarod.rotations import cayley, rotation_about_axis
 from dnarod.strains import Closure
@@ -68,6 +69,15 @@ def circular_full(ff):
 
 
 @pytest.fixture(scope="module")
+def ring_full():
+    """A plain ring (identity closure) with the sequence-dependent olson1998 K (21 entries), supercoiled by
+    Delta Lk = +2."""
+    rng = np.random.default_rng(13)
+    base = load_forcefield("olson1998").ring("ACGTTGCAGTCATGCA", delta_linking_number=2)
+    return perturbed(base, rng, scale=0.02, rot=0.05)
+
+
+@pytest.fixture(scope="module")
 def open_sized(open_full):
     """``open_full`` with nodes of different sizes (triangle radius varies from node to node)."""
     scale = 1.0 + 0.3 * np.sin(np.arange(open_full.n_nodes))
@@ -76,21 +86,30 @@ def open_sized(open_full):
 
 
 def reference_context(model, forces):
+    """A Reference Context of the nodes' particles (and, for a circular model, node 0's screw image after them)."""
     r = P.triangle_radius(model.mass, model.inertia)
     system = openmm.System()
     for m in np.repeat(model.mass / 3, 3):
         system.addParticle(m)
+    x = P.particle_positions(model.positions, model.frames, r)
+    if model.closure is not None and any(isinstance(f, openmm.CustomCompoundBondForce) for f in forces):
+        if add_closure_image(system, model):  # 0 for a plain ring: node 0 is its own image
+            assert system.getNumParticles() == 3 * model.n_nodes + 3
+            x = np.vstack([x, P.closure_image_positions(x, model.closure)])
     for f in forces:
         system.addForce(f)
     ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("Reference"))
-    ctx.setPositions(P.particle_positions(model.positions, model.frames, r))
+    ctx.setPositions(x)
     return ctx
 
 
 def state_loads(ctx):
+    """Energy and node loads; only the nodes' particles (a closure image's forces are already on node 0)."""
     st = ctx.getState(getEnergy=True, getForces=True, getPositions=True)
-    p = st.getPositions(asNumpy=True)._value
-    F, tau = P.particle_forces_to_loads(p, st.getForces(asNumpy=True)._value)
+    system = ctx.getSystem()
+    n3 = sum(not system.isVirtualSite(i) for i in range(system.getNumParticles()))
+    p = st.getPositions(asNumpy=True)._value[:n3]
+    F, tau = P.particle_forces_to_loads(p, st.getForces(asNumpy=True)._value[:n3])
     return st.getPotentialEnergy()._value, F, tau
 
 
@@ -112,6 +131,11 @@ def portable_circular(circular):
 @pytest.fixture(scope="module")
 def portable_circular_full(circular_full):
     return portable_context(circular_full)
+
+
+@pytest.fixture(scope="module")
+def portable_ring_full(ring_full):
+    return portable_context(ring_full)
 
 
 @pytest.fixture(scope="module")
@@ -192,7 +216,7 @@ def test_numba_kernel_equals_analytic_loads(which, request):
 
 # --- portable path on the Reference platform ----------------------------------------------
 PORTABLE = {"open_full": "portable_open", "circular": "portable_circular", "circular_full": "portable_circular_full",
-            "open_sized": "portable_open_sized"}
+            "ring_full": "portable_ring_full", "open_sized": "portable_open_sized"}
 
 
 @pytest.mark.parametrize("which", list(PORTABLE))
@@ -277,13 +301,12 @@ def test_cpu_fast_path_within_precision(open_full):
 
 @pytest.mark.parametrize("which", ["open_full", "circular_full"])
 def test_portable_single_force_and_row_split_give_the_same_energy_and_loads(which, request):
-    """One force per Cholesky row (the default for a full K and for circular chains; faster to compile) and one
-    force for all rows both equal dnarod.energy."""
+    """One force per Cholesky row (the default for a full K; faster to compile) and one force for all rows both
+    equal dnarod.energy, also for a circular chain closed by a general screw (closing bond to the image sites)."""
     m = request.getfixturevalue(which)
     r = P.triangle_radius(m.mass, m.inertia)
-    closing = m.closure is not None
-    assert len(elastic_compound_forces(m, r)) == 6 * (1 + closing)
-    assert len(elastic_compound_forces(m, r, split=False)) == 1 + closing
+    assert len(elastic_compound_forces(m, r)) == 6
+    assert len(elastic_compound_forces(m, r, split=False)) == 1
     E, F, tau = loads(m.positions, m.frames, m.params, m.ds, m.closure)
     for split in (False, True):
         E_mm, F_mm, tau_mm = state_loads(reference_context(m, elastic_compound_forces(m, r, split=split)))
@@ -292,11 +315,49 @@ def test_portable_single_force_and_row_split_give_the_same_energy_and_loads(whic
         assert np.abs(tau_mm - tau).max() <= 1e-10 * np.abs(tau).max()
 
 
-def test_circular_dna_default_is_split_and_open_is_not(ff, circular):
+def test_circular_chain_compiles_the_open_expressions_with_the_closing_bond_to_the_image(ff, circular):
+    """The closing step is one more bond of the same forces (no second expression to compile), from node n-1
+    to the three image particles after the nodes' particles."""
     r = P.triangle_radius(circular.mass, circular.inertia)
-    assert len(elastic_compound_forces(circular, r)) == 6 + 6
+    n = circular.n_nodes
+    closed = elastic_compound_forces(circular, r)
     m = ff.model_from_sequence("ACGTTGCAGT")
-    assert len(elastic_compound_forces(m, P.triangle_radius(m.mass, m.inertia))) == 1
+    opened = elastic_compound_forces(m, P.triangle_radius(m.mass, m.inertia))
+    assert len(closed) == len(opened) == 1
+    assert closed[0].getEnergyFunction() == opened[0].getEnergyFunction()
+    assert closed[0].getNumBonds() == n and opened[0].getNumBonds() == n - 1
+    assert list(closed[0].getBondParameters(n - 1)[0]) == [3 * n - 3, 3 * n - 2, 3 * n - 1, 3 * n, 3 * n + 1, 3 * n + 2]
+    assert list(elastic_compound_forces(circular, r, image=100)[0].getBondParameters(n - 1)[0])[3:] == [100, 101, 102]
+
+
+def test_plain_ring_closes_on_node_0_itself(ring_full):
+    """The identity closure of a ring (any Delta Lk) needs no image particles: the closing bond ends on node 0."""
+    r = P.triangle_radius(ring_full.mass, ring_full.inertia)
+    n = ring_full.n_nodes
+    system = openmm.System()
+    assert add_closure_image(system, ring_full) == 0 and system.getNumParticles() == 0
+    for f in elastic_compound_forces(ring_full, r):
+        assert list(f.getBondParameters(n - 1)[0]) == [3 * n - 3, 3 * n - 2, 3 * n - 1, 0, 1, 2]
+
+
+def test_closure_image_sites_follow_node_0_by_the_screw(ff, circular):
+    """OpenMM places the SymmetrySite particles at Q x + t of node 0's particles (as closure_image_positions)."""
+    r = P.triangle_radius(circular.mass, circular.inertia)
+    x = P.particle_positions(circular.positions, circular.frames, r)
+    system = openmm.System()
+    for mass in np.repeat(circular.mass / 3, 3):
+        system.addParticle(mass)
+    assert add_closure_image(system, circular) == x.shape[0]
+    assert [system.getParticleMass(x.shape[0] + i)._value for i in range(3)] == [0.0, 0.0, 0.0]
+    ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("Reference"))
+    ctx.setPositions(np.vstack([x, np.zeros((3, 3))]))
+    ctx.computeVirtualSites()
+    y = ctx.getState(getPositions=True).getPositions(asNumpy=True)._value[-3:]
+    want = P.closure_image_positions(x, circular.closure)
+    assert np.abs(y - want).max() < 1e-12
+    assert np.abs(want - (x[:3] @ circular.closure.Q.T + circular.closure.t)).max() < 1e-15
+    with pytest.raises(ParameterError, match="circular"):
+        add_closure_image(system, ff.model_from_sequence("ACGT"))
 
 
 def test_portable_expression_keeps_only_the_used_entries(ff):

@@ -87,11 +87,12 @@ def test_energy_and_loads_equal_reference(precision, model, request):
 
 def test_circular_full_stiffness_equals_reference_in_mixed_precision():
     """A circular chain with a full sequence-dependent K (olson1998, 21 entries) closed by its screw: the
-    portable force split into one force per Cholesky row, the closing step's screw written as numbers."""
+    portable force split into one force per Cholesky row, the closing step one more bond of the same forces to
+    node 0's screw image (three SymmetrySite particles)."""
     import openmm
 
-    from dnarod.openmm.forces import elastic_compound_forces
-    from dnarod.openmm.particles import particle_positions, triangle_radius
+    from dnarod.openmm.forces import add_closure_image, elastic_compound_forces
+    from dnarod.openmm.particles import closure_image_positions, particle_positions, triangle_radius
     from dnarod.openmm.platforms import platform_properties
 
     _require_opencl()
@@ -103,15 +104,18 @@ def test_circular_full_stiffness_equals_reference_in_mixed_precision():
     system = openmm.System()
     for mass in np.repeat(m.mass / 3, 3):
         system.addParticle(mass)
-    for f in elastic_compound_forces(m, r):
+    image = add_closure_image(system, m)
+    for f in elastic_compound_forces(m, r, image=image):
         system.addForce(f)
-    assert system.getNumForces() == 12
+    assert system.getNumForces() == 6 and system.getNumParticles() == 3 * m.n_nodes + 3
     props = dict(platform_properties("OpenCL"), Precision="mixed")
     ctx = openmm.Context(system, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("OpenCL"), props)
-    ctx.setPositions(particle_positions(m.positions, m.frames, r))
+    x = particle_positions(m.positions, m.frames, r)
+    ctx.setPositions(np.vstack([x, closure_image_positions(x, m.closure)]))
     st = ctx.getState(getEnergy=True, getForces=True, getPositions=True)
-    p = st.getPositions(asNumpy=True)._value
-    F, tau = particle_forces_to_loads(p, st.getForces(asNumpy=True)._value)
+    n3 = 3 * m.n_nodes
+    p = st.getPositions(asNumpy=True)._value[:n3]
+    F, tau = particle_forces_to_loads(p, st.getForces(asNumpy=True)._value[:n3])
     c, f = node_poses(p)
     E0, F0, tau0 = loads(c, f, m.params, m.ds, m.closure)
     tol = TOL["mixed"]

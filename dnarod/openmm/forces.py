@@ -10,10 +10,10 @@ three-particle nodes of :mod:`dnarod.openmm.particles`:
   that are zero on every step are left out of the expression), ``dnarod_c1..6`` (the factor
   times the intrinsic strains) and ``dnarod_alpha``, ``dnarod_beta`` (and ``dnarod_rho`` when
   the nodes differ in size). Runs on every OpenMM platform. A large factor is split into one
-  force per row (faster to compile). A circular chain adds forces of one bond whose second node
-  is the screw image of node 0, ``p -> Q p + t`` (Q and t written into the expression): the
-  directors of the image are ``Q d_a(0)`` and its centre ``Q c_0 + t``, exactly as in
-  :mod:`dnarod.strains`.
+  force per row (faster to compile). The closing step of a circular chain is one more bond of
+  the same forces whose second node is the screw image of node 0, ``p -> Q p + t``: three
+  massless ``SymmetrySite`` particles after the nodes' particles (:func:`add_closure_image`),
+  whose directors are ``Q d_a(0)`` and centre ``Q c_0 + t``, exactly as in :mod:`dnarod.strains`.
 * :func:`elastic_python_force` -- the **fast CPU path**: an ``openmm.PythonForce`` whose
   callback runs a numba kernel of the analytic loads of A2 (tested equal to
   :func:`dnarod.energy.loads`) and spreads each node's force and torque over its particles
@@ -47,7 +47,7 @@ def _dot(u, v):
     return f"({u}x*{v}x + {u}y*{v}y + {u}z*{v}z)"
 
 
-def elastic_expression(used, image=False, closure=None, uniform=False):
+def elastic_expression(used, uniform=False):
     """The energy expression of one step (Cholesky form, node scales folded into the per-bond constants).
 
     With ``K = R^T R`` (R the upper-triangular Cholesky factor, strains taken in
@@ -81,12 +81,6 @@ def elastic_expression(used, image=False, closure=None, uniform=False):
     used : list of (int, int)
         Entries ``(row, strain)`` (0-based; strain order of
         :class:`~dnarod.parameters.StepParameters`) of the folded factor included.
-    image : bool
-        The second node is the screw image ``p -> Q p + t`` of the first node of the chain.
-    closure : Closure, optional
-        With ``image`` (required then): the screw, written into the expression as numbers (one
-        bond; Lepton folds zero and unit entries: per-bond parameters made the closing force's
-        expression 1.7x larger).
     uniform : bool
         All nodes have the same triangle radius (``rho = 1`` left out).
 
@@ -114,17 +108,8 @@ def elastic_expression(used, image=False, closure=None, uniform=False):
     lines += [f"h{c} = p{c} + {rho}r{c}" for c in "xyz"] + [f"k{c} = q{c} + {rho}s{c}" for c in "xyz"]
     lines += [f"E{c} = cb{c} - {c}1 - {c}2 - {c}3" for c in "xyz"]
     lines += [f"p{c} = 2*{c}1 - {c}2 - {c}3" for c in "xyz"] + [f"q{c} = {c}2 - {c}3" for c in "xyz"]
-    if image:
-        for i, c in enumerate("xyz"):
-            Q = [repr(float(v)) for v in closure.Q[i]]
-            t = repr(3 * float(closure.t[i]))
-            lines.append(f"r{c} = {Q[0]}*rrx + {Q[1]}*rry + {Q[2]}*rrz")
-            lines.append(f"s{c} = {Q[0]}*ssx + {Q[1]}*ssy + {Q[2]}*ssz")
-            lines.append(f"cb{c} = {Q[0]}*(x4 + x5 + x6) + {Q[1]}*(y4 + y5 + y6) + {Q[2]}*(z4 + z5 + z6) + {t}")
-        lines += [f"rr{c} = 2*{c}4 - {c}5 - {c}6" for c in "xyz"] + [f"ss{c} = {c}5 - {c}6" for c in "xyz"]
-    else:
-        lines += [f"cb{c} = {c}4 + {c}5 + {c}6" for c in "xyz"]
-        lines += [f"r{c} = 2*{c}4 - {c}5 - {c}6" for c in "xyz"] + [f"s{c} = {c}5 - {c}6" for c in "xyz"]
+    lines += [f"cb{c} = {c}4 + {c}5 + {c}6" for c in "xyz"]
+    lines += [f"r{c} = 2*{c}4 - {c}5 - {c}6" for c in "xyz"] + [f"s{c} = {c}5 - {c}6" for c in "xyz"]
     return "; ".join(lines)
 
 
@@ -198,7 +183,7 @@ STRAIN_ORDER = (0, 1, 2, 5, 3, 4)
 MAX_ENTRIES_PER_FORCE = 7
 
 
-def elastic_compound_forces(model, radius, split=None, order=None):
+def elastic_compound_forces(model, radius, split=None, order=None, image=None):
     """The portable path: CustomCompoundBondForce(s) carrying the step energy.
 
     Lepton's work (differentiating each force's expression with respect to its 18 particle
@@ -207,9 +192,10 @@ def elastic_compound_forces(model, radius, split=None, order=None):
     forces: one per row ``v_a^2`` of the Cholesky factor. The rows then no longer share the
     strain subexpressions at run time, so an evaluation of the portable force costs 2-3x more on
     the Reference/CPU platforms (on GPU platforms OpenMM runs all bonded forces in one kernel).
-    The closing step of a circular chain has its own forces (one bond) whose screw is written
-    into the expression as numbers. Measured in ``benchmarks/bench_portable.py`` and
-    ``docs/platforms.md``.
+    The closing step of a circular chain is one more bond of the same forces, from node
+    ``n - 1`` to the three massless image particles of node 0 (:func:`add_closure_image`), so a
+    circular chain compiles the same expressions as an open one. Measured in
+    ``benchmarks/bench_portable.py`` and ``docs/platforms.md``.
 
     Parameters
     ----------
@@ -217,12 +203,14 @@ def elastic_compound_forces(model, radius, split=None, order=None):
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius of every node, nm.
     split : bool or None
-        One force per row of the Cholesky factor; ``None``: split a force whose factor has more
-        than :data:`MAX_ENTRIES_PER_FORCE` entries, and every force of a circular chain (the
-        closing step's screw makes its expression about twice as large, so a circular chain
-        needs the faster compile).
+        One force per row of the Cholesky factor; ``None``: split when the factor has more
+        than :data:`MAX_ENTRIES_PER_FORCE` entries.
     order : sequence of int, optional
         Strain order of the factorisation (default :data:`STRAIN_ORDER`).
+    image : int, optional
+        Circular chain: index of the first of the three image particles of node 0 (default
+        ``3 n_nodes``, where :func:`add_closure_image` puts them; ``0``, node 0 itself, for the
+        identity closure of a plain ring); the System must hold them.
 
     Returns
     -------
@@ -231,39 +219,81 @@ def elastic_compound_forces(model, radius, split=None, order=None):
     """
     n = model.n_nodes
     radius = np.asarray(radius, float)
-    k1 = (np.arange(n - 1 if model.closure is None else n) + 1) % n
-    ka = np.arange(k1.size)
-    P, c, alpha, beta, rho = portable_parameters(model.params.stiffness, model.params.intrinsic, model.ds,
-                                                 radius[ka], radius[k1], order)
-    uniform = bool(np.all(radius == radius[0]))
-    forces = []
     circular = model.closure is not None
-    blocks = [(np.arange(n - 1), False)] + ([(np.array([n - 1]), True)] if circular else [])
-    for steps, image in blocks:
-        if steps.size == 0:
-            continue
-        used = used_stiffness_pairs(P, steps)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
-        all_rows = sorted({a for a, _ in used})
-        do_split = (circular or len(used) > MAX_ENTRIES_PER_FORCE) if split is None else bool(split)
-        row_groups = [[a] for a in all_rows] if do_split else [all_rows]
-        closure = model.closure if image else None
-        for rows in row_groups:
-            pairs = [(a, b) for a, b in used if a in rows]
-            f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, image, closure, uniform))
-            names = [f"dnarod_P{a + 1}{b + 1}" for a, b in pairs] + [f"dnarod_c{a + 1}" for a in rows]
-            names += ["dnarod_alpha", "dnarod_beta"] + ([] if uniform else ["dnarod_rho"])
-            for name in names:
-                f.addPerBondParameter(name)
-            for k in steps:
-                vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows] + [alpha[k], beta[k]]
-                vals += [] if uniform else [rho[k]]
-                j = k1[k]
-                f.addBond([3 * k, 3 * k + 1, 3 * k + 2, 3 * j, 3 * j + 1, 3 * j + 2], [float(v) for v in vals])
-            f.setForceGroup(GROUPS["elastic"])
-            f.setName("dnarod elastic (portable)" + (" closure" if image else "")
-                      + (f" rows {','.join(str(a + 1) for a in rows)}" if len(row_groups) > 1 else ""))
-            forces.append(f)
+    steps = np.arange(n if circular else n - 1)
+    k1 = (steps + 1) % n
+    P, c, alpha, beta, rho = portable_parameters(model.params.stiffness, model.params.intrinsic, model.ds,
+                                                 radius[steps], radius[k1], order)
+    uniform = bool(np.all(radius == radius[0]))
+    second = [[3 * j, 3 * j + 1, 3 * j + 2] for j in k1]
+    if circular:  # the closing step's second node is the screw image of node 0
+        first = (0 if is_identity(model.closure) else 3 * n) if image is None else int(image)
+        second[-1] = [first, first + 1, first + 2]
+    forces = []
+    if steps.size == 0:
+        return forces
+    used = used_stiffness_pairs(P)  # entries of the Cholesky factor (zero pattern of K, no fill-in)
+    all_rows = sorted({a for a, _ in used})
+    do_split = len(used) > MAX_ENTRIES_PER_FORCE if split is None else bool(split)
+    row_groups = [[a] for a in all_rows] if do_split else [all_rows]
+    for rows in row_groups:
+        pairs = [(a, b) for a, b in used if a in rows]
+        f = openmm.CustomCompoundBondForce(6, elastic_expression(pairs, uniform))
+        names = [f"dnarod_P{a + 1}{b + 1}" for a, b in pairs] + [f"dnarod_c{a + 1}" for a in rows]
+        names += ["dnarod_alpha", "dnarod_beta"] + ([] if uniform else ["dnarod_rho"])
+        for name in names:
+            f.addPerBondParameter(name)
+        for k in steps:
+            vals = [P[k, a, b] for a, b in pairs] + [c[k, a] for a in rows] + [alpha[k], beta[k]]
+            vals += [] if uniform else [rho[k]]
+            f.addBond([3 * k, 3 * k + 1, 3 * k + 2] + second[k], [float(v) for v in vals])
+        f.setForceGroup(GROUPS["elastic"])
+        f.setName("dnarod elastic (portable)"
+                  + (f" rows {','.join(str(a + 1) for a in rows)}" if len(row_groups) > 1 else ""))
+        forces.append(f)
     return forces
+
+
+def is_identity(closure):
+    """True for the plain ring closure (``Q = I``, ``t = 0`` exactly): node 0 is its own image."""
+    return bool(np.array_equal(closure.Q, np.eye(3)) and not np.any(closure.t))
+
+
+def add_closure_image(system, model):
+    """Add the screw image of node 0 to ``system`` for the portable path of a circular chain.
+
+    Three massless particles (indices ``3n, 3n+1, 3n+2`` when added right after the nodes'
+    particles), each an OpenMM ``SymmetrySite`` of one particle of node 0: ``Q x + t`` in
+    Cartesian coordinates, the closure screw of :class:`dnarod.strains.Closure`. The closing
+    step's second node is then an ordinary node of :func:`elastic_compound_forces` (its centre
+    ``Q c_0 + t``, its directors ``Q d_a(0)``, as in :mod:`dnarod.strains`); OpenMM moves the
+    sites with node 0 and hands their forces back to it (``Q^T F``).
+
+    Parameters
+    ----------
+    system : openmm.System
+        Holds the ``3 n`` particles of the nodes (node 0 owns particles 0, 1, 2).
+    model : RodModel
+        Circular (``model.closure`` set).
+
+    Returns
+    -------
+    int
+        Index of the first image particle; ``0`` (node 0 itself, nothing added) for the identity
+        closure of a plain ring (:func:`is_identity`).
+    """
+    if model.closure is None:
+        raise ParameterError("add_closure_image needs a circular model (model.closure is None)")
+    if is_identity(model.closure):
+        return 0
+    Q = np.asarray(model.closure.Q, float)
+    t = openmm.Vec3(*map(float, model.closure.t))
+    rows = [openmm.Vec3(*map(float, Q[i])) for i in range(3)]
+    first = system.getNumParticles()
+    for i in range(3):
+        system.addParticle(0.0)
+        system.setVirtualSite(first + i, openmm.SymmetrySite(i, rows[0], rows[1], rows[2], t, False))
+    return first
 
 
 # ----------------------------------------------------------------------------------------

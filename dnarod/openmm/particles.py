@@ -31,7 +31,10 @@ Velocity convention: a node moves with centre velocity ``v`` (lab, nm/ps) and an
 velocity ``omega`` given in the **body frame** (rad/ps, components on d1, d2, d3, as in
 design A0 and the ``.dtraj`` format); particle i has velocity ``v + (L omega) x (p_i - c)``.
 
-Particle order: node k owns particles ``3k, 3k+1, 3k+2``.
+Particle order: node k owns particles ``3k, 3k+1, 3k+2``. With the portable elastic path a
+circular chain's System holds three more, massless particles ``3n, 3n+1, 3n+2``: the closure
+screw's image of node 0's particles (none for a plain ring, whose closure is the identity) (:func:`closure_image_positions`,
+:func:`dnarod.openmm.forces.add_closure_image`).
 """
 from __future__ import annotations
 
@@ -102,6 +105,25 @@ def particle_positions(centres, frames, radius):
     r = np.broadcast_to(np.asarray(radius, float), centres.shape[:1])
     off = np.einsum("kab,ib->kia", frames, BODY_OFFSETS) * r[:, None, None]
     return (centres[:, None, :] + off).reshape(-1, 3)
+
+
+def closure_image_positions(particles, closure):
+    """Positions of the screw image of node 0's particles, ``Q x_i + t`` (i = 0, 1, 2).
+
+    Parameters
+    ----------
+    particles : ndarray, shape (3 n_nodes, 3) or longer
+        nm; rows 0-2 are node 0's particles.
+    closure : Closure
+        The closure screw (``Q`` (3, 3), ``t`` (3,) nm).
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        nm.
+    """
+    x = np.asarray(particles, float)[:3]
+    return x @ np.asarray(closure.Q, float).T + np.asarray(closure.t, float)
 
 
 def node_poses(particles):

@@ -38,8 +38,8 @@ from ..run.spec import model_fingerprint
 from ..thermal import kT as kT_of, kinetic_temperature
 from ..units import md_value
 from .forces import GROUPS, loads_kernel
-from .particles import (node_poses, node_velocities, particle_forces_to_loads, particle_positions,
-                        particle_velocities)
+from .particles import (closure_image_positions, node_poses, node_velocities, particle_forces_to_loads,
+                        particle_positions, particle_velocities)
 from .platforms import choose_platform
 from .system import build_system
 
@@ -139,7 +139,7 @@ class RodSimulation:
         self.integrator = integ
         t0 = time.perf_counter()
         self.context = openmm.Context(self.rs.system, integ, plat, props)
-        self.context.setPositions(particle_positions(model.positions, model.frames, self.rs.radius))
+        self.set_particle_positions(particle_positions(model.positions, model.frames, self.rs.radius))
         self.context_time = time.perf_counter() - t0
         self._state_cache = None
         self._report_cache = None
@@ -153,6 +153,19 @@ class RodSimulation:
         self.fingerprint = model_fingerprint(model, pose=False)
 
     # --- node state -------------------------------------------------------------------
+    def set_particle_positions(self, particles):
+        """Set the positions of the nodes' particles, shape (3 n_nodes, 3) nm (the closure image particles of
+        the portable path of a circular chain, if any, follow node 0)."""
+        x = np.asarray(particles, float)
+        if self.rs.image is not None:
+            x = np.vstack([x, closure_image_positions(x, self.model.closure)])
+        self.invalidate()
+        self.context.setPositions(x)
+
+    def node_particles(self, array):
+        """The rows of a per-particle array (positions, velocities, forces) that belong to the nodes, (3 n_nodes, 3)."""
+        return md_value(array)[:3 * self.model.n_nodes]
+
     def set_node_velocities(self, velocities, angular_velocities):
         """Set on-step node velocities at the current positions.
 
@@ -173,15 +186,17 @@ class RodSimulation:
                 raise ParameterError(f"{name} must have shape ({n}, 3), got {np.shape(a)}")
         self.invalidate()
         st = self.context.getState(getPositions=True, getForces=True)
-        p = md_value(st.getPositions(asNumpy=True))
+        p = self.node_particles(st.getPositions(asNumpy=True))
         _, frames = node_poses(p)
-        F, tau = particle_forces_to_loads(p, md_value(st.getForces(asNumpy=True)))
+        F, tau = particle_forces_to_loads(p, self.node_particles(st.getForces(asNumpy=True)))
         h = 0.5 * self.dt
         v = np.asarray(velocities, float) - h * F / self.model.mass[:, None]
         w = np.asarray(angular_velocities, float) - h * np.einsum("kab,ka->kb", frames, tau) / self.model.inertia
         u = particle_velocities(frames, self.rs.radius, v, w)
         for k in self.rs.clamped:
             u[3 * k:3 * k + 3] = 0.0
+        if self.rs.image is not None:  # massless image particles (OpenMM does not integrate them)
+            u = np.vstack([u, np.zeros((3, 3))])
         self.context.setVelocities(u)
 
     def thermalize(self, temperature, seed=None):
@@ -201,7 +216,7 @@ class RodSimulation:
                 rows = rep[0]
                 return rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy()
         state = state or self._full_state()
-        return node_poses(md_value(state.getPositions(asNumpy=True)))
+        return node_poses(self.node_particles(state.getPositions(asNumpy=True)))
 
     def node_state(self, state=None, on_step=True):
         """``(centres, frames, velocities (lab, nm/ps), angular velocities (body, rad/ps))``.
@@ -219,12 +234,12 @@ class RodSimulation:
                 return (rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy(), rows[:, 12:15].copy(),
                         rows[:, 15:18].copy())
         state = state or self._full_state()
-        p = md_value(state.getPositions(asNumpy=True))
-        u = md_value(state.getVelocities(asNumpy=True))
+        p = self.node_particles(state.getPositions(asNumpy=True))
+        u = self.node_particles(state.getVelocities(asNumpy=True))
         c, f = node_poses(p)
         v, w = node_velocities(p, u)
         if on_step:
-            F, tau = particle_forces_to_loads(p, md_value(state.getForces(asNumpy=True)))
+            F, tau = particle_forces_to_loads(p, self.node_particles(state.getForces(asNumpy=True)))
             free = np.ones(self.model.n_nodes)
             free[self.rs.clamped] = 0.0
             h = 0.5 * self.dt * free[:, None]
@@ -375,7 +390,7 @@ class RodSimulation:
             terms["elastic"], terms["nonbonded"] = el.last_energy, sum(nb.last)
         bad = [k for k, v in terms.items() if not np.isfinite(v)]
         term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))
-        p = md_value(self.context.getState(getPositions=True).getPositions(asNumpy=True)).reshape(-1, 3, 3)
+        p = self.node_particles(self.context.getState(getPositions=True).getPositions(asNumpy=True)).reshape(-1, 3, 3)
         nonfinite = np.argwhere(~np.isfinite(p).all(axis=(1, 2)))
         if len(nonfinite):
             node = int(nonfinite[0, 0])

@@ -28,7 +28,7 @@ from openmm import app
 
 from ..errors import GeometryError, ParameterError
 from . import plugin
-from .forces import ElasticCallback, elastic_compound_forces, elastic_python_force
+from .forces import ElasticCallback, add_closure_image, elastic_compound_forces, elastic_python_force
 from .loads import build_load_forces
 from .nonbonded import NonbondedSettings, nonbonded_force
 from .particles import SQRT3, triangle_radius
@@ -81,6 +81,10 @@ class RodSystem:
     device : bool
         ``elastic == "plugin"`` on a GPU platform where the plugin's device kernels are loaded: the SMKForce is
         evaluated there and the rigid-body integrator steps there (no host copies per step).
+    image : int or None
+        Portable path of a circular chain: index of the first of the three massless image particles of node 0
+        (``3 n``; :func:`dnarod.openmm.forces.add_closure_image`), else ``None`` (also for a plain ring, whose
+        closing step ends on node 0 itself). The nodes' particles are always ``0 .. 3n-1``.
     """
 
     system: openmm.System
@@ -93,6 +97,7 @@ class RodSystem:
     elastic_callback: object = None
     residue_names: list = field(default_factory=list)
     device: bool = False
+    image: int | None = None
 
     @property
     def topology(self):
@@ -192,6 +197,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         else:
             nb_numbers = None
     elastic_cb = None
+    image = None
     device = elastic == "plugin" and platform not in plugin.PLUGIN_PLATFORMS and plugin.device_kernel(platform)[0]
     if elastic == "plugin":
         smk = plugin.smk_force(model, radius)
@@ -203,12 +209,16 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
         elastic_cb = ElasticCallback(model, radius, nonbonded=nb_cb)
         system.addForce(elastic_python_force(model, radius, callback=elastic_cb))
     else:
-        for f in elastic_compound_forces(model, radius):
+        first = add_closure_image(system, model) if model.closure is not None else None
+        for f in elastic_compound_forces(model, radius, image=first):
             system.addForce(f)
+        image = first or None  # 0: a plain ring's node 0 is its own image (no particles added)
     if nb_force is not None and elastic != "fast":  # fast: evaluated inside the elastic callback
+        if image is not None:  # the callback sees the nodes' particles only
+            nb_force.setParticles(list(range(3 * n)))
         system.addForce(nb_force)
     return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,
-                     residue_names=base_pair_names(model), device=bool(device))
+                     residue_names=base_pair_names(model), device=bool(device), image=image)
 
 
 def _check_nonbonded_overlaps(model, numbers):

@@ -18,7 +18,6 @@ import time
 
 import numpy as np
 
-from ..units import md_value
 import scipy.linalg
 
 from ._common import new_figure, save_figure
@@ -51,8 +50,8 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
 
     def loads(pos, frm):
         x = particle_positions(pos, frm, radius)
-        sim.context.setPositions(x)
-        f = md_value(sim.context.getState(getForces=True).getForces(asNumpy=True))
+        sim.set_particle_positions(x)
+        f = sim.node_particles(sim.context.getState(getForces=True).getForces(asNumpy=True))
         return particle_forces_to_loads(x, f)
 
     B = hessian_blocks(model, mass_weighted=False, load_fn=loads, rel_step=eps)

@@ -19,7 +19,6 @@ import time
 
 import numpy as np
 
-from ..units import md_value
 
 from ._common import rotation_angle
 
@@ -53,8 +52,8 @@ def _openmm_loads(model, elastic):
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference", elastic=elastic,
                         nonbonded=False, constraint_tolerance=1e-12, seed=0)
     st = sim.context.getState(getPositions=True, getForces=True)
-    x = md_value(st.getPositions(asNumpy=True))
-    f = md_value(st.getForces(asNumpy=True))
+    x = sim.node_particles(st.getPositions(asNumpy=True))
+    f = sim.node_particles(st.getForces(asNumpy=True))
     F, tau = particle_forces_to_loads(x, f)
     del openmm
     return F, tau, sim
