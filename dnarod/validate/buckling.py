@@ -63,18 +63,28 @@ def drift_z(samples_csv, column):
     return float((halves[1].mean() - halves[0].mean()) / np.hypot(*se))
 
 
-def plectoneme_twist_stiffness(ring_row, C_nm):
-    """P (nm) and its standard error from a plectonemic ring member's writhe fraction, ``P = C (1 - Wr/ΔLk)``."""
-    d = ring_row["Lk"] - ring_row["relaxed_twist"]
+def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=0.0):
+    """P (nm) and its standard error from a plectonemic ring member's writhe fraction, ``P = C (1 - Wr/ΔLk)``.
+
+    ``ΔLk = Lk - relaxed_twist``, the relaxed ring's mean twist at the run's temperature
+    (:func:`dnarod.thermal.relaxed_ribbon_twist`; turns).
+    """
+    d = ring_row["Lk"] - relaxed_twist
     f = ring_row["Wr"] / d
-    f_err = abs(ring_row["Wr_err"] / d)
+    f_err = float(np.hypot(ring_row["Wr_err"], f * relaxed_twist_err) / abs(d))
     return C_nm * (1.0 - f), C_nm * f_err, f, f_err
 
 
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                    temperature=300.0, seed=31, plots=True, member_root=None, c_override=None, P_nm=None,
-                   P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5):
-    """Run the check (see the module docstring)."""
+                   P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
+                   grown_force_pN=0.3, grown_ns=None):
+    """Run the check (see the module docstring).
+
+    ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
+    a plectoneme grown for ``grown_ns`` at ``grown_force_pN`` (longer than at the member's force), and requires
+    the two to agree; ``time_ns`` is then each member's production after its equilibration.
+    """
     import tempfile
     from pathlib import Path
 
@@ -84,6 +94,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from ..units import PN
     from ..openmm.nonbonded import NonbondedSettings
     from ..protocols.rings import run_ring_member
+    from ..thermal import relaxed_ribbon_twist
     from .supercoil_theory import effective_diameter, marko_two_phase
     from .torsion import bare_twist_persistence, moroz_nelson
 
@@ -91,9 +102,15 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     n_bp = n_bp or (400 if quick else 600)
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lk0 = intrinsic_turns(model)
-    pre_turns = 0.02 * lk0 if pre_turns is None else float(pre_turns)
-    post_turns = (0.075 * lk0, 0.098 * lk0) if post_turns is None else tuple(post_turns)
-    time_ns = time_ns or (2.0 if quick else 30.0)
+    # pre-buckling below Marko's buckling point (ΔLk_b ~ 0.018 Lk0 here, relative to the relaxed chain at T);
+    # post-buckling at ~40 % and ~70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0), so
+    # that both are in the two-phase coexistence the model describes (earlier 0.075/0.098 Lk0: at and beyond
+    # the fully plectonemic point)
+    pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
+    post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
+    time_ns = time_ns or (2.0 if quick else 60.0)
+    bracket = (not quick) if bracket is None else bool(bracket)
+    grown_ns = grown_ns or (2.0 if quick else 20.0)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
@@ -101,24 +118,60 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     C0 = bare_twist_persistence(model, temperature)
     c_mn = float(moroz_nelson(C0, A, force_pN, kt_pn))
     C_th = C0 if c_override is None else float(c_override)
+    # relaxed linking number of the chain at T (mean ribbon twist of its free steps; below the T = 0 lk0)
+    lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     ring = None
     if P_nm is None:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
+        from ..forcefield import load_forcefield as _ff
+
         ring_n_bp = ring_n_bp or (400 if quick else 600)
         ring_delta_lk = ring_delta_lk or (-2 if quick else -3)
-        ring_time_ns = ring_time_ns or (3.0 if quick else 10.0)
+        ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
         ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
                                     temperature_K=temperature), root / f"ring{ring_n_bp}_{ring_delta_lk}")
-        P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th)
-    rows, drifts = [], []
-    for i, t in enumerate((pre_turns, *post_turns)):
+        tw0_T, tw0_T_se = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring_n_bp), temperature)
+        P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th, tw0_T, tw0_T_se)
+    rows, drifts, twins = [], [], []
+
+    def member(t, i, grown):
+        tag = f"turns{t:+.3f}" + ("_grown" if grown else "")
+        extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
         r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
-                            temperature_K=temperature, seed=seed + i), root / f"turns{t:+.3f}")
+                            temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra), root / tag)
+        csv = root / tag / "samples.csv"
+        return r, dict(turns=r["turns"], start="grown" if grown else "straight",
+                       extension_z=drift_z(csv, "extension_nm"), torque_z=drift_z(csv, "twist_torque_pN_nm"))
+
+    for i, t in enumerate((pre_turns, *post_turns)):
+        r, d = member(t, i, False)
         rows.append(r)
-        csv = root / f"turns{t:+.3f}" / "samples.csv"
-        drifts.append(dict(turns=r["turns"], extension_z=drift_z(csv, "extension_nm"),
-                           torque_z=drift_z(csv, "twist_torque_pN_nm")))
+        drifts.append(d)
+        if bracket and i > 0:
+            g, dg = member(t, i, True)
+            drifts.append(dg)
+            dq = {q: (g[q] - r[q], float(np.hypot(g[q + "_err"], r[q + "_err"])))
+                  for q in ("twist_torque_pN_nm", "relative_extension", "Wr")}
+            twins.append(dict(turns=r["turns"], straight=r, grown=g,
+                              differences={q: dict(difference=v[0], standard_error=v[1]) for q, v in dq.items()},
+                              agree=bool(all(abs(v[0]) <= Z_TOL * v[1] for v in dq.values()))))
+    if twins:  # both starts of a member pooled (error-weighted; they agree, or the check fails below)
+        pooled = []
+        for tw in twins:
+            a, b = tw["straight"], tw["grown"]
+            p = dict(a)
+            for q in ("twist_torque_pN_nm", "relative_extension", "Wr", "clamp_torque_pN_nm"):
+                wa, wb = a[q + "_err"] ** -2, b[q + "_err"] ** -2
+                p[q] = (wa * a[q] + wb * b[q]) / (wa + wb)
+                p[q + "_err"] = (wa + wb) ** -0.5
+            p["plectonemic"] = min(a["plectonemic"], b["plectonemic"])
+            p["plectoneme_fraction"] = 0.5 * (a["plectoneme_fraction"] + b["plectoneme_fraction"])
+            p["wall_s"] = a["wall_s"] + b["wall_s"]
+            pooled.append(p)
+        rows = [rows[0], *pooled]
+    for r in rows:  # linking difference relative to the relaxed chain at T
+        r["delta_lk_thermal"] = r["Lk"] - lk0_T
     pre, p1, p2 = rows
-    lin = kt_pn * c_mn * 2 * np.pi * pre["delta_lk"] / L
+    lin = kt_pn * c_mn * 2 * np.pi * pre["delta_lk_thermal"] / L
     lin_ok = abs(pre["twist_torque_pN_nm"] - lin) <= Z_TOL * pre["twist_torque_pN_nm_err"] + LINEAR_ALLOWANCE * abs(lin)
     plectonemic = bool(p1["plectonemic"] > 0.5 and p2["plectonemic"] > 0.5)
     dtau = p2["twist_torque_pN_nm"] - p1["twist_torque_pN_nm"]
@@ -145,16 +198,32 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     marko_ok = abs(tau_pl - th["torque_pN_nm"]) <= marko_tol
     slope_meas = dx * L / (p2["delta_lk"] - p1["delta_lk"])
     dlk_b_meas = tau_pl * L / (kt_pn * c_mn * 2 * np.pi)
-    # equilibrated: no drift between the halves of the post-buckling members' production (plectonemes grow slowly)
+    # equilibrated: no drift between the halves of the post-buckling members' production (plectonemes grow
+    # slowly), and with ``bracket`` the straight and grown starts agree
     settled = all(abs(d["extension_z"]) <= Z_TOL and abs(d["torque_z"]) <= Z_TOL for d in drifts[1:])
+    settled = settled and all(tw["agree"] for tw in twins)
     passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled)
     res = dict(model=f"dna-default open chain, {n_bp} bp (L = {L:.1f} nm, Lk0 = {lk0:.2f}), {force_pN} pN, 0.15 M",
                temperature_K=temperature, production_ns_per_member=time_ns,
-               members=[{k: r[k] for k in ("turns", "delta_lk", "relative_extension", "relative_extension_err",
+               relaxed_linking_number_T0=lk0, relaxed_linking_number_thermal=lk0_T,
+               relaxed_linking_number_thermal_err=lk0_T_se, bracket=bool(bracket),
+               grown_start=dict(force_pN=grown_force_pN, time_ns=grown_ns) if bracket else None,
+               brackets=[dict(turns=tw["turns"], differences=tw["differences"], agree=tw["agree"],
+                              straight={q: tw["straight"][q] for q in ("twist_torque_pN_nm", "twist_torque_pN_nm_err",
+                                                                         "twist_torque_pN_nm_tau_ps",
+                                                                         "relative_extension", "relative_extension_err",
+                                                                         "extension_nm_tau_ps", "Wr", "Wr_err")},
+                              grown={q: tw["grown"][q] for q in ("twist_torque_pN_nm", "twist_torque_pN_nm_err",
+                                                                   "twist_torque_pN_nm_tau_ps",
+                                                                   "relative_extension", "relative_extension_err",
+                                                                   "extension_nm_tau_ps", "Wr", "Wr_err")})
+                         for tw in twins],
+               members=[{k: r[k] for k in ("turns", "delta_lk", "delta_lk_thermal", "relative_extension", "relative_extension_err",
                                              "twist_torque_pN_nm", "twist_torque_pN_nm_err", "clamp_torque_pN_nm",
                                              "clamp_torque_pN_nm_err", "Wr", "plectoneme_fraction", "plectonemic",
                                              "lk_slips", "wall_s")} for r in rows],
-               pre_buckling=dict(torque_pN_nm=pre["twist_torque_pN_nm"], linear_law_pN_nm=lin,
+               pre_buckling=dict(torque_pN_nm=pre["twist_torque_pN_nm"], torque_se=pre["twist_torque_pN_nm_err"],
+                                 delta_lk_thermal=pre["delta_lk_thermal"], linear_law_pN_nm=lin,
                                  moroz_nelson_C_eff_nm=c_mn, passed=bool(lin_ok)),
                plateau=dict(torque_difference_pN_nm=dtau, standard_error=dtau_se,
                             mean_torque_pN_nm=tau_pl, mean_torque_se=tau_pl_se,
@@ -171,16 +240,17 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                           extension_slope_measured_nm_per_turn=slope_meas,
                           plectonemic_delta_lk=th["plectonemic_delta_lk"]),
                drift=dict(members=drifts, settled=bool(settled)), z_tolerance=Z_TOL, passed=passed)
+    res["production_ns_per_member"] = time_ns
     if plots:
         fig, ax = new_figure(2, 1, width=4.5, height=3.6)
-        t = [r["delta_lk"] for r in rows]
+        t = [r["delta_lk_thermal"] for r in rows]
         ax[0, 0].errorbar(t, [r["twist_torque_pN_nm"] for r in rows], yerr=[r["twist_torque_pN_nm_err"] for r in rows],
                           fmt="o", capsize=3, label="twisting moment")
         tt = np.linspace(0, max(t), 20)
         ax[0, 0].plot(tt, kt_pn * c_mn * 2 * np.pi * tt / L, "k--", label="linear law, Moroz-Nelson C_eff")
         ax[0, 0].axhline(th["torque_pN_nm"], color="C3", label=f"Marko two-phase (P {P_nm:.1f} nm)")
         ax[0, 0].axhspan(th["torque_pN_nm"] - marko_tol, th["torque_pN_nm"] + marko_tol, color="C3", alpha=0.15)
-        ax[0, 0].set_xlabel("Lk - Lk0 (turns)")
+        ax[0, 0].set_xlabel("Lk - Lk0(T) (turns)")
         ax[0, 0].set_ylabel("torque (pN nm)")
         ax[0, 0].legend(fontsize=7)
         ax[0, 1].errorbar(t, [r["relative_extension"] for r in rows],
@@ -188,7 +258,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         ax[0, 1].plot([0.0, th["buckling_delta_lk"], th["plectonemic_delta_lk"]], [th["zeta"], th["zeta"], 0.0], "C3-",
                       label="Marko two-phase")
         ax[0, 1].legend(fontsize=7)
-        ax[0, 1].set_xlabel("Lk - Lk0 (turns)")
+        ax[0, 1].set_xlabel("Lk - Lk0(T) (turns)")
         ax[0, 1].set_ylabel("extension / L")
         res["plots"] = [save_figure(fig, out_dir, "buckling.png")]
     res["runtime_s"] = time.perf_counter() - t0
