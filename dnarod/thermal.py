@@ -230,14 +230,16 @@ def relaxed_ribbon_twist(model, temperature, n_samples=400, seed=0):
     ``<Tw>_relaxed`` the mean twist (of d1 about the polygon through the nodes: the Tw of ``Lk = Tw + Wr``) of
     the same steps free of any constraint (``<Wr> = 0`` for the relaxed ring by mirror symmetry of a model
     without chiral bending couplings). At T = 0 it is the sum of the intrinsic Cayley twist angles over 2 pi
-    (``dnarod.protocols.rings.relaxed_twist``); at finite T it is lower: the Cayley twist angle is
-    concave in the strain, and the rotation of a step that bends and twists at once carries less twist about
-    the polygon's edges than its d3 component (a second-order effect of the bending and shear fluctuations,
-    ~0.45 milliturn per step for ``dna-default`` at 300 K, i.e. -0.27 turns in a 600-bp ring, 9 % of
-    sigma = -0.05). Computed from ``n_samples`` exact equilibrium chains of the model's steps
-    (:func:`dnarod.thermal.sample_open_chain_strains`), each step's twist being the rotation of d1 about its
-    edge plus the corner rotation at its start node relative to parallel transport (the terms of
-    :func:`dnarod.analysis.writhe.twist`); the closing corner is taken as the mean of the others.
+    (``dnarod.protocols.rings.relaxed_twist``); at finite T it is lower, because the step rotations are
+    distributed with the invariant (Haar) measure, whose density in Cayley coordinates ``w = ds Omega`` falls
+    as ``(1 + |w|²/4)^-2`` and so pulls the mean twist strain of a step below its intrinsic value, and because
+    the twist angle ``2 atan(w_3/2)`` is concave in the strain. For ``dna-default`` at 300 K this is 0.44
+    milliturn per step (-0.27 turns in a 600-bp ring, 9 % of the linking difference at sigma = -0.05); bending
+    and shear fluctuations add nothing measurable (test). Computed from ``n_samples`` exact equilibrium chains
+    of the model's steps (:func:`sample_open_chain_strains`), each step's twist being the rotation of d1 about
+    its edge plus the corner rotation at its start node relative to parallel transport (the terms of
+    :func:`dnarod.analysis.writhe.twist`), so any bend-twist coupling of a parameter set is included; the
+    closing corner is taken as the mean of the others.
 
     Parameters
     ----------

@@ -170,7 +170,7 @@ def test_buckling_check_fails_without_plectonemes(tmp_path):
     from dnarod.validate.buckling import check_buckling
 
     r = check_buckling(tmp_path, n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.2, plots=False,
-                       member_root=tmp_path / "m", P_nm=29.7, P_err_nm=3.0)
+                       member_root=tmp_path / "m", P_nm=29.7, P_err_nm=3.0, bracket=False)
     assert not r["plateau"]["both_plectonemic"] and not r["passed"]
     assert r["pre_buckling"]["passed"]  # the linear torque law holds before buckling
 
@@ -183,7 +183,7 @@ def test_buckling_check_runs_and_fails_before_buckling(tmp_path):
     """
     from dnarod.validate.buckling import check_buckling
 
-    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m")
+    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m", bracket=False)
     good = check_buckling(tmp_path, **opts)
     assert good["plateau"]["both_plectonemic"] and np.isfinite(good["marko"]["torque_pN_nm"])
     bad = check_buckling(tmp_path, post_turns=(0.379, 0.76), **opts)

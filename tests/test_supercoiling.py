@@ -63,6 +63,29 @@ def test_twist_variance_exact_matches_the_continuum_formula():
     assert th.depew_wang_K(300, exact) == pytest.approx(300 / (2 * exact))
 
 
+def test_relaxed_twist_at_temperature():
+    """The ring's relaxed linking number at T: the T = 0 intrinsic sum in the cold limit; at 300 K the mean step
+    twist angle of the exact step distribution (no geometry), whether or not bending and shear fluctuate."""
+    from dnarod.protocols.rings import relaxed_twist
+    from dnarod.thermal import kT, relaxed_ribbon_twist, sample_step_strains
+
+    ring = FF.ring(n_nodes=200)
+    cold, se_cold = relaxed_ribbon_twist(ring, 1.0)
+    assert cold == pytest.approx(relaxed_twist(ring), abs=4 * se_cold + 1e-3)
+    warm, se = relaxed_ribbon_twist(ring, 300.0)
+    S = np.diag([100.0, 100.0, 1.0, 100.0, 100.0, 100.0])  # only the twist keeps its (marginal) fluctuations
+    from dataclasses import replace
+
+    stiff = replace(ring, params=replace(ring.params, stiffness=np.einsum("ij,kjl,lm->kim", S, ring.params.stiffness, S)))
+    tw_s, se_s = relaxed_ribbon_twist(stiff, 300.0)
+    x = sample_step_strains(ring.params.stiffness[0], ring.params.intrinsic[0], ring.ds, kT(300.0), 400_000,
+                            np.random.default_rng(2))
+    direct = 200 * float(np.mean(2 * np.arctan(0.5 * ring.ds * x[:, 2]))) / (2 * np.pi)
+    assert tw_s == pytest.approx(direct, abs=4 * se_s + 2e-3)
+    assert warm == pytest.approx(direct, abs=4 * se + 2e-3)
+    assert relaxed_twist(ring) - warm > 10 * se  # ~0.085 turns lower than the intrinsic sum at 200 bp
+
+
 def test_effective_diameter_of_the_model():
     from dnarod.openmm.nonbonded import NonbondedSettings
 
