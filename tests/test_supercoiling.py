@@ -171,9 +171,11 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
     from dnarod.validate.buckling import check_buckling
 
     root = _recorded(tmp_path, "buckling_600bp")
-    good = check_buckling(tmp_path, plots=False, member_root=root, time_ns=6.0, ring_time_ns=10.0, bracket=False)
+    opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
+                ring_delta_lk=-3, ring_time_ns=10.0, bracket=False)  # the recorded members' settings
+    good = check_buckling(tmp_path, **opts)
     assert good["marko"]["passed"] and good["drift"]["settled"] and good["passed"], good
-    bad = check_buckling(tmp_path, plots=False, member_root=root, time_ns=6.0, ring_time_ns=10.0, bracket=False,
+    bad = check_buckling(tmp_path, **opts,
                          c_override=0.5 * good["marko"]["twist_persistence_nm"])
     assert not bad["marko"]["passed"] and not bad["passed"]
 
