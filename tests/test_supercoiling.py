@@ -142,6 +142,15 @@ def test_wlc_ring_monte_carlo():
     # supercoiled: most of the linking difference goes into writhe, with the sign of ΔLk
     s = sample_ring_writhe(136.0, 50.0, 2.31, n_samples=300, seed=2, C_nm=98.3, delta_lk=-2.0)
     assert -2.0 < s["wr"].mean() < -1.0
+    # topology is kept: knot determinants of standard curves (unknot 1, trefoil 3, figure-eight 5)
+    from dnarod.validate import wlc_ring_mc
+
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    knot = wlc_ring_mc._KNOT
+    assert knot(np.stack([np.cos(t), np.sin(t), 0 * t], 1)) == 1
+    assert knot(np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], 1)) == 3
+    assert knot(np.stack([(2 + np.cos(2 * t)) * np.cos(3 * t), (2 + np.cos(2 * t)) * np.sin(3 * t),
+                          np.sin(4 * t)], 1)) == 5
     # twist made cheap (C small): the writhe fraction drops
     c = sample_ring_writhe(136.0, 50.0, 2.31, n_samples=300, seed=2, C_nm=20.0, delta_lk=-2.0)
     assert c["wr"].mean() > s["wr"].mean() + 0.3
