@@ -306,8 +306,7 @@ def sample_member(m, progress=None):
         pre = build_member({**s, "force_pN": s["start_force_pN"], "start_force_pN": None, "start_ns": None})
         psim = _member_simulation(pre, pre["model"])
         psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
-        m = {**m, "model": m["model"].with_pose(*psim.node_pose()),
-             "start": m["start"] + f", then {s['start_ns']} ns at {s['start_force_pN']} pN (grown plectoneme)"}
+        m = {**m, "model": m["model"].with_pose(*psim.node_pose())}
         del psim
     model = m["model"]
     sim = _member_simulation(m, model)
@@ -367,7 +366,10 @@ def summarize(samples, m, cost):
     L0 = m["model"].ds * m["model"].n_steps
     res = {k: s[k] for k in ("n_bp", "force_pN", "turns", "temperature_K", "salt_M", "seed")}
     res["turns"] = m["turns"] if s["turns"] is not None else None
-    res.update(start=m["start"], contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
+    start = m["start"]
+    if s.get("start_force_pN") is not None and s.get("start_ns"):
+        start += f", begun after {s['start_ns']} ns at {s['start_force_pN']} pN (grown plectoneme)"
+    res.update(start=start, contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
                tau_bend_estimate_ps=m["tau_ps"],
                equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
     dt_s = cost["sample_ps"]
