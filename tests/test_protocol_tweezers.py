@@ -170,7 +170,7 @@ def test_buckling_check_fails_without_plectonemes(tmp_path):
     from dnarod.validate.buckling import check_buckling
 
     r = check_buckling(tmp_path, n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.2, plots=False,
-                       member_root=tmp_path / "m", P_nm=29.7, P_err_nm=3.0)
+                       member_root=tmp_path / "m", P_nm=29.7, P_err_nm=3.0, bracket=False)
     assert not r["plateau"]["both_plectonemic"] and not r["passed"]
     assert r["pre_buckling"]["passed"]  # the linear torque law holds before buckling
 
@@ -183,7 +183,7 @@ def test_buckling_check_runs_and_fails_before_buckling(tmp_path):
     """
     from dnarod.validate.buckling import check_buckling
 
-    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m")
+    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m", bracket=False)
     good = check_buckling(tmp_path, **opts)
     assert good["plateau"]["both_plectonemic"] and np.isfinite(good["marko"]["torque_pN_nm"])
     bad = check_buckling(tmp_path, post_turns=(0.379, 0.76), **opts)
@@ -202,3 +202,25 @@ def test_protocols_through_the_ensemble_layer(tmp_path, kind, axes):
     c = run_protocol(kind, axes, base, tmp_path / kind, workers=1, progress=False)
     assert len(c.rows) == 2 and c.files["png"].exists()
     assert (tmp_path / kind / "ensemble" / "results.csv").exists()
+
+
+def test_bracketing_starts_keep_the_linking_number(tmp_path):
+    """A tweezers member begun from a plectoneme grown at a lower force has the straight start's Lk (same turns
+    and clamp); a bend-softened ring start has the ring's Lk and the softened model bends more easily."""
+    from dnarod.forcefield import load_forcefield
+    from dnarod.protocols.rings import bend_softened_model, run_ring_member
+    from dnarod.protocols.tweezers import run_member
+    from dnarod.thermal import kT, persistence_length
+
+    base = dict(n_bp=100, force_pN=1.0, turns=0.8, time_ns=0.02, equilibration_ns=0.01, seed=3)
+    a = run_member(base, tmp_path / "straight")
+    b = run_member(dict(base, start_force_pN=0.2, start_ns=0.05), tmp_path / "grown")
+    assert a["lk_slips"] == 0 and b["lk_slips"] == 0
+    assert b["Lk"] == pytest.approx(a["Lk"], abs=0.05) and "grown plectoneme" in b["start"]
+    ring = load_forcefield("dna-default").ring(n_nodes=200)
+    soft = bend_softened_model(ring, 3.0)
+    lp = persistence_length(ring.params, ring.ds, kT(300.0))
+    assert persistence_length(soft.params, soft.ds, kT(300.0)) == pytest.approx(lp / 3.0, rel=0.05)
+    r = run_ring_member(dict(n_bp=200, delta_lk=-1, time_ns=0.02, equilibration_ns=0.01, start_bend_softening=3.0,
+                             start_ns=0.02), tmp_path / "ring")
+    assert r["lk_integer"] == 18 and r["relaxed_twist_thermal"] < r["relaxed_twist"] - 0.05

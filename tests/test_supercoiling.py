@@ -63,6 +63,29 @@ def test_twist_variance_exact_matches_the_continuum_formula():
     assert th.depew_wang_K(300, exact) == pytest.approx(300 / (2 * exact))
 
 
+def test_relaxed_twist_at_temperature():
+    """The ring's relaxed linking number at T: the T = 0 intrinsic sum in the cold limit; at 300 K the mean step
+    twist angle of the exact step distribution (no geometry), whether or not bending and shear fluctuate."""
+    from dnarod.protocols.rings import relaxed_twist
+    from dnarod.thermal import kT, relaxed_ribbon_twist, sample_step_strains
+
+    ring = FF.ring(n_nodes=200)
+    cold, se_cold = relaxed_ribbon_twist(ring, 1.0)
+    assert cold == pytest.approx(relaxed_twist(ring), abs=4 * se_cold + 1e-3)
+    warm, se = relaxed_ribbon_twist(ring, 300.0)
+    S = np.diag([100.0, 100.0, 1.0, 100.0, 100.0, 100.0])  # only the twist keeps its (marginal) fluctuations
+    from dataclasses import replace
+
+    stiff = replace(ring, params=replace(ring.params, stiffness=np.einsum("ij,kjl,lm->kim", S, ring.params.stiffness, S)))
+    tw_s, se_s = relaxed_ribbon_twist(stiff, 300.0)
+    x = sample_step_strains(ring.params.stiffness[0], ring.params.intrinsic[0], ring.ds, kT(300.0), 400_000,
+                            np.random.default_rng(2))
+    direct = 200 * float(np.mean(2 * np.arctan(0.5 * ring.ds * x[:, 2]))) / (2 * np.pi)
+    assert tw_s == pytest.approx(direct, abs=4 * se_s + 2e-3)
+    assert warm == pytest.approx(direct, abs=4 * se + 2e-3)
+    assert relaxed_twist(ring) - warm > 10 * se  # ~0.085 turns lower than the intrinsic sum at 200 bp
+
+
 def test_effective_diameter_of_the_model():
     from dnarod.openmm.nonbonded import NonbondedSettings
 
@@ -119,6 +142,15 @@ def test_wlc_ring_monte_carlo():
     # supercoiled: most of the linking difference goes into writhe, with the sign of ΔLk
     s = sample_ring_writhe(136.0, 50.0, 2.31, n_samples=300, seed=2, C_nm=98.3, delta_lk=-2.0)
     assert -2.0 < s["wr"].mean() < -1.0
+    # topology is kept: knot determinants of standard curves (unknot 1, trefoil 3, figure-eight 5)
+    from dnarod.validate import wlc_ring_mc
+
+    t = np.linspace(0, 2 * np.pi, 90, endpoint=False)
+    knot = wlc_ring_mc._KNOT
+    assert knot(np.stack([np.cos(t), np.sin(t), 0 * t], 1)) == 1
+    assert knot(np.stack([np.sin(t) + 2 * np.sin(2 * t), np.cos(t) - 2 * np.cos(2 * t), -np.sin(3 * t)], 1)) == 3
+    assert knot(np.stack([(2 + np.cos(2 * t)) * np.cos(3 * t), (2 + np.cos(2 * t)) * np.sin(3 * t),
+                          np.sin(4 * t)], 1)) == 5
     # twist made cheap (C small): the writhe fraction drops
     c = sample_ring_writhe(136.0, 50.0, 2.31, n_samples=300, seed=2, C_nm=20.0, delta_lk=-2.0)
     assert c["wr"].mean() > s["wr"].mean() + 0.3
@@ -148,9 +180,11 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
     from dnarod.validate.buckling import check_buckling
 
     root = _recorded(tmp_path, "buckling_600bp")
-    good = check_buckling(tmp_path, plots=False, member_root=root, time_ns=6.0)
+    opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
+                ring_delta_lk=-3, ring_time_ns=10.0, bracket=False)  # the recorded members' settings
+    good = check_buckling(tmp_path, **opts)
     assert good["marko"]["passed"] and good["drift"]["settled"] and good["passed"], good
-    bad = check_buckling(tmp_path, plots=False, member_root=root, time_ns=6.0,
+    bad = check_buckling(tmp_path, **opts,
                          c_override=0.5 * good["marko"]["twist_persistence_nm"])
     assert not bad["marko"]["passed"] and not bad["passed"]
 

@@ -3,7 +3,9 @@
 The ring is :meth:`dnarod.forcefield.ForceField.ring` (a planar circle with ``Lk = Lk0 + delta_lk``, the
 relaxed ``Lk0 = round(intrinsic twist / 2 pi)``), run with Langevin dynamics (the dynamics conserve Lk);
 each sample reports Tw (ribbon twist of d1), Wr (exact polygon writhe), Lk = Tw + Wr (checked to be the
-integer set), the writhe fraction ``Wr / (Lk - Tw0)`` with ``Tw0`` the relaxed twist, and the plectoneme
+integer set), the writhe fraction ``Wr / (Lk - Tw0_T)`` with ``Tw0_T`` the relaxed ring's mean twist at the
+run's temperature (:func:`dnarod.validate.supercoil_theory.thermal_relaxed_twist`; ``relaxed_twist`` is the
+T = 0 value, the sum of intrinsic twist angles, 0.27 turns higher for 600 bp of dna-default), and the plectoneme
 detector of :mod:`dnarod.protocols.measure` with chain separations wrapping around.
 
 Nicked rings (free linking number) are not sampled by this module: a nick with zero twist stiffness
@@ -30,7 +32,7 @@ COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_lengt
 def _settings(s):
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
                temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform="CPU",
-               threads=1, electrostatics=True, excluded_volume=True)
+               threads=1, electrostatics=True, excluded_volume=True, start_bend_softening=None, start_ns=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -54,6 +56,20 @@ def check_ring(delta_lk, lk0):
         raise DnarodError(f"delta_lk {int(d)} is sigma = {d / lk0:+.3f} for Lk0 = {lk0:.1f}: beyond |sigma| = "
                           f"{MAX_SIGMA:g} real DNA denatures or changes structure and the elastic rod is outside its "
                           f"calibration; use |delta_lk| <= {int(MAX_SIGMA * lk0)}")
+
+
+def bend_softened_model(model, factor):
+    """The model with its bending rows and columns of every step's stiffness scaled by ``1/factor``.
+
+    ``K' = S K S`` with ``S = diag(f^-1/2, f^-1/2, 1, 1, 1, 1)`` (f = ``factor``): the bending persistence
+    length falls by about f, the matrix stays positive definite, the intrinsic strains and pose are kept.
+    Used only to prepare starts (a ring that writhes more than the model's own).
+    """
+    from dataclasses import replace
+
+    S = np.diag([float(factor) ** -0.5] * 2 + [1.0] * 4)
+    K = np.einsum("ij,kjl,lm->kim", S, np.asarray(model.params.stiffness, float), S)
+    return replace(model, params=replace(model.params, stiffness=K))
 
 
 def cached_member(member_dir, key):
@@ -103,6 +119,15 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
                            salt=float(s["salt_M"]))
     t0, c0 = time.perf_counter(), time.process_time()
+    if s.get("start_bend_softening") and s.get("start_ns"):
+        # start "from above": run first with the bending stiffness divided by start_bend_softening (plectonemes
+        # cost less bending, so the ring writhes more), then continue with the model from that pose
+        soft = bend_softened_model(model, float(s["start_bend_softening"]))
+        psim = RodSimulation(soft, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb,
+                             seed=int(s["seed"]) + 7919, threads=s["threads"])
+        psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
+        model = model.with_pose(*psim.node_pose())
+        del psim
     sim = RodSimulation(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
                         threads=s["threads"])
     dt = sim.dt
@@ -150,7 +175,8 @@ def run_ring_member(settings, member_dir, progress=None):
     from .measure import plectoneme_state
 
     s = _settings(settings)
-    key = jsonable(s)
+    # start options left unset are not part of the key (members recorded before they existed stay valid)
+    key = jsonable({k: v for k, v in s.items() if not (k in ("start_bend_softening", "start_ns") and v is None)})
     cached, done = cached_member(member_dir, key)
     if cached is not None:
         return cached
@@ -182,7 +208,11 @@ def run_ring_member(settings, member_dir, progress=None):
         res[c + "_tau_ps"] = float(t * stride * dt) if np.isfinite(t) else None
     res["lk_integer"] = int(np.rint(out["Lk"]).min()) if np.ptp(np.rint(out["Lk"])) == 0 else None
     res["delta_lk_measured"] = res["Lk"] - round(tw0)
-    d = res["Lk"] - tw0
+    from ..thermal import relaxed_ribbon_twist as thermal_relaxed_twist
+
+    # the linking difference that supercoils the ring is relative to the relaxed ring's mean twist at T
+    res["relaxed_twist_thermal"], res["relaxed_twist_thermal_err"] = thermal_relaxed_twist(model, T)
+    d = res["Lk"] - res["relaxed_twist_thermal"]
     res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
     write_member(member_dir, done, key, COLUMNS, out, res)
     return jsonable(res)

@@ -148,7 +148,7 @@ def _settings(s):
     out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
                friction_per_ps=None, sample_ps=None, platform="CPU", threads=1, electrostatics=True,
-               excluded_volume=True, elastic="auto")
+               excluded_volume=True, elastic="auto", start_force_pN=None, start_ns=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -274,22 +274,42 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
     sim.invalidate()
 
 
-def sample_member(m, progress=None):
-    """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs."""
+def _member_simulation(m, model):
+    """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``)."""
     from ..openmm.nonbonded import NonbondedSettings
     from ..openmm.simulation import RodSimulation
+
+    s = m["settings"]
+    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
+                           salt=float(s["salt_M"]))
+    # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
+    # is built) applies; settings["elastic"] can force another path
+    return RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
+                         nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
+                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"]))
+
+
+def sample_member(m, progress=None):
+    """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs.
+
+    With ``start_force_pN`` and ``start_ns`` set, the member first runs ``start_ns`` at ``start_force_pN`` (same
+    turns and clamp target, so the same linking number) and starts from that pose: past buckling, a lower
+    force grows a longer plectoneme, so the member approaches its equilibrium from the other side than from
+    the straight start (a bracket of the equilibrium).
+    """
     from .measure import clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
 
     s = m["settings"]
-    model = m["model"]
-    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
-                           salt=float(s["salt_M"]))
     t0, c0 = time.perf_counter(), time.process_time()
-    # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
-    # is built) applies; settings["elastic"] can force another path
-    sim = RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
-                        nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
-                        elastic=s["elastic"], extra_forces=tweezers_wall_forces(model))
+    if s["start_force_pN"] is not None and s["start_ns"]:
+        # start "from above": a longer plectoneme grown at a lower force (same turns, same clamp target)
+        pre = build_member({**s, "force_pN": s["start_force_pN"], "start_force_pN": None, "start_ns": None})
+        psim = _member_simulation(pre, pre["model"])
+        psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
+        m = {**m, "model": m["model"].with_pose(*psim.node_pose())}
+        del psim
+    model = m["model"]
+    sim = _member_simulation(m, model)
     dt = sim.dt
     stride = max(1, int(round(m["sample_ps"] / dt)))
     n_eq = int(round(m["equilibration_ps"] / dt))
@@ -346,7 +366,10 @@ def summarize(samples, m, cost):
     L0 = m["model"].ds * m["model"].n_steps
     res = {k: s[k] for k in ("n_bp", "force_pN", "turns", "temperature_K", "salt_M", "seed")}
     res["turns"] = m["turns"] if s["turns"] is not None else None
-    res.update(start=m["start"], contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
+    start = m["start"]
+    if s.get("start_force_pN") is not None and s.get("start_ns"):
+        start += f", begun after {s['start_ns']} ns at {s['start_force_pN']} pN (grown plectoneme)"
+    res.update(start=start, contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
                tau_bend_estimate_ps=m["tau_ps"],
                equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
     dt_s = cost["sample_ps"]
@@ -381,7 +404,8 @@ def run_member(settings, member_dir, progress=None):
     member_dir = ensure_dir(Path(member_dir), "member folder")
     m = build_member(settings)
     done = member_dir / "protocol_result.json"
-    key = jsonable(m["settings"])
+    # start options left unset are not part of the key (members recorded before they existed stay valid)
+    key = jsonable({k: v for k, v in m["settings"].items() if not (k in ("start_force_pN", "start_ns") and v is None)})
     if done.exists():
         old = json.loads(done.read_text())
         if old.get("settings") == key:

@@ -4,7 +4,12 @@ two-phase model with the model's own A, C and plectoneme twist stiffness P.
 System: an open ``dna-default`` chain in magnetic tweezers at constant force (node 0 clamped, rotation clamp and
 force on the last node, surface and bead walls; :mod:`dnarod.protocols.tweezers`), OpenMM engine, WCA +
 Debye-Hueckel at 0.15 M. Members at one pre-buckling number of turns and at two numbers of turns past
-buckling; and one closed ring at sigma ~ -0.05 (:mod:`dnarod.protocols.rings`) that measures the model's P.
+buckling; and one closed ring (:mod:`dnarod.protocols.rings`) that measures the model's P.
+
+Linking differences are relative to the relaxed chain at the run's temperature
+(:func:`dnarod.thermal.relaxed_ribbon_twist`: the mean ribbon twist of the free steps, 0.27 turns below the T = 0
+sum of intrinsic twist angles for 600 bp), both for the tweezers chain (``delta_lk_thermal``) and for the ring
+that gives P.
 
 Theory (:func:`dnarod.validate.supercoil_theory.marko_two_phase`; J. F. Marko, Phys. Rev. E 76:021926, 2007):
 plateau torque ``tau* = sqrt(2 kT g / (1/P - 1/C_s))`` (also the torque at buckling), buckling point
@@ -13,12 +18,19 @@ length, C_s the Moroz-Nelson effective twist stiffness of the model's bare C at 
 ``torsion``) and P the plectoneme twist stiffness, which the two-phase model takes as a parameter: it is set by
 the plectoneme's bending, twist and self-repulsion, i.e. by the model's A, C and effective diameter at this salt
 (:func:`~dnarod.validate.supercoil_theory.effective_diameter`, reported). It is measured here from the same
-model in the other plectonemic geometry, a closed ring: ``P = C (1 - Wr/ΔLk)``.
+model in the other plectonemic geometry, a closed ring: ``P = C (1 - Wr/ΔLk)``. The model's plectoneme free
+energy is not exactly quadratic (P falls slowly with the linking density: 19.7, 18.0, 17.3 nm from 600-bp
+rings at sigma -0.051, -0.068, -0.086), so the ring is taken at the linking density of the plectonemic phase
+at coexistence, ``Omega_p = tau*/(kT P)`` (~0.16 rad/nm at 1 pN): ΔLk = -5 for 600 bp (sigma -0.086, 0.150
+rad/nm; both densities are reported). A ring at sigma -0.05, half that density, overstates P and the
+plateau (12.3 instead of 11.3 pN nm).
 
 Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing else:
 
 0. the post-buckling members are equilibrated: the means of extension and torque over the two halves of their
-   production agree within ``Z_TOL`` SE (plectonemes grow for tens of ns after buckling from the straight start);
+   production agree within ``Z_TOL`` SE, and (``bracket``, the full form) each member run from the straight
+   start and from a plectoneme grown at 0.3 pN (longer than at 1 pN) agrees with its twin in torque,
+   extension and writhe within ``Z_TOL`` SE; the twins are then pooled;
 1. both post-buckling members are plectonemic (detector of :mod:`dnarod.protocols.measure`);
 2. their torques agree (the plateau is flat): ``|Δtau| <= Z_TOL SE``;
 3. the extension falls between them by more than ``Z_TOL SE``;
@@ -29,12 +41,18 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    estimated as the change of tau* between the first-order C_s that Marko uses and the third-order Moroz-Nelson
    C_s (``theory_truncation_pN_nm``, reported).
 
+Turns: pre-buckling 0.01 Lk0 (below Marko's ΔLk_b ~ 0.018 Lk0), post-buckling 0.045 and 0.063 Lk0, about 40 %
+and 70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0 at 1 pN). The earlier 0.075 and
+0.098 Lk0 lay at and beyond the fully plectonemic point, outside the coexistence the model describes.
+Plectonemes grow for ~40 ns from the straight start at 600 bp and their size then fluctuates slowly
+(extension autocorrelation time 4-8 ns): the full form runs 150 ns of production per member (five members,
+~30 CPU minutes on the plugin); with 60 ns the 2.57-turn member still drifted (z -3.2).
+
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
 buckling and takes length in short chains (see the README for the measured numbers). ``c_override`` replaces the
 model's C in the theory, in C_s and in P = C (1 - Wr/ΔLk) (the tests show the check failing with C halved);
 ``P_nm``/``P_err_nm`` skip the ring.
-The earlier 2 pN nm plateau allowance is gone (600 bp: the two plateau torques agree within 3 SE without it).
 """
 from __future__ import annotations
 
@@ -45,6 +63,7 @@ import numpy as np
 from ._common import new_figure, save_figure
 
 NAME = "buckling"
+TWO_PI_ = 2.0 * np.pi
 Z_TOL = 3.0
 LINEAR_ALLOWANCE = 0.15
 
@@ -63,18 +82,28 @@ def drift_z(samples_csv, column):
     return float((halves[1].mean() - halves[0].mean()) / np.hypot(*se))
 
 
-def plectoneme_twist_stiffness(ring_row, C_nm):
-    """P (nm) and its standard error from a plectonemic ring member's writhe fraction, ``P = C (1 - Wr/ΔLk)``."""
-    d = ring_row["Lk"] - ring_row["relaxed_twist"]
+def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=0.0):
+    """P (nm) and its standard error from a plectonemic ring member's writhe fraction, ``P = C (1 - Wr/ΔLk)``.
+
+    ``ΔLk = Lk - relaxed_twist``, the relaxed ring's mean twist at the run's temperature
+    (:func:`dnarod.thermal.relaxed_ribbon_twist`; turns).
+    """
+    d = ring_row["Lk"] - relaxed_twist
     f = ring_row["Wr"] / d
-    f_err = abs(ring_row["Wr_err"] / d)
+    f_err = float(np.hypot(ring_row["Wr_err"], f * relaxed_twist_err) / abs(d))
     return C_nm * (1.0 - f), C_nm * f_err, f, f_err
 
 
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                    temperature=300.0, seed=31, plots=True, member_root=None, c_override=None, P_nm=None,
-                   P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5):
-    """Run the check (see the module docstring)."""
+                   P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
+                   grown_force_pN=0.3, grown_ns=None):
+    """Run the check (see the module docstring).
+
+    ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
+    a plectoneme grown for ``grown_ns`` at ``grown_force_pN`` (longer than at the member's force), and requires
+    the two to agree; ``time_ns`` is then each member's production after its equilibration.
+    """
     import tempfile
     from pathlib import Path
 
@@ -84,6 +113,8 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from ..units import PN
     from ..openmm.nonbonded import NonbondedSettings
     from ..protocols.rings import run_ring_member
+    from ..protocols.measure import twisting_moment_offset
+    from ..thermal import relaxed_ribbon_twist
     from .supercoil_theory import effective_diameter, marko_two_phase
     from .torsion import bare_twist_persistence, moroz_nelson
 
@@ -91,9 +122,15 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     n_bp = n_bp or (400 if quick else 600)
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lk0 = intrinsic_turns(model)
-    pre_turns = 0.02 * lk0 if pre_turns is None else float(pre_turns)
-    post_turns = (0.075 * lk0, 0.098 * lk0) if post_turns is None else tuple(post_turns)
-    time_ns = time_ns or (2.0 if quick else 30.0)
+    # pre-buckling below Marko's buckling point (ΔLk_b ~ 0.018 Lk0 here, relative to the relaxed chain at T);
+    # post-buckling at ~40 % and ~70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0), so
+    # that both are in the two-phase coexistence the model describes (earlier 0.075/0.098 Lk0: at and beyond
+    # the fully plectonemic point)
+    pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
+    post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
+    time_ns = time_ns or (2.0 if quick else 150.0)
+    bracket = (not quick) if bracket is None else bool(bracket)
+    grown_ns = grown_ns or (2.0 if quick else 20.0)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
@@ -101,25 +138,67 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     C0 = bare_twist_persistence(model, temperature)
     c_mn = float(moroz_nelson(C0, A, force_pN, kt_pn))
     C_th = C0 if c_override is None else float(c_override)
+    # relaxed linking number of the chain at T (mean ribbon twist of its free steps; below the T = 0 lk0)
+    lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     ring = None
     if P_nm is None:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
+        from ..forcefield import load_forcefield as _ff
+
         ring_n_bp = ring_n_bp or (400 if quick else 600)
-        ring_delta_lk = ring_delta_lk or (-2 if quick else -3)
-        ring_time_ns = ring_time_ns or (3.0 if quick else 10.0)
+        ring_delta_lk = ring_delta_lk or (-3 if quick else -5)
+        ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
         ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
                                     temperature_K=temperature), root / f"ring{ring_n_bp}_{ring_delta_lk}")
-        P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th)
-    rows, drifts = [], []
-    for i, t in enumerate((pre_turns, *post_turns)):
+        tw0_T, tw0_T_se = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring_n_bp), temperature)
+        P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th, tw0_T, tw0_T_se)
+    rows, drifts, twins = [], [], []
+
+    def member(t, i, grown):
+        tag = f"turns{t:+.3f}" + ("_grown" if grown else "")
+        extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
         r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
-                            temperature_K=temperature, seed=seed + i), root / f"turns{t:+.3f}")
+                            temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra), root / tag)
+        csv = root / tag / "samples.csv"
+        return r, dict(turns=r["turns"], start="grown" if grown else "straight",
+                       extension_z=drift_z(csv, "extension_nm"), torque_z=drift_z(csv, "twist_torque_pN_nm"))
+
+    for i, t in enumerate((pre_turns, *post_turns)):
+        r, d = member(t, i, False)
         rows.append(r)
-        csv = root / f"turns{t:+.3f}" / "samples.csv"
-        drifts.append(dict(turns=r["turns"], extension_z=drift_z(csv, "extension_nm"),
-                           torque_z=drift_z(csv, "twist_torque_pN_nm")))
+        drifts.append(d)
+        if bracket and i > 0:
+            g, dg = member(t, i, True)
+            drifts.append(dg)
+            dq = {q: (g[q] - r[q], float(np.hypot(g[q + "_err"], r[q + "_err"])))
+                  for q in ("twist_torque_pN_nm", "relative_extension", "Wr")}
+            twins.append(dict(turns=r["turns"], straight=r, grown=g,
+                              differences={q: dict(difference=v[0], standard_error=v[1]) for q, v in dq.items()},
+                              agree=bool(all(abs(v[0]) <= Z_TOL * v[1] for v in dq.values()))))
+    if twins:  # both starts of a member pooled (error-weighted; they agree, or the check fails below)
+        pooled = []
+        for tw in twins:
+            a, b = tw["straight"], tw["grown"]
+            p = dict(a)
+            for q in ("twist_torque_pN_nm", "relative_extension", "Wr", "clamp_torque_pN_nm"):
+                wa, wb = a[q + "_err"] ** -2, b[q + "_err"] ** -2
+                p[q] = (wa * a[q] + wb * b[q]) / (wa + wb)
+                p[q + "_err"] = (wa + wb) ** -0.5
+            p["plectonemic"] = min(a["plectonemic"], b["plectonemic"])
+            p["plectoneme_fraction"] = 0.5 * (a["plectoneme_fraction"] + b["plectoneme_fraction"])
+            p["wall_s"] = a["wall_s"] + b["wall_s"]
+            pooled.append(p)
+        rows = [rows[0], *pooled]
+    # the twisting-moment estimator reads a nonzero torque on a torque-free chain (Haar measure of the step
+    # rotations; measure.twisting_moment_offset): subtract it, and carry its error into absolute comparisons
+    tq_off, tq_off_se = twisting_moment_offset(model, temperature)
+    rows = [dict(r, twist_torque_pN_nm_raw=r["twist_torque_pN_nm"], twist_torque_pN_nm=r["twist_torque_pN_nm"] - tq_off)
+            for r in rows]
+    for r in rows:  # linking difference relative to the relaxed chain at T
+        r["delta_lk_thermal"] = r["Lk"] - lk0_T
     pre, p1, p2 = rows
-    lin = kt_pn * c_mn * 2 * np.pi * pre["delta_lk"] / L
-    lin_ok = abs(pre["twist_torque_pN_nm"] - lin) <= Z_TOL * pre["twist_torque_pN_nm_err"] + LINEAR_ALLOWANCE * abs(lin)
+    lin = kt_pn * c_mn * 2 * np.pi * pre["delta_lk_thermal"] / L
+    lin_ok = (abs(pre["twist_torque_pN_nm"] - lin)
+              <= Z_TOL * float(np.hypot(pre["twist_torque_pN_nm_err"], tq_off_se)) + LINEAR_ALLOWANCE * abs(lin))
     plectonemic = bool(p1["plectonemic"] > 0.5 and p2["plectonemic"] > 0.5)
     dtau = p2["twist_torque_pN_nm"] - p1["twist_torque_pN_nm"]
     dtau_se = float(np.hypot(p1["twist_torque_pN_nm_err"], p2["twist_torque_pN_nm_err"]))
@@ -140,21 +219,39 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     w1, w2 = p1["twist_torque_pN_nm_err"] ** -2, p2["twist_torque_pN_nm_err"] ** -2
     tau_pl = (w1 * p1["twist_torque_pN_nm"] + w2 * p2["twist_torque_pN_nm"]) / (w1 + w2)
     tau_pl_se = (w1 + w2) ** -0.5
-    marko_se = float(np.hypot(tau_pl_se, tau_th_se))
+    marko_se = float(np.sqrt(tau_pl_se ** 2 + tau_th_se ** 2 + tq_off_se ** 2))
     marko_tol = Z_TOL * marko_se + trunc
     marko_ok = abs(tau_pl - th["torque_pN_nm"]) <= marko_tol
     slope_meas = dx * L / (p2["delta_lk"] - p1["delta_lk"])
     dlk_b_meas = tau_pl * L / (kt_pn * c_mn * 2 * np.pi)
-    # equilibrated: no drift between the halves of the post-buckling members' production (plectonemes grow slowly)
+    # equilibrated: no drift between the halves of the post-buckling members' production (plectonemes grow
+    # slowly), and with ``bracket`` the straight and grown starts agree
     settled = all(abs(d["extension_z"]) <= Z_TOL and abs(d["torque_z"]) <= Z_TOL for d in drifts[1:])
+    settled = settled and all(tw["agree"] for tw in twins)
     passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled)
     res = dict(model=f"dna-default open chain, {n_bp} bp (L = {L:.1f} nm, Lk0 = {lk0:.2f}), {force_pN} pN, 0.15 M",
                temperature_K=temperature, production_ns_per_member=time_ns,
-               members=[{k: r[k] for k in ("turns", "delta_lk", "relative_extension", "relative_extension_err",
-                                             "twist_torque_pN_nm", "twist_torque_pN_nm_err", "clamp_torque_pN_nm",
+               twisting_moment_offset_pN_nm=tq_off, twisting_moment_offset_se=tq_off_se,
+               relaxed_linking_number_T0=lk0, relaxed_linking_number_thermal=lk0_T,
+               relaxed_linking_number_thermal_err=lk0_T_se, bracket=bool(bracket),
+               grown_start=dict(force_pN=grown_force_pN, time_ns=grown_ns) if bracket else None,
+               brackets=[dict(turns=tw["turns"], differences=tw["differences"], agree=tw["agree"],
+                              straight={q: tw["straight"][q] for q in ("twist_torque_pN_nm", "twist_torque_pN_nm_err",
+                                                                         "twist_torque_pN_nm_tau_ps",
+                                                                         "relative_extension", "relative_extension_err",
+                                                                         "extension_nm_tau_ps", "Wr", "Wr_err")},
+                              grown={q: tw["grown"][q] for q in ("twist_torque_pN_nm", "twist_torque_pN_nm_err",
+                                                                   "twist_torque_pN_nm_tau_ps",
+                                                                   "relative_extension", "relative_extension_err",
+                                                                   "extension_nm_tau_ps", "Wr", "Wr_err")})
+                         for tw in twins],
+               members=[{k: r[k] for k in ("turns", "delta_lk", "delta_lk_thermal", "relative_extension", "relative_extension_err",
+                                             "twist_torque_pN_nm", "twist_torque_pN_nm_err", "twist_torque_pN_nm_raw",
+                                             "clamp_torque_pN_nm",
                                              "clamp_torque_pN_nm_err", "Wr", "plectoneme_fraction", "plectonemic",
                                              "lk_slips", "wall_s")} for r in rows],
-               pre_buckling=dict(torque_pN_nm=pre["twist_torque_pN_nm"], linear_law_pN_nm=lin,
+               pre_buckling=dict(torque_pN_nm=pre["twist_torque_pN_nm"], torque_se=pre["twist_torque_pN_nm_err"],
+                                 delta_lk_thermal=pre["delta_lk_thermal"], linear_law_pN_nm=lin,
                                  moroz_nelson_C_eff_nm=c_mn, passed=bool(lin_ok)),
                plateau=dict(torque_difference_pN_nm=dtau, standard_error=dtau_se,
                             mean_torque_pN_nm=tau_pl, mean_torque_se=tau_pl_se,
@@ -163,6 +260,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                marko=dict(persistence_length_nm=A, twist_persistence_nm=C_th, C_s_nm=c_s, P_nm=P_nm, P_err_nm=P_err_nm,
                           P_source=("closed ring " + (f"{ring['n_bp']} bp at sigma {ring['sigma']:+.4f}: writhe fraction "
                                                       f"{f_wr:.3f} +- {f_wr_err:.3f}") if ring else "given"),
+                          ring_linking_density_rad_per_nm=(TWO_PI_ * abs(ring["Lk"] - tw0_T) / (ring["n_bp"] * model.ds)
+                                                           if ring else None),
+                          coexistence_plectoneme_density_rad_per_nm=th["omega_p"],
                           effective_diameter_nm=effective_diameter(NonbondedSettings(salt=0.15), model.ds, temperature),
                           torque_pN_nm=th["torque_pN_nm"], torque_se_from_P=tau_th_se, theory_truncation_pN_nm=trunc,
                           measured_plateau_pN_nm=tau_pl, tolerance_pN_nm=marko_tol, passed=bool(marko_ok),
@@ -171,16 +271,17 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                           extension_slope_measured_nm_per_turn=slope_meas,
                           plectonemic_delta_lk=th["plectonemic_delta_lk"]),
                drift=dict(members=drifts, settled=bool(settled)), z_tolerance=Z_TOL, passed=passed)
+    res["production_ns_per_member"] = time_ns
     if plots:
         fig, ax = new_figure(2, 1, width=4.5, height=3.6)
-        t = [r["delta_lk"] for r in rows]
+        t = [r["delta_lk_thermal"] for r in rows]
         ax[0, 0].errorbar(t, [r["twist_torque_pN_nm"] for r in rows], yerr=[r["twist_torque_pN_nm_err"] for r in rows],
                           fmt="o", capsize=3, label="twisting moment")
         tt = np.linspace(0, max(t), 20)
         ax[0, 0].plot(tt, kt_pn * c_mn * 2 * np.pi * tt / L, "k--", label="linear law, Moroz-Nelson C_eff")
         ax[0, 0].axhline(th["torque_pN_nm"], color="C3", label=f"Marko two-phase (P {P_nm:.1f} nm)")
         ax[0, 0].axhspan(th["torque_pN_nm"] - marko_tol, th["torque_pN_nm"] + marko_tol, color="C3", alpha=0.15)
-        ax[0, 0].set_xlabel("Lk - Lk0 (turns)")
+        ax[0, 0].set_xlabel("Lk - Lk0(T) (turns)")
         ax[0, 0].set_ylabel("torque (pN nm)")
         ax[0, 0].legend(fontsize=7)
         ax[0, 1].errorbar(t, [r["relative_extension"] for r in rows],
@@ -188,7 +289,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         ax[0, 1].plot([0.0, th["buckling_delta_lk"], th["plectonemic_delta_lk"]], [th["zeta"], th["zeta"], 0.0], "C3-",
                       label="Marko two-phase")
         ax[0, 1].legend(fontsize=7)
-        ax[0, 1].set_xlabel("Lk - Lk0 (turns)")
+        ax[0, 1].set_xlabel("Lk - Lk0(T) (turns)")
         ax[0, 1].set_ylabel("extension / L")
         res["plots"] = [save_figure(fig, out_dir, "buckling.png")]
     res["runtime_s"] = time.perf_counter() - t0

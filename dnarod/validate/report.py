@@ -86,14 +86,23 @@ def headline(name, r):
                     f"{_fmt(r['pre_buckling']['torque_pN_nm'], '.1f')} vs linear law "
                     f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm; drift z (extension, torque) of the "
                     f"post-buckling members " + ", ".join(f"({_fmt(d['extension_z'], '.1f')}, {_fmt(d['torque_z'], '.1f')})"
-                                                          for d in r["drift"]["members"][1:]),
+                                                          for d in r["drift"]["members"][1:])
+                    + ("; straight vs grown start: Δtau " + ", ".join(
+                        f"{_fmt(b['differences']['twist_torque_pN_nm']['difference'], '.2f')}"
+                        f"+-{_fmt(b['differences']['twist_torque_pN_nm']['standard_error'], '.2f')}"
+                        for b in r.get("brackets") or []) if r.get("brackets") else "")
+                    + f"; P from a ring at {_fmt(mk.get('ring_linking_density_rad_per_nm'), '.3f')} rad/nm "
+                      f"(coexistence {_fmt(mk.get('coexistence_plectoneme_density_rad_per_nm'), '.3f')})",
                     f"drift |z| <= {r['z_tolerance']}; |tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
                     f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE")
         if name == "plectonemes":
             return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
                     f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC {_fmt(r['reference_writhe_fraction'], '.3f')}"
                     f"+-{_fmt(r['reference_writhe_fraction_err'], '.3f')} (A {_fmt(r['reference_persistence_length_nm'], '.1f')},"
-                    f" C {_fmt(r['reference_twist_persistence_nm'], '.1f')}, d {_fmt(r['effective_diameter_nm'], '.2f')} nm)",
+                    f" C {_fmt(r['reference_twist_persistence_nm'], '.1f')}, d {_fmt(r['effective_diameter_nm'], '.2f')} nm);"
+                    f" ΔLk {_fmt(r['delta_lk'], '.3f')} relative to the relaxed twist at T"
+                    + (f"; planar vs writhed start: ΔWr {_fmt(r['bracket']['difference'], '.3f')}"
+                       f"+-{_fmt(r['bracket']['standard_error'], '.3f')}" if r.get("bracket") else ""),
                     f"{r['z_tolerance']} SE + diameter systematic {_fmt(r['diameter_systematic'], '.3f')} "
                     f"(= {_fmt(r['tolerance'], '.3f')})")
         if name == "nicked_ring":

@@ -39,6 +39,7 @@ import math
 import numpy as np
 
 from ..errors import DnarodError
+from ..thermal import relaxed_ribbon_twist as thermal_relaxed_twist  # noqa: F401  (the ring checks' Tw0 at T)
 
 TWO_PI = 2.0 * math.pi
 
