@@ -137,7 +137,22 @@ def test_torque_turns_curve_short_chain(tmp_path):
     theory = moroz_nelson(bare_twist_persistence(m, 300.0), 50.0, 3.0, kt_pn)
     assert C == pytest.approx(theory, rel=0.12)
     rows = (tmp_path / "tt" / "curve.csv").read_text().splitlines()
-    assert len(rows) == 3 and "twist_torque_pN_nm" in rows[0]
+    assert len(rows) == 3 and "twist_torque_pN_nm" in rows[0] and "twist_torque_pN_nm_raw" in rows[0]
+    # the curve's torque is on the model's zero at T: the raw twisting moment less its free-chain reading, and its
+    # linking difference is counted from the relaxed twist at T (both computed independently here)
+    from dnarod.protocols.measure import twisting_moment_offset
+    from dnarod.thermal import relaxed_ribbon_twist
+
+    off, _ = twisting_moment_offset(m, 300.0)
+    lk_T, _ = relaxed_ribbon_twist(m, 300.0)
+    for r in (lo, hi):
+        assert r["twist_torque_pN_nm_raw"] - r["twist_torque_pN_nm"] == pytest.approx(off, abs=1e-9)
+        assert r["delta_lk_thermal"] == pytest.approx(r["Lk"] - lk_T, abs=1e-9)
+    # so the torque vanishes where the linking difference does (the old T = 0 pair read ~+2.4 pN nm there)
+    w = -lo["delta_lk_thermal"] / (hi["delta_lk_thermal"] - lo["delta_lk_thermal"])
+    tau0 = (1 - w) * lo["twist_torque_pN_nm"] + w * hi["twist_torque_pN_nm"]
+    se0 = float(np.hypot((1 - w) * lo["twist_torque_pN_nm_err"], w * hi["twist_torque_pN_nm_err"]))
+    assert abs(tau0) <= 3 * se0, (tau0, se0)
     # a second call reuses the finished members (same settings)
     again = torque_turns([-0.5, 0.5], tmp_path / "tt", force_pN=3.0, source="100", workers=0,
                          base=dict(time_ns=0.3, equilibration_ns=0.1, seed=3))

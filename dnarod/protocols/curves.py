@@ -172,11 +172,51 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     for r in rows:
         if kind == "rings" and "Tw" in r:
             r["Tw_minus_Tw0"] = r["Tw"] - r["relaxed_twist"]
+    _thermal_corrections(kind, base, rows)
     curve = Curve(kind, rows)
     curve.files["csv"] = _write_csv(rows, outdir / "curve.csv")
     if plots:
         curve.files["png"] = plot_curve(kind, rows, outdir / "curve.png")
     return curve
+
+
+def _thermal_corrections(kind, base, rows):
+    """Put the curve's torques and linking differences on the model's zero at its temperature, in place.
+
+    ``twist_torque_pN_nm`` becomes the twisting moment less what it reads on a chain under no torque
+    (:func:`dnarod.protocols.measure.twisting_moment_offset`, about -1.2 pN nm for ``dna-default`` at 300 K; the
+    raw mean stays in ``twist_torque_pN_nm_raw``), and ``delta_lk_thermal`` is ``Lk`` less the relaxed linking
+    number at T (:func:`dnarod.thermal.relaxed_ribbon_twist`; ``delta_lk`` stays relative to the T = 0 sum of
+    intrinsic twist angles). The clamp torque needs no correction. Members keep their own raw results.
+    """
+    from ..forcefield import load_forcefield
+    from ..thermal import relaxed_ribbon_twist
+    from .measure import twisting_moment_offset
+
+    if not rows:
+        return
+    ff = load_forcefield(base.get("forcefield", "dna-default"))
+    src = str(base.get("source", "")).strip()
+    seq, n_nodes = (None, int(src)) if src.isdigit() else (src, None)
+    T = float(base.get("temperature_K") or 300.0)
+    if kind == "rings":
+        for r in rows:
+            if r.get("relaxed_twist_thermal") is not None and r.get("Lk") is not None:
+                r["delta_lk_thermal"] = r["Lk"] - r["relaxed_twist_thermal"]
+        return
+    model = ff.model_from_sequence(seq, n_nodes=n_nodes)
+    lk_T, lk_T_se = relaxed_ribbon_twist(model, T)
+    off, off_se = twisting_moment_offset(model, T) if kind != "force_extension" else (None, None)
+    for r in rows:
+        if r.get("Lk") is not None:
+            r["delta_lk_thermal"] = r["Lk"] - lk_T
+            r["relaxed_twist_thermal"], r["relaxed_twist_thermal_err"] = lk_T, lk_T_se
+        if off is not None and r.get("twist_torque_pN_nm") is not None:
+            r["twist_torque_pN_nm_raw"] = r["twist_torque_pN_nm"]
+            r["twist_torque_pN_nm"] = r["twist_torque_pN_nm"] - off
+            r["twist_torque_offset_pN_nm"], r["twist_torque_offset_err_pN_nm"] = off, off_se
+            if r.get("twist_torque_pN_nm_err") is not None:
+                r["twist_torque_pN_nm_err"] = float(np.hypot(r["twist_torque_pN_nm_err"], off_se))
 
 
 def _member_name(m, axes):
