@@ -121,6 +121,9 @@ def main(argv=None):
     ap.add_argument("--target", type=float, default=0.03)
     ap.add_argument("--out", default="benchmarks/results/hat_1kbp.json")
     ap.add_argument("--curve", default=None, help="a finished `dnarod protocol hat` folder: analyse its members")
+    ap.add_argument("--figure", default=None,
+                    help="with --curve: also write the curve's CSV + PNG (the protocol's own writer and plot) from "
+                         "the finished members to FIGURE.csv / FIGURE.png (for a curve still running or stopped)")
     ap.add_argument("--dirs", default=None, help="comma-separated finished member folders to analyse instead of "
                                                   "running (same order as --turns/--cut)")
     a = ap.parse_args(argv)
@@ -176,6 +179,18 @@ def main_curve(a):
                folder=str(a.curve), target=a.target, total=total, members=rows)
     out_path.parent.mkdir(parents=True, exist_ok=True)
     out_path.write_text(json.dumps(out, indent=1) + "\n")
+    if a.figure:
+        from dnarod.protocols.curves import _write_csv, plot_curve
+
+        obs = []
+        for rj in Path(a.curve).glob("ensemble/members/*/result.json"):
+            r = json.loads(rj.read_text())
+            if r.get("status") == "ok":
+                obs.append(dict(r["observables"], force_pN=r["settings"]["force_pN"], turns=r["settings"]["turns"]))
+        obs.sort(key=lambda r: r["turns"])
+        _write_csv(obs, Path(a.figure + ".csv"))
+        plot_curve("magnetic_tweezers", obs, Path(a.figure + ".png"))
+        print(f"wrote {a.figure}.csv and {a.figure}.png ({len(obs)} finished members)")
     print(f"{'turns':>6} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
           f"{'SE blk':>7} {'SE tau':>7} {'SE/x':>6} {'tau_x ns':>8} {'tau_Wr ns':>9} {'Wr':>6} {'plect':>5} "
           f"{'drift z':>7}  quarters")
