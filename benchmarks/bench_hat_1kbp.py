@@ -9,6 +9,13 @@ x/L). Prints a table and writes ``benchmarks/results/hat_1kbp.json``.
 
     python benchmarks/bench_hat_1kbp.py --turns 0,6 --time 40 [--root DIR]
     python benchmarks/bench_hat_1kbp.py --turns 0,6 --cut 10,40 --dirs runs/bench_hat_1kbp/kbp_0.0,runs/bench_hat_1kbp/kbp_6.0_long
+
+``--curve DIR`` analyses a finished ``dnarod protocol hat ... -o DIR`` instead (every member): cost, the
+integrated autocorrelation times of extension and writhe, the standard error of the extension (block and
+tau-based) relative to its value, the production in quarters (drift) and the curve's span and total CPU time;
+writes ``benchmarks/results/hat_1kbp_curve.json``.
+
+    python benchmarks/bench_hat_1kbp.py --curve runs/hat_1kbp_1pN
 """
 from __future__ import annotations
 
@@ -47,6 +54,53 @@ def analyse(member_dir, cut_ns, windows=(0, 2, 5, 10, 20, 30, 40, 50, 60, 70, 1e
                 n_effective=float((t[m][-1] - t[m][0]) / (2 * tau)))
 
 
+def analyse_curve(outdir, target=0.03):
+    """Per-member statistics and the whole-curve cost of a finished protocol folder (see the module docstring)."""
+    import datetime as _dt
+
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
+
+    rows, starts, ends = [], [], []
+    for rj in sorted(Path(outdir).glob("ensemble/members/*/protocol_result.json")):
+        mdir = rj.parent
+        res = json.loads(rj.read_text())["result"]
+        d = np.genfromtxt(mdir / "samples.csv", delimiter=",", names=True)
+        L = res["contour_length_nm"]
+        x, t = d["extension_nm"] / L, d["time_ps"] / 1000.0
+        dt = float(t[1] - t[0])
+        tau_x = float(integrated_autocorrelation_time(x)) * dt
+        tau_wr = float(integrated_autocorrelation_time(d["Wr"])) * dt
+        se_tau = float(x.std(ddof=1) * np.sqrt(2.0 * tau_x / dt / len(x)))
+        se_block = float(res["relative_extension_err"])
+        q = [float(v.mean()) for v in np.array_split(x, 4)]
+        h1, h2 = np.array_split(x, 2)
+        se_half = se_tau * np.sqrt(2.0)  # SE of a half's mean
+        for line in (mdir / "member.log").read_text().splitlines():
+            if " start: " in line:
+                starts.append(_dt.datetime.strptime(line[:19], "%Y-%m-%d %H:%M:%S").timestamp())
+        ends.append(rj.stat().st_mtime)
+        rows.append(dict(turns=res["turns"], force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
+                         cpu_s=res["cpu_s"], simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0,
+                         equilibration_ns=res["equilibration_ps"] / 1000.0, production_ns=res["production_ps"] / 1000.0,
+                         ns_per_cpu_day=res["n_steps"] * res["dt_ps"] / 1000.0 / res["cpu_s"] * 86400.0,
+                         friction_per_ps=res["friction_per_ps"], sample_ps=res["sample_ps"],
+                         x_over_L=float(x.mean()), sd_x_over_L=float(x.std(ddof=1)),
+                         se_block=se_block, se_tau=se_tau, se_rel=max(se_block, se_tau) / float(x.mean()),
+                         tau_int_extension_ns=tau_x, tau_int_wr_ns=tau_wr,
+                         n_effective=float(len(x) * dt / (2.0 * tau_x)), quarters_x_over_L=q,
+                         drift_z=float((h2.mean() - h1.mean()) / (np.sqrt(2.0) * se_half)),
+                         Wr=res["Wr"], delta_lk=res["delta_lk"], plectoneme_fraction=res["plectoneme_fraction"],
+                         twist_torque_pN_nm=res["twist_torque_pN_nm"], lk_slips=res["lk_slips"],
+                         production_ns_for_target=2 * tau_x * (float(x.std(ddof=1)) / (target * float(x.mean()))) ** 2))
+    rows.sort(key=lambda r: r["turns"])
+    span = (max(ends) - min(starts)) if rows else 0.0
+    total = dict(members=len(rows), member_cpu_s=sum(r["cpu_s"] for r in rows),
+                 member_wall_s=sum(r["wall_s"] for r in rows), simulated_ns=sum(r["simulated_ns"] for r in rows),
+                 span_wall_s=span, max_se_rel=max(r["se_rel"] for r in rows) if rows else None,
+                 members_meeting_target=sum(r["se_rel"] <= target for r in rows))
+    return rows, total
+
+
 def needed_ns(a, target_rel, target_abs):
     """Production (ns) for SE(x/L) <= target_rel * x/L and for SE(x/L) <= target_abs (SE = sd sqrt(2 tau / T))."""
     rel = 2 * a["tau_int_extension_ns"] * (a["sd_x_over_L"] / (target_rel * a["x_over_L"])) ** 2
@@ -66,9 +120,15 @@ def main(argv=None):
     ap.add_argument("--curve-members", type=int, default=12)
     ap.add_argument("--target", type=float, default=0.03)
     ap.add_argument("--out", default="benchmarks/results/hat_1kbp.json")
+    ap.add_argument("--curve", default=None, help="a finished `dnarod protocol hat` folder: analyse its members")
+    ap.add_argument("--figure", default=None,
+                    help="with --curve: also write the curve's CSV + PNG (the protocol's own writer and plot) from "
+                         "the finished members to FIGURE.csv / FIGURE.png (for a curve still running or stopped)")
     ap.add_argument("--dirs", default=None, help="comma-separated finished member folders to analyse instead of "
                                                   "running (same order as --turns/--cut)")
     a = ap.parse_args(argv)
+    if a.curve:
+        return main_curve(a)
     from dnarod.protocols.tweezers import run_member
 
     turns = [float(t) for t in a.turns.split(",")]
@@ -110,6 +170,42 @@ def main(argv=None):
         print(f"12-member curve, SE {'relative' if k == 'rel' else 'absolute'} {a.target}: {e['total_simulated_ns']:.0f} ns "
               f"simulated, {e['hours_2_dedicated_cores']:.2f} h on 2 dedicated cores, "
               f"{e['hours_2_workers_as_measured']:.2f} h at the measured (shared) speed")
+
+
+def main_curve(a):
+    rows, total = analyse_curve(a.curve, a.target)
+    out_path = Path(a.out).with_name("hat_1kbp_curve.json") if a.out.endswith("hat_1kbp.json") else Path(a.out)
+    out = dict(date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average=os.getloadavg(),
+               folder=str(a.curve), target=a.target, total=total, members=rows)
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    out_path.write_text(json.dumps(out, indent=1) + "\n")
+    if a.figure:
+        from dnarod.protocols.curves import _write_csv, plot_curve
+
+        obs = []
+        for rj in Path(a.curve).glob("ensemble/members/*/result.json"):
+            r = json.loads(rj.read_text())
+            if r.get("status") == "ok":
+                obs.append(dict(r["observables"], force_pN=r["settings"]["force_pN"], turns=r["settings"]["turns"]))
+        obs.sort(key=lambda r: r["turns"])
+        _write_csv(obs, Path(a.figure + ".csv"))
+        plot_curve("magnetic_tweezers", obs, Path(a.figure + ".png"))
+        print(f"wrote {a.figure}.csv and {a.figure}.png ({len(obs)} finished members)")
+    print(f"{'turns':>6} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
+          f"{'SE blk':>7} {'SE tau':>7} {'SE/x':>6} {'tau_x ns':>8} {'tau_Wr ns':>9} {'Wr':>6} {'plect':>5} "
+          f"{'drift z':>7}  quarters")
+    for r in rows:
+        print(f"{r['turns']:6.1f} {r['equilibration_ns']:4.0f}+{r['production_ns']:<5.0f} {r['wall_s']:7.0f} "
+              f"{r['cpu_s']:6.0f} {r['ns_per_cpu_day']:10.0f} {r['x_over_L']:6.3f} {r['sd_x_over_L']:6.3f} "
+              f"{r['se_block']:7.4f} {r['se_tau']:7.4f} {100 * r['se_rel']:5.1f}% {r['tau_int_extension_ns']:8.2f} "
+              f"{r['tau_int_wr_ns']:9.2f} {r['Wr']:6.2f} {r['plectoneme_fraction']:5.2f} {r['drift_z']:7.1f}  "
+              + " ".join(f"{v:.3f}" for v in r["quarters_x_over_L"]))
+    t = total
+    print(f"{t['members']} members, {t['simulated_ns']:.0f} ns simulated; member CPU {t['member_cpu_s']:.0f} s = "
+          f"{t['member_cpu_s'] / 3600:.2f} core-hours; member wall {t['member_wall_s']:.0f} s; span (first start to "
+          f"last finish) {t['span_wall_s']:.0f} s = {t['span_wall_s'] / 3600:.2f} h; SE/x <= {100 * a.target:g}% in "
+          f"{t['members_meeting_target']} of {t['members']} (largest {100 * t['max_se_rel']:.1f}%)")
+    return out
 
 
 if __name__ == "__main__":

@@ -289,19 +289,37 @@ def _member_simulation(m, model):
                          elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"]))
 
 
-def sample_member(m, progress=None):
+#: Wall-clock seconds between a member's checkpoints (:func:`sample_member`).
+CHECKPOINT_WALL_S = 120.0
+
+
+def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None):
     """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs.
 
     With ``start_force_pN`` and ``start_ns`` set, the member first runs ``start_ns`` at ``start_force_pN`` (same
     turns and clamp target, so the same linking number) and starts from that pose: past buckling, a lower
     force grows a longer plectoneme, so the member approaches its equilibrium from the other side than from
     the straight start (a bracket of the equilibrium).
+
+    Parameters
+    ----------
+    m : dict
+        From :func:`build_member`.
+    progress : callable, optional
+        ``progress(i, n)`` after each sample.
+    checkpoint : path, optional
+        Checkpoint file (``.npz``): written every ``checkpoint_wall_s`` wall seconds (default
+        :data:`CHECKPOINT_WALL_S`) with the OpenMM state, the samples so far, the unwrapped end rotation and the
+        cost so far; if it exists at the start (same settings), the member resumes from it (the start run is
+        not repeated), so an interrupted member loses at most that much work. Removed by :func:`run_member` once
+        the member is written.
     """
     from .measure import clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
 
     s = m["settings"]
     t0, c0 = time.perf_counter(), time.process_time()
-    if s["start_force_pN"] is not None and s["start_ns"]:
+    resuming = checkpoint is not None and Path(checkpoint).exists()
+    if s["start_force_pN"] is not None and s["start_ns"] and not resuming:
         # start "from above": a longer plectoneme grown at a lower force (same turns, same clamp target)
         pre = build_member({**s, "force_pN": s["start_force_pN"], "start_force_pN": None, "start_ns": None})
         psim = _member_simulation(pre, pre["model"])
@@ -326,16 +344,44 @@ def sample_member(m, progress=None):
         last_angle = a
         return turns_acc
 
-    done = 0
+    done, first, t_eq = 0, 0, None
+    out = {c: np.empty(n_samp) for c in COLUMNS}
+    wall0 = cpu0 = 0.0  # cost of the earlier attempts (resumed from a checkpoint)
+    key = json.dumps(_jsonable_settings(s), sort_keys=True)
+    if resuming:
+        meta = sim.load_checkpoint(checkpoint)["extra"]
+        if meta.get("settings") != key or meta.get("n_samples") != n_samp:
+            raise DnarodError(f"{checkpoint}: checkpoint of a member with other settings; delete it or use a new "
+                              f"member folder")
+        done, first = int(meta["eq_steps"]), int(meta["samples_done"])
+        last_angle, turns_acc = float(meta["last_angle"]), float(meta["turns_acc"])
+        wall0, cpu0, t_eq = float(meta["wall_s"]), float(meta["cpu_s"]), meta.get("equilibration_wall_s")
+        for c in COLUMNS:
+            out[c][:first] = meta["samples"][c]
+    last_ckpt = time.perf_counter()
+    every = CHECKPOINT_WALL_S if checkpoint_wall_s is None else float(checkpoint_wall_s)
+
+    def save(i):
+        nonlocal last_ckpt
+        if checkpoint is None:
+            return
+        sim.save_checkpoint(checkpoint, extra=dict(
+            settings=key, n_samples=n_samp, eq_steps=done, samples_done=i, last_angle=last_angle,
+            turns_acc=turns_acc, wall_s=wall0 + time.perf_counter() - t0, cpu_s=cpu0 + time.process_time() - c0,
+            equilibration_wall_s=t_eq, samples={c: out[c][:i].tolist() for c in COLUMNS}))
+        last_ckpt = time.perf_counter()
+
     while done < n_eq:
         k = min(stride, n_eq - done)
         sim.advance(k)
         done += k
         end_rotation(sim.node_pose()[1])
-    t_eq = time.perf_counter() - t0
-    out = {c: np.empty(n_samp) for c in COLUMNS}
+        if time.perf_counter() - last_ckpt >= every:
+            save(0)
+    if t_eq is None:
+        t_eq = wall0 + time.perf_counter() - t0
     k_clamp = float(s["clamp_k_kJ_mol"])
-    for i in range(n_samp):
+    for i in range(first, n_samp):
         sim.advance(stride)
         pos, frm = sim.node_pose()
         out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
@@ -350,7 +396,9 @@ def sample_member(m, progress=None):
         out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
         if progress:
             progress(i + 1, n_samp)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+        if i + 1 < n_samp and time.perf_counter() - last_ckpt >= every:
+            save(i + 1)
+    wall, cpu = wall0 + time.perf_counter() - t0, cpu0 + time.process_time() - c0
     steps = n_eq + n_samp * stride
     cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
                 elastic_path=sim.rs.elastic,
@@ -410,10 +458,18 @@ def run_member(settings, member_dir, progress=None):
         old = json.loads(done.read_text())
         if old.get("settings") == key:
             return old["result"]
-    samples, cost = sample_member(m, progress)
+    ckpt = member_dir / "member_checkpoint.npz"
+    samples, cost = sample_member(m, progress, checkpoint=ckpt)
     res = summarize(samples, m, cost)
     lines = [",".join(COLUMNS)] + [",".join(f"{samples[c][i]:.10g}" for c in COLUMNS)
                                    for i in range(len(samples["time_ps"]))]
     write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")
     write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+    ckpt.unlink(missing_ok=True)
     return jsonable(res)
+
+
+def _jsonable_settings(s):
+    from ..io_utils import jsonable
+
+    return jsonable(s)
