@@ -100,13 +100,20 @@ def test_355d_rebuild_stable_for_10ps(tmp_path):
 
 def test_355d_rebuild_closes_the_backbone_and_runs_1ps(tmp_path):
     m, res = _rebuild_355d()
+    out = _checked_crystal_rebuild(m, res, tmp_path, placed_below=0.1, placed_above=0.25)
+    _stable(*_md(out, 500))  # 1 ps here; 10 ps in the slow test
+
+
+def _checked_crystal_rebuild(m, res, tmp_path, placed_below, placed_above):
+    """Every check on a crystal's rebuild, whose rigid placement left O3'-P links outside [placed_below,
+    placed_above] nm; written and re-read, the pair origins are the nodes' to 0.05 A. Returns the PDB path."""
     rep = _check(res, m.frames, m.positions, m.n_nodes)
-    assert rep.placement_o3p_range[0] < 0.1 and rep.placement_o3p_range[1] > 0.25  # the rigid placement was broken
+    assert rep.placement_o3p_range[0] < placed_below and rep.placement_o3p_range[1] > placed_above
     out = tmp_path / "r.pdb"
     res.write(out)
     d = analyze_structure(out).duplexes[0]
-    assert d.n_bp == 12 and np.abs(d.bp_origins - m.positions).max() < 0.005
-    _stable(*_md(out, 500))  # 1 ps here; 10 ps in the slow test
+    assert d.n_bp == m.n_nodes and np.abs(d.bp_origins - m.positions).max() < 0.005
+    return out
 
 
 @pytest.mark.parametrize("kind", ["ideal", "thermal"])
@@ -184,12 +191,8 @@ def test_1kx5_rebuild(tmp_path):
     m = model_from_structure(DATA / "1KX5.pdb")
     res = rebuild_allatom(m.frames, m.positions, m.sequence, np.array(m.metadata["bp_params"]),
                           m.metadata["sequence2"])
-    rep = _check(res, m.frames, m.positions, m.n_nodes)
-    assert rep.placement_o3p_range[0] < 0.05 and rep.placement_o3p_range[1] > 0.35  # the rigid placement was broken
-    out = tmp_path / "r.pdb"
-    res.write(out)
-    d = analyze_structure(out).duplexes[0]
-    assert d.n_bp == 147 and np.abs(d.bp_origins - m.positions).max() < 0.005
+    assert m.n_nodes == 147
+    out = _checked_crystal_rebuild(m, res, tmp_path, placed_below=0.05, placed_above=0.35)
     _stable(*_md(out, 5000, cutoff=2.0))
 
 
@@ -201,17 +204,6 @@ def test_windowed_closure_on_a_short_duplex(tmp_path):
     _check(res, m.frames, m.positions, m.n_nodes)
     res.write(tmp_path / "w.pdb")
     _stable(*_md(tmp_path / "w.pdb", 500))
-
-
-def test_windowed_rebuild_that_cannot_close_names_the_step():
-    """With windows (cores of 2 bp, flanks of 1) a gap still names its step and by how much the link is off."""
-    ff = load_forcefield("dna-default")
-    m = ff.model_from_sequence("GATCCG")
-    pos = m.positions.copy()
-    pos[3:] += 1.3 * m.frames[2][:, 2]  # pull pairs 3 and 4 apart (N-N 16.7 A: within the 11 bonds' 17.4 A reach)
-    with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
-                                             r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
-        rebuild_allatom(m.frames, pos, m.sequence, window=2, flank=1)
 
 
 def test_window_sizes_must_be_positive():
@@ -287,14 +279,16 @@ def test_final_polish_converges_bonds_well_inside_tolerance():
     assert 0.0 < rep.max_angle_deviation < 20.0 and "-" in rep.worst_angle
 
 
-def test_rebuild_that_cannot_close_names_the_step():
+@pytest.mark.parametrize("windows", [{}, dict(window=2, flank=1)], ids=["whole", "windows"])
+def test_rebuild_that_cannot_close_names_the_step(windows):
+    """A gap names its step and by how much the link is off, also with windows (cores of 2 bp, flanks of 1)."""
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("GATCCG")
     pos = m.positions.copy()
     pos[3:] += 1.3 * m.frames[2][:, 2]  # pull pairs 3 and 4 apart (N-N 16.7 A: within the 11 bonds' 17.4 A reach)
     with pytest.raises(StructureError, match=r"cannot close the backbone at step 3-4 .* after minimisation "
                                              r"\(placed at \d+\.\d+ A; Amber14 1\.61 A, off by"):
-        rebuild_allatom(m.frames, pos, m.sequence)
+        rebuild_allatom(m.frames, pos, m.sequence, **windows)
 
 
 def test_gap_beyond_any_backbone_is_refused_before_minimising():
