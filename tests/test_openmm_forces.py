@@ -360,6 +360,13 @@ def test_closure_image_sites_follow_node_0_by_the_screw(ff, circular):
         add_closure_image(system, ff.model_from_sequence("ACGT"))
 
 
+def test_closure_image_without_symmetry_sites_is_one_clear_error(ff, circular, monkeypatch):
+    """An OpenMM older than SymmetrySite (the pin allows 8.1): a screw-closed portable system says so."""
+    monkeypatch.delattr(openmm, "SymmetrySite")
+    with pytest.raises(ParameterError, match="SymmetrySite.*elastic='fast'"):
+        add_closure_image(openmm.System(), circular)
+
+
 def test_portable_expression_keeps_only_the_used_entries(ff):
     """dna-default (diagonal + twist-stretch coupling) stays one force with 7 factor entries (row, strain):
     the strain order (Omega, Gamma3, Gamma1, Gamma2) puts Gamma3 next to Omega3, so the coupling adds no

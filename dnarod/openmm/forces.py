@@ -286,6 +286,9 @@ def add_closure_image(system, model):
         raise ParameterError("add_closure_image needs a circular model (model.closure is None)")
     if is_identity(model.closure):
         return 0
+    if not hasattr(openmm, "SymmetrySite"):  # pyproject allows openmm>=8.1; the site came in a later release
+        raise ParameterError(f"the portable path of a screw-closed chain needs OpenMM's SymmetrySite, which OpenMM "
+                             f"{openmm.__version__} lacks: upgrade openmm or use elastic='fast' / 'plugin'")
     Q = np.asarray(model.closure.Q, float)
     t = openmm.Vec3(*map(float, model.closure.t))
     rows = [openmm.Vec3(*map(float, Q[i])) for i in range(3)]
