@@ -42,7 +42,7 @@ def main():
     import openmm.unit as u
 
     from dnarod.structure import model_from_structure
-    from dnarod.structure.allatom import _add_obc2, rebuild_allatom
+    from dnarod.structure.allatom import amber_md_simulation, rebuild_allatom
 
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -78,15 +78,8 @@ def main():
                note_constraints="HBonds constrained: X-H bonds are constraints, not HarmonicBondForce terms")
     print(f"bonds in the file (amber14-all, heavy-atom bonds): largest deviation {rep['file_max_bond_dev_A']:.4f} A",
           flush=True)
-    for k in reversed(range(system.getNumForces())):  # the native GBSAOBCForce: same model, much faster
-        if isinstance(system.getForce(k), openmm.CustomGBForce):
-            system.removeForce(k)
-    _add_obc2(system, pdb.topology)
-    integ = openmm.LangevinMiddleIntegrator(300 * u.kelvin, 1 / u.picosecond, 2 * u.femtosecond)
-    integ.setRandomNumberSeed(7)
-    sim = app.Simulation(pdb.topology, system, integ, openmm.Platform.getPlatformByName("CPU"))
-    sim.context.setPositions(pdb.positions)
-    sim.context.setVelocitiesToTemperature(300 * u.kelvin, 7)
+    sim = amber_md_simulation(pdb, a.cutoff)  # the MD system (native OBC2), as the tests run it
+    system = sim.system
     x0 = np.array(pdb.positions.value_in_unit(u.nanometer))
     heavy = np.array([at.element.symbol != "H" for at in pdb.topology.atoms()])
     names = [at.name for at in pdb.topology.atoms()]

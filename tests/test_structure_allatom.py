@@ -49,28 +49,13 @@ def _md(path, n_steps, cutoff=None):
     """Langevin MD (300 K, 2 fs, H bonds constrained) of a written file in OBC2: (x0, x1, topology).
 
     ``cutoff`` (nm): a non-periodic cut-off for large structures (default none)."""
-    import openmm
     import openmm.app as app
     import openmm.unit as u
 
-    from dnarod.structure.allatom import _add_obc2
+    from dnarod.structure.allatom import amber_md_simulation
 
     pdb = app.PDBFile(str(path))
-    ff = app.ForceField("amber14-all.xml", "implicit/obc2.xml")
-    if cutoff is None:
-        system = ff.createSystem(pdb.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds)
-    else:
-        system = ff.createSystem(pdb.topology, nonbondedMethod=app.CutoffNonPeriodic, constraints=app.HBonds,
-                                 nonbondedCutoff=cutoff * u.nanometer)
-    for k in reversed(range(system.getNumForces())):  # the native GBSAOBCForce: same model, much faster
-        if isinstance(system.getForce(k), openmm.CustomGBForce):
-            system.removeForce(k)
-    _add_obc2(system, pdb.topology)
-    integ = openmm.LangevinMiddleIntegrator(300 * u.kelvin, 1 / u.picosecond, 2 * u.femtosecond)
-    integ.setRandomNumberSeed(7)
-    sim = app.Simulation(pdb.topology, system, integ, openmm.Platform.getPlatformByName("CPU"))
-    sim.context.setPositions(pdb.positions)
-    sim.context.setVelocitiesToTemperature(300 * u.kelvin, 7)
+    sim = amber_md_simulation(pdb, cutoff)
     x0 = np.array(pdb.positions.value_in_unit(u.nanometer))
     sim.step(n_steps)
     st = sim.context.getState(getPositions=True, getEnergy=True)

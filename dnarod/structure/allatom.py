@@ -202,6 +202,46 @@ def _amber_forcefield():
     return app.ForceField(*FORCEFIELD_FILES)
 
 
+def amber_md_simulation(pdb, cutoff=None, seed=7):
+    """An OpenMM ``Simulation`` of a rebuilt (or any) DNA file: Amber14 + OBC2, ready to run MD.
+
+    Amber14 (``amber14-all.xml`` + ``implicit/obc2.xml``) with H bonds constrained, its OBC2 term as the native
+    GBSAOBCForce (:func:`_add_obc2`: the same model, much faster), Langevin middle 300 K, 1/ps, 2 fs, CPU
+    platform; positions from the file, velocities drawn at 300 K with ``seed``.
+
+    Parameters
+    ----------
+    pdb : openmm.app.PDBFile
+    cutoff : float, optional
+        Non-periodic cut-off, nm (default: none, every pair).
+    seed : int
+
+    Returns
+    -------
+    openmm.app.Simulation
+    """
+    import openmm
+    import openmm.app as app
+    import openmm.unit as u
+
+    ff = app.ForceField("amber14-all.xml", "implicit/obc2.xml")
+    if cutoff is None:
+        system = ff.createSystem(pdb.topology, nonbondedMethod=app.NoCutoff, constraints=app.HBonds)
+    else:
+        system = ff.createSystem(pdb.topology, nonbondedMethod=app.CutoffNonPeriodic, constraints=app.HBonds,
+                                 nonbondedCutoff=cutoff * u.nanometer)
+    for k in reversed(range(system.getNumForces())):
+        if isinstance(system.getForce(k), openmm.CustomGBForce):
+            system.removeForce(k)
+    _add_obc2(system, pdb.topology)
+    integ = openmm.LangevinMiddleIntegrator(300 * u.kelvin, 1 / u.picosecond, 2 * u.femtosecond)
+    integ.setRandomNumberSeed(seed)
+    sim = app.Simulation(pdb.topology, system, integ, openmm.Platform.getPlatformByName("CPU"))
+    sim.context.setPositions(pdb.positions)
+    sim.context.setVelocitiesToTemperature(300 * u.kelvin, seed)
+    return sim
+
+
 def _add_obc2(system, topology):
     """OBC2 implicit solvent as OpenMM's native GBSAOBCForce (Amber igb=5 parameters).
 
