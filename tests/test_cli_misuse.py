@@ -155,6 +155,11 @@ CASES = [
 
 def _spec_overstretching(w):
     (w / "f80.toml").write_text('[ensemble]\nname = "x"\n[base]\nsource = "ACGTACGTAC"\nforce_pN = 80\n')
+    # a sweep whose second member alone is out of range: refused before the first member runs
+    (w / "salt_sweep.toml").write_text('[ensemble]\nname = "x"\n[base]\nsource = "ACGTACGTAC"\ntime_ns = 0.001\n'
+                                       '[axes]\nsalt_M = [0.15, 100]\n')
+    (w / "force_sweep.toml").write_text('[ensemble]\nname = "x"\n[base]\nsource = "ACGTACGTAC"\ntime_ns = 0.001\n'
+                                        '[axes]\nforce_pN = [1, 80]\n')
 
 
 DTRAJ = "{w}/run/trajectory.dtraj"
@@ -212,6 +217,12 @@ CASES += [
                                       "--scheduler", "garbage"], ["--scheduler garbage", "tcp://HOST:PORT"], None),
     ("ensemble-force-overstretching", ["ensemble", "{w}/f80.toml", "-o", "{w}/n", "--workers", "0"],
      ["--pull 80", "overstretch"], _spec_overstretching),
+    ("ensemble-sweep-one-salt-out-of-range", ["ensemble", "{w}/salt_sweep.toml", "-o", "{w}/n", "--workers", "0"],
+     ["member 1", "--salt 100", "at most 6"], _spec_overstretching),
+    ("ensemble-sweep-one-force-overstretching", ["ensemble", "{w}/force_sweep.toml", "-o", "{w}/n", "--workers", "0"],
+     ["member 1", "80 pN", "overstretches"], _spec_overstretching),
+    ("protocol-salt-huge", ["protocol", "rings", "--delta-lk", "0", *PROTO, "--salt", "100"],
+     ["--salt", "at most 6"], None),
     ("protocol-time-negative", ["protocol", "hat", "--turns", "0", *PROTO, "--time", "-1"], ["time_ns", "> 0"], None),
     ("protocol-force-nan", ["protocol", "force-extension", "--force", "nan", *PROTO], ["--force", "finite"], None),
     ("protocol-force-empty-entry", ["protocol", "force-extension", "--force", "1,,2", *PROTO], ["--force", "empty entry"],

@@ -108,14 +108,16 @@ class Ensemble:
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
     def _check_runspecs(self):
-        """Build and check the RunSpec of one member per distinct engine/source set-up (client side)."""
+        """Build and check the RunSpec of every distinct member (client side), so a sweep with one bad value
+        (a salt, force or time outside the run layer's ranges) is refused before any member runs. Members that
+        differ only in their seed (replicas) share one check."""
         if hasattr(self.protocol, "execute") or not hasattr(self.protocol, "build"):
             return
         seen = set()
         for m in self.members:
             s = m.settings
-            key = tuple(str(s.get(k)) for k in ("engine", "platform", "excluded_volume", "electrostatics", "source",
-                                                "forcefield", "start", "ring", "circular"))
+            key = json.dumps({k: v for k, v in s.items() if k not in ("seed", "sequence_name")}, sort_keys=True,
+                             default=str)
             if key in seen:
                 continue
             seen.add(key)

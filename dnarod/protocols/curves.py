@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DnarodError
+from ..run.spec import MAX_SALT
 
 #: x, y columns and labels of each protocol's curve.
 PLOTS = {
@@ -118,6 +119,9 @@ def _checked(value, table, key):
         raise DnarodError(f"[{table}] seed: must be an integer in [0, 2^31), got {value}")
     if key in ("time_ns", "equilibration_ns", "salt_M") and not value > 0:
         raise DnarodError(f"[{table}] {key}: must be > 0, got {value:g}")
+    if key == "salt_M" and value > MAX_SALT:
+        raise DnarodError(f"[{table}] salt_M: must be at most {MAX_SALT:g} mol/L (Debye-Hueckel screening is "
+                          f"meaningless beyond), got {value:g}")
     if key == "temperature_K" and not value > 0:
         raise DnarodError(f"[{table}] temperature_K: must be > 0 K, got {value:g}")
     return value
