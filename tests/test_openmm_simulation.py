@@ -1,8 +1,10 @@
 """OpenMM engine: time step, NVE, Langevin, checkpoints, blow-up reports, loads, export, CLI."""
+import io
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from openmm import unit
+from openmm import app, unit
 
 from dnarod.errors import ParameterError, SimulationError
 from dnarod.forcefield import load_forcefield
@@ -320,6 +322,15 @@ def test_screw_closed_portable_path_carries_the_image_and_matches_the_fast_path(
     fast, portable = out["fast"][0], out["portable"][0]
     assert fast.rs.system.getNumParticles() == 3 * n and fast.rs.image is None
     assert portable.rs.system.getNumParticles() == 3 * n + 3 and portable.rs.image == 3 * n
+    # one topology atom per particle (OpenMM's reporters need it): the image is a last residue IMG
+    for sim in (fast, portable):
+        top = sim.rs.topology
+        assert top.getNumAtoms() == sim.rs.system.getNumParticles()
+        pos = sim.context.getState(getPositions=True).getPositions()
+        buf = io.StringIO()
+        app.PDBFile.writeFile(top, pos, buf)  # raises if the counts differ
+        assert buf.getvalue().count("HETATM") + buf.getvalue().count("ATOM  ") == top.getNumAtoms()
+    assert [r.name for r in portable.rs.topology.residues()][-1] == "IMG"
     for k in (1, 3):
         for term in ("elastic", "nonbonded", "external", "potential", "kinetic"):
             a, b = out["fast"][k][term], out["portable"][k][term]

@@ -102,7 +102,9 @@ class RodSystem:
     @property
     def topology(self):
         """The OpenMM Topology (built on first use: one chain, one residue per node named by its
-        base pair, atoms P0, P1, P2 bonded in a triangle, P0 bonded along the chain)."""
+        base pair, atoms P0, P1, P2 bonded in a triangle, P0 bonded along the chain). With closure image
+        particles (``image`` set) a last residue ``IMG`` holds their three atoms I0, I1, I2, so the topology has
+        one atom per particle of ``system``, as OpenMM's reporters require (virtual sites are atoms there too)."""
         if getattr(self, "_topology", None) is None:
             topology = app.Topology()
             chain = topology.addChain("A")
@@ -116,6 +118,10 @@ class RodSystem:
                 if prev is not None:
                     topology.addBond(prev, atoms[0])
                 prev = atoms[0]
+            if self.image:
+                res = topology.addResidue("IMG", chain, id=str(len(self.residue_names) + 1))
+                for i in range(3):
+                    topology.addAtom(f"I{i}", None, res)
             self._topology = topology
         return self._topology
 
