@@ -24,11 +24,13 @@ PLOTS = {
 }
 #: experimental tables (data/experimental/) drawn beside each protocol's curve (see :func:`_draw_experiment`).
 EXPERIMENTS = {
-    "force_extension": ["force_extension_parameters.csv"],
+    "force_extension": ["force_extension_parameters.csv", "force_extension_curves.csv"],
     # no measured hat-curve points could be read (experiments.MISSING); the zero-turn extension is compared with
-    # the force-extension relation of the measured persistence lengths
-    "magnetic_tweezers": ["force_extension_parameters.csv"],
-    "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv"],
+    # the force-extension relation of the measured persistence lengths and with the curve drawn over lambda-DNA data
+    "magnetic_tweezers": ["force_extension_parameters.csv", "force_extension_curves.csv"],
+    # no buckling torque or plateau could be read; the B->P transition torque (45 pN) bounds what B-DNA represents
+    "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv", "structural_transitions.csv",
+                     "buckling.csv"],
     # a review's "usually ~70%" of dLk as writhe (secondary; the primary measurements are in experiments.MISSING)
     "rings": ["ring_writhe_fraction.csv"],
 }
@@ -309,9 +311,15 @@ def _draw_experiment(a, kind, name, rows):
       the run's salt (:func:`~dnarod.protocols.experiments.persistence_length_band`);
     * torque-turns: the pre-buckling slope ``kT C_eff 2 pi turns / L`` of this chain for each measured
       torsional stiffness, labelled with the force it was measured at (not necessarily the run's force);
+    * force-extension, also: the extensible-WLC curve a source draws over its measured lambda-DNA data (lp 50 nm,
+      S 1000 pN at 100 mM Na+; :func:`~dnarod.protocols.experiments.force_extension_curves`), labelled with its salt;
+    * torque-turns, also: the torque of the B->P structural transition (34 +- 2 pN nm, measured at 45 pN; Bryant
+      et al. 2003) as a horizontal band, labelled as a limit of B-DNA measured at another force, not a buckling
+      torque (none could be read);
     * hat curves: no measured hat-curve points could be read (the axes say so); at zero turns a bar spans the
       relative extension that the measured persistence lengths bracketing the run's salt give at the run's force
-      (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further);
+      (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further),
+      and a diamond marks the x/L of the curve drawn over lambda-DNA data at 100 mM Na+ at the run's force;
     * rings: the line ``Wr = f dLk`` for the writhe fraction read ("usually ~70%", a review quoting its sources;
       no superhelical density or salt stated, the label says so beside the run's salt).
     """
@@ -348,6 +356,36 @@ def _draw_experiment(a, kind, name, rows):
             return
         a.fill_between(FF, extensible_wlc_extension(FF, lo, 1e12, kt_pn), extensible_wlc_extension(FF, hi, 1e12, kt_pn),
                        color="0.85", zorder=0, label=f"measured lp {lo:g}-{hi:g} nm bracketing {1000 * salt:g} mM")
+    if kind == "torque_turns" and name == "structural_transitions.csv":
+        run_f = rows[0].get("force_pN")
+        for m in ex.structural_transition_torques():
+            tau, sig = m.value / PN, (m.uncertainty or 0.0) / PN
+            a.axhspan(tau - sig, tau + sig, color="0.8", alpha=0.6, zorder=0,
+                      label=f"B->P transition torque {tau:g}+-{sig:g} pN nm at {m.force_pN:g} pN "
+                            f"({ex.cite_short(m.source)}; a limit of B-DNA, not buckling; run at {run_f} pN)")
+    if kind == "torque_turns" and name == "buckling.csv":
+        run_f = float(rows[0].get("force_pN") or 0.0)
+        for q, mk in (("buckling_torque", "v"), ("postbuckling_torque_plateau", "_")):
+            for m in ex.buckling_torque_reference(q, force_pN=run_f):
+                a.errorbar([0.0], [m.value / PN], yerr=[(m.uncertainty or 0.0) / PN], fmt=mk, ms=10, capsize=4,
+                           label=f"measured {q.replace('_', ' ')} {m.value / PN:g} pN nm at {m.force_pN:g} pN"
+                                 + (f", {1000 * m.salt_M:g} mM" if m.salt_M is not None else "")
+                                 + f" ({ex.cite_short(m.source)})")
+    if kind in ("force_extension", "magnetic_tweezers") and name == "force_extension_curves.csv":
+        from ..wlc import extensible_wlc_extension
+
+        F = np.array(sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}))
+        for c in ex.force_extension_curves():
+            lab = (f"eWLC lp {c.persistence_length:g} nm, S {c.stretch_modulus_pN:g} pN drawn over lambda-DNA data "
+                   f"at {1000 * c.salt_M:g} mM Na+ ({c.source.split(',')[0]} Fig. 2)")
+            if kind == "force_extension":
+                FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
+                a.plot(FF, extensible_wlc_extension(FF, c.persistence_length, c.stretch_modulus_pN, kt_pn), "-.",
+                       lw=1, color="0.3", label=lab)
+            else:
+                a.plot(np.zeros_like(F), extensible_wlc_extension(F, c.persistence_length, c.stretch_modulus_pN,
+                                                                  kt_pn), "D", mfc="none", color="0.3",
+                       label=f"x/L at {', '.join(f'{f:g}' for f in F)} pN: " + lab)
     if kind == "magnetic_tweezers" and name == "force_extension_parameters.csv":
         salt = float(rows[0].get("salt_M") or 0.15)
         for f in sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}):
@@ -375,8 +413,11 @@ def _note_missing(a, kind):
     """Say on the axes when no measured value could be drawn for this protocol."""
     from . import experiments as ex
 
-    if kind == "magnetic_tweezers" or (kind == "rings" and not ex.writhe_fraction_reference()):
-        what = "hat-curve points" if kind == "magnetic_tweezers" else "writhe fraction"
+    if kind in ("magnetic_tweezers", "torque_turns") or (kind == "rings" and not ex.writhe_fraction_reference()):
+        what = {"magnetic_tweezers": "hat-curve points", "rings": "writhe fraction",
+                "torque_turns": "buckling torque or post-buckling plateau"}[kind]
+        if kind == "torque_turns" and ex.buckling_torque_reference():
+            return
         a.text(0.02, 0.97, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
                fontsize=7, color="0.4", va="top")
 
