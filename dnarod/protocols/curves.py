@@ -278,7 +278,7 @@ def plot_curve(kind, rows, path):
     from ..validate._common import new_figure, save_figure
 
     xk, yks, xl, yl = PLOTS[kind]
-    fig, ax = new_figure(1, 1, width=6.0, height=4.2)
+    fig, ax = new_figure(1, 1, width=6.0, height=5.4)
     a = ax[0, 0]
     x = np.array([float(r.get(xk) or 0.0) for r in rows])
     for yk in yks:
@@ -297,7 +297,8 @@ def plot_curve(kind, rows, path):
         a.set_title(f"{kind.replace('_', ' ')}: {r0.get('n_bp')} bp"
                     + (f", {r0.get('force_pN')} pN" if kind in ("magnetic_tweezers", "torque_turns") else ""),
                     fontsize=10)
-    a.legend(fontsize=7)
+    # below the axes: the measured overlays carry long labels (source and conditions) that would hide the data
+    a.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
     out = Path(path)
     save_figure(fig, out.parent, out.name)
     return out
@@ -363,6 +364,8 @@ def _draw_experiment(a, kind, name, rows):
             a.axhspan(tau - sig, tau + sig, color="0.8", alpha=0.6, zorder=0,
                       label=f"B->P transition torque {tau:g}+-{sig:g} pN nm at {m.force_pN:g} pN "
                             f"({ex.cite_short(m.source)}; a limit of B-DNA, not buckling; run at {run_f} pN)")
+            lo, hi = a.get_ylim()
+            a.set_ylim(lo, max(hi, 1.15 * (tau + sig)))  # keep the limit in view above the run's torques
     if kind == "torque_turns" and name == "buckling.csv":
         run_f = float(rows[0].get("force_pN") or 0.0)
         for q, mk in (("buckling_torque", "v"), ("postbuckling_torque_plateau", "_")):
@@ -418,8 +421,10 @@ def _note_missing(a, kind):
                 "torque_turns": "buckling torque or post-buckling plateau"}[kind]
         if kind == "torque_turns" and ex.buckling_torque_reference():
             return
-        a.text(0.02, 0.97, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
-               fontsize=7, color="0.4", va="top")
+        # torque-turns legends fill the top left; the note goes bottom right there
+        x, y, ha, va = (0.98, 0.03, "right", "bottom") if kind == "torque_turns" else (0.02, 0.97, "left", "top")
+        a.text(x, y, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
+               fontsize=7, color="0.4", va=va, ha=ha)
 
 
 def force_extension(forces_pN, outdir, source="600", **kw):
