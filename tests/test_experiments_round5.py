@@ -8,12 +8,15 @@ from dnarod.protocols import experiments as ex
 from dnarod.units import AVOGADRO, PN
 
 
-def test_structural_transition_torque_in_md_units():
-    (m,) = ex.structural_transition_torques()
+def test_structural_transition_torques_in_md_units():
+    m, u = ex.structural_transition_torques()
     # Bryant et al. 2003 Fig. 3a inset: tau_crit,+ = 34 +- 2 pN nm at 45 pN (B->P transition)
     assert m.value == pytest.approx(34.0 * 0.602214076) and m.uncertainty == pytest.approx(2.0 * 0.602214076)
-    assert (m.unit, m.force_pN, m.salt_M) == ("kJ/mol", 45.0, None)
+    assert (m.unit, m.force_pN, m.salt_M, m.approximate) == ("kJ/mol", 45.0, None, False)
     assert ex.cite_short(m.source) == "Bryant et al. 2003" and "nature01810_F3" in m.url
+    # Kwon et al. 2015 (secondary): unwinding a random sequence at "~-10 pN nm" under physiological conditions
+    assert u.value == pytest.approx(-10.0 * 0.602214076) and u.uncertainty is None and u.force is None
+    assert u.approximate and u.quantity == "underwinding_transition_torque" and "PMC4457082" in u.url
 
 
 def test_force_extension_curve_drawn_over_measured_data():
@@ -98,6 +101,7 @@ def test_plots_draw_the_round5_values(tmp_path, monkeypatch):
     assert "x/L at 1 pN: eWLC lp 50 nm" in hat and any("no measured hat-curve points" in t for t in texts)
     tt, texts = _labels_and_texts(monkeypatch, tmp_path, "torque_turns")
     assert "B->P transition torque 34+-2 pN nm at 45 pN (Bryant et al. 2003; a limit of B-DNA, not buckling" in tt
+    assert "unwinding transition torque ~-10 pN nm, force not stated (Kwon et al. 2015, quoted" in tt
     assert any("no measured buckling torque or post-buckling plateau" in t for t in texts)
     assert "measured buckling torque" not in tt
 

@@ -361,11 +361,18 @@ def _draw_experiment(a, kind, name, rows):
         run_f = rows[0].get("force_pN")
         for m in ex.structural_transition_torques():
             tau, sig = m.value / PN, (m.uncertainty or 0.0) / PN
-            a.axhspan(tau - sig, tau + sig, color="0.8", alpha=0.6, zorder=0,
-                      label=f"B->P transition torque {tau:g}+-{sig:g} pN nm at {m.force_pN:g} pN "
-                            f"({ex.cite_short(m.source)}; a limit of B-DNA, not buckling; run at {run_f} pN)")
-            lo, hi = a.get_ylim()
-            a.set_ylim(lo, max(hi, 1.15 * (tau + sig)))  # keep the limit in view above the run's torques
+            what = "B->P transition" if tau > 0 else "unwinding transition"
+            at = f"at {m.force_pN:g} pN" if m.force_pN is not None else "force not stated"
+            if sig > 0:
+                a.axhspan(tau - sig, tau + sig, color="0.8", alpha=0.6, zorder=0,
+                          label=f"{what} torque {tau:g}+-{sig:g} pN nm {at} ({ex.cite_short(m.source)}; "
+                                f"a limit of B-DNA, not buckling; run at {run_f} pN)")
+            else:
+                a.axhline(tau, color="0.6", ls=":", lw=2, zorder=0,
+                          label=f"{what} torque {'~' if m.approximate else ''}{tau:g} pN nm, {at} "
+                                f"({ex.cite_short(m.source)}, quoted; a limit of B-DNA, not buckling)")
+            lo, hi = a.get_ylim()  # keep each limit in view beside the run's torques
+            a.set_ylim(min(lo, 1.15 * (tau - sig)), max(hi, 1.15 * (tau + sig)))
     if kind == "torque_turns" and name == "buckling.csv":
         run_f = float(rows[0].get("force_pN") or 0.0)
         for q, mk in (("buckling_torque", "v"), ("postbuckling_torque_plateau", "_")):

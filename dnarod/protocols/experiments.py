@@ -254,13 +254,16 @@ def buckling_torque_reference(quantity="buckling_torque", force_pN=None, salt_M=
 
 def structural_transition_torques():
     """Torques (kJ/mol) at which stretched, twisted B-DNA converts to another form (``structural_transitions.csv``):
-    the B->P transition of overwound DNA, 34 +- 2 pN nm at 45 pN (Bryant et al. 2003). Beyond such torques an
-    elastic B-DNA model does not represent DNA; the value is a limit, not a buckling torque."""
+    the B->P transition of overwound DNA, 34 +- 2 pN nm at 45 pN (Bryant et al. 2003), and the secondary "about
+    -10 pN nm" for unwinding a random sequence under physiological conditions (Kwon et al. 2015, quoting its
+    references; force not stated, ``approximate``). Beyond such torques an elastic B-DNA model does not represent
+    DNA; the values are limits, not buckling torques."""
     out = []
     for r in read_table("structural_transitions.csv"):
         unc = _f(r.get("uncertainty_pN_nm"))
         out.append(_m(r, r["quantity"], float(r["torque_pN_nm"]) * PN, "kJ/mol", None if unc is None else unc * PN,
-                      force_pN=_f(r.get("force_pN")), salt_M=_f(r.get("salt_M"))))
+                      force_pN=_f(r.get("force_pN")), salt_M=_f(r.get("salt_M")),
+                      approximate=r.get("approximate") == "yes"))
     return out
 
 
