@@ -300,6 +300,11 @@ def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
     a = ax[0, 0]
     a.fill_between(F, x_lo, x_hi, color="0.85", label="WLC with the measured lp interval")
     a.semilogx(F, x_model, "ko-", label=f"model (lp {lp:.1f} nm)")
+    fe = res.get("force_extension_curve")
+    if fe:
+        a.semilogx(F, [r["curve"] for r in fe["relative_extension"]], "-.", color="0.4",
+                   label=f"eWLC lp {fe['curve_persistence_length_nm']:g} nm, S {fe['curve_stretch_modulus_pN']:g} pN "
+                         f"over lambda-DNA data, {1000 * fe['salt_M']:g} mM (reported)")
     a.set_xlabel("force (pN)")
     a.set_ylabel("extension / contour length")
     a.legend(fontsize=7)
