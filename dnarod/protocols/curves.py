@@ -25,11 +25,13 @@ PLOTS = {
 }
 #: experimental tables (data/experimental/) drawn beside each protocol's curve (see :func:`_draw_experiment`).
 EXPERIMENTS = {
-    "force_extension": ["force_extension_parameters.csv"],
+    "force_extension": ["force_extension_parameters.csv", "force_extension_curves.csv"],
     # no measured hat-curve points could be read (experiments.MISSING); the zero-turn extension is compared with
-    # the force-extension relation of the measured persistence lengths
-    "magnetic_tweezers": ["force_extension_parameters.csv"],
-    "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv"],
+    # the force-extension relation of the measured persistence lengths and with the curve drawn over lambda-DNA data
+    "magnetic_tweezers": ["force_extension_parameters.csv", "force_extension_curves.csv"],
+    # no buckling torque or plateau could be read; the B->P transition torque (45 pN) bounds what B-DNA represents
+    "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv", "structural_transitions.csv",
+                     "buckling.csv"],
     # a review's "usually ~70%" of dLk as writhe (secondary; the primary measurements are in experiments.MISSING)
     "rings": ["ring_writhe_fraction.csv"],
 }
@@ -280,7 +282,7 @@ def plot_curve(kind, rows, path):
     from ..validate._common import new_figure, save_figure
 
     xk, yks, xl, yl = PLOTS[kind]
-    fig, ax = new_figure(1, 1, width=6.0, height=4.2)
+    fig, ax = new_figure(1, 1, width=6.0, height=5.4)
     a = ax[0, 0]
     x = np.array([float(r.get(xk) or 0.0) for r in rows])
     for yk in yks:
@@ -299,7 +301,8 @@ def plot_curve(kind, rows, path):
         a.set_title(f"{kind.replace('_', ' ')}: {r0.get('n_bp')} bp"
                     + (f", {r0.get('force_pN')} pN" if kind in ("magnetic_tweezers", "torque_turns") else ""),
                     fontsize=10)
-    a.legend(fontsize=7)
+    # below the axes: the measured overlays carry long labels (source and conditions) that would hide the data
+    a.legend(fontsize=6.5, loc="upper center", bbox_to_anchor=(0.5, -0.14), frameon=False)
     out = Path(path)
     save_figure(fig, out.parent, out.name)
     return out
@@ -313,9 +316,15 @@ def _draw_experiment(a, kind, name, rows):
       the run's salt (:func:`~dnarod.protocols.experiments.persistence_length_band`);
     * torque-turns: the pre-buckling slope ``kT C_eff 2 pi turns / L`` of this chain for each measured
       torsional stiffness, labelled with the force it was measured at (not necessarily the run's force);
+    * force-extension, also: the extensible-WLC curve a source draws over its measured lambda-DNA data (lp 50 nm,
+      S 1000 pN at 100 mM Na+; :func:`~dnarod.protocols.experiments.force_extension_curves`), labelled with its salt;
+    * torque-turns, also: the torque of the B->P structural transition (34 +- 2 pN nm, measured at 45 pN; Bryant
+      et al. 2003) as a horizontal band, labelled as a limit of B-DNA measured at another force, not a buckling
+      torque (none could be read);
     * hat curves: no measured hat-curve points could be read (the axes say so); at zero turns a bar spans the
       relative extension that the measured persistence lengths bracketing the run's salt give at the run's force
-      (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further);
+      (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further),
+      and a diamond marks the x/L of the curve drawn over lambda-DNA data at 100 mM Na+ at the run's force;
     * rings: the line ``Wr = f dLk`` for the writhe fraction read ("usually ~70%", a review quoting its sources;
       no superhelical density or salt stated, the label says so beside the run's salt).
     """
@@ -352,6 +361,45 @@ def _draw_experiment(a, kind, name, rows):
             return
         a.fill_between(FF, extensible_wlc_extension(FF, lo, 1e12, kt_pn), extensible_wlc_extension(FF, hi, 1e12, kt_pn),
                        color="0.85", zorder=0, label=f"measured lp {lo:g}-{hi:g} nm bracketing {1000 * salt:g} mM")
+    if kind == "torque_turns" and name == "structural_transitions.csv":
+        run_f = rows[0].get("force_pN")
+        for m in ex.structural_transition_torques():
+            tau, sig = m.value / PN, (m.uncertainty or 0.0) / PN
+            what = "B->P transition" if tau > 0 else "unwinding transition"
+            at = f"at {m.force_pN:g} pN" if m.force_pN is not None else "force not stated"
+            if sig > 0:
+                a.axhspan(tau - sig, tau + sig, color="0.8", alpha=0.6, zorder=0,
+                          label=f"{what} torque {tau:g}+-{sig:g} pN nm {at} ({ex.cite_short(m.source)}; "
+                                f"a limit of B-DNA, not buckling; run at {run_f} pN)")
+            else:
+                a.axhline(tau, color="0.6", ls=":", lw=2, zorder=0,
+                          label=f"{what} torque {'~' if m.approximate else ''}{tau:g} pN nm, {at} "
+                                f"({ex.cite_short(m.source)}, quoted; a limit of B-DNA, not buckling)")
+            lo, hi = a.get_ylim()  # keep each limit in view beside the run's torques
+            a.set_ylim(min(lo, 1.15 * (tau - sig)), max(hi, 1.15 * (tau + sig)))
+    if kind == "torque_turns" and name == "buckling.csv":
+        run_f = float(rows[0].get("force_pN") or 0.0)
+        for q, mk in (("buckling_torque", "v"), ("postbuckling_torque_plateau", "_")):
+            for m in ex.buckling_torque_reference(q, force_pN=run_f):
+                a.errorbar([0.0], [m.value / PN], yerr=[(m.uncertainty or 0.0) / PN], fmt=mk, ms=10, capsize=4,
+                           label=f"measured {q.replace('_', ' ')} {m.value / PN:g} pN nm at {m.force_pN:g} pN"
+                                 + (f", {1000 * m.salt_M:g} mM" if m.salt_M is not None else "")
+                                 + f" ({ex.cite_short(m.source)})")
+    if kind in ("force_extension", "magnetic_tweezers") and name == "force_extension_curves.csv":
+        from ..wlc import extensible_wlc_extension
+
+        F = np.array(sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}))
+        for c in ex.force_extension_curves():
+            lab = (f"eWLC lp {c.persistence_length:g} nm, S {c.stretch_modulus_pN:g} pN drawn over lambda-DNA data "
+                   f"at {1000 * c.salt_M:g} mM Na+ ({c.source.split(',')[0]} Fig. 2)")
+            if kind == "force_extension":
+                FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
+                a.plot(FF, extensible_wlc_extension(FF, c.persistence_length, c.stretch_modulus_pN, kt_pn), "-.",
+                       lw=1, color="0.3", label=lab)
+            else:
+                a.plot(np.zeros_like(F), extensible_wlc_extension(F, c.persistence_length, c.stretch_modulus_pN,
+                                                                  kt_pn), "D", mfc="none", color="0.3",
+                       label=f"x/L at {', '.join(f'{f:g}' for f in F)} pN: " + lab)
     if kind == "magnetic_tweezers" and name == "force_extension_parameters.csv":
         salt = float(rows[0].get("salt_M") or 0.15)
         for f in sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}):
@@ -379,10 +427,15 @@ def _note_missing(a, kind):
     """Say on the axes when no measured value could be drawn for this protocol."""
     from . import experiments as ex
 
-    if kind == "magnetic_tweezers" or (kind == "rings" and not ex.writhe_fraction_reference()):
-        what = "hat-curve points" if kind == "magnetic_tweezers" else "writhe fraction"
-        a.text(0.02, 0.97, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
-               fontsize=7, color="0.4", va="top")
+    if kind in ("magnetic_tweezers", "torque_turns") or (kind == "rings" and not ex.writhe_fraction_reference()):
+        what = {"magnetic_tweezers": "hat-curve points", "rings": "writhe fraction",
+                "torque_turns": "buckling torque or post-buckling plateau"}[kind]
+        if kind == "torque_turns" and ex.buckling_torque_reference():
+            return
+        # torque-turns legends fill the top left; the note goes bottom right there
+        x, y, ha, va = (0.98, 0.03, "right", "bottom") if kind == "torque_turns" else (0.02, 0.97, "left", "top")
+        a.text(x, y, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
+               fontsize=7, color="0.4", va=va, ha=ha)
 
 
 def force_extension(forces_pN, outdir, source="600", **kw):

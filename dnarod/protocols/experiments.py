@@ -23,17 +23,21 @@ from ..units import NM_PER_ANGSTROM, PN
 #: or of which only a weaker form could be read (the entry says what is still missing).
 MISSING = {
     "force_extension_points": "the individual force-extension points of Wang et al. (1997) and Bouchiat et al. "
-                              "(1999), Wang's fitted stretch modulus and Bouchiat's fitted persistence length",
-    "buckling_torque": "buckling torques, post-buckling torque plateaus and buckling turns of Mosconi et al. (2009), "
-                       "Forth et al. (2008), Lipfert et al. (2010/2011/2014) and the magnetic-torque-tweezers data "
-                       "set of Data in Brief (PMC7154992): the stored copies show abstracts and figure captions "
-                       "without numbers",
+                              "(1999), Wang's fitted stretch modulus (the stored abstract breaks off at 'approximately "
+                              "110...') and Bouchiat's fitted persistence length (only an extensible-WLC curve drawn "
+                              "over lambda-DNA data at 100 mM Na+ could be read, force_extension_curves.csv)",
+    "buckling_torque": "buckling torques, post-buckling torque plateaus, buckling turns and extension-vs-turns slopes "
+                       "past buckling of Mosconi et al. (2009), Forth et al. (2008), Lipfert et al. (2010/2011/2014), "
+                       "Brutzer et al. (2010) and the magnetic-torque-tweezers data set of Data in Brief "
+                       "(PMC7154992): the stored copies show abstracts and figure captions without numbers (only "
+                       "the B->P structural-transition torque at 45 pN could be read, structural_transitions.csv)",
     "writhe_fraction": "the measured writhe fraction of Boles, White & Cozzarelli (1990) and Vologodskii et al. with "
                        "its superhelical density and uncertainty (only a review's 'usually ~70%' could be read, "
                        "ring_writhe_fraction.csv)",
     "supercoiling_free_energy": "the Depew-Wang (1975) / Horowitz-Wang (1984) coefficient K of "
                                 "dG = (K R T / N) dLk^2 (only Rybenkov et al. 1997's 'changed >1.5-fold' with "
-                                "ionic conditions could be read)",
+                                "ionic conditions and Frank-Kamenetskii et al. 1985's fit C = 3.0e-19 erg cm, "
+                                "a = 500 A to Horowitz-Wang's <dLk^2> could be read, supercoiling.csv)",
     "effective_diameter": "the measured (knotting) effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
                           "and Stigter's (1977) values vs salt (only a Poisson-Boltzmann second-virial diameter, "
                           "5 nm at 150 mM, quoted in a Biophys J abstract could be read)",
@@ -221,6 +225,91 @@ def buckling_reference():
                approximate=r.get("approximate") == "yes") for r in read_table("buckling.csv")]
 
 
+def buckling_torque_reference(quantity="buckling_torque", force_pN=None, salt_M=None, force_tol_pN=0.05,
+                              salt_tol_M=0.05):
+    """Measured torques at buckling (``quantity="buckling_torque"``) or on the post-buckling plateau
+    (``"postbuckling_torque_plateau"``), kJ/mol, from ``buckling.csv`` rows with ``torque_pN_nm`` (and
+    ``uncertainty_pN_nm``, ``force_pN``, ``salt_M``), optionally only those within ``force_tol_pN`` of
+    ``force_pN`` and ``salt_tol_M`` of ``salt_M``.
+
+    Empty today: no such number could be read in any stored source (:data:`MISSING` ``"buckling_torque"``).
+    A buckling check compares its measured torque ``tau`` (kJ/mol) with each row: ``|tau - m.value| <=
+    3 sqrt(SE^2 + m.uncertainty^2)`` plus the two-phase theory's stated accuracy, and lists the quantity as not
+    compared while this returns nothing.
+    """
+    out = []
+    for r in read_table("buckling.csv"):
+        if r.get("quantity") != quantity or not (r.get("torque_pN_nm") or "").strip():
+            continue
+        f, salt = _f(r.get("force_pN")), _f(r.get("salt_M"))
+        if force_pN is not None and (f is None or abs(f - force_pN) > force_tol_pN):
+            continue
+        if salt_M is not None and (salt is None or abs(salt - salt_M) > salt_tol_M):
+            continue
+        unc = _f(r.get("uncertainty_pN_nm"))
+        out.append(_m(r, quantity, float(r["torque_pN_nm"]) * PN, "kJ/mol", None if unc is None else unc * PN,
+                      force_pN=f, salt_M=salt, approximate=r.get("approximate") == "yes"))
+    return out
+
+
+def structural_transition_torques():
+    """Torques (kJ/mol) at which stretched, twisted B-DNA converts to another form (``structural_transitions.csv``):
+    the B->P transition of overwound DNA, 34 +- 2 pN nm at 45 pN (Bryant et al. 2003), and the secondary "about
+    -10 pN nm" for unwinding a random sequence under physiological conditions (Kwon et al. 2015, quoting its
+    references; force not stated, ``approximate``). Beyond such torques an elastic B-DNA model does not represent
+    DNA; the values are limits, not buckling torques."""
+    out = []
+    for r in read_table("structural_transitions.csv"):
+        unc = _f(r.get("uncertainty_pN_nm"))
+        out.append(_m(r, r["quantity"], float(r["torque_pN_nm"]) * PN, "kJ/mol", None if unc is None else unc * PN,
+                      force_pN=_f(r.get("force_pN")), salt_M=_f(r.get("salt_M")),
+                      approximate=r.get("approximate") == "yes"))
+    return out
+
+
+@dataclass(frozen=True)
+class WLCCurve:
+    """Extensible worm-like-chain curve a source draws with its measured force-extension data.
+
+    Attributes
+    ----------
+    persistence_length : float
+        nm.
+    stretch_modulus : float
+        kJ/mol/nm (a force); ``stretch_modulus_pN`` gives pN.
+    rise : float
+        Contour length per base pair, nm.
+    salt_M : float or None
+        Monovalent salt, mol/L.
+    source, conditions, url, verification : str
+    """
+
+    persistence_length: float
+    stretch_modulus: float
+    rise: float
+    salt_M: float | None
+    source: str
+    conditions: str
+    url: str
+    verification: str
+
+    @property
+    def stretch_modulus_pN(self):
+        """The stretch modulus in pN."""
+        return self.stretch_modulus / PN
+
+
+def force_extension_curves():
+    """Extensible-WLC curves drawn with measured force-extension data (``force_extension_curves.csv``): lp 50 nm,
+    0.34 nm/bp, S 1000 pN over lambda-DNA at 100 mM Na+ (PMC33432, Fig. 2). Curve parameters, not stated as a fit
+    and without uncertainty: for drawing and reporting, not for a pass/fail tolerance."""
+    return [WLCCurve(persistence_length=float(r["persistence_length_nm"]),
+                     stretch_modulus=float(r["stretch_modulus_pN"]) * PN,
+                     rise=float(r["contour_length_per_bp_nm"]), salt_M=_f(r.get("salt_M")), source=r["source"],
+                     conditions=r.get("conditions", ""), url=r.get("url", ""), verification=r.get("verification", ""))
+            for r in read_table("force_extension_curves.csv")]
+
+
 def writhe_fraction_reference():
     """Writhe fraction Wr/dLk of supercoiled closed circular DNA (``ring_writhe_fraction.csv``; ratio, unit ``"1"``).
 
@@ -244,6 +333,26 @@ def supercoiling_free_energy_reference():
     empty, no value could be read (:data:`MISSING`)."""
     return [_m(r, r["quantity"], r["value"], "1") for r in read_table("supercoiling.csv")
             if r["quantity"] == "supercoiling_free_energy_K"]
+
+
+def topoisomer_variance_fit_reference():
+    """Torsional rigidity C (kJ/mol nm) and bending persistence length (nm) that Frank-Kamenetskii et al. (1985)
+    fitted to the chain-length dependence of Horowitz & Wang's (1984) topoisomer variances <dLk^2> of small rings
+    (``supercoiling.csv``; C = 3.0e-19 erg cm, a = 500 Angstrom; secondary to Horowitz & Wang, ionic conditions not
+    stated). Returns ``{"torsional_rigidity": Measurement, "persistence_length": Measurement}`` (empty if absent).
+    C / kT is the torsional persistence length at the caller's temperature."""
+    from ..units import AVOGADRO
+
+    erg_cm = 1e-9 * 1e9 * AVOGADRO / 1000.0  # 1 erg cm = 1e-9 J m = 1e-9 J * 1e9 nm, per molecule -> kJ/mol nm
+    out = {}
+    for r in read_table("supercoiling.csv"):
+        if r["quantity"] == "torsional_rigidity_fit_to_topoisomer_variance":
+            assert r["unit"] == "erg cm", r["unit"]
+            out["torsional_rigidity"] = _m(r, r["quantity"], float(r["value"]) * erg_cm, "kJ/mol nm")
+        elif r["quantity"] == "bending_persistence_fit_to_topoisomer_variance":
+            assert r["unit"] == "Angstrom", r["unit"]
+            out["persistence_length"] = _m(r, r["quantity"], float(r["value"]) * NM_PER_ANGSTROM, "nm")
+    return out
 
 
 def supercoiling_free_energy_ionic_variation():

@@ -37,6 +37,12 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
    ``gate_effective_diameter=True`` because the reference is a computation, not a measurement, and the model's
    non-local terms are deliberately not calibrated to it (``dnarod.openmm.nonbonded``).
 
+6. **Reported, not gating** (the sources state no uncertainty, so no tolerance can be set): the model's stretch
+   modulus and x/L at ``forces_pN`` beside the extensible-WLC curve (lp 50 nm, S 1000 pN) that a source draws over
+   lambda-DNA data at 100 mM Na+ (PMC33432 Fig. 2; :func:`compare_force_extension_curve`), and the model's bare C
+   beside the C = 3.0e-19 erg cm that Frank-Kamenetskii et al. (1985) fitted to Horowitz & Wang's topoisomer
+   variances (:func:`compare_topoisomer_fit`).
+
 Not compared, because no value could be read (:data:`dnarod.protocols.experiments.MISSING`): buckling torques
 and post-buckling plateaus, the supercoiling free-energy coefficient K, measured (knotting) effective diameters
 and the primary writhe-fraction measurements. ``lp_override`` / ``c_override`` / ``d_override`` replace the
@@ -100,6 +106,51 @@ def compare_effective_diameter(d_model_nm, salt_M):
                 ratio=float(d_model_nm) / m.value, difference_nm=float(d_model_nm) - m.value,
                 kind="computed (Poisson-Boltzmann second virial), not measured", source=ex.cite_short(m.source),
                 conditions=m.conditions, url=m.url, agrees=bool(abs(float(d_model_nm) - m.value) <= tol))
+
+
+def compare_force_extension_curve(lp_model_nm, s_model_pN, forces_pN, temperature):
+    """Model relative extension x/L (extensible WLC with the model's lp, nm, and S, pN) at ``forces_pN`` beside the
+    curve a source draws over measured lambda-DNA data (:func:`dnarod.protocols.experiments.force_extension_curves`),
+    reported only: the curve's parameters carry no uncertainty. Returns a dict or None when none is tabulated."""
+    from ..protocols import experiments as ex
+    from ..thermal import kT
+    from ..units import PN
+    from ..wlc import extensible_wlc_extension
+
+    curves = ex.force_extension_curves()
+    if not curves:
+        return None
+    c = curves[0]
+    kt_pn = kT(temperature) / PN
+    F = np.asarray(forces_pN, float)
+    xm = np.asarray(extensible_wlc_extension(F, lp_model_nm, s_model_pN, kt_pn))
+    xc = np.asarray(extensible_wlc_extension(F, c.persistence_length, c.stretch_modulus_pN, kt_pn))
+    return dict(curve_persistence_length_nm=c.persistence_length, curve_stretch_modulus_pN=c.stretch_modulus_pN,
+                salt_M=c.salt_M, model_stretch_modulus_pN=float(s_model_pN),
+                stretch_modulus_ratio=float(s_model_pN) / c.stretch_modulus_pN,
+                relative_extension=[dict(force_pN=float(f), model=float(a), curve=float(b), difference=float(a - b))
+                                    for f, a, b in zip(F, xm, xc)],
+                max_abs_difference=float(np.max(np.abs(xm - xc))), kind="reported (curve parameters, no uncertainty)",
+                source=c.source, conditions=c.conditions, url=c.url)
+
+
+def compare_topoisomer_fit(c_model_nm, temperature):
+    """Model bare torsional persistence length C (nm) beside C / kT of the rigidity Frank-Kamenetskii et al. (1985)
+    fitted to Horowitz & Wang's topoisomer variances (:func:`dnarod.protocols.experiments.
+    topoisomer_variance_fit_reference`), reported only (no uncertainty stated). Returns a dict or None."""
+    from ..protocols import experiments as ex
+    from ..thermal import kT
+
+    ref = ex.topoisomer_variance_fit_reference()
+    if "torsional_rigidity" not in ref:
+        return None
+    m = ref["torsional_rigidity"]
+    c_ref = m.value / kT(temperature)
+    lp = ref.get("persistence_length")
+    return dict(model_nm=float(c_model_nm), reference_nm=float(c_ref), conversion_temperature_K=temperature,
+                ratio=float(c_model_nm) / c_ref, reference_persistence_length_nm=None if lp is None else lp.value,
+                kind="reported (a fit to topoisomer variances, secondary to Horowitz & Wang 1984; no uncertainty)",
+                source=m.source, url=m.url)
 
 
 def model_elastic_constants(temperature, forcefield="dna-default"):
@@ -182,6 +233,8 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
         d_model = float(d_override)
     diameter = compare_effective_diameter(d_model, salt_M)
     writhe = None if writhe_fraction_model is None else compare_writhe_fraction(*writhe_fraction_model)
+    fe_curve = compare_force_extension_curve(lp, S, F, temperature)
+    topo = compare_topoisomer_fit(C, temperature)
 
     not_compared = {k: f"no value could be read: {v}" for k, v in ex.MISSING.items()}
     if writhe is None:
@@ -201,12 +254,19 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                temperature_K=temperature, model_persistence_length_nm=lp0, model_twist_persistence_nm=C0,
                persistence_length_used_nm=lp, twist_persistence_used_nm=C, stretch_modulus_pN=S,
                bending=bending, effective_torsional_stiffness=torsion_rows, bare_torsional_stiffness=bare_res,
-               writhe_fraction=writhe, effective_diameter=diameter, model_effective_diameter_nm=d_model,
+               writhe_fraction=writhe, effective_diameter=diameter, force_extension_curve=fe_curve,
+               topoisomer_fit=topo, model_effective_diameter_nm=d_model,
                effective_diameter_gating=bool(gate_effective_diameter), disagreements=disagreements,
                z_tolerance=Z_TOL, theory_allowance_relative=THEORY_ALLOWANCE, writhe_rounding=WRITHE_ROUNDING,
                diameter_tolerance_relative=DIAMETER_TOLERANCE, not_compared=not_compared,
                notes=["Measured values and where they were read: data/README.md (data/experimental/).",
                       "Not compared (no value could be read): " + "; ".join(ex.MISSING.values()) + ".",
+                      "Reported, not gating (no uncertainty stated): "
+                      + (f"S {S:.0f} pN vs {fe_curve['curve_stretch_modulus_pN']:g} pN of the eWLC curve drawn over "
+                         f"lambda-DNA data at {1000 * fe_curve['salt_M']:g} mM (max |dx/L| "
+                         f"{fe_curve['max_abs_difference']:.3f}); " if fe_curve else "")
+                      + (f"C {C:.1f} nm vs {topo['reference_nm']:.1f} nm fitted to Horowitz-Wang topoisomer "
+                         f"variances (Frank-Kamenetskii et al. 1985, at {temperature:g} K)." if topo else ""),
                       "Effective diameter: the reference is computed (Poisson-Boltzmann), not measured; the model's "
                       "WCA diameter and Debye-Hueckel charge are not calibrated to it (reported, "
                       + ("gating" if gate_effective_diameter else "not gating") + ")."],
@@ -240,6 +300,11 @@ def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
     a = ax[0, 0]
     a.fill_between(F, x_lo, x_hi, color="0.85", label="WLC with the measured lp interval")
     a.semilogx(F, x_model, "ko-", label=f"model (lp {lp:.1f} nm)")
+    fe = res.get("force_extension_curve")
+    if fe:
+        a.semilogx(F, [r["curve"] for r in fe["relative_extension"]], "-.", color="0.4",
+                   label=f"eWLC lp {fe['curve_persistence_length_nm']:g} nm, S {fe['curve_stretch_modulus_pN']:g} pN "
+                         f"over lambda-DNA data, {1000 * fe['salt_M']:g} mM (reported)")
     a.set_xlabel("force (pN)")
     a.set_ylabel("extension / contour length")
     a.legend(fontsize=7)
