@@ -1,4 +1,4 @@
-"""Round-5 experimental values (data/experimental/): the B->P transition torque, the extensible-WLC curve drawn over
+"""More experimental values (data/experimental/): the B->P transition torque, the extensible-WLC curve drawn over
 lambda-DNA data at 100 mM Na+, the fit to Horowitz-Wang topoisomer variances, and the buckling-torque reference
 that stays empty until a source stating buckling torques is read. Loader units, plot overlays, the reported
 comparisons of check ``experiment``."""
@@ -94,7 +94,7 @@ def _labels_and_texts(monkeypatch, tmp_path, kind):
     return " | ".join(labels), texts
 
 
-def test_plots_draw_the_round5_values(tmp_path, monkeypatch):
+def test_plots_draw_the_limits_and_curves(tmp_path, monkeypatch):
     fe, _ = _labels_and_texts(monkeypatch, tmp_path, "force_extension")
     assert "eWLC lp 50 nm, S 1000 pN drawn over lambda-DNA data at 100 mM Na+ (PMC33432 Fig. 2)" in fe
     hat, texts = _labels_and_texts(monkeypatch, tmp_path, "magnetic_tweezers")
@@ -125,7 +125,7 @@ def test_torque_plot_draws_a_buckling_torque_at_the_run_force_when_one_is_tabula
     assert not any("no measured buckling torque" in t for t in texts)
 
 
-def test_experiment_check_reports_the_round5_comparisons(tmp_path):
+def test_experiment_check_reports_the_comparisons_without_stated_uncertainty(tmp_path):
     from dnarod.validate.experiment import (check_experiment, compare_force_extension_curve,
                                             compare_topoisomer_fit)
 
