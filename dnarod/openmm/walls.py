@@ -1,0 +1,185 @@
+"""The planar walls of a magnetic-tweezers member: the surface under the anchored end, the bead above the pulled one.
+
+Node ``k`` owns particles ``3k, 3k+1, 3k+2`` (:mod:`dnarod.openmm.particles`); node 0 is anchored at the surface,
+node ``n-1`` is pulled along +z. With ``z`` the particles' z coordinates (nm) and ``k`` the stiffness
+(kJ/mol/nm^2), the energy (kJ/mol) is
+
+* surface (a fixed plane at ``z_0``, node 0's z at the start): ``E_s = k/2 sum_p min(0, z_p - z_0)^2`` over the
+  three particles of every node ``skip .. n-1``;
+* bead (a plane through the pulled node: the large-bead limit): ``E_b = k/2 sum_i max(0, z_{3i} - z_c)^2`` over the
+  first particle of every node ``0 .. n-1-skip``, with ``z_c`` the mean z of node ``n-1``'s three particles
+  (the reaction, ``+k (z_{3i} - z_c)`` along z, is spread equally over them).
+
+Two implementations of the same energy and forces (tested equal to 1e-10 relative in double precision):
+
+* :func:`wall_forces_compiled` -- ``dnarod.WallForce`` of the compiled plugin (:mod:`dnarod.openmm.plugin`): one
+  C++ pass over the particles, evaluated on the host (OpenMM's ``CustomCPPForceImpl``);
+* :func:`wall_forces_reference` -- the slow reference and the fallback: an OpenMM ``CustomExternalForce`` (surface)
+  and ``CustomCentroidBondForce`` (bead), Lepton expressions that run on every platform, the GPU ones included.
+  On the host platforms they are the expensive part of a member's step: the CPU platform evaluates both through
+  OpenMM's reference kernels, which for every particle (every bond) set the variables of a compiled Lepton
+  expression and evaluate it and its derivatives, and the centroid force also recomputes every group's centre
+  (one per bond) each time; ``benchmarks/bench_tweezers_cost.py`` measures both forms per force and per step.
+
+:func:`wall_forces` picks the compiled form on the host platforms (CPU, Reference) when the plugin is usable, else
+the reference (on GPU platforms a host force would copy positions off the device every step). Every form puts
+its forces in force group ``GROUPS["external"]``, with the loads (pulling force, clamps), so the walls' energy is
+reported in the "external" term.
+"""
+from __future__ import annotations
+
+import numpy as np
+import openmm
+
+from .forces import GROUPS
+
+#: Platforms on which :func:`wall_forces` takes the compiled form (host code, no device copies).
+COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
+
+
+def _check(n_nodes, skip):
+    n, skip = int(n_nodes), int(skip)
+    if not 0 <= skip < n:
+        from ..errors import ParameterError
+
+        raise ParameterError(f"wall skip must be in 0 .. n_nodes-1 = {n - 1}, got {skip}")
+    return n, skip
+
+
+def wall_forces_reference(n_nodes, z_surface, k, skip):
+    """The walls as OpenMM Custom forces (the reference form; every platform).
+
+    Parameters
+    ----------
+    n_nodes : int
+        Nodes of the chain (particles ``0 .. 3 n_nodes - 1``).
+    z_surface : float
+        z of the surface plane, nm.
+    k : float
+        Stiffness of both walls, kJ/mol/nm^2.
+    skip : int
+        Nodes next to each end left alone (the surface skips nodes ``0 .. skip-1``, the bead ``n-skip .. n-1``).
+
+    Returns
+    -------
+    list of openmm.Force
+        ``[CustomExternalForce (surface), CustomCentroidBondForce (bead)]``, both in group ``GROUPS["external"]``.
+    """
+    n, skip = _check(n_nodes, skip)
+    wall = openmm.CustomExternalForce("0.5*dnarod_wall_k*min(0, z - dnarod_surface_z)^2")
+    wall.addGlobalParameter("dnarod_wall_k", float(k))
+    wall.addGlobalParameter("dnarod_surface_z", float(z_surface))
+    for i in range(3 * skip, 3 * n):
+        wall.addParticle(i, [])
+    wall.setForceGroup(GROUPS["external"])
+    wall.setName("dnarod tweezers surface")
+    bead = openmm.CustomCentroidBondForce(2, "0.5*dnarod_bead_k*max(0, z1 - z2)^2")
+    bead.addGlobalParameter("dnarod_bead_k", float(k))
+    last = bead.addGroup([3 * (n - 1), 3 * (n - 1) + 1, 3 * (n - 1) + 2], [1.0, 1.0, 1.0])
+    for i in range(n - skip):
+        g = bead.addGroup([3 * i], [1.0])
+        bead.addBond([g, last], [])
+    bead.setForceGroup(GROUPS["external"])
+    bead.setName("dnarod tweezers bead plane")
+    return [wall, bead]
+
+
+def compiled_walls_available():
+    """Whether the compiled plugin is usable here and has ``WallForce`` (a plugin built before it has not)."""
+    from . import plugin
+
+    mod = plugin.module()
+    return mod is not None and hasattr(mod, "WallForce")
+
+
+def wall_forces_compiled(n_nodes, z_surface, k, skip):
+    """The walls as one compiled ``dnarod.WallForce`` (host code on every platform).
+
+    Parameters and particle sets as :func:`wall_forces_reference`.
+
+    Returns
+    -------
+    list of openmm.Force
+        ``[WallForce]`` in group ``GROUPS["external"]``; its ``getLastSurface()``, ``getLastBead()`` give the two
+        energies (kJ/mol) of the last evaluation.
+
+    Raises
+    ------
+    ParameterError
+        If the compiled plugin (with ``WallForce``) is not usable here.
+    """
+    from . import plugin
+
+    n, skip = _check(n_nodes, skip)
+    if not compiled_walls_available():
+        from ..errors import ParameterError
+
+        reason = plugin.status().reason or "the installed plugin was built without WallForce: reinstall dnarod"
+        raise ParameterError(f"the compiled tweezers walls need the compiled OpenMM plugin, which is not usable "
+                             f"here ({reason})")
+    f = plugin.module().WallForce()
+    f.setParameters(float(z_surface), float(k), float(k))
+    for i in range(3 * skip, 3 * n):
+        f.addSurfaceParticle(i)
+    f.setBeadNode(3 * (n - 1), 3 * (n - 1) + 1, 3 * (n - 1) + 2)
+    for i in range(n - skip):
+        f.addBeadParticle(3 * i)
+    f.setForceGroup(GROUPS["external"])
+    f.setName("dnarod tweezers walls (surface + bead plane, plugin)")
+    return [f]
+
+
+def wall_forces(n_nodes, z_surface, k, skip, platform="CPU", form="auto"):
+    """The tweezers walls in the form that is fastest on ``platform``.
+
+    Parameters
+    ----------
+    n_nodes, z_surface, k, skip
+        As :func:`wall_forces_reference` (nm, kJ/mol/nm^2).
+    platform : str
+        The OpenMM platform name the forces will run on.
+    form : {"auto", "compiled", "reference"}
+        ``"auto"``: compiled on :data:`COMPILED_WALL_PLATFORMS` when the plugin is usable, else the reference.
+
+    Returns
+    -------
+    list of openmm.Force
+    """
+    if form == "auto":
+        form = "compiled" if platform in COMPILED_WALL_PLATFORMS and compiled_walls_available() else "reference"
+    if form == "compiled":
+        return wall_forces_compiled(n_nodes, z_surface, k, skip)
+    if form == "reference":
+        return wall_forces_reference(n_nodes, z_surface, k, skip)
+    from ..errors import ParameterError
+
+    raise ParameterError(f"wall form must be 'auto', 'compiled' or 'reference', got {form!r}")
+
+
+def wall_energy(z, n_nodes, z_surface, k, skip):
+    """Energy and z forces of the walls for particle z coordinates (numpy; for checks).
+
+    Parameters
+    ----------
+    z : ndarray, shape (3 n_nodes,)
+        Particle z coordinates, nm.
+    n_nodes, z_surface, k, skip
+        As :func:`wall_forces_reference`.
+
+    Returns
+    -------
+    (float, float, ndarray of shape (3 n_nodes,))
+        Surface energy, bead energy (kJ/mol) and the z component of the force on every particle (kJ/mol/nm).
+    """
+    n, skip = _check(n_nodes, skip)
+    z = np.asarray(z, float)
+    fz = np.zeros(3 * n)
+    d = np.minimum(0.0, z[3 * skip:3 * n] - float(z_surface))
+    e_s = 0.5 * k * float(np.sum(d * d))
+    fz[3 * skip:3 * n] -= k * d
+    zc = z[3 * (n - 1):3 * n].sum() / 3.0
+    d = np.maximum(0.0, z[0:3 * (n - skip):3] - zc)
+    e_b = 0.5 * k * float(np.sum(d * d))
+    fz[0:3 * (n - skip):3] -= k * d
+    fz[3 * (n - 1):3 * n] += k * float(d.sum()) / 3.0
+    return e_s, e_b, fz
