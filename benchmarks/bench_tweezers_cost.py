@@ -10,7 +10,9 @@ reference form, :func:`dnarod.openmm.walls.wall_forces_reference`: the protocol'
 and both walls as the compiled ``WallForce`` (:func:`dnarod.openmm.walls.wall_forces_compiled`, the protocol's form
 on CPU/Reference now), with the two forms' energies and forces compared on a thermal configuration pushed through
 both walls; (3) why the Custom forces cost what they do: a ``CustomExternalForce`` and a
-``CustomCentroidBondForce`` alone on the CPU platform with 0, 1 and 3 particles (bonds) per node; (4) CPU time of
+``CustomCentroidBondForce`` alone on the CPU platform with 0, 1 and 3 particles (bonds) per node, and the walls
+alone in each candidate form (Custom forces, compiled ``WallForce``, a numba kernel in its own ``PythonForce``) on
+the CPU and Reference platforms; (4) CPU time of
 the observables computed per sample (end rotation, Tw/Wr, plectoneme detector, twisting moment); (5) a whole
 member (``--member-ns`` of production after 0.1 ns of equilibration, ``sample_member``) with each wall form.
 Prints a table and writes ``benchmarks/results/tweezers_cost.json``.
@@ -25,6 +27,7 @@ import os
 import time
 from pathlib import Path
 
+import numba
 import numpy as np
 
 
@@ -71,6 +74,76 @@ def custom_force_costs(n_nodes, repeats):
         for i in range(per_node * n_nodes):
             b.addBond([b.addGroup([3 * i], [1.0]), last], [])
         rows.append(dict(force="CustomCentroidBondForce", terms=per_node * n_nodes, us_net=cost(b)))
+    return rows
+
+
+@numba.njit(cache=True)
+def _walls_numba(p, z0, k, skip, n, out):
+    """The walls' energy and z forces (out (3n, 3), zeroed by the caller) as a numba kernel: the candidate Python
+    form, measured here inside an ``openmm.PythonForce``."""
+    e = 0.0
+    for i in range(3 * skip, 3 * n):
+        d = p[i, 2] - z0
+        if d < 0:
+            e += 0.5 * k * d * d
+            out[i, 2] = -k * d
+    zc = (p[3 * n - 3, 2] + p[3 * n - 2, 2] + p[3 * n - 1, 2]) / 3.0
+    fc = 0.0
+    for i in range(n - skip):
+        d = p[3 * i, 2] - zc
+        if d > 0:
+            e += 0.5 * k * d * d
+            out[3 * i, 2] -= k * d
+            fc += k * d
+    for j in range(3):
+        out[3 * n - 3 + j, 2] += fc / 3.0
+    return e
+
+
+class _NumbaWalls:
+    def __init__(self, n, z0, k, skip):
+        self.n, self.z0, self.k, self.skip = n, z0, k, skip
+        self.out = np.zeros((3 * n, 3))
+
+    def __call__(self, state):
+        p = state.getPositions(asNumpy=True)._value
+        self.out[:] = 0.0
+        return _walls_numba(p, self.z0, self.k, self.skip, self.n, self.out), self.out
+
+
+def wall_form_costs(n_nodes, repeats):
+    """CPU microseconds per evaluation of the walls alone in each form (Custom forces, compiled WallForce, a numba
+    kernel in its own ``PythonForce``) on the CPU (one thread) and Reference platforms, net of an empty group, on
+    random positions (about half the surface particles under the plane)."""
+    import openmm
+
+    from dnarod.openmm import walls as wl
+
+    n = 3 * n_nodes
+    x = np.random.default_rng(0).normal(size=(n, 3))
+    rows = []
+    for plat in ("CPU", "Reference"):
+        for form in ("Custom forces", "compiled WallForce", "numba PythonForce"):
+            forces = {"Custom forces": lambda: wl.wall_forces_reference(n_nodes, 0.0, 100.0, 3),
+                      "compiled WallForce": lambda: wl.wall_forces_compiled(n_nodes, 0.0, 100.0, 3),
+                      "numba PythonForce": lambda: [openmm.PythonForce(_NumbaWalls(n_nodes, 0.0, 100.0, 3))]}[form]()
+            s = openmm.System()
+            for _ in range(n):
+                s.addParticle(1.0)
+            for f in forces:
+                f.setForceGroup(1)
+                s.addForce(f)
+            ctx = openmm.Context(s, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName(plat),
+                                 {"Threads": "1"} if plat == "CPU" else {})
+            ctx.setPositions(x)
+            out = []
+            for g in ({0}, {1}):
+                ctx.getState(getForces=True, getEnergy=True, groups=g)
+                c0 = time.process_time()
+                for _ in range(repeats):
+                    ctx.getState(getForces=True, getEnergy=True, groups=g)
+                out.append(1e6 * (time.process_time() - c0) / repeats)
+            rows.append(dict(platform=plat, form=form, us_net=out[1] - out[0]))
     return rows
 
 
@@ -207,6 +280,7 @@ def main(argv=None):
     groups = force_group_times(sims[names[2]], repeats=reps)
     groups += [g for g in force_group_times(sims[names[3]], repeats=reps) if "walls" in g["force"]]
     why = custom_force_costs(a.n_bp, reps)
+    form_costs = wall_form_costs(a.n_bp, reps)
     # observables per sample (on the protocol member's current state)
     pos_n, frm = sim.node_pose()
     obs = {}
@@ -228,7 +302,7 @@ def main(argv=None):
                load_average=os.getloadavg(), n_bp=a.n_bp, force_pN=a.force, turns=a.turns, dt_ps=dt,
                compiled_walls_available=wl.compiled_walls_available(),
                steps_per_measurement=a.steps, variants=variants, wall_forms_same_energy=same, force_group_us=groups,
-               custom_force_us_by_terms=why, observables_ms_per_sample=obs, default_sample_ps=m["sample_ps"],
+               custom_force_us_by_terms=why, wall_form_us=form_costs, observables_ms_per_sample=obs, default_sample_ps=m["sample_ps"],
                observables_share_at_default_sampling=sum(obs.values()) * 1e-3 /
                (sum(obs.values()) * 1e-3 + per_sample_steps / variants[names[3]]["steps_per_cpu_s"]),
                members=members)
@@ -247,6 +321,9 @@ def main(argv=None):
     print(f"  Custom forces alone on {3 * a.n_bp} particles (CPU platform, net us per evaluation):")
     for r in why:
         print(f"    {r['force']:24s} {r['terms']:6d} particles/bonds  {r['us_net']:7.1f} us")
+    print("  the walls alone in each form (net us per evaluation):")
+    for r in form_costs:
+        print(f"    {r['platform']:10s} {r['form']:20s} {r['us_net']:7.1f} us")
     print("  observables per sample (ms): " + ", ".join(f"{k} {v:.2f}" for k, v in obs.items()))
     print(f"  observables' share of the CPU time at the default sampling ({m['sample_ps']:g} ps): "
           f"{100 * out['observables_share_at_default_sampling']:.1f} %")
