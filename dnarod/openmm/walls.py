@@ -16,10 +16,12 @@ Two implementations of the same energy and forces (tested equal to 1e-10 relativ
   C++ pass over the particles, evaluated on the host (OpenMM's ``CustomCPPForceImpl``);
 * :func:`wall_forces_reference` -- the slow reference and the fallback: an OpenMM ``CustomExternalForce`` (surface)
   and ``CustomCentroidBondForce`` (bead), Lepton expressions that run on every platform, the GPU ones included.
-  On the host platforms they are the expensive part of a member's step: the CPU platform evaluates both through
-  OpenMM's reference kernels, which for every particle (every bond) set the variables of a compiled Lepton
-  expression and evaluate it and its derivatives, and the centroid force also recomputes every group's centre
-  (one per bond) each time; ``benchmarks/bench_tweezers_cost.py`` measures both forms per force and per step.
+  On the host platforms they were the expensive part of a member's step: OpenMM's CPU platform has no kernel of its
+  own for either force and runs the Reference kernels, single-threaded, which for every particle (every bond) load
+  the variables of a compiled Lepton expression and evaluate the energy and its derivatives. The surface acts on
+  all three particles of each node (2 991 particles at 1 kbp): about 30 ns per particle, 90 us per evaluation at
+  1 kbp, growing with the particle count (0 / 1 / 3 particles per node measured in
+  ``benchmarks/bench_tweezers_cost.py``, which also times both forms per force and per step).
 
 :func:`wall_forces` picks the compiled form on the host platforms (CPU, Reference) when the plugin is usable, else
 the reference (on GPU platforms a host force would copy positions off the device every step). Every form puts
