@@ -124,9 +124,22 @@ def test_wall_form_choice_and_bad_input():
     names = [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform="OpenCL")]
     assert names == ["CustomExternalForce", "CustomCentroidBondForce"]
     with pytest.raises(ParameterError, match="skip"):
+        walls.wall_forces(N, Z0, K, -1)
+    with pytest.raises(ParameterError, match="skip"):
         walls.wall_forces(N, Z0, K, N)
     with pytest.raises(ParameterError, match="form"):
         walls.wall_forces(N, Z0, K, SKIP, form="numba")
+
+
+def test_without_the_plugin_the_walls_fall_back_to_the_reference(monkeypatch):
+    """Where the plugin (or its WallForce) is not usable, the automatic form is the Custom-force reference."""
+    monkeypatch.setattr(walls, "compiled_walls_available", lambda: False)
+    names = [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform="CPU")]
+    assert names == ["CustomExternalForce", "CustomCentroidBondForce"]
+    from dnarod.errors import ParameterError
+
+    with pytest.raises(ParameterError, match="compiled OpenMM plugin"):
+        walls.wall_forces(N, Z0, K, SKIP, form="compiled")
 
 
 def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
@@ -144,15 +157,16 @@ def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
     return sim, model
 
 
-@pytest.mark.parametrize("elastic", ["auto", "fast", "portable"])
-def test_walls_in_a_member_simulation_report_in_external(elastic):
+@pytest.mark.parametrize("elastic, platform", [("auto", "Reference"), ("auto", "CPU"), ("fast", "Reference"),
+                                               ("portable", "Reference")])
+def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
     """With every elastic path, the walls' energy is in the "external" term: pushing nodes through both walls
     raises it by exactly the numpy wall energy (pulling-force energy removed), with either wall form."""
     from dnarod.openmm.particles import particle_positions
 
     got = {}
     for form in ("compiled", "reference"):
-        sim, model = _member_sim(elastic, form=form)
+        sim, model = _member_sim(elastic, platform, form=form)
         p = particle_positions(model.positions, model.frames, sim.rs.radius).reshape(-1, 3).copy()
         z0 = float(model.positions[0, 2])
         top = p[3 * (N - 1):3 * N, 2].mean()
@@ -196,3 +210,17 @@ def test_walls_after_a_reinitialised_context():
     es, eb, _ = walls.wall_energy(p[:, 2], N, z0, 100.0, 3)
     assert es > 1.0 and eb > 1.0
     assert sim.energies()["external"] - e0 == pytest.approx(es + eb, rel=1e-9)
+
+
+@pytest.mark.parametrize("platform", ["Reference", "CPU"])
+def test_a_tweezers_member_uses_the_compiled_walls(platform):
+    from dnarod.protocols import tweezers as tw
+
+    m = tw.build_member(dict(n_bp=30, force_pN=2.0, turns=0.2, time_ns=0.01, equilibration_ns=0.005,
+                             platform=platform))
+    sim = tw._member_simulation(m, m["model"])
+    names = [sim.rs.system.getForce(i).getName() for i in range(sim.rs.system.getNumForces())]
+    assert "dnarod tweezers walls (surface + bead plane, plugin)" in names
+    assert not any(n.startswith("dnarod tweezers surface") or "bead plane" == n[-10:] for n in names)
+    assert sim.rs.system.getForce(names.index("dnarod tweezers walls (surface + bead plane, plugin)")).getForceGroup() \
+        == 3
