@@ -222,5 +222,5 @@ def test_a_tweezers_member_uses_the_compiled_walls(platform):
     names = [sim.rs.system.getForce(i).getName() for i in range(sim.rs.system.getNumForces())]
     assert "dnarod tweezers walls (surface + bead plane, plugin)" in names
     assert not any(n.startswith("dnarod tweezers surface") or "bead plane" == n[-10:] for n in names)
-    assert sim.rs.system.getForce(names.index("dnarod tweezers walls (surface + bead plane, plugin)")).getForceGroup() \
-        == 3
+    wall = sim.rs.system.getForce(names.index("dnarod tweezers walls (surface + bead plane, plugin)"))
+    assert wall.getForceGroup() == GROUPS["external"]
