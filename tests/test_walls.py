@@ -1,6 +1,6 @@
-"""Tweezers walls (dnarod.openmm.walls): the compiled WallForce against the OpenMM Custom-force reference and a
-numpy transcription of the energy, finite differences, the skipped end nodes, serialization, a reinitialised
-Context and the energy group that reports them."""
+"""Tweezers walls (dnarod.openmm.walls): the compiled WallForce and the numba PythonForce against the OpenMM
+Custom-force reference and a numpy transcription of the energy, finite differences, the skipped end nodes,
+serialization, a reinitialised Context, the same dynamics, and the energy group that reports them."""
 import copy
 
 import numpy as np
@@ -10,7 +10,10 @@ import pytest
 from dnarod.openmm import walls
 from dnarod.openmm.forces import GROUPS
 
-pytestmark = pytest.mark.skipif(not walls.compiled_walls_available(), reason="compiled plugin with WallForce not built")
+needs_plugin = pytest.mark.skipif(not walls.compiled_walls_available(),
+                                  reason="compiled plugin with WallForce not built")
+FAST_FORMS = [pytest.param("compiled", marks=needs_plugin), "numba"]
+BUILD = {"compiled": walls.wall_forces_compiled, "numba": walls.wall_forces_numba}
 
 N, Z0, K, SKIP = 24, 0.3, 100.0, 3
 
@@ -49,12 +52,12 @@ def evaluate(forces, pos, platform="Reference", groups=None):
         st.getForces(asNumpy=True).value_in_unit(openmm.unit.kilojoule_per_mole / openmm.unit.nanometer)
 
 
+@pytest.mark.parametrize("form", FAST_FORMS)
 @pytest.mark.parametrize("platform", ["Reference", "CPU"])
-def test_compiled_walls_equal_the_custom_force_reference(platform):
+def test_fast_walls_equal_the_custom_force_reference(platform, form):
     pos = wall_configuration()
     e_ref, f_ref = evaluate(walls.wall_forces_reference(N, Z0, K, SKIP), pos, platform)
-    compiled = walls.wall_forces_compiled(N, Z0, K, SKIP)
-    e, f = evaluate(compiled, pos, platform)
+    e, f = evaluate(BUILD[form](N, Z0, K, SKIP), pos, platform)
     es, eb, fz = walls.wall_energy(pos[:, 2], N, Z0, K, SKIP)
     assert es > 1.0 and eb > 1.0  # both walls are touched
     assert e == pytest.approx(e_ref, rel=1e-10) and e == pytest.approx(es + eb, rel=1e-12)
@@ -72,13 +75,14 @@ def test_compiled_walls_equal_the_custom_force_reference(platform):
     assert evaluate(ref, pos, platform, groups={GROUPS["external"] + 1})[0] == pytest.approx(eb, rel=1e-10)
 
 
-def test_compiled_walls_finite_differences():
-    """Central differences of the compiled energy match its forces on every particle that touches a wall."""
+@pytest.mark.parametrize("form", FAST_FORMS)
+def test_fast_walls_finite_differences(form):
+    """Central differences of the energy match the forces on every particle that touches a wall."""
     pos = wall_configuration(seed=1)
     s = openmm.System()
     for _ in range(3 * N):
         s.addParticle(1.0)
-    s.addForce(walls.wall_forces_compiled(N, Z0, K, SKIP)[0])
+    s.addForce(BUILD[form](N, Z0, K, SKIP)[0])
     ctx = openmm.Context(s, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("Reference"))
 
     def energy(p):
@@ -98,8 +102,9 @@ def test_compiled_walls_finite_differences():
             assert fd == pytest.approx(F[i, a], rel=1e-6, abs=1e-6)
 
 
-def test_wall_force_serializes_and_reports_its_group():
-    f = walls.wall_forces_compiled(N, Z0, K, SKIP)[0]
+@pytest.mark.parametrize("form", FAST_FORMS)
+def test_wall_force_serializes_and_reports_its_group(form):
+    f = BUILD[form](N, Z0, K, SKIP)[0]
     assert f.getForceGroup() == GROUPS["external"]
     s = openmm.System()
     for _ in range(3 * N):
@@ -115,6 +120,7 @@ def test_wall_force_serializes_and_reports_its_group():
     assert evaluate([f], pos, groups={GROUPS["elastic"], GROUPS["nonbonded"]})[0] == 0.0
 
 
+@needs_plugin
 def test_wall_form_choice_and_bad_input():
     from dnarod.errors import ParameterError
 
@@ -128,13 +134,16 @@ def test_wall_form_choice_and_bad_input():
     with pytest.raises(ParameterError, match="skip"):
         walls.wall_forces(N, Z0, K, N)
     with pytest.raises(ParameterError, match="form"):
-        walls.wall_forces(N, Z0, K, SKIP, form="numba")
+        walls.wall_forces(N, Z0, K, SKIP, form="lepton")
 
 
-def test_without_the_plugin_the_walls_fall_back_to_the_reference(monkeypatch):
-    """Where the plugin (or its WallForce) is not usable, the automatic form is the Custom-force reference."""
+def test_without_the_plugin_the_walls_fall_back_to_numba(monkeypatch):
+    """Where the plugin (or its WallForce) is not usable, the automatic form is the numba PythonForce on the host
+    platforms and the Custom-force reference on the others."""
     monkeypatch.setattr(walls, "compiled_walls_available", lambda: False)
-    names = [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform="CPU")]
+    for plat in ("CPU", "Reference"):
+        assert [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform=plat)] == ["PythonForce"]
+    names = [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform="OpenCL")]
     assert names == ["CustomExternalForce", "CustomCentroidBondForce"]
     from dnarod.errors import ParameterError
 
@@ -157,6 +166,7 @@ def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
     return sim, model
 
 
+@needs_plugin
 @pytest.mark.parametrize("elastic, platform", [("auto", "Reference"), ("auto", "CPU"), ("fast", "Reference"),
                                                ("portable", "Reference")])
 def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
@@ -165,7 +175,7 @@ def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
     from dnarod.openmm.particles import particle_positions
 
     got = {}
-    for form in ("compiled", "reference"):
+    for form in ("compiled", "numba", "reference"):
         sim, model = _member_sim(elastic, platform, form=form)
         p = particle_positions(model.positions, model.frames, sim.rs.radius).reshape(-1, 3).copy()
         z0 = float(model.positions[0, 2])
@@ -182,8 +192,10 @@ def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
         # the pulling force's energy -F z_last did not change (the last node was not moved)
         assert e_ext - e_pull0 == pytest.approx(es + eb, rel=1e-9), (elastic, form, sim.rs.elastic)
     assert got["compiled"] == pytest.approx(got["reference"], rel=1e-10)
+    assert got["numba"] == pytest.approx(got["reference"], rel=1e-10)
 
 
+@needs_plugin
 def test_walls_after_a_reinitialised_context():
     """add_tweezers_walls on a running fast-path simulation: after the reinitialisation the compiled walls act
     (pushing nodes through both walls raises the "external" energy by the numpy wall energy) and it runs on."""
@@ -212,6 +224,7 @@ def test_walls_after_a_reinitialised_context():
     assert sim.energies()["external"] - e0 == pytest.approx(es + eb, rel=1e-9)
 
 
+@needs_plugin
 @pytest.mark.parametrize("platform", ["Reference", "CPU"])
 def test_a_tweezers_member_uses_the_compiled_walls(platform):
     from dnarod.protocols import tweezers as tw
@@ -226,14 +239,15 @@ def test_a_tweezers_member_uses_the_compiled_walls(platform):
     assert wall.getForceGroup() == GROUPS["external"]
 
 
+@needs_plugin
 @pytest.mark.parametrize("elastic", ["auto", "fast"])
-def test_both_forms_give_the_same_dynamics(elastic):
-    """From a pose pushed through both walls, 200 Langevin steps (same seed) with the compiled and with the
+def test_every_form_gives_the_same_dynamics(elastic):
+    """From a pose pushed through both walls, 200 Langevin steps (same seed) with the compiled, the numba and the
     Custom-force walls end in the same state (the forces agree to rounding)."""
     from dnarod.openmm.particles import particle_positions
 
     ends = {}
-    for form in ("compiled", "reference"):
+    for form in ("compiled", "numba", "reference"):
         sim, model = _member_sim(elastic, form=form)
         p = particle_positions(model.positions, model.frames, sim.rs.radius).reshape(-1, 3).copy()
         z0 = float(model.positions[0, 2])
@@ -244,3 +258,4 @@ def test_both_forms_give_the_same_dynamics(elastic):
         sim.advance(200)
         ends[form] = sim.node_pose()[0]
     np.testing.assert_allclose(ends["compiled"], ends["reference"], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(ends["numba"], ends["reference"], rtol=0, atol=1e-8)

@@ -10,10 +10,13 @@ node ``n-1`` is pulled along +z. With ``z`` the particles' z coordinates (nm) an
   first particle of every node ``0 .. n-1-skip``, with ``z_c`` the mean z of node ``n-1``'s three particles
   (the reaction, ``+k (z_{3i} - z_c)`` along z, is spread equally over them).
 
-Two implementations of the same energy and forces (tested equal to 1e-10 relative in double precision):
+Three implementations of the same energy and forces (tested equal to 1e-10 relative in double precision):
 
 * :func:`wall_forces_compiled` -- ``dnarod.WallForce`` of the compiled plugin (:mod:`dnarod.openmm.plugin`): one
   C++ pass over the particles, evaluated on the host (OpenMM's ``CustomCPPForceImpl``);
+* :func:`wall_forces_numba` -- the same pass as a numba kernel in an ``openmm.PythonForce`` (host platforms, where
+  the plugin is not built): cheaper than the Custom forces by the kernel, dearer than the compiled force by the
+  callback's hand-over of the positions (written here because no library provides planar walls);
 * :func:`wall_forces_reference` -- the slow reference and the fallback: an OpenMM ``CustomExternalForce`` (surface)
   and ``CustomCentroidBondForce`` (bead), Lepton expressions that run on every platform, the GPU ones included.
   On the host platforms they were the expensive part of a member's step: OpenMM's CPU platform has no kernel of its
@@ -23,13 +26,15 @@ Two implementations of the same energy and forces (tested equal to 1e-10 relativ
   1 kbp, growing with the particle count (0 / 1 / 3 particles per node measured in
   ``benchmarks/bench_tweezers_cost.py``, which also times both forms per force and per step).
 
-:func:`wall_forces` picks the compiled form on the host platforms (CPU, Reference) when the plugin is usable, else
-the reference (on GPU platforms a host force would copy positions off the device every step). Every form puts
+:func:`wall_forces` picks, on the host platforms (CPU, Reference), the compiled form when the plugin is usable and
+the numba form when it is not; on GPU platforms the Custom forces (a host force would copy positions off the device
+every step). Every form puts
 its forces in force group ``GROUPS["external"]``, with the loads (pulling force, clamps), so the walls' energy is
 reported in the "external" term.
 """
 from __future__ import annotations
 
+import numba
 import numpy as np
 import openmm
 
@@ -131,6 +136,86 @@ def wall_forces_compiled(n_nodes, z_surface, k, skip):
     return [f]
 
 
+@numba.njit(cache=True)
+def _wall_kernel(p, z0, k, skip, n, out):
+    """Energy of the walls for particle positions ``p`` (>= 3n, 3) nm; adds the z forces to ``out`` (3n, 3)."""
+    e = 0.0
+    for i in range(3 * skip, 3 * n):
+        d = p[i, 2] - z0
+        if d < 0.0:
+            e += 0.5 * k * d * d
+            out[i, 2] -= k * d
+    zc = (p[3 * n - 3, 2] + p[3 * n - 2, 2] + p[3 * n - 1, 2]) / 3.0
+    fc = 0.0
+    for i in range(n - skip):
+        d = p[3 * i, 2] - zc
+        if d > 0.0:
+            e += 0.5 * k * d * d
+            out[3 * i, 2] -= k * d
+            fc += k * d
+    for j in range(3):
+        out[3 * n - 3 + j, 2] += fc / 3.0
+    return e
+
+
+class WallCallback:
+    """Picklable ``openmm.PythonForce`` computation of the walls (:func:`wall_forces_numba`).
+
+    Parameters
+    ----------
+    n_nodes : int
+    z_surface : float
+        nm.
+    k : float
+        kJ/mol/nm^2.
+    skip : int
+    n_particles : int
+        Particles of the System (forces are returned for all of them; those past the nodes' get none).
+    """
+
+    def __init__(self, n_nodes, z_surface, k, skip, n_particles):
+        self.n, self.z0, self.k, self.skip, self.n_particles = (int(n_nodes), float(z_surface), float(k), int(skip),
+                                                                int(n_particles))
+        self._out = np.zeros((self.n_particles, 3))
+
+    def __call__(self, state):
+        p = state.getPositions(asNumpy=True)._value
+        out = self._out
+        out[:] = 0.0
+        e = _wall_kernel(p, self.z0, self.k, self.skip, self.n, out)
+        return e, out
+
+    def __getstate__(self):
+        return dict(n=self.n, z0=self.z0, k=self.k, skip=self.skip, n_particles=self.n_particles)
+
+    def __setstate__(self, d):
+        self.__dict__.update(d)
+        self._out = np.zeros((self.n_particles, 3))
+
+
+def wall_forces_numba(n_nodes, z_surface, k, skip, n_particles=None):
+    """The walls as a numba kernel in an ``openmm.PythonForce`` (CPU and Reference platforms).
+
+    Parameters
+    ----------
+    n_nodes, z_surface, k, skip
+        As :func:`wall_forces_reference` (nm, kJ/mol/nm^2).
+    n_particles : int or None
+        Particles of the System the force goes into (default ``3 n_nodes``; more when the System has particles
+        after the nodes', e.g. the portable path's closure image).
+
+    Returns
+    -------
+    list of openmm.Force
+        ``[PythonForce]`` in group ``GROUPS["external"]``.
+    """
+    n, skip = _check(n_nodes, skip)
+    f = openmm.PythonForce(WallCallback(n, z_surface, k, skip, 3 * n if n_particles is None else n_particles))
+    f.setForceGroup(GROUPS["external"])
+    f.setName("dnarod tweezers walls (surface + bead plane, numba)")
+    return [f]
+
+
 def wall_forces(n_nodes, z_surface, k, skip, platform="CPU", form="auto"):
     """The tweezers walls in the form that is fastest on ``platform``.
 
@@ -140,22 +225,28 @@ def wall_forces(n_nodes, z_surface, k, skip, platform="CPU", form="auto"):
         As :func:`wall_forces_reference` (nm, kJ/mol/nm^2).
     platform : str
         The OpenMM platform name the forces will run on.
-    form : {"auto", "compiled", "reference"}
-        ``"auto"``: compiled on :data:`COMPILED_WALL_PLATFORMS` when the plugin is usable, else the reference.
+    form : {"auto", "compiled", "numba", "reference"}
+        ``"auto"``: on :data:`COMPILED_WALL_PLATFORMS` the compiled form when the plugin is usable, else the numba
+        form; the reference on every other platform.
 
     Returns
     -------
     list of openmm.Force
     """
     if form == "auto":
-        form = "compiled" if platform in COMPILED_WALL_PLATFORMS and compiled_walls_available() else "reference"
+        if platform in COMPILED_WALL_PLATFORMS:
+            form = "compiled" if compiled_walls_available() else "numba"
+        else:
+            form = "reference"
     if form == "compiled":
         return wall_forces_compiled(n_nodes, z_surface, k, skip)
+    if form == "numba":
+        return wall_forces_numba(n_nodes, z_surface, k, skip)
     if form == "reference":
         return wall_forces_reference(n_nodes, z_surface, k, skip)
     from ..errors import ParameterError
 
-    raise ParameterError(f"wall form must be 'auto', 'compiled' or 'reference', got {form!r}")
+    raise ParameterError(f"wall form must be 'auto', 'compiled', 'numba' or 'reference', got {form!r}")
 
 
 def wall_energy(z, n_nodes, z_surface, k, skip):
