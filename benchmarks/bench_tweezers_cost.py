@@ -12,7 +12,8 @@ on CPU/Reference now), with the two forms' energies and forces compared on a the
 both walls; (3) why the Custom forces cost what they do: a ``CustomExternalForce`` and a
 ``CustomCentroidBondForce`` alone on the CPU platform with 0, 1 and 3 particles (bonds) per node, and the walls
 alone in each candidate form (Custom forces, compiled ``WallForce``, a numba kernel in its own ``PythonForce``) on
-the CPU and Reference platforms; (4) CPU time of
+the CPU and Reference platforms, and the step of the Python-callback elastic path (``elastic="fast"``, where the
+plugin is not built) with no walls and each wall form; (4) CPU time of
 the observables computed per sample (end rotation, Tw/Wr, plectoneme detector, twisting moment); (5) a whole
 member (``--member-ns`` of production after 0.1 ns of equilibration, ``sample_member``) with each wall form.
 Prints a table and writes ``benchmarks/results/tweezers_cost.json``.
@@ -224,17 +225,18 @@ def main(argv=None):
     model = m["model"]
     nb = NonbondedSettings(excluded_volume=True, electrostatics=True, salt=0.15)
 
-    def make(extra):
+    def make(extra, elastic="auto"):
         return RodSimulation(model, temperature=300.0, friction=m["friction"], platform=a.platform, nonbonded=nb,
-                             loads=m["loads"], seed=1, threads=1, elastic="auto", extra_forces=extra)
+                             loads=m["loads"], seed=1, threads=1, elastic=elastic, extra_forces=extra)
 
-    def rate(sim):
+    def rate(sim, steps=None):
+        steps = a.steps if steps is None else steps
         sim.advance(100)
         best = 0.0
         for _ in range(3):
             c0 = time.process_time()
-            sim.advance(a.steps)
-            best = max(best, a.steps / (time.process_time() - c0))
+            sim.advance(steps)
+            best = max(best, steps / (time.process_time() - c0))
         return best
 
     def forms(form):
@@ -252,6 +254,13 @@ def main(argv=None):
         r = rate(sim)
         variants[name] = dict(steps_per_cpu_s=r, us_per_step=1e6 / r, ns_per_cpu_day=r * sim.dt * 1e-3 * 86400.0,
                               elastic_path=sim.rs.elastic, platform=sim.platform_name)
+    # the Python-callback elastic path (where the plugin is not built): no walls and each wall form
+    callback = {}
+    for form in ("no walls", "reference", "numba", "compiled"):
+        if form == "compiled" and not wl.compiled_walls_available():
+            continue
+        r = rate(make([] if form == "no walls" else forms(form), elastic="fast"), max(200, a.steps // 4))
+        callback[form] = dict(steps_per_cpu_s=r, us_per_step=1e6 / r)
     # the two forms: same energy and forces on a thermal configuration with nodes pushed through both walls
     import copy
 
@@ -301,7 +310,7 @@ def main(argv=None):
     out = dict(date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average_start=load0,
                load_average=os.getloadavg(), n_bp=a.n_bp, force_pN=a.force, turns=a.turns, dt_ps=dt,
                compiled_walls_available=wl.compiled_walls_available(),
-               steps_per_measurement=a.steps, variants=variants, wall_forms_same_energy=same, force_group_us=groups,
+               steps_per_measurement=a.steps, variants=variants, callback_path_variants=callback, wall_forms_same_energy=same, force_group_us=groups,
                custom_force_us_by_terms=why, wall_form_us=form_costs, observables_ms_per_sample=obs, default_sample_ps=m["sample_ps"],
                observables_share_at_default_sampling=sum(obs.values()) * 1e-3 /
                (sum(obs.values()) * 1e-3 + per_sample_steps / variants[names[3]]["steps_per_cpu_s"]),
@@ -313,6 +322,8 @@ def main(argv=None):
     for k, v in variants.items():
         print(f"  {k:48s} {v['steps_per_cpu_s']:7.0f} steps/CPU-s  {v['us_per_step']:6.1f} us/step  "
               f"{v['ns_per_cpu_day']:7.0f} ns/CPU-day")
+    print("  Python-callback elastic path (elastic='fast'), by wall form: " + ", ".join(
+        f"{k} {v['us_per_step']:.1f}" for k, v in callback.items()) + " us/step")
     print(f"  walls, Custom vs compiled: energy rel. diff {same['energy_rel_diff']:.1e}, "
           f"force max diff {same['force_max_abs_diff']:.1e} (max force {same['force_max']:.3g})")
     print("  each force alone (own force group, getState):")
