@@ -339,8 +339,8 @@ def main(argv=None):
     print(f"  observables' share of the CPU time at the default sampling ({m['sample_ps']:g} ps): "
           f"{100 * out['observables_share_at_default_sampling']:.1f} %")
     for r in members:
-        print(f"  whole member, {r['form']:9s} walls: {r['production_ns']:g} ns + {r['equilibration_ns']:g} ns eq., "
-              f"{r['n_steps']} steps, {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU "
+        print(f"  whole member, {r['form']:9s} walls: {r['production_ns']:g} ns + {r['equilibration_ns']:g} ns "
+              f"eq., {r['n_steps']} steps, {r['wall_s']:.1f} s wall, {r['cpu_s']:.1f} s CPU "
               f"({r['us_per_step_cpu']:.1f} us CPU/step incl. observables)")
 
 
