@@ -310,8 +310,9 @@ def main(argv=None):
     out = dict(date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average_start=load0,
                load_average=os.getloadavg(), n_bp=a.n_bp, force_pN=a.force, turns=a.turns, dt_ps=dt,
                compiled_walls_available=wl.compiled_walls_available(),
-               steps_per_measurement=a.steps, variants=variants, callback_path_variants=callback, wall_forms_same_energy=same, force_group_us=groups,
-               custom_force_us_by_terms=why, wall_form_us=form_costs, observables_ms_per_sample=obs, default_sample_ps=m["sample_ps"],
+               steps_per_measurement=a.steps, variants=variants, callback_path_variants=callback,
+               wall_forms_same_energy=same, force_group_us=groups, custom_force_us_by_terms=why,
+               wall_form_us=form_costs, observables_ms_per_sample=obs, default_sample_ps=m["sample_ps"],
                observables_share_at_default_sampling=sum(obs.values()) * 1e-3 /
                (sum(obs.values()) * 1e-3 + per_sample_steps / variants[names[3]]["steps_per_cpu_s"]),
                members=members)
