@@ -11,7 +11,7 @@ and both walls as the compiled ``WallForce`` (:func:`dnarod.openmm.walls.wall_fo
 on CPU/Reference now), with the two forms' energies and forces compared on a thermal configuration pushed through
 both walls; (3) why the Custom forces cost what they do: a ``CustomExternalForce`` and a
 ``CustomCentroidBondForce`` alone on the CPU platform with 0, 1 and 3 particles (bonds) per node, and the walls
-alone in each candidate form (Custom forces, compiled ``WallForce``, a numba kernel in its own ``PythonForce``) on
+alone in each candidate form (Custom forces, compiled ``WallForce``, the numba kernel in its ``PythonForce``) on
 the CPU and Reference platforms, and the step of the Python-callback elastic path (``elastic="fast"``, where the
 plugin is not built) with no walls and each wall form; (4) CPU time of
 the observables computed per sample (end rotation, Tw/Wr, plectoneme detector, twisting moment); (5) a whole
@@ -28,7 +28,6 @@ import os
 import time
 from pathlib import Path
 
-import numba
 import numpy as np
 
 
@@ -78,43 +77,9 @@ def custom_force_costs(n_nodes, repeats):
     return rows
 
 
-@numba.njit(cache=True)
-def _walls_numba(p, z0, k, skip, n, out):
-    """The walls' energy and z forces (out (3n, 3), zeroed by the caller) as a numba kernel: the candidate Python
-    form, measured here inside an ``openmm.PythonForce``."""
-    e = 0.0
-    for i in range(3 * skip, 3 * n):
-        d = p[i, 2] - z0
-        if d < 0:
-            e += 0.5 * k * d * d
-            out[i, 2] = -k * d
-    zc = (p[3 * n - 3, 2] + p[3 * n - 2, 2] + p[3 * n - 1, 2]) / 3.0
-    fc = 0.0
-    for i in range(n - skip):
-        d = p[3 * i, 2] - zc
-        if d > 0:
-            e += 0.5 * k * d * d
-            out[3 * i, 2] -= k * d
-            fc += k * d
-    for j in range(3):
-        out[3 * n - 3 + j, 2] += fc / 3.0
-    return e
-
-
-class _NumbaWalls:
-    def __init__(self, n, z0, k, skip):
-        self.n, self.z0, self.k, self.skip = n, z0, k, skip
-        self.out = np.zeros((3 * n, 3))
-
-    def __call__(self, state):
-        p = state.getPositions(asNumpy=True)._value
-        self.out[:] = 0.0
-        return _walls_numba(p, self.z0, self.k, self.skip, self.n, self.out), self.out
-
-
 def wall_form_costs(n_nodes, repeats):
-    """CPU microseconds per evaluation of the walls alone in each form (Custom forces, compiled WallForce, a numba
-    kernel in its own ``PythonForce``) on the CPU (one thread) and Reference platforms, net of an empty group, on
+    """CPU microseconds per evaluation of the walls alone in each form (Custom forces, compiled WallForce, the numba
+    kernel in its ``PythonForce``) on the CPU (one thread) and Reference platforms, net of an empty group, on
     random positions (about half the surface particles under the plane)."""
     import openmm
 
@@ -127,7 +92,7 @@ def wall_form_costs(n_nodes, repeats):
         for form in ("Custom forces", "compiled WallForce", "numba PythonForce"):
             forces = {"Custom forces": lambda: wl.wall_forces_reference(n_nodes, 0.0, 100.0, 3),
                       "compiled WallForce": lambda: wl.wall_forces_compiled(n_nodes, 0.0, 100.0, 3),
-                      "numba PythonForce": lambda: [openmm.PythonForce(_NumbaWalls(n_nodes, 0.0, 100.0, 3))]}[form]()
+                      "numba PythonForce": lambda: wl.wall_forces_numba(n_nodes, 0.0, 100.0, 3)}[form]()
             s = openmm.System()
             for _ in range(n):
                 s.addParticle(1.0)
