@@ -40,7 +40,7 @@ import openmm
 
 from .forces import GROUPS
 
-#: Platforms on which :func:`wall_forces` takes the compiled form (host code, no device copies).
+#: Platforms on which :func:`wall_forces` takes a host form (compiled, else numba): no copies off a device.
 COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
 
 
