@@ -15,7 +15,8 @@ closure of circular chains) on the three-particle nodes of :mod:`dnarod.openmm.p
 on the host on every platform (OpenMM's CustomCPPForceImpl), and on the device on GPU platforms (OpenCL,
 CUDA) whose Common-compute kernel library was built (:func:`device_kernel`; the build records which ones in
 ``_build_info.DEVICE_KERNELS`` and why the others were not built); that library also runs the rigid-body
-integrator's steps on the device.
+integrator's steps on the device. Host code only: ``dnarod.NodePairForce`` (:func:`node_pair_force`, the
+non-local terms) and ``dnarod.WallForce`` (:func:`dnarod.openmm.walls.wall_forces_compiled`, the tweezers walls).
 """
 from __future__ import annotations
 

@@ -214,7 +214,7 @@ WALL_K = 100.0
 WALL_SKIP = 3
 
 
-def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP):
+def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP, platform="CPU", form="auto"):
     """The surface and the bead of a tweezers member as OpenMM forces (node 0 clamped, last node pulled along +z).
 
     Without them the chain could swing below its anchor or around the free end and change its linking
@@ -222,8 +222,10 @@ def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP):
     first ``skip`` stays above the plane ``z = z_0`` (``E = k/2 min(0, z - z_0)^2`` on its particles).
     Bead (a plane, the large-bead limit): every node but the last ``skip`` stays below the last node
     (``E = k/2 max(0, z_i - z_last)^2`` between one particle of each node and the last node's centroid).
-    Both in the "external" force group. Pass them as ``RodSimulation(..., extra_forces=...)`` so they exist
-    before the Context is created (every elastic path, the compiled plugin included, then sees them).
+    Both in the "external" force group (:mod:`dnarod.openmm.walls`: the compiled form on the host platforms
+    where the plugin is usable, else OpenMM Custom forces). Pass them as ``RodSimulation(..., extra_forces=...)``
+    so they exist before the Context is created (every elastic path, the compiled plugin included, then sees
+    them).
 
     Parameters
     ----------
@@ -233,33 +235,18 @@ def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP):
         Wall stiffness, kJ/mol/nm^2.
     skip : int
         Nodes next to each end left alone.
+    platform : str
+        OpenMM platform the member runs on (chooses the form).
+    form : {"auto", "compiled", "reference"}
+        See :func:`dnarod.openmm.walls.wall_forces`.
 
     Returns
     -------
     list of openmm.Force
     """
-    import openmm
+    from ..openmm.walls import wall_forces
 
-    from ..openmm.forces import GROUPS
-
-    n = model.n_nodes
-    z0 = float(model.positions[0, 2])
-    wall = openmm.CustomExternalForce("0.5*dnarod_wall_k*min(0, z - dnarod_surface_z)^2")
-    wall.addGlobalParameter("dnarod_wall_k", float(k))
-    wall.addGlobalParameter("dnarod_surface_z", z0)
-    for i in range(3 * skip, 3 * n):
-        wall.addParticle(i, [])
-    wall.setForceGroup(GROUPS["external"])
-    wall.setName("dnarod tweezers surface")
-    bead = openmm.CustomCentroidBondForce(2, "0.5*dnarod_bead_k*max(0, z1 - z2)^2")
-    bead.addGlobalParameter("dnarod_bead_k", float(k))
-    last = bead.addGroup([3 * (n - 1), 3 * (n - 1) + 1, 3 * (n - 1) + 2], [1.0, 1.0, 1.0])
-    for i in range(n - skip):
-        g = bead.addGroup([3 * i], [1.0])
-        bead.addBond([g, last], [])
-    bead.setForceGroup(GROUPS["external"])
-    bead.setName("dnarod tweezers bead plane")
-    return [wall, bead]
+    return wall_forces(model.n_nodes, float(model.positions[0, 2]), k, skip, platform=platform, form=form)
 
 
 def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
@@ -268,7 +255,7 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
     Only for simulations on a path that can follow a reinitialised Context (``elastic="fast"`` or
     ``"portable"``); members create their simulation with ``extra_forces`` instead.
     """
-    for f in tweezers_wall_forces(model, k, skip):
+    for f in tweezers_wall_forces(model, k, skip, platform=sim.platform_name):
         sim.rs.system.addForce(f)
     sim.context.reinitialize(preserveState=True)
     sim.invalidate()
@@ -277,16 +264,18 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
 def _member_simulation(m, model):
     """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``)."""
     from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.platforms import choose_platform
     from ..openmm.simulation import RodSimulation
 
     s = m["settings"]
     nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
                            salt=float(s["salt_M"]))
     # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
-    # is built) applies; settings["elastic"] can force another path
+    # is built) applies; settings["elastic"] can force another path. The walls' form follows the platform.
+    platform = choose_platform(s["platform"], model.n_nodes, s["elastic"], s["threads"])[0].getName()
     return RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
                          nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
-                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"]))
+                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"], platform=platform))
 
 
 #: Wall-clock seconds between a member's checkpoints (:func:`sample_member`).

@@ -2,6 +2,7 @@
 // OpenMM's XmlSerializer like any other); registered when the Python module is imported.
 #include "NodePairForce.h"
 #include "SMKForce.h"
+#include "WallForce.h"
 #include "openmm/serialization/SerializationNode.h"
 #include "openmm/serialization/SerializationProxy.h"
 #include <string>
@@ -105,12 +106,47 @@ public:
     }
 };
 
+class WallForceProxy : public SerializationProxy {
+public:
+    WallForceProxy() : SerializationProxy("dnarod::WallForce") {}
+    void serialize(const void* object, SerializationNode& node) const {
+        const WallForce& f = *reinterpret_cast<const WallForce*>(object);
+        baseProperties(f, node);
+        node.setDoubleProperty("zSurface", f.getSurfaceZ()).setDoubleProperty("kSurface", f.getSurfaceK())
+            .setDoubleProperty("kBead", f.getBeadK());
+        const vector<int>& b = f.beadNode();
+        if (b.size() == 3)
+            node.createChildNode("BeadNode").setIntProperty("p0", b[0]).setIntProperty("p1", b[1]).setIntProperty("p2", b[2]);
+        SerializationNode& s = node.createChildNode("Surface");
+        for (int p : f.surfaceList()) s.createChildNode("Particle").setIntProperty("p", p);
+        SerializationNode& bd = node.createChildNode("Bead");
+        for (int p : f.beadList()) bd.createChildNode("Particle").setIntProperty("p", p);
+    }
+    void* deserialize(const SerializationNode& node) const {
+        WallForce* f = new WallForce();
+        try {
+            setBase(*f, node);
+            f->setParameters(node.getDoubleProperty("zSurface"), node.getDoubleProperty("kSurface"),
+                             node.getDoubleProperty("kBead"));
+            for (const auto& c : node.getChildren())
+                if (c.getName() == "BeadNode") f->setBeadNode(c.getIntProperty("p0"), c.getIntProperty("p1"), c.getIntProperty("p2"));
+            for (const auto& c : node.getChildNode("Surface").getChildren()) f->addSurfaceParticle(c.getIntProperty("p"));
+            for (const auto& c : node.getChildNode("Bead").getChildren()) f->addBeadParticle(c.getIntProperty("p"));
+        } catch (...) {
+            delete f;
+            throw;
+        }
+        return f;
+    }
+};
+
 void registerSerializationProxies() {
     static bool done = false;
     if (done) return;
     done = true;
     SerializationProxy::registerProxy(typeid(SMKForce), new SMKForceProxy());
     SerializationProxy::registerProxy(typeid(NodePairForce), new NodePairForceProxy());
+    SerializationProxy::registerProxy(typeid(WallForce), new WallForceProxy());
 }
 
 } // namespace dnarod
