@@ -21,10 +21,27 @@ def test_debye_and_bjerrum_lengths():
     # l_B = 0.7 nm in water at 25 C; Debye length 0.304/sqrt(I[M]) nm (e.g. Israelachvili).
     assert v["bjerrum"] == pytest.approx(0.7135, rel=2e-3)
     assert v["debye_length"] == pytest.approx(0.304 / np.sqrt(0.15), rel=5e-3)
-    assert v["charge"] == pytest.approx(0.34 / v["bjerrum"], rel=1e-12)
     assert v["n_exclude"] == int(np.ceil(v["cutoff"] / 0.34))
+    assert v["cutoff"] == pytest.approx(12.0 * v["debye_length"], rel=1e-12)
     with pytest.raises(ParameterError, match="salt"):
         NonbondedSettings(salt=-1).resolve(0.34, 300)
+
+
+def test_charge_models():
+    from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE
+
+    cal = NonbondedSettings(salt=0.15).resolve(0.34, 300.0)
+    assert (cal["charge"], cal["charge_model"]) == (pytest.approx(CALIBRATED_LINE_CHARGE * 0.34, rel=1e-12),
+                                                    "calibrated")
+    assert NonbondedSettings(charge="calibrated").resolve(0.17, 300.0)["charge"] == pytest.approx(0.5 * cal["charge"])
+    # Manning: one elementary charge per Bjerrum length of chain (0.48 e per bp at 300 K); None keeps that meaning
+    for q in ("manning", " Manning", None):
+        v = NonbondedSettings(charge=q).resolve(0.34, 300.0)
+        assert v["charge"] == pytest.approx(0.34 / v["bjerrum"], rel=1e-12) and v["charge_model"] == "manning"
+    assert NonbondedSettings(charge=1.25).resolve(0.34, 300.0)["charge"] == 1.25
+    for bad in ("stigter", -1.0, float("nan"), [1.0]):
+        with pytest.raises(ParameterError, match="charge"):
+            NonbondedSettings(charge=bad).resolve(0.34, 300.0)
 
 
 @pytest.mark.parametrize("circular", [False, True])
@@ -89,14 +106,26 @@ def test_crossing_diameter_of_line_charges_matches_the_continuum_formula(gamma):
 
 
 def test_effective_diameter_of_the_default_potential():
-    from dnarod.openmm.nonbonded import effective_diameter
+    from dnarod.openmm.nonbonded import CALIBRATION, effective_diameter
 
     sigma = 2.0
-    d_wca = effective_diameter(NonbondedSettings(electrostatics=False, diameter=sigma), 0.34, 300.0)
+    grid = dict(n_angles=12, n_phase=2, n_h=200)  # within 0.02 nm of the default grid (README)
+    d_wca = effective_diameter(NonbondedSettings(electrostatics=False, diameter=sigma), 0.34, 300.0, **grid)
     # f = 1 - exp(-U/kT) <= 1 and U = 0 beyond the WCA cutoff 2^(1/6) sigma; inside sigma the many overlapping
     # sites make U >> kT
     assert 0.95 * sigma < d_wca < 2 ** (1 / 6) * sigma
-    d = {c: effective_diameter(NonbondedSettings(salt=c), 0.34, 300.0) for c in (0.1, 0.15, 0.5)}
-    assert d[0.1] > d[0.15] > d[0.5] >= d_wca - 1e-9
-    # measured here (README "What is calibrated to what"): 2.63 nm at 0.1 M, 2.31 nm at 0.15 M, 2.13 nm at 0.5 M
-    assert d[0.15] == pytest.approx(2.31, abs=0.01) and d[0.1] == pytest.approx(2.63, abs=0.01)
+    # the calibrated charge reproduces the Poisson-Boltzmann second-virial diameter, 5.0 nm at 0.15 M, 300 K
+    d = {c: effective_diameter(NonbondedSettings(salt=c), 0.34, 300.0, **grid) for c in (0.15, 0.5)}
+    assert d[0.15] == pytest.approx(CALIBRATION["diameter_nm"], abs=0.03)
+    assert d[0.15] > d[0.5] > d_wca
+    # Manning's charge with the old 5-Debye-length cutoff (README): 2.31 nm at 0.15 M, capped by that cutoff
+    old = NonbondedSettings(salt=0.15, charge="manning", cutoff_debye=5.0)
+    assert effective_diameter(old, 0.34, 300.0, **grid) == pytest.approx(2.31, abs=0.02)
+
+
+@pytest.mark.slow
+def test_calibrated_line_charge_is_recomputed():
+    from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE, calibrated_line_charge
+
+    nu = calibrated_line_charge(tol_nm=0.005)
+    assert nu == pytest.approx(CALIBRATED_LINE_CHARGE, rel=0.01)

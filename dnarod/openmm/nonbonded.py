@@ -5,28 +5,43 @@ electrostatics, one interaction site per node (its centre).
   ``4 eps [(sigma/r)^12 - (sigma/r)^6] + eps`` for ``r < 2^(1/6) sigma``, ``eps = kT``.
   Default ``sigma = 2.0 nm``, the geometric diameter of B-DNA: 20-22 Angstrom in the table of DNA structural
   parameters at grupo.us.es (citing Dickerson 1992 and Saenger 1984, *Principles of Nucleic Acid Structure*),
-  "about 20 Angstrom" in the NCI thesaurus (secondary sources read in round 3; Saenger's book itself was not
-  read; ``data/experimental/dna_diameter.csv``). The larger salt-dependent "effective diameter" that knotting
-  and catenation experiments are interpreted with (Rybenkov, Cozzarelli & Vologodskii 1993, PNAS 90:5307;
-  Stigter 1977; both citations from memory) includes the electrostatic repulsion, which is modelled
-  explicitly here. Those measured effective diameters could not be read in any stored source, so **neither
-  sigma nor the charge is calibrated to them**; :func:`effective_diameter` computes the model's own value
-  (second-virial definition): 2.13 nm without electrostatics, 2.63 / 2.31 / 2.13 nm at 0.1 / 0.15 / 0.5 M
-  (300 K, ``ds = 0.34 nm``), i.e. an electrostatic radius of 0.33 / 0.2 Debye lengths at 0.1 / 0.15 M,
-  against "about 5 times the Debye length" inferred from stretching data by arXiv:cond-mat/0601348
-  (abstract; a thick-chain fit, a different definition).
-* **Electrostatics**: Debye-Hueckel, ``q^2 (e^2/4 pi eps0 eps_r) exp(-r/lambda_D)/r``, shifted
-  to zero at the cutoff (default ``5 lambda_D``); ``eps_r = 78.5`` (water, 25 C; a textbook value, not
-  re-read);
-  ``lambda_D = 1/sqrt(8 pi l_B N_A I)`` for monovalent salt of ionic strength I (mol/L), with
-  the Bjerrum length ``l_B = e^2/(4 pi eps0 eps_r kT)`` (0.71 nm at 300 K, 0.79 nm Debye
-  length at 150 mM). Effective charge per base pair from Manning counter-ion condensation: the
-  line charge is renormalised to one elementary charge per Bjerrum length, i.e.
-  ``q = ds / l_B`` e per bp (0.48 e at 300 K): with charge spacing b = 0.17 nm (two phosphates per
-  0.34 nm) and Manning parameter ``xi = l_B / b > 1``, a fraction ``1 - 1/xi`` of the counter-ions
-  condenses, leaving ``2/xi = 2 b / l_B = ds / l_B`` e per bp (G. S. Manning, Q. Rev. Biophys.
-  11:179-246, 1978; the title, journal, b = 0.17 nm and the condensed fraction ``1 - 1/xi`` were
-  checked against secondary sources, the paper itself was not read).
+  "about 20 Angstrom" in the NCI thesaurus (secondary sources; Saenger's book itself was not read;
+  ``data/experimental/dna_diameter.csv``). Not fitted.
+* **Electrostatics**: Debye-Hueckel, ``q^2 (e^2/4 pi eps0 eps_r) exp(-r/lambda_D)/r`` between node charges q,
+  shifted to zero at the cutoff (default ``DEFAULT_CUTOFF_DEBYE = 12`` Debye lengths); ``eps_r = 78.5`` (water,
+  25 C; a textbook value, not re-read); ``lambda_D = 1/sqrt(8 pi l_B N_A I)`` for monovalent salt of ionic
+  strength I (mol/L), with the Bjerrum length ``l_B = e^2/(4 pi eps0 eps_r kT)`` (0.71 nm at 300 K, 0.79 nm
+  Debye length at 150 mM).
+* **Charge: calibrated to the effective diameter** (``charge="calibrated"``, the default). The node charge is
+  ``q = CALIBRATED_LINE_CHARGE * ds`` (8.82 e/nm, **3.00 e per bp** at ``ds = 0.34 nm``), a Stigter-type
+  effective charge: the strength of the screened far field of the charged double helix, larger than the bare
+  2 e per bp because the field of a thick cylinder decays from its surface, not from its axis. It is chosen so
+  that the model's second-virial effective diameter (:func:`effective_diameter`: the diameter of hard rods with
+  the same second virial coefficient as this WCA + shifted Debye-Hueckel pair energy, at the default cutoff)
+  equals **5.0 nm at 0.15 M, 300 K**: the hard-cylinder diameter "d = 50 A [that] yields the same second virial
+  coefficient as the electrostatic potential obtained by numerical solution of the Poisson-Boltzmann equation
+  for 150 mM salt" (Gebe, Allison, Clendenning & Schurr 1995, Biophys. J. 68:619-633,
+  doi:10.1016/S0006-3495(95)80223-7, abstract; a computed value, not a measurement). That is the only effective
+  diameter read in a stored source: the measured knotting diameters of Rybenkov, Cozzarelli & Vologodskii
+  (1993) and Stigter's (1977) tabulated values could not be read (the 1997 NAR abstract of Rybenkov,
+  Vologodskii & Cozzarelli says only that d was determined from knotting probabilities under all its ionic
+  conditions). One constant line charge is used at every salt: at other salts the diameter is a prediction of
+  the model (4.2 / 5.0 / 6.2 nm at 0.2 / 0.15 / 0.1 M ... see the README), not checked against any value
+  read. :func:`calibrated_line_charge` recomputes the constant.
+  With this charge the default 12 Debye-length cutoff truncates the diameter by about 0.05 nm (1 %; 4.94 /
+  ~4.99 nm with 12 / 15 Debye lengths at the same charge), far less than the old 5 Debye lengths (4.0 nm
+  cutoff at 0.15 M: below the 5.0 nm target itself). The calibration is at the default cutoff, so the
+  truncated model reproduces 5.0 nm.
+* **Charge: Manning** (``charge="manning"``, the default before calibration). Counter-ion condensation
+  renormalises the line charge to one elementary charge per Bjerrum length, ``q = ds / l_B`` e per bp (0.48 e
+  at 300 K): with charge spacing b = 0.17 nm (two phosphates per 0.34 nm; "for double-stranded DNA, b = 1.7
+  A" in a lecture on Manning's theory that cites G. S. Manning, "The molecular theory of polyelectrolyte
+  solutions with applications to the electrostatic properties of polynucleotides", Q. Rev. Biophys.
+  11:179-246, 1978, which itself was not read) and Manning parameter ``xi = l_B / b > 1`` a fraction
+  ``1 - 1/xi`` of the counter-ions condenses, leaving ``2/xi = ds / l_B`` e per bp. Its effective diameter is
+  2.31 nm at 0.15 M with a 5 Debye-length cutoff (2.52 nm with 12): less than half the Poisson-Boltzmann
+  value, because Manning's charge describes the field near the axis, not the screened far field that sets the
+  excluded volume of crossing segments.
 * **Exclusions along the chain**: pairs ``|i - j| <= n_exclude`` (chain distance, circular
   chains wrap) do not interact; by default ``n_exclude = ceil(cutoff / ds)``, so nodes that
   are within the cutoff in a straight duplex never interact: their interactions are already
@@ -57,6 +72,19 @@ AVOGADRO_PER_NM3_PER_M = 0.602214076  # (1 mol/L) in 1/nm^3
 #: Verlet-list skin, nm: a thermal node (dna-default, 300 K, friction 1/ps) moves skin/2 = 0.5 nm
 #: in roughly 10^2 steps, while the list grows by ((rc + skin)/rc)^3 ~ 2x at 150 mM.
 DEFAULT_SKIN = 1.0
+#: Default Debye-Hueckel cutoff, Debye lengths: truncates the calibrated effective diameter by ~1 % (module docstring).
+DEFAULT_CUTOFF_DEBYE = 12.0
+#: Calibrated effective line charge, e/nm (node charge ``CALIBRATED_LINE_CHARGE * ds``): the model's second-virial
+#: effective diameter (:func:`effective_diameter`, WCA sigma 2 nm, cutoff ``DEFAULT_CUTOFF_DEBYE``) is
+#: ``CALIBRATION["diameter_nm"]`` at ``CALIBRATION["salt_M"]`` and ``CALIBRATION["temperature_K"]``
+#: (:func:`calibrated_line_charge` recomputes it).
+CALIBRATED_LINE_CHARGE = 8.86
+#: What the calibrated charge reproduces (Gebe et al. 1995, Biophys. J. 68:619, abstract: a Poisson-Boltzmann
+#: second-virial hard-cylinder diameter, computed, not measured; ``data/experimental/dna_diameter.csv``).
+CALIBRATION = dict(diameter_nm=5.0, salt_M=0.15, temperature_K=300.0, ds_nm=0.34, sigma_nm=2.0,
+                   cutoff_debye=DEFAULT_CUTOFF_DEBYE)
+#: Named charge models accepted by ``NonbondedSettings.charge``.
+CHARGE_MODELS = ("calibrated", "manning")
 
 
 @dataclass
@@ -73,8 +101,11 @@ class NonbondedSettings:
         WCA sigma, nm.
     salt : float
         Monovalent salt concentration (ionic strength), mol/L.
-    charge : float or None
-        Effective charge per base pair, e; ``None`` for Manning's ``ds / l_B``.
+    charge : {"calibrated", "manning"} or float
+        Effective charge per node (base pair), e: ``"calibrated"`` (default) ``CALIBRATED_LINE_CHARGE * ds``,
+        the charge with which the model's effective diameter is the Poisson-Boltzmann second-virial diameter at
+        0.15 M (module docstring); ``"manning"`` Manning's ``ds / l_B`` (``None`` is read as ``"manning"``, its
+        old meaning); a number is used as given.
     dielectric : float
         Relative permittivity of the solvent.
     cutoff_debye : float
@@ -90,9 +121,9 @@ class NonbondedSettings:
     electrostatics: bool = True
     diameter: float = 2.0
     salt: float = 0.15
-    charge: float | None = None
+    charge: float | str | None = "calibrated"
     dielectric: float = 78.5
-    cutoff_debye: float = 5.0
+    cutoff_debye: float = DEFAULT_CUTOFF_DEBYE
     n_exclude: int | None = None
     skin: float = DEFAULT_SKIN
 
@@ -107,7 +138,7 @@ class NonbondedSettings:
         kt = kT_of(temperature)
         lB = ONE_4PI_EPS0 / (self.dielectric * kt)
         kappa = math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * self.salt)
-        q = ds / lB if self.charge is None else float(self.charge)
+        q, model = _node_charge(self.charge, ds, lB)
         rc_dh = self.cutoff_debye / kappa if self.electrostatics else 0.0
         rc_wca = 2 ** (1 / 6) * self.diameter if self.excluded_volume else 0.0
         cutoff = max(rc_dh, rc_wca)
@@ -117,7 +148,26 @@ class NonbondedSettings:
         return dict(eps=kt if self.excluded_volume else 0.0, sigma=self.diameter, rc_wca=rc_wca,
                     a_dh=(ONE_4PI_EPS0 / self.dielectric * q * q) if self.electrostatics else 0.0,
                     kappa=kappa, rc_dh=rc_dh, cutoff=cutoff, n_exclude=n_ex, bjerrum=lB,
-                    debye_length=1 / kappa, charge=q, skin=float(self.skin))
+                    debye_length=1 / kappa, charge=q, charge_model=model, skin=float(self.skin))
+
+
+def _node_charge(charge, ds, lB):
+    """``(q e per node, charge-model name)`` for ``NonbondedSettings.charge`` (see there)."""
+    if charge is None or (isinstance(charge, str) and charge.strip().lower() == "manning"):
+        return ds / lB, "manning"
+    if isinstance(charge, str):
+        if charge.strip().lower() == "calibrated":
+            return CALIBRATED_LINE_CHARGE * ds, "calibrated"
+        raise ParameterError(f"nonbonded charge must be one of {', '.join(CHARGE_MODELS)} or a number of "
+                             f"elementary charges per base pair, got {charge!r}")
+    try:
+        q = float(charge)
+    except (TypeError, ValueError):
+        raise ParameterError(f"nonbonded charge must be one of {', '.join(CHARGE_MODELS)} or a number of "
+                             f"elementary charges per base pair, got {charge!r}") from None
+    if not (np.isfinite(q) and q >= 0):
+        raise ParameterError(f"nonbonded charge must be a finite number >= 0 e per base pair, got {charge!r}")
+    return q, "explicit"
 
 
 @numba.njit(cache=True)
@@ -609,3 +659,48 @@ def nonbonded_reference(centres, circular, numbers):
     np.add.at(F, i, -g)
     np.add.at(F, j, g)
     return float(ewca.sum()), float(edh.sum()), F
+
+
+def calibrated_line_charge(diameter_nm=CALIBRATION["diameter_nm"], salt_M=CALIBRATION["salt_M"],
+                           temperature=CALIBRATION["temperature_K"], ds=CALIBRATION["ds_nm"],
+                           sigma=CALIBRATION["sigma_nm"], cutoff_debye=CALIBRATION["cutoff_debye"], tol_nm=1e-3,
+                           **quadrature):
+    """The line charge (e/nm) with which :func:`effective_diameter` is ``diameter_nm`` at ``salt_M``.
+
+    The diameter grows by about one Debye length per e-fold of the charge squared (the far field of a screened
+    line charge), so the root is found by the secant method in ``log(charge)`` from Manning's charge and twice it
+    (a few evaluations of :func:`effective_diameter`, each tens of CPU seconds at 0.15 M).
+
+    Parameters
+    ----------
+    diameter_nm, salt_M, temperature, ds, sigma, cutoff_debye : float
+        Target diameter (nm), salt (mol/L), K, site spacing (nm), WCA sigma (nm), cutoff (Debye lengths).
+    tol_nm : float
+        Stop when the diameter is within this of the target, nm.
+    **quadrature
+        Passed to :func:`effective_diameter`.
+
+    Returns
+    -------
+    float
+        e/nm (the node charge is this times ``ds``).
+    """
+    def d_of(log_nu):
+        st = NonbondedSettings(salt=salt_M, diameter=sigma, cutoff_debye=cutoff_debye,
+                               charge=float(np.exp(log_nu)) * ds)
+        return effective_diameter(st, ds, temperature, **quadrature) - diameter_nm
+
+    lB = ONE_4PI_EPS0 / (NonbondedSettings().dielectric * kT_of(temperature))
+    x0, x1 = math.log(1.0 / lB), math.log(2.0 / lB)
+    f0, f1 = d_of(x0), d_of(x1)
+    for _ in range(30):
+        if abs(f1) <= tol_nm:
+            return float(np.exp(x1))
+        if f1 == f0:
+            break
+        x0, x1, f0 = x1, x1 - f1 * (x1 - x0) / (f1 - f0), f1
+        f1 = d_of(x1)
+    if abs(f1) <= tol_nm:
+        return float(np.exp(x1))
+    raise ParameterError(f"no line charge gives an effective diameter of {diameter_nm} nm at {salt_M} M "
+                         f"(last miss {f1:+.3g} nm)")
