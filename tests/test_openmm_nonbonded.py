@@ -31,9 +31,13 @@ def test_charge_models():
     from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE
 
     cal = NonbondedSettings(salt=0.15).resolve(0.34, 300.0)
-    assert (cal["charge"], cal["charge_model"]) == (pytest.approx(CALIBRATED_LINE_CHARGE * 0.34, rel=1e-12),
+    # at the calibration salt the Poisson-Boltzmann far-field charge of the calibrated cylinder is the calibrated
+    # line charge (radius given to 1 pm: 0.03 % in charge, 0.0005 nm in diameter)
+    assert (cal["charge"], cal["charge_model"]) == (pytest.approx(CALIBRATED_LINE_CHARGE * 0.34, rel=5e-4),
                                                     "calibrated")
     assert NonbondedSettings(charge="calibrated").resolve(0.17, 300.0)["charge"] == pytest.approx(0.5 * cal["charge"])
+    q = [NonbondedSettings(salt=c).resolve(0.34, 300.0)["charge"] for c in (0.01, 0.05, 0.15, 0.5)]
+    assert q[0] < q[1] < q[2] < q[3]  # a thick cylinder's equivalent axis charge grows as the screening shortens
     # Manning: one elementary charge per Bjerrum length of chain (0.48 e per bp at 300 K); None keeps that meaning
     for q in ("manning", " Manning", None):
         v = NonbondedSettings(charge=q).resolve(0.34, 300.0)
@@ -103,6 +107,27 @@ def test_crossing_diameter_of_line_charges_matches_the_continuum_formula(gamma):
     nu, k = nb["charge"] / ds, nb["kappa"]
     U = 2 * np.pi * nu**2 * nb["bjerrum"] * np.exp(-k * h) / (k * np.sin(gamma))
     assert d == pytest.approx(np.trapezoid(-np.expm1(-U), h), rel=3e-3)
+
+
+def test_poisson_boltzmann_far_field_charge():
+    """Linearised limit (small bare charge): nu = bare / (kappa a K1(kappa a)), the Debye-Hueckel cylinder; the
+    nonlinear charge is below the linearised one (saturation); the calibrated radius reproduces the constant."""
+    from scipy.special import k1
+
+    from dnarod.openmm.nonbonded import (BARE_LINE_CHARGE, CALIBRATED_LINE_CHARGE, CALIBRATED_RADIUS,
+                                         calibrated_radius, pb_far_field_line_charge)
+
+    for salt, a in ((0.01, 1.0), (0.15, 1.159), (1.0, 0.8)):
+        k = NonbondedSettings(salt=salt).resolve(0.34, 300.0)["kappa"]
+        small = 1e-3
+        assert pb_far_field_line_charge(salt, 300.0, radius=a, bare=small) == pytest.approx(
+            small / (k * a * k1(k * a)), rel=1e-4)
+        lin = BARE_LINE_CHARGE / (k * a * k1(k * a))
+        assert 0 < pb_far_field_line_charge(salt, 300.0, radius=a) < lin
+    assert calibrated_radius() == pytest.approx(CALIBRATED_RADIUS, abs=1e-3)
+    assert pb_far_field_line_charge(0.15, 300.0) == pytest.approx(CALIBRATED_LINE_CHARGE, rel=5e-4)
+    with pytest.raises(ParameterError, match="Poisson-Boltzmann"):
+        pb_far_field_line_charge(0.15, 300.0, radius=-1.0)
 
 
 def test_effective_diameter_of_the_default_potential():
