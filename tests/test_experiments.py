@@ -194,7 +194,8 @@ def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(
 
 def test_effective_diameter_gate_fails_with_manning_or_a_wrong_charge(tmp_path):
     """The diameter comparison is a check: Manning's charge (the old default) and the calibrated charge halved or
-    doubled all fail it; the calibrated charge passes (coarse grid, within 0.02 nm of the default)."""
+    doubled all fail it; the calibrated charge passes (coarse grid: agrees with the default grid to 1e-4 nm at
+    0.15 M)."""
     from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE, NonbondedSettings
     from dnarod.validate.experiment import check_experiment, compare_effective_diameter
     from dnarod.validate.supercoil_theory import effective_diameter

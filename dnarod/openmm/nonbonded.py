@@ -80,7 +80,7 @@ from .forces import GROUPS
 ONE_4PI_EPS0 = 138.935457833  # kJ/mol nm / e^2
 AVOGADRO_PER_NM3_PER_M = 0.602214076  # (1 mol/L) in 1/nm^3
 #: Verlet-list skin, nm: a thermal node (dna-default, 300 K, friction 1/ps) moves skin/2 = 0.5 nm
-#: in roughly 10^2 steps, while the list grows by ((rc + skin)/rc)^3 ~ 2x at 150 mM.
+#: in roughly 10^2 steps, while the list grows by ((rc + skin)/rc)^3 ~ 1.35x at 150 mM (12 Debye lengths).
 DEFAULT_SKIN = 1.0
 #: Default Debye-Hueckel cutoff, Debye lengths: truncates the calibrated effective diameter by ~1 % (module docstring).
 DEFAULT_CUTOFF_DEBYE = 12.0
