@@ -80,13 +80,14 @@ def test_forces_are_the_gradient():
 
 def test_overlapping_nodes_are_rejected():
     ff = load_forcefield("dna-default")
-    m = ff.model_from_sequence("A" * 30)
+    m = ff.model_from_sequence("A" * 60)
     pos = m.positions.copy()
-    pos[20] = pos[2] + [0.3, 0.0, 0.0]  # far along the chain, 0.3 nm apart in space
+    # far along the chain (beyond the default exclusion, 28 bp at 0.15 M), 0.3 nm apart in space
+    pos[40] = pos[2] + [0.3, 0.0, 0.0]
     bad = m.with_pose(pos, m.frames)
-    with pytest.raises(GeometryError, match=r"nodes [12] and 20 overlap"):
+    with pytest.raises(GeometryError, match=r"nodes [1-4] and 40 overlap"):
         build_system(bad)
-    pos[20] = pos[2]  # coincident centres: rejected even without excluded volume
+    pos[40] = pos[2]  # coincident centres: rejected even without excluded volume
     with pytest.raises(GeometryError, match="overlap"):
         build_system(m.with_pose(pos, m.frames), nonbonded=False)
 
