@@ -106,8 +106,12 @@ def test_effective_diameter_comparison():
 
     bad = compare_effective_diameter(2.31, 0.15)
     assert not bad["agrees"] and bad["ratio"] == pytest.approx(0.462) and bad["reference_nm"] == 5.0
-    assert compare_effective_diameter(5.0, 0.15)["agrees"] and compare_effective_diameter(4.1, 0.15)["agrees"]
-    assert not compare_effective_diameter(3.9, 0.15)["agrees"]
+    # tolerance: the reference's precision ("50 A" read as +-5 A) + 0.01 nm quadrature allowance
+    assert compare_effective_diameter(5.0, 0.15)["tolerance_nm"] == pytest.approx(0.51)
+    for d in (4.5, 5.0, 5.5):
+        assert compare_effective_diameter(d, 0.15)["agrees"], d
+    for d in (4.45, 5.55, 3.9):
+        assert not compare_effective_diameter(d, 0.15)["agrees"], d
     assert compare_effective_diameter(2.31, 0.5) is None  # nothing read at 0.5 M
 
 
