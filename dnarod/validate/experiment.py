@@ -271,7 +271,7 @@ def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
     c = ax[0, 2]
     d = res["effective_diameter"]
     salt = res["bending"]["salt_M"]
-    c.plot([1000 * salt], [res["model_effective_diameter_nm"]], "ko",
+    c.plot([1000 * salt], [res["model_effective_diameter_nm"]], "ko", ms=4, zorder=3,
            label=f"model {res['model_effective_diameter_nm']:.2f} nm (WCA + DH, second virial; calibrated at 150 mM)")
     if d:
         c.errorbar([1000 * d["salt_M"]], [d["reference_nm"]], yerr=[d["tolerance_nm"]], fmt="s", capsize=3,
