@@ -11,7 +11,10 @@ the size, each size in its own process (optionally pinned with ``taskset``):
 * ``in-callback share`` -- CPU time spent in the non-bonded part of the callback (displacement
   check, list rebuilds, pair loop) over the CPU time of the full run (not subject to the noise
   of a difference);
-* list rebuilds per 1000 steps and listed pairs per node.
+* list rebuilds per 1000 steps and listed pairs per node;
+* ``manning5`` -- the same full run with the terms before the charge calibration (Manning's charge, cutoff 5
+  Debye lengths), interleaved with the others in the same process: ``calibrated / manning5`` is the cost of
+  the longer cutoff (``full`` uses the defaults: calibrated charge, 12 Debye lengths).
 
 Rates are measured on the Python-callback path (``--elastic fast``, the default here: the in-callback share
 needs its Python non-bonded code; ``--elastic plugin`` gives the share by difference only), each measurement
@@ -62,9 +65,12 @@ def single(n, budget, repeats, elastic="fast"):
                radius_of_gyration_nm=float(np.sqrt(((model.positions - model.positions.mean(0)) ** 2).sum(1).mean())))
     sims = {}
     timed = None
-    for name, nb in (("bonded", False), ("full", True)):
+    from dnarod.openmm.nonbonded import NonbondedSettings
+
+    legacy = NonbondedSettings(charge="manning", cutoff_debye=5.0)
+    for name, nb in (("bonded", False), ("full", True), ("manning5", legacy)):
         sim = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1, elastic=elastic)
-        if nb and sim.rs.elastic == "fast":
+        if name == "full" and sim.rs.elastic == "fast":
             # time the non-bonded part of the (fused) callback: the list update and the pair loop
             cb = sim.rs.nonbonded_callback
             timed = _Timed(cb.add_to_particles)
@@ -89,6 +95,13 @@ def single(n, budget, repeats, elastic="fast"):
         out[f"{k}_steps_per_wall_s"] = steps / wall
         out[f"{k}_node_steps_per_cpu_s"] = n * steps / cpu
     out["share"] = 1.0 - out["full_steps_per_cpu_s"] / out["bonded_steps_per_cpu_s"]
+    out["manning5_share"] = 1.0 - out["manning5_steps_per_cpu_s"] / out["bonded_steps_per_cpu_s"]
+    out["full_over_manning5_cpu_per_step"] = out["manning5_steps_per_cpu_s"] / out["full_steps_per_cpu_s"]
+    for k in ("full", "manning5"):
+        vk = sims[k].rs.nonbonded_callback
+        if vk is not None and hasattr(vk, "verlet"):
+            out[f"{k}_pairs_per_node"] = vk.verlet.m / n
+            out[f"{k}_cutoff_nm"] = vk.numbers["cutoff"]
     if timed is not None:
         out["callback_share"] = out["callback_cpu_s"] / out["full_cpu_s"]
         vl = sims["full"].rs.nonbonded_callback.verlet
@@ -119,7 +132,8 @@ def main():
     pin = f"pinned to core {args.pin}" if prefix else "not pinned"
     print(f"non-bonded share of the step, thermal coil, LangevinMiddle 300 K, default dt, {pin}")
     print(f"{'nodes':>8} {'platform':>9} {'Rg nm':>7} {'coil s':>6} {'bonded st/cpu-s':>15} {'full st/cpu-s':>13} "
-          f"{'share':>7} {'in-callback':>11} {'builds/1000':>11} {'pairs/node':>10}")
+          f"{'share':>7} {'in-callback':>11} {'builds/1000':>11} {'pairs/node':>10} {'manning5 st/cpu-s':>17} "
+          f"{'share':>7} {'cpu/step ratio':>14} {'pairs/node':>10}")
     for r in results:
         if "error" in r:
             print(f"{r['n_nodes']:>8} error: {r['error']}")
@@ -127,7 +141,9 @@ def main():
         cb = (f"{100 * r['callback_share']:>10.2f}% {r['builds_per_1000_evaluations']:>11.1f} "
               f"{r['pairs_per_node']:>10.2f}" if "callback_share" in r else f"{'-':>11} {'-':>11} {'-':>10}")
         print(f"{r['n_nodes']:>8} {r['platform']:>9} {r['radius_of_gyration_nm']:>7.0f} {r['coil_cpu_s']:>6.1f} "
-              f"{r['bonded_steps_per_cpu_s']:>15.4g} {r['full_steps_per_cpu_s']:>13.4g} {100 * r['share']:>6.1f}% {cb}")
+              f"{r['bonded_steps_per_cpu_s']:>15.4g} {r['full_steps_per_cpu_s']:>13.4g} {100 * r['share']:>6.1f}% {cb} "
+              f"{r['manning5_steps_per_cpu_s']:>17.4g} {100 * r['manning5_share']:>6.1f}% "
+              f"{r['full_over_manning5_cpu_per_step']:>14.3f} {r.get('manning5_pairs_per_node', float('nan')):>10.2f}")
     H.write_results(args.json, "bench_nonbonded", elastic=args.elastic, pinned=bool(prefix), load_average_start_end=load, sizes=results,
                     target="share <= 3% at 10^4 nodes")
 

@@ -106,8 +106,12 @@ def test_effective_diameter_comparison():
 
     bad = compare_effective_diameter(2.31, 0.15)
     assert not bad["agrees"] and bad["ratio"] == pytest.approx(0.462) and bad["reference_nm"] == 5.0
-    assert compare_effective_diameter(5.0, 0.15)["agrees"] and compare_effective_diameter(4.1, 0.15)["agrees"]
-    assert not compare_effective_diameter(3.9, 0.15)["agrees"]
+    # tolerance: the reference's precision ("50 A" read as +-5 A) + 0.01 nm quadrature allowance
+    assert compare_effective_diameter(5.0, 0.15)["tolerance_nm"] == pytest.approx(0.51)
+    for d in (4.5, 5.0, 5.5):
+        assert compare_effective_diameter(d, 0.15)["agrees"], d
+    for d in (4.45, 5.55, 3.9):
+        assert not compare_effective_diameter(d, 0.15)["agrees"], d
     assert compare_effective_diameter(2.31, 0.5) is None  # nothing read at 0.5 M
 
 
@@ -180,16 +184,36 @@ def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(
     assert six["model_nm"] == pytest.approx(92.8, abs=0.1) and six["measured_nm"] == 103.0
     assert (tmp_path / "experiment.png").stat().st_size > 5000
     assert set(r["not_compared"]) == set(ex.MISSING) | {"writhe_fraction_model"}
-    # the model's own effective diameter at 0.15 M (2.31 nm) disagrees with the 5 nm PB value: reported, not gating
-    assert r["model_effective_diameter_nm"] == pytest.approx(2.31, abs=0.01)
-    assert not r["effective_diameter"]["agrees"] and r["disagreements"] and "DISAGREES" in r["headline"]
+    # the model's effective diameter at 0.15 M is calibrated to the 5.0 nm Poisson-Boltzmann value: gating
+    assert r["model_effective_diameter_nm"] == pytest.approx(5.0, abs=0.03)
+    assert r["effective_diameter"]["agrees"] and r["effective_diameter_gating"] and not r["disagreements"]
     for kw in (dict(lp_override=44.0), dict(lp_override=62.0), dict(c_override=60.0), dict(c_override=150.0),
-               dict(writhe_fraction_model=(0.5, 0.02, "wrong")), dict(gate_effective_diameter=True)):
+               dict(writhe_fraction_model=(0.5, 0.02, "wrong")), dict(d_override=4.45), dict(d_override=5.55)):
         assert not check_experiment(tmp_path, plots=False, **kw)["passed"], kw
-    good = check_experiment(tmp_path, plots=False, writhe_fraction_model=(0.731, 0.030, "ring"), d_override=4.8,
-                            gate_effective_diameter=True)
+    assert check_experiment(tmp_path, plots=False, d_override=2.31, gate_effective_diameter=False)["passed"]
+    good = check_experiment(tmp_path, plots=False, writhe_fraction_model=(0.731, 0.030, "ring"), d_override=4.8)
     assert good["passed"] and good["writhe_fraction"]["passed"] and good["effective_diameter"]["agrees"]
     assert "writhe_fraction_model" not in good["not_compared"]
+
+
+def test_effective_diameter_gate_fails_with_manning_or_a_wrong_charge(tmp_path):
+    """The diameter comparison is a check: Manning's charge (the old default) and the calibrated charge halved or
+    doubled all fail it; the calibrated charge passes (coarse grid: agrees with the default grid to 1e-4 nm at
+    0.15 M)."""
+    from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE, NonbondedSettings
+    from dnarod.validate.experiment import check_experiment, compare_effective_diameter
+    from dnarod.validate.supercoil_theory import effective_diameter
+
+    grid = dict(n_h=120, n_gamma=10, n_offset=2)
+    q = CALIBRATED_LINE_CHARGE * 0.34
+    d = {k: effective_diameter(NonbondedSettings(salt=0.15, charge=c), 0.34, 300.0, **grid)
+         for k, c in (("calibrated", "calibrated"), ("manning", "manning"), ("half", 0.5 * q), ("double", 2.0 * q))}
+    assert compare_effective_diameter(d["calibrated"], 0.15)["agrees"]
+    for k in ("manning", "half", "double"):
+        assert not compare_effective_diameter(d[k], 0.15)["agrees"], (k, d[k])
+    assert d["manning"] < 3.0 and d["half"] < 4.4 and d["double"] > 5.6
+    r = check_experiment(tmp_path, plots=False, nonbonded=NonbondedSettings(charge="manning"))
+    assert not r["passed"] and "DISAGREES" in r["headline"] and r["disagreements"]
 
 
 def test_run_validation_hands_the_plectonemes_writhe_fraction_to_experiment(tmp_path, monkeypatch):
@@ -201,7 +225,7 @@ def test_run_validation_hands_the_plectonemes_writhe_fraction_to_experiment(tmp_
 
     monkeypatch.setattr(plectonemes, "check_plectonemes", stub)
     res = V.run_validation(tmp_path, checks=["plectonemes", "experiment"],
-                           options={"experiment": dict(d_override=2.31, plots=False)})
+                           options={"experiment": dict(d_override=5.0, plots=False)})
     w = res["checks"]["experiment"]["writhe_fraction"]
     assert w["model"] == 0.72 and w["passed"] and "stub ring" in w["model_description"]
 

@@ -63,10 +63,12 @@ def test_zero_skin_rebuilds_every_evaluation(coil):
 
 def test_a_skin_would_miss_pairs_without_the_rebuild_rule(coil):
     """The rebuild rule matters: with the list frozen, a move of 0.6 nm brings pairs inside the
-    cutoff that the stale list does not hold, so the energies would differ."""
+    cutoff that the stale list does not hold, so the energies would differ. (A 5-Debye-length cutoff: with the
+    default 12 the missed pairs sit where the shifted energy is ~e^-12 of its contact value, below the test's
+    resolution.)"""
     from dnarod.openmm.nonbonded import pair_kernel
 
-    v = NonbondedSettings(skin=1.0).resolve(0.34, 300.0)
+    v = NonbondedSettings(skin=1.0, cutoff_debye=5.0).resolve(0.34, 300.0)
     vl = VerletList(len(coil), v["cutoff"], 1.0, False, v["n_exclude"])
     pi, pj, m = vl.update(coil)
     c = coil + np.random.default_rng(1).normal(scale=0.6, size=coil.shape)

@@ -21,10 +21,31 @@ def test_debye_and_bjerrum_lengths():
     # l_B = 0.7 nm in water at 25 C; Debye length 0.304/sqrt(I[M]) nm (e.g. Israelachvili).
     assert v["bjerrum"] == pytest.approx(0.7135, rel=2e-3)
     assert v["debye_length"] == pytest.approx(0.304 / np.sqrt(0.15), rel=5e-3)
-    assert v["charge"] == pytest.approx(0.34 / v["bjerrum"], rel=1e-12)
     assert v["n_exclude"] == int(np.ceil(v["cutoff"] / 0.34))
+    assert v["cutoff"] == pytest.approx(12.0 * v["debye_length"], rel=1e-12)
     with pytest.raises(ParameterError, match="salt"):
         NonbondedSettings(salt=-1).resolve(0.34, 300)
+
+
+def test_charge_models():
+    from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE
+
+    cal = NonbondedSettings(salt=0.15).resolve(0.34, 300.0)
+    # at the calibration salt the Poisson-Boltzmann far-field charge of the calibrated cylinder is the calibrated
+    # line charge (radius given to 1 pm: 0.03 % in charge, 0.0005 nm in diameter)
+    assert (cal["charge"], cal["charge_model"]) == (pytest.approx(CALIBRATED_LINE_CHARGE * 0.34, rel=5e-4),
+                                                    "calibrated")
+    assert NonbondedSettings(charge="calibrated").resolve(0.17, 300.0)["charge"] == pytest.approx(0.5 * cal["charge"])
+    q = [NonbondedSettings(salt=c).resolve(0.34, 300.0)["charge"] for c in (0.01, 0.05, 0.15, 0.5)]
+    assert q[0] < q[1] < q[2] < q[3]  # a thick cylinder's equivalent axis charge grows as the screening shortens
+    # Manning: one elementary charge per Bjerrum length of chain (0.48 e per bp at 300 K); None keeps that meaning
+    for q in ("manning", " Manning", None):
+        v = NonbondedSettings(charge=q).resolve(0.34, 300.0)
+        assert v["charge"] == pytest.approx(0.34 / v["bjerrum"], rel=1e-12) and v["charge_model"] == "manning"
+    assert NonbondedSettings(charge=1.25).resolve(0.34, 300.0)["charge"] == 1.25
+    for bad in ("stigter", -1.0, float("nan"), [1.0]):
+        with pytest.raises(ParameterError, match="charge"):
+            NonbondedSettings(charge=bad).resolve(0.34, 300.0)
 
 
 @pytest.mark.parametrize("circular", [False, True])
@@ -59,13 +80,14 @@ def test_forces_are_the_gradient():
 
 def test_overlapping_nodes_are_rejected():
     ff = load_forcefield("dna-default")
-    m = ff.model_from_sequence("A" * 30)
+    m = ff.model_from_sequence("A" * 60)
     pos = m.positions.copy()
-    pos[20] = pos[2] + [0.3, 0.0, 0.0]  # far along the chain, 0.3 nm apart in space
+    # far along the chain (beyond the default exclusion, 28 bp at 0.15 M), 0.3 nm apart in space
+    pos[40] = pos[2] + [0.3, 0.0, 0.0]
     bad = m.with_pose(pos, m.frames)
-    with pytest.raises(GeometryError, match=r"nodes [12] and 20 overlap"):
+    with pytest.raises(GeometryError, match=r"nodes [1-4] and 40 overlap"):
         build_system(bad)
-    pos[20] = pos[2]  # coincident centres: rejected even without excluded volume
+    pos[40] = pos[2]  # coincident centres: rejected even without excluded volume
     with pytest.raises(GeometryError, match="overlap"):
         build_system(m.with_pose(pos, m.frames), nonbonded=False)
 
@@ -88,15 +110,48 @@ def test_crossing_diameter_of_line_charges_matches_the_continuum_formula(gamma):
     assert d == pytest.approx(np.trapezoid(-np.expm1(-U), h), rel=3e-3)
 
 
+def test_poisson_boltzmann_far_field_charge():
+    """Linearised limit (small bare charge): nu = bare / (kappa a K1(kappa a)), the Debye-Hueckel cylinder; the
+    nonlinear charge is below the linearised one (saturation); the calibrated radius reproduces the constant."""
+    from scipy.special import k1
+
+    from dnarod.openmm.nonbonded import (BARE_LINE_CHARGE, CALIBRATED_LINE_CHARGE, CALIBRATED_RADIUS,
+                                         calibrated_radius, pb_far_field_line_charge)
+
+    for salt, a in ((0.01, 1.0), (0.15, 1.159), (1.0, 0.8)):
+        k = NonbondedSettings(salt=salt).resolve(0.34, 300.0)["kappa"]
+        small = 1e-3
+        assert pb_far_field_line_charge(salt, 300.0, radius=a, bare=small) == pytest.approx(
+            small / (k * a * k1(k * a)), rel=1e-4)
+        lin = BARE_LINE_CHARGE / (k * a * k1(k * a))
+        assert 0 < pb_far_field_line_charge(salt, 300.0, radius=a) < lin
+    assert calibrated_radius() == pytest.approx(CALIBRATED_RADIUS, abs=1e-3)
+    assert pb_far_field_line_charge(0.15, 300.0) == pytest.approx(CALIBRATED_LINE_CHARGE, rel=5e-4)
+    with pytest.raises(ParameterError, match="Poisson-Boltzmann"):
+        pb_far_field_line_charge(0.15, 300.0, radius=-1.0)
+
+
 def test_effective_diameter_of_the_default_potential():
-    from dnarod.openmm.nonbonded import effective_diameter
+    from dnarod.openmm.nonbonded import CALIBRATION, effective_diameter
 
     sigma = 2.0
-    d_wca = effective_diameter(NonbondedSettings(electrostatics=False, diameter=sigma), 0.34, 300.0)
+    grid = dict(n_angles=12, n_phase=2, n_h=200)  # agrees with finer grids to 1e-4 nm at 0.15 M (README)
+    d_wca = effective_diameter(NonbondedSettings(electrostatics=False, diameter=sigma), 0.34, 300.0, **grid)
     # f = 1 - exp(-U/kT) <= 1 and U = 0 beyond the WCA cutoff 2^(1/6) sigma; inside sigma the many overlapping
     # sites make U >> kT
     assert 0.95 * sigma < d_wca < 2 ** (1 / 6) * sigma
-    d = {c: effective_diameter(NonbondedSettings(salt=c), 0.34, 300.0) for c in (0.1, 0.15, 0.5)}
-    assert d[0.1] > d[0.15] > d[0.5] >= d_wca - 1e-9
-    # measured here (README "What is calibrated to what"): 2.63 nm at 0.1 M, 2.31 nm at 0.15 M, 2.13 nm at 0.5 M
-    assert d[0.15] == pytest.approx(2.31, abs=0.01) and d[0.1] == pytest.approx(2.63, abs=0.01)
+    # the calibrated charge reproduces the Poisson-Boltzmann second-virial diameter, 5.0 nm at 0.15 M, 300 K
+    d = {c: effective_diameter(NonbondedSettings(salt=c), 0.34, 300.0, **grid) for c in (0.15, 0.5)}
+    assert d[0.15] == pytest.approx(CALIBRATION["diameter_nm"], abs=0.03)
+    assert d[0.15] > d[0.5] > d_wca
+    # Manning's charge with the old 5-Debye-length cutoff (README): 2.31 nm at 0.15 M, capped by that cutoff
+    old = NonbondedSettings(salt=0.15, charge="manning", cutoff_debye=5.0)
+    assert effective_diameter(old, 0.34, 300.0, **grid) == pytest.approx(2.31, abs=0.02)
+
+
+@pytest.mark.slow
+def test_calibrated_line_charge_is_recomputed():
+    from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE, calibrated_line_charge
+
+    nu = calibrated_line_charge(tol_nm=0.005)
+    assert nu == pytest.approx(CALIBRATED_LINE_CHARGE, rel=0.01)

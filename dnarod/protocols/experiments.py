@@ -39,8 +39,10 @@ MISSING = {
                                 "ionic conditions and Frank-Kamenetskii et al. 1985's fit C = 3.0e-19 erg cm, "
                                 "a = 500 A to Horowitz-Wang's <dLk^2> could be read, supercoiling.csv)",
     "effective_diameter": "the measured (knotting) effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
-                          "and Stigter's (1977) values vs salt (only a Poisson-Boltzmann second-virial diameter, "
-                          "5 nm at 150 mM, quoted in a Biophys J abstract could be read)",
+                          "and Shaw & Wang (1993) and Stigter's (1977) values vs salt (searched again in round 5; "
+                          "only the computed Poisson-Boltzmann second-virial diameter of Gebe et al. 1995, 5 nm at "
+                          "150 mM, could be read: the model's charge is calibrated to it, so no salt dependence "
+                          "is checked)",
 }
 
 
@@ -373,14 +375,17 @@ def dna_diameter_reference():
 
 
 def effective_diameter_reference():
-    """Measured salt-dependent effective diameters (Rybenkov et al. 1993): empty, none could be read."""
+    """Measured salt-dependent effective diameters (knotting: Rybenkov, Cozzarelli & Vologodskii 1993; Shaw & Wang
+    1993): empty, none could be read (:data:`MISSING`; the computed value the model is calibrated to is
+    :func:`effective_diameter_second_virial_reference`)."""
     return [m for m in dna_diameter_reference() if m.quantity == "effective_diameter"]
 
 
 def effective_diameter_second_virial_reference():
     """Computed effective diameters (nm) with the model's definition -- hard rods with the same second virial
     coefficient as the electrostatic potential -- read in a stored source: 5.0 nm at 0.15 M from the
-    Poisson-Boltzmann potential (Biophys J abstract, ``dna_diameter.csv``), with its salt (mol/L)."""
+    Poisson-Boltzmann potential (Gebe et al. 1995, Biophys J abstract, ``dna_diameter.csv``), with its salt
+    (mol/L). The model's Debye-Hückel line charge is calibrated to it (``dnarod.openmm.nonbonded.CALIBRATION``)."""
     out = []
     for r in read_table("dna_diameter.csv"):
         if r["quantity"] != "effective_diameter_second_virial_pb":

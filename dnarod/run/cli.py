@@ -135,7 +135,8 @@ def _report(result, spec):
          f"simulated: {s['simulated_ps'] / 1000:.6g} ns  seed: {s['seed']}")
     nb = s.get("nonbonded")
     if nb:
-        echo(f"nonbonded: Debye length {nb['debye_length']:.3g} nm, charge {nb['charge']:.3g} e/bp, "
+        echo(f"nonbonded: Debye length {nb['debye_length']:.3g} nm, charge {nb['charge']:.3g} e/bp"
+             f"{' (' + nb['charge_model'] + ')' if nb.get('charge_model') else ''}, "
              f"cutoff {nb['cutoff']:.3g} nm, chain exclusion {nb['n_exclude']} bp")
     echo(f"wall: {s['wall_s']:.1f} s (CPU {s['cpu_s']:.1f} s)  speed: {s['ns_per_day']:.4g} ns/day  "
          f"mean kinetic temperature: {s['mean_temperature_K']:.1f} K")

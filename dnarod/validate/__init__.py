@@ -19,9 +19,9 @@ Checks (by name; each module states its system, reference and tolerances):
 * ``nicked_ring`` -- ``<ΔLk²>`` of nicked rings (exact twist part, model writhe vs a worm-like-ring Monte Carlo
   with the model's A and effective diameter) and the free-energy coefficient K (:mod:`.nicked_ring`);
 * ``experiment`` -- the model's persistence length and effective torsional stiffness against measured DNA
-  values (``data/experimental/``; exact, no simulation), its effective diameter against a computed reference
-  (reported), and -- when ``plectonemes`` ran before it -- the ring's writhe fraction against the value read
-  (:mod:`.experiment`).
+  values (``data/experimental/``; exact, no simulation), its effective diameter against the computed
+  Poisson-Boltzmann reference its Debye-Hückel charge is calibrated to (gating), and -- when ``plectonemes``
+  ran before it -- the ring's writhe fraction against the value read (:mod:`.experiment`).
 
 :func:`run_validation` runs a selection and writes ``report.md``, PNG plots and ``results.json``
 (``{"checks": {NAME: {"passed": bool, ...}}}``) to a folder.

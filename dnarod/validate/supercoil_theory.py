@@ -189,14 +189,16 @@ _DEFF_CACHE = {}
 
 
 def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
-    """The model's effective diameter (nm): Onsager's excluded volume of two long straight chains of its nodes.
+    """The model's effective diameter (nm): Onsager's excluded volume of two long straight chains of its nodes,
+    computed by :func:`dnarod.openmm.nonbonded.effective_diameter` (the one home of this computation; ``n_gamma``
+    angles, ``n_offset`` site offsets per chain, ``n_h`` distances).
 
     Two long rods crossing at angle gamma with closest distance h exclude ``2 L² |sin gamma| d(gamma)``, with
     ``d(gamma) = int_0^inf <1 - exp(-U(h, gamma)/kT)> dh`` (average over the rods' sliding offsets along their
     axes); the effective diameter is its isotropic average ``<|sin g| d(g)> / <|sin g|>`` (weight ``sin² g``):
     the diameter of the hard rods with the same second virial coefficient, the definition of Stigter's effective
-    diameter. U is the model's own pair energy (WCA + screened Coulomb with its cutoff, node charges and Debye
-    length at this salt), summed over the node pairs of two straight chains long enough to hold every pair within the cutoff.
+    diameter. U is the model's own pair energy (WCA + shifted screened Coulomb with its cutoff, node charges and
+    Debye length at this salt).
 
     Parameters
     ----------
@@ -210,39 +212,6 @@ def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
     -------
     float
     """
-    from ..thermal import kT
+    from ..openmm.nonbonded import effective_diameter as nb_effective_diameter
 
-    p = nonbonded.resolve(ds, temperature)
-    kt = kT(temperature)
-    hs = np.linspace(0.0, p["cutoff"] + 0.5, n_h)
-    gam = (np.arange(n_gamma) + 0.5) * (0.5 * math.pi / n_gamma)  # (0, pi/2]; |sin| symmetric
-    d_g = np.empty(n_gamma)
-    for ig, g in enumerate(gam):
-        # chains long enough to hold every pair within the cutoff (angles below ~11 degrees, weight < 0.4 %,
-        # are treated as 11 degrees for the chain length only)
-        m = int(math.ceil((p["cutoff"] + 2.0) / max(math.sin(g), 0.2) / ds))
-        s = np.arange(-m, m + 1) * ds
-        acc = np.zeros(n_h)
-        for o1 in range(n_offset):
-            for o2 in range(n_offset):
-                a = s + o1 * ds / n_offset
-                b = s + o2 * ds / n_offset
-                x = a[:, None] - b[None, :] * math.cos(g)
-                y = -b[None, :] * math.sin(g)
-                r2p = x * x + y * y  # in-plane part; z = h
-                r = np.maximum(np.sqrt(r2p[None, :, :] + hs[:, None, None] ** 2), 1e-3)
-                u = np.zeros_like(r)
-                if p["eps"] > 0:
-                    w = r < p["rc_wca"]
-                    sr6 = (p["sigma"] / np.where(w, r, 1.0)) ** 6
-                    u += np.where(w, 4 * p["eps"] * (sr6 * sr6 - sr6) + p["eps"], 0.0)
-                if p["a_dh"] > 0:
-                    w = r < p["rc_dh"]
-                    rr = np.where(w, r, 1.0)
-                    shift = math.exp(-p["kappa"] * p["rc_dh"]) / p["rc_dh"]
-                    u += np.where(w, p["a_dh"] * (np.exp(-p["kappa"] * rr) / rr - shift), 0.0)
-                U = u.sum(axis=(1, 2))
-                acc += 1.0 - np.exp(-np.minimum(U / kt, 700.0))
-        d_g[ig] = np.trapezoid(acc / n_offset ** 2, hs)
-    w = np.sin(gam) ** 2
-    return float(np.sum(w * d_g) / np.sum(w))
+    return float(nb_effective_diameter(nonbonded, ds, temperature, n_angles=n_gamma, n_phase=n_offset, n_h=n_h))
