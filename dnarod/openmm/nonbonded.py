@@ -96,6 +96,8 @@ CALIBRATION = dict(diameter_nm=5.0, salt_M=0.15, temperature_K=300.0, ds_nm=0.34
                    cutoff_debye=DEFAULT_CUTOFF_DEBYE)
 #: Named charge models accepted by ``NonbondedSettings.charge``.
 CHARGE_MODELS = ("calibrated", "manning")
+#: The default charge model.
+DEFAULT_CHARGE = "calibrated"
 #: Bare line charge of B-DNA, e/nm: two phosphates per 0.34-nm base pair (b = 0.17 nm).
 BARE_LINE_CHARGE = 2.0 / 0.34
 #: Radius of the Poisson-Boltzmann cylinder whose far field gives the default node charges, nm: chosen so that its
@@ -138,7 +140,7 @@ class NonbondedSettings:
     electrostatics: bool = True
     diameter: float = 2.0
     salt: float = 0.15
-    charge: float | str | None = "calibrated"
+    charge: float | str | None = DEFAULT_CHARGE
     dielectric: float = 78.5
     cutoff_debye: float = DEFAULT_CUTOFF_DEBYE
     n_exclude: int | None = None
@@ -166,6 +168,24 @@ class NonbondedSettings:
                     a_dh=(ONE_4PI_EPS0 / self.dielectric * q * q) if self.electrostatics else 0.0,
                     kappa=kappa, rc_dh=rc_dh, cutoff=cutoff, n_exclude=n_ex, bjerrum=lB,
                     debye_length=1 / kappa, charge=q, charge_model=model, skin=float(self.skin))
+
+
+def member_nonbonded(settings):
+    """The :class:`NonbondedSettings` of a protocol member's settings (keys ``excluded_volume``,
+    ``electrostatics``, ``salt_M``, ``charge``, ``cutoff_debye``), checked before anything runs.
+
+    The charge model and the cutoff are settings of the member, so a member folder recorded with other non-bonded
+    terms is not taken for this one (the member's cache key is its settings)."""
+    nb = NonbondedSettings(excluded_volume=bool(settings["excluded_volume"]),
+                           electrostatics=bool(settings["electrostatics"]), salt=float(settings["salt_M"]),
+                           charge=settings.get("charge", DEFAULT_CHARGE),
+                           cutoff_debye=float(settings.get("cutoff_debye", DEFAULT_CUTOFF_DEBYE)))
+    # refuses an unknown charge model or a bad number (the calibrated charge at the calibration point is cached)
+    _node_charge(nb.charge, CALIBRATION["ds_nm"], 1.0, CALIBRATION["salt_M"], CALIBRATION["temperature_K"],
+                 nb.dielectric)
+    if not (np.isfinite(nb.cutoff_debye) and nb.cutoff_debye > 0):
+        raise ParameterError(f"cutoff_debye must be a positive number of Debye lengths, got {nb.cutoff_debye}")
+    return nb
 
 
 def _node_charge(charge, ds, lB, salt, temperature, dielectric):

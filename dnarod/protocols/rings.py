@@ -30,9 +30,12 @@ COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_lengt
 
 
 def _settings(s):
+    from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
                temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform="CPU",
-               threads=1, electrostatics=True, excluded_volume=True, start_bend_softening=None, start_ns=None)
+               threads=1, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
+               start_bend_softening=None, start_ns=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -105,7 +108,7 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     """
     from ..analysis.polymer import bending_relaxation_time
     from ..analysis.writhe import twist, writhe
-    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.nonbonded import member_nonbonded
     from ..openmm.simulation import RodSimulation
     from .tweezers import auto_friction
 
@@ -116,8 +119,7 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
     sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
                            max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
-    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
-                           salt=float(s["salt_M"]))
+    nb = member_nonbonded(s)
     t0, c0 = time.perf_counter(), time.process_time()
     if s.get("start_bend_softening") and s.get("start_ns"):
         # start "from above": run first with the bending stiffness divided by start_bend_softening (plectonemes

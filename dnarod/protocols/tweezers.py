@@ -145,10 +145,13 @@ def auto_friction(model, force_pN, temperature, lp=None):
 
 
 def _settings(s):
+    from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+
     out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
                friction_per_ps=None, sample_ps=None, platform="CPU", threads=1, electrostatics=True,
-               excluded_volume=True, elastic="auto", start_force_pN=None, start_ns=None)
+               excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE, elastic="auto",
+               start_force_pN=None, start_ns=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -263,13 +266,12 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
 
 def _member_simulation(m, model):
     """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``)."""
-    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.nonbonded import member_nonbonded
     from ..openmm.platforms import choose_platform
     from ..openmm.simulation import RodSimulation
 
     s = m["settings"]
-    nb = NonbondedSettings(excluded_volume=bool(s["excluded_volume"]), electrostatics=bool(s["electrostatics"]),
-                           salt=float(s["salt_M"]))
+    nb = member_nonbonded(s)
     # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
     # is built) applies; settings["elastic"] can force another path. The walls' form follows the platform.
     platform = choose_platform(s["platform"], model.n_nodes, s["elastic"], s["threads"])[0].getName()
