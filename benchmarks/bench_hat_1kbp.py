@@ -61,7 +61,9 @@ def analyse_curve(outdir, target=0.03):
     from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     rows, starts, ends = [], [], []
-    for rj in sorted(Path(outdir).glob("ensemble/members/*/protocol_result.json")):
+    found = sorted(Path(outdir).glob("ensemble/members/*/protocol_result.json")) \
+        + sorted(Path(outdir).glob("members/*/protocol_result.json"))  # a turn sweep (--start sweep)
+    for rj in found:
         mdir = rj.parent
         res = json.loads(rj.read_text())["result"]
         d = np.genfromtxt(mdir / "samples.csv", delimiter=",", names=True)
@@ -75,11 +77,15 @@ def analyse_curve(outdir, target=0.03):
         q = [float(v.mean()) for v in np.array_split(x, 4)]
         h1, h2 = np.array_split(x, 2)
         se_half = se_tau * np.sqrt(2.0)  # SE of a half's mean
-        for line in (mdir / "member.log").read_text().splitlines():
-            if " start: " in line:
-                starts.append(_dt.datetime.strptime(line[:19], "%Y-%m-%d %H:%M:%S").timestamp())
+        if (mdir / "member.log").exists():
+            for line in (mdir / "member.log").read_text().splitlines():
+                if " start: " in line:
+                    starts.append(_dt.datetime.strptime(line[:19], "%Y-%m-%d %H:%M:%S").timestamp())
+        else:  # a sweep's member (no ensemble log): its result's time less its wall time
+            starts.append(rj.stat().st_mtime - float(res["wall_s"]))
         ends.append(rj.stat().st_mtime)
-        rows.append(dict(turns=res["turns"], force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
+        rows.append(dict(turns=res["turns"], previous_turns=res.get("previous_turns"), start=res.get("start"),
+                         force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
                          cpu_s=res["cpu_s"], simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0,
                          equilibration_ns=res["equilibration_ps"] / 1000.0, production_ns=res["production_ps"] / 1000.0,
                          ns_per_cpu_day=res["n_steps"] * res["dt_ps"] / 1000.0 / res["cpu_s"] * 86400.0,
