@@ -16,6 +16,11 @@ tau-based) relative to its value, the production in quarters (drift) and the cur
 writes ``benchmarks/results/hat_1kbp_curve.json``.
 
     python benchmarks/bench_hat_1kbp.py --curve runs/hat_1kbp_1pN
+
+It reads both layouts: members of the ensemble (``DIR/ensemble/members``) and of a turn sweep
+(``--start sweep``: ``DIR/members``, whose start time is taken as the result's time less its wall time).
+
+    python benchmarks/bench_hat_1kbp.py --curve runs/hat1k_sweep --out benchmarks/results/hat_1kbp_sweep.json
 """
 from __future__ import annotations
 
@@ -193,15 +198,18 @@ def main_curve(a):
             r = json.loads(rj.read_text())
             if r.get("status") == "ok":
                 obs.append(dict(r["observables"], force_pN=r["settings"]["force_pN"], turns=r["settings"]["turns"]))
+        for rj in Path(a.curve).glob("members/*/protocol_result.json"):  # a turn sweep's finished members
+            obs.append(json.loads(rj.read_text())["result"])
         obs.sort(key=lambda r: r["turns"])
         _write_csv(obs, Path(a.figure + ".csv"))
         plot_curve("magnetic_tweezers", obs, Path(a.figure + ".png"))
         print(f"wrote {a.figure}.csv and {a.figure}.png ({len(obs)} finished members)")
-    print(f"{'turns':>6} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
+    print(f"{'turns':>6} {'from':>5} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
           f"{'SE blk':>7} {'SE tau':>7} {'SE/x':>6} {'tau_x ns':>8} {'tau_Wr ns':>9} {'Wr':>6} {'plect':>5} "
           f"{'drift z':>7}  quarters")
     for r in rows:
-        print(f"{r['turns']:6.1f} {r['equilibration_ns']:4.0f}+{r['production_ns']:<5.0f} {r['wall_s']:7.0f} "
+        frm = "-" if r.get("previous_turns") is None else f"{r['previous_turns']:+.1f}"
+        print(f"{r['turns']:6.1f} {frm:>5} {r['equilibration_ns']:4.0f}+{r['production_ns']:<5.0f} {r['wall_s']:7.0f} "
               f"{r['cpu_s']:6.0f} {r['ns_per_cpu_day']:10.0f} {r['x_over_L']:6.3f} {r['sd_x_over_L']:6.3f} "
               f"{r['se_block']:7.4f} {r['se_tau']:7.4f} {100 * r['se_rel']:5.1f}% {r['tau_int_extension_ns']:8.2f} "
               f"{r['tau_int_wr_ns']:9.2f} {r['Wr']:6.2f} {r['plectoneme_fraction']:5.2f} {r['drift_z']:7.1f}  "
