@@ -349,3 +349,23 @@ def test_turn_sweep_bad_input(tmp_path):
     with pytest.raises(DnarodError, match="choose 'static'"):
         hat_curve([0.0], tmp_path / "d", source="40", workers=0, start="ramp")
     assert not any((tmp_path / x).exists() for x in "abcd")
+
+
+def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch):
+    """start='sweep-in': chains run towards zero turns; each head starts from a plectoneme grown at a lower force
+    (same Lk) and the next member from the head's final pose with the turns taken out."""
+    from dnarod.protocols import hat_curve, sweep
+    from dnarod.protocols.sweep import add_turns, load_pose, sweep_chains
+
+    assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4], inward=True) == [[0.8, 0.4, 0.0], [-1.2, -0.4]]
+    monkeypatch.setattr(sweep, "GROW_NS", 0.01)
+    c = hat_curve([-0.5, 0.5, 0.25], tmp_path / "in", force_pN=2.0, source="60", workers=0, start="sweep-in",
+                  base=dict(time_ns=0.02, equilibration_ns=0.01, seed=3, sample_ps=2.0))
+    rows = {r["turns"]: r for r in c.rows}
+    assert "grown plectoneme" in rows[0.5]["start"] and "grown plectoneme" in rows[-0.5]["start"]
+    assert rows[0.25]["previous_turns"] == 0.5 and "turn sweep" in rows[0.25]["start"]
+    mem = tmp_path / "in" / "members"
+    P, F = add_turns(*load_pose(mem / "force_pN+2_turns+0.5" / "final_pose.npz"), -0.25)
+    np.testing.assert_array_equal(load_pose(mem / "force_pN+2_turns+0.25" / "start_pose.npz")[1], F)
+    for t, r in rows.items():
+        assert r["lk_slips"] == 0 and abs(r["end_turns"] - t) < 0.05

@@ -134,12 +134,14 @@ def _clamp_options(default_force):
                click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
                click.option("--clamp-k", type=float, default=250.0, show_default=True,
                             help="Rotation clamp stiffness, kJ/mol."),
-               click.option("--start", "start", type=click.Choice(["static", "sweep"]), default="static",
-                            show_default=True,
+               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in"]),
+                            default="static", show_default=True,
                             help="static: every member from the static pose under its loads; sweep: members run "
                                  "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "
                                  "from the largest), each from the previous turn value's final pose turned by the "
-                                 "increment, as magnets are turned in the lab."),
+                                 "increment, as magnets are turned in the lab; sweep-in: the same chains towards "
+                                 "zero, each begun at its largest |turns| from a plectoneme grown for 20 ns at 0.3 "
+                                 "of the force."),
                click.option("--settle", "settle_ns", type=float, default=None,
                             help="With --start sweep: equilibration of each chained member after its turn "
                                  "increment, ns (default: 2 slowest bending relaxation times; the first member "
@@ -158,8 +160,9 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
     import math
 
     _check_run_options(workers, out)
-    if settle_ns is not None and start != "sweep":
-        raise DnarodError(f"--settle {settle_ns:g}: the settle time applies to a turn sweep only; add --start sweep")
+    if settle_ns is not None and start not in ("sweep", "sweep-in"):
+        raise DnarodError(f"--settle {settle_ns:g}: the settle time applies to a turn sweep only; add --start sweep "
+                          f"(or sweep-in)")
     if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
         raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},

@@ -8,6 +8,12 @@ increment added (:func:`add_turns`: the clamp target and the linking number foll
 full equilibration. Turns >= 0 form one chain (ascending), turns < 0 another (descending), so a two-worker
 cluster runs the two sides of a hat curve at once (:func:`sweep_chains`).
 
+Inward sweeps (``inward=True``, ``start="sweep-in"``) run the other way: each chain begins at the largest |turns|
+from a plectoneme grown for :data:`GROW_NS` at :data:`GROW_FORCE_FRACTION` of the member's force (same turns and
+clamp target, so the same linking number; :func:`dnarod.protocols.tweezers.sample_member`) and the turns are taken
+out step by step, so the post-buckling members start plectonemic instead of from a straight chain that has to
+nucleate its first loop (an outward sweep can stay straight, metastable, past the buckling point).
+
 Resume: a chained member's key holds the previous turn value and the SHA-256 of its start pose, so a finished
 member is reused only if it was started from the previous member's present final pose; an interrupted member
 resumes from its checkpoint (:func:`dnarod.protocols.tweezers.run_member`).
@@ -24,6 +30,10 @@ from ..errors import DnarodError
 
 #: File of a member's last pose (written by :func:`dnarod.protocols.tweezers.run_member`).
 FINAL_POSE = "final_pose.npz"
+#: Head of an inward sweep: its plectoneme is grown at this fraction of the member's force ...
+GROW_FORCE_FRACTION = 0.3
+#: ... for this long (ns), before its equilibration at the member's force.
+GROW_NS = 20.0
 #: File of a chained member's start pose (the previous member's final pose with the turns added).
 START_POSE = "start_pose.npz"
 
@@ -86,16 +96,17 @@ def load_pose(path):
         return z["positions"], z["frames"]
 
 
-def sweep_chains(turns):
+def sweep_chains(turns, inward=False):
     """Split turn values into the chains of a sweep: ``[[0, 0.8, 1.6, ...], [-0.8, -1.6, ...]]``.
 
     Turns >= 0 ascending, turns < 0 descending (each chain moves away from zero; a side with no values is
-    left out).
+    left out); with ``inward`` each chain is reversed (it starts at the largest |turns| and moves to zero).
     """
     t = sorted({float(x) for x in turns})
     up = [x for x in t if x >= 0]
     down = [x for x in reversed(t) if x < 0]
-    return [c for c in (up, down) if c]
+    chains = [c for c in (up, down) if c]
+    return [c[::-1] for c in chains] if inward else chains
 
 
 def check_sweep(kind, settle_ns):
@@ -115,7 +126,7 @@ def check_sweep(kind, settle_ns):
                               f"after its turn increment)")
 
 
-def run_chain(kind, members, dirs, settle_ns=None):
+def run_chain(kind, members, dirs, settle_ns=None, grow_head=False):
     """Run one chain of members in order (on a dask worker or in this process); returns their result rows.
 
     Parameters
@@ -127,6 +138,9 @@ def run_chain(kind, members, dirs, settle_ns=None):
         One member folder each.
     settle_ns : float, optional
         Equilibration of every member after the first (default: two slowest bending relaxation times).
+    grow_head : bool
+        The first member starts from a plectoneme grown at :data:`GROW_FORCE_FRACTION` of its force for
+        :data:`GROW_NS` (an inward sweep).
 
     Returns
     -------
@@ -141,6 +155,8 @@ def run_chain(kind, members, dirs, settle_ns=None):
     for m, d in zip(members, dirs):
         s = proto.member_settings(m)
         if prev is None:
+            if grow_head:
+                s = dict(s, start_force_pN=GROW_FORCE_FRACTION * float(s["force_pN"]), start_ns=GROW_NS)
             rows.append(run_member(s, d))
         else:
             pfile = Path(prev[1]) / FINAL_POSE
