@@ -11,7 +11,9 @@ uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), r
 :func:`dnarod.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
 per step carries the turns, and the other strains follow the linear constitutive law ``K dxi = (0, 0, tau, 0, 0, F)``
 (twist-stretch coupling included). Past buckling this state is unstable and thermal noise takes the chain
-into its plectonemic state during equilibration.
+into its plectonemic state during equilibration. A member of a turn sweep starts instead from the previous turn
+value's final pose with the increment added as twist (``build_member(..., start_pose=...)``,
+:mod:`dnarod.protocols.sweep`).
 
 Friction (:func:`auto_friction`): the equilibrium does not depend on it, so it is chosen to decorrelate
 fast: ``zeta = 2 omega_1``, critical damping of the slowest bending mode of the chain under tension
