@@ -21,6 +21,12 @@ It reads both layouts: members of the ensemble (``DIR/ensemble/members``) and of
 (``--start sweep``: ``DIR/members``, whose start time is taken as the result's time less its wall time).
 
     python benchmarks/bench_hat_1kbp.py --curve runs/hat1k_sweep --out benchmarks/results/hat_1kbp_sweep.json
+
+``--extend DIR[,DIR...]`` continues finished members of a sweep at their own turns (their final pose, a settle of
+``--settle`` ns, then ``--time`` ns), in ``--root``/<name>, and analyses them (finished continuations are reused);
+writes ``benchmarks/results/hat_1kbp_extend.json``.
+
+    python benchmarks/bench_hat_1kbp.py --extend runs/hat1k_sweep/members/force_pN+1_turns+4,runs/hat1k_sweepin/members/force_pN+1_turns+4 --settle 100 --time 40 --root runs/hat1k_cont
 """
 from __future__ import annotations
 
@@ -135,11 +141,15 @@ def main(argv=None):
     ap.add_argument("--figure", default=None,
                     help="with --curve: also write the curve's CSV + PNG (the protocol's own writer and plot) from "
                          "the finished members to FIGURE.csv / FIGURE.png (for a curve still running or stopped)")
+    ap.add_argument("--extend", default=None, help="comma-separated finished sweep members to continue at their turns")
+    ap.add_argument("--settle", type=float, default=100.0, help="with --extend: settle before the production, ns")
     ap.add_argument("--dirs", default=None, help="comma-separated finished member folders to analyse instead of "
                                                   "running (same order as --turns/--cut)")
     a = ap.parse_args(argv)
     if a.curve:
         return main_curve(a)
+    if a.extend:
+        return main_extend(a)
     from dnarod.protocols.tweezers import run_member
 
     turns = [float(t) for t in a.turns.split(",")]
@@ -181,6 +191,40 @@ def main(argv=None):
         print(f"12-member curve, SE {'relative' if k == 'rel' else 'absolute'} {a.target}: {e['total_simulated_ns']:.0f} ns "
               f"simulated, {e['hours_2_dedicated_cores']:.2f} h on 2 dedicated cores, "
               f"{e['hours_2_workers_as_measured']:.2f} h at the measured (shared) speed")
+
+
+def main_extend(a):
+    """Continue sweep members at their own turns and analyse the continuations (see the module docstring)."""
+    from dnarod.protocols.sweep import load_pose
+    from dnarod.protocols.tweezers import run_member
+
+    rows = []
+    for src in a.extend.split(","):
+        src = Path(src)
+        old = json.loads((src / "protocol_result.json").read_text())["result"]
+        out = Path(a.root) / ("sweepin" if "sweepin" in str(src) else "sweep")
+        s = dict(n_bp=old["n_bp"], force_pN=old["force_pN"], turns=old["turns"], previous_turns=old["turns"],
+                 time_ns=a.time, equilibration_ns=a.settle, seed=old["seed"], clamp_k_kJ_mol=250.0, threads=1)
+        run_member(s, out, start_pose=load_pose(src / "final_pose.npz"))
+        r = analyse(out, 0.0)
+        r.update(source=str(src), before_x_over_L=old["relative_extension"], settle_ns=a.settle,
+                 quarters_x_over_L=[w for w in _quarters(out)])
+        rows.append(r)
+    out = dict(date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average=os.getloadavg(), members=rows)
+    path = Path(a.out).with_name("hat_1kbp_extend.json")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=1) + "\n")
+    for r in rows:
+        print(f"{r['source']}: before {r['before_x_over_L']:.3f}; +{r['settle_ns']:g} ns settle: x/L {r['x_over_L']:.3f} "
+              f"sd {r['sd_x_over_L']:.3f} tau_int {r['tau_int_extension_ns']:.2f} ns, quarters "
+              + " ".join(f"{q:.3f}" for q in r["quarters_x_over_L"]) + f"; {r['cpu_s']:.0f} CPU-s, {r['wall_s']:.0f} s wall")
+    return out
+
+
+def _quarters(member_dir):
+    res = json.loads((Path(member_dir) / "protocol_result.json").read_text())["result"]
+    d = np.genfromtxt(Path(member_dir) / "samples.csv", delimiter=",", names=True)
+    return [float(v.mean()) for v in np.array_split(d["extension_nm"] / res["contour_length_nm"], 4)]
 
 
 def main_curve(a):
