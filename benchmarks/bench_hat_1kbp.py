@@ -16,6 +16,17 @@ tau-based) relative to its value, the production in quarters (drift) and the cur
 writes ``benchmarks/results/hat_1kbp_curve.json``.
 
     python benchmarks/bench_hat_1kbp.py --curve runs/hat_1kbp_1pN
+
+It reads both layouts: members of the ensemble (``DIR/ensemble/members``) and of a turn sweep
+(``--start sweep``: ``DIR/members``, whose start time is taken as the result's time less its wall time).
+
+    python benchmarks/bench_hat_1kbp.py --curve runs/hat1k_sweep --out benchmarks/results/hat_1kbp_sweep.json
+
+``--extend DIR[,DIR...]`` continues finished members of a sweep at their own turns (their final pose, a settle of
+``--settle`` ns, then ``--time`` ns), in ``--root``/<name>, and analyses them (finished continuations are reused);
+writes ``benchmarks/results/hat_1kbp_extend.json``.
+
+    python benchmarks/bench_hat_1kbp.py --extend runs/hat1k_sweep/members/force_pN+1_turns+4,runs/hat1k_sweepin/members/force_pN+1_turns+4 --settle 100 --time 40 --root runs/hat1k_cont
 """
 from __future__ import annotations
 
@@ -61,7 +72,9 @@ def analyse_curve(outdir, target=0.03):
     from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     rows, starts, ends = [], [], []
-    for rj in sorted(Path(outdir).glob("ensemble/members/*/protocol_result.json")):
+    found = sorted(Path(outdir).glob("ensemble/members/*/protocol_result.json")) \
+        + sorted(Path(outdir).glob("members/*/protocol_result.json"))  # a turn sweep (--start sweep)
+    for rj in found:
         mdir = rj.parent
         res = json.loads(rj.read_text())["result"]
         d = np.genfromtxt(mdir / "samples.csv", delimiter=",", names=True)
@@ -75,11 +88,15 @@ def analyse_curve(outdir, target=0.03):
         q = [float(v.mean()) for v in np.array_split(x, 4)]
         h1, h2 = np.array_split(x, 2)
         se_half = se_tau * np.sqrt(2.0)  # SE of a half's mean
-        for line in (mdir / "member.log").read_text().splitlines():
-            if " start: " in line:
-                starts.append(_dt.datetime.strptime(line[:19], "%Y-%m-%d %H:%M:%S").timestamp())
+        if (mdir / "member.log").exists():
+            for line in (mdir / "member.log").read_text().splitlines():
+                if " start: " in line:
+                    starts.append(_dt.datetime.strptime(line[:19], "%Y-%m-%d %H:%M:%S").timestamp())
+        else:  # a sweep's member (no ensemble log): its result's time less its wall time
+            starts.append(rj.stat().st_mtime - float(res["wall_s"]))
         ends.append(rj.stat().st_mtime)
-        rows.append(dict(turns=res["turns"], force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
+        rows.append(dict(turns=res["turns"], previous_turns=res.get("previous_turns"), start=res.get("start"),
+                         force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
                          cpu_s=res["cpu_s"], simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0,
                          equilibration_ns=res["equilibration_ps"] / 1000.0, production_ns=res["production_ps"] / 1000.0,
                          ns_per_cpu_day=res["n_steps"] * res["dt_ps"] / 1000.0 / res["cpu_s"] * 86400.0,
@@ -124,11 +141,15 @@ def main(argv=None):
     ap.add_argument("--figure", default=None,
                     help="with --curve: also write the curve's CSV + PNG (the protocol's own writer and plot) from "
                          "the finished members to FIGURE.csv / FIGURE.png (for a curve still running or stopped)")
+    ap.add_argument("--extend", default=None, help="comma-separated finished sweep members to continue at their turns")
+    ap.add_argument("--settle", type=float, default=100.0, help="with --extend: settle before the production, ns")
     ap.add_argument("--dirs", default=None, help="comma-separated finished member folders to analyse instead of "
                                                   "running (same order as --turns/--cut)")
     a = ap.parse_args(argv)
     if a.curve:
         return main_curve(a)
+    if a.extend:
+        return main_extend(a)
     from dnarod.protocols.tweezers import run_member
 
     turns = [float(t) for t in a.turns.split(",")]
@@ -172,6 +193,40 @@ def main(argv=None):
               f"{e['hours_2_workers_as_measured']:.2f} h at the measured (shared) speed")
 
 
+def main_extend(a):
+    """Continue sweep members at their own turns and analyse the continuations (see the module docstring)."""
+    from dnarod.protocols.sweep import load_pose
+    from dnarod.protocols.tweezers import run_member
+
+    rows = []
+    for src in a.extend.split(","):
+        src = Path(src)
+        old = json.loads((src / "protocol_result.json").read_text())["result"]
+        out = Path(a.root) / ("sweepin" if "sweepin" in str(src) else "sweep")
+        s = dict(n_bp=old["n_bp"], force_pN=old["force_pN"], turns=old["turns"], previous_turns=old["turns"],
+                 time_ns=a.time, equilibration_ns=a.settle, seed=old["seed"], clamp_k_kJ_mol=250.0, threads=1)
+        run_member(s, out, start_pose=load_pose(src / "final_pose.npz"))
+        r = analyse(out, 0.0)
+        r.update(source=str(src), before_x_over_L=old["relative_extension"], settle_ns=a.settle,
+                 quarters_x_over_L=[w for w in _quarters(out)])
+        rows.append(r)
+    out = dict(date=time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_average=os.getloadavg(), members=rows)
+    path = Path(a.out).with_name("hat_1kbp_extend.json")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=1) + "\n")
+    for r in rows:
+        print(f"{r['source']}: before {r['before_x_over_L']:.3f}; +{r['settle_ns']:g} ns settle: x/L {r['x_over_L']:.3f} "
+              f"sd {r['sd_x_over_L']:.3f} tau_int {r['tau_int_extension_ns']:.2f} ns, quarters "
+              + " ".join(f"{q:.3f}" for q in r["quarters_x_over_L"]) + f"; {r['cpu_s']:.0f} CPU-s, {r['wall_s']:.0f} s wall")
+    return out
+
+
+def _quarters(member_dir):
+    res = json.loads((Path(member_dir) / "protocol_result.json").read_text())["result"]
+    d = np.genfromtxt(Path(member_dir) / "samples.csv", delimiter=",", names=True)
+    return [float(v.mean()) for v in np.array_split(d["extension_nm"] / res["contour_length_nm"], 4)]
+
+
 def main_curve(a):
     rows, total = analyse_curve(a.curve, a.target)
     out_path = Path(a.out).with_name("hat_1kbp_curve.json") if a.out.endswith("hat_1kbp.json") else Path(a.out)
@@ -187,15 +242,18 @@ def main_curve(a):
             r = json.loads(rj.read_text())
             if r.get("status") == "ok":
                 obs.append(dict(r["observables"], force_pN=r["settings"]["force_pN"], turns=r["settings"]["turns"]))
+        for rj in Path(a.curve).glob("members/*/protocol_result.json"):  # a turn sweep's finished members
+            obs.append(json.loads(rj.read_text())["result"])
         obs.sort(key=lambda r: r["turns"])
         _write_csv(obs, Path(a.figure + ".csv"))
         plot_curve("magnetic_tweezers", obs, Path(a.figure + ".png"))
         print(f"wrote {a.figure}.csv and {a.figure}.png ({len(obs)} finished members)")
-    print(f"{'turns':>6} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
+    print(f"{'turns':>6} {'from':>5} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
           f"{'SE blk':>7} {'SE tau':>7} {'SE/x':>6} {'tau_x ns':>8} {'tau_Wr ns':>9} {'Wr':>6} {'plect':>5} "
           f"{'drift z':>7}  quarters")
     for r in rows:
-        print(f"{r['turns']:6.1f} {r['equilibration_ns']:4.0f}+{r['production_ns']:<5.0f} {r['wall_s']:7.0f} "
+        frm = "-" if r.get("previous_turns") is None else f"{r['previous_turns']:+.1f}"
+        print(f"{r['turns']:6.1f} {frm:>5} {r['equilibration_ns']:4.0f}+{r['production_ns']:<5.0f} {r['wall_s']:7.0f} "
               f"{r['cpu_s']:6.0f} {r['ns_per_cpu_day']:10.0f} {r['x_over_L']:6.3f} {r['sd_x_over_L']:6.3f} "
               f"{r['se_block']:7.4f} {r['se_tau']:7.4f} {100 * r['se_rel']:5.1f}% {r['tau_int_extension_ns']:8.2f} "
               f"{r['tau_int_wr_ns']:9.2f} {r['Wr']:6.2f} {r['plectoneme_fraction']:5.2f} {r['drift_z']:7.1f}  "

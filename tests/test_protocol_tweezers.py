@@ -107,6 +107,9 @@ def test_bad_tweezers_input_is_refused():
     (["rings", "--delta-lk", "0.5"], "integer"),
     (["rings", "--delta-lk", "-20"], "sigma"),
     (["hat", "--turns", "one"], "comma-separated numbers"),
+    (["hat", "--turns", "1", "--settle", "5"], "--start sweep"),
+    (["hat", "--turns", "1", "--start", "sweep", "--settle", "0"], "ns > 0"),
+    (["force-extension", "--force", "1", "--start", "sweep"], "No such option"),
 ])
 def test_protocol_cli_misuse_exits_2(tmp_path, args, words):
     res = CliRunner().invoke(main, ["protocol", *args, "-o", str(tmp_path / "out")])
@@ -274,3 +277,95 @@ def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
     other = dict(settings, seed=4)
     with pytest.raises(DnarodError, match="other settings"):
         tw.sample_member(tw.build_member(other), checkpoint=ck)
+
+
+def test_add_turns_adds_twist_only():
+    """Turning a pose by dt adds dt to the twist (so to Lk), keeps positions, writhe and node 0's frame, and
+    turns the last node by 2 pi dt about its own d3."""
+    from dnarod.protocols.sweep import add_turns
+
+    m = strained_helix(FF.model_from_sequence(n_nodes=60), 1.0, 0.3)
+    rng = np.random.default_rng(5)
+    pos = m.positions + rng.normal(0.0, 0.05, m.positions.shape)
+    tw0, wr0 = twist_writhe_open(pos, m.frames)
+    P, F = add_turns(pos, m.frames, 0.7)
+    tw1, wr1 = twist_writhe_open(P, F)
+    np.testing.assert_array_equal(P, pos)
+    assert wr1 == wr0 and tw1 - tw0 == pytest.approx(0.7, abs=1e-9)
+    np.testing.assert_allclose(F[0], m.frames[0], atol=1e-15)
+    np.testing.assert_allclose(np.einsum("nij,nik->njk", F, F), np.broadcast_to(np.eye(3), F.shape), atol=1e-12)
+    np.testing.assert_allclose(F[-1], m.frames[-1] @ rotation_about_axis(np.array([0.0, 0.0, 1.0]), 2 * np.pi * 0.7),
+                               atol=1e-12)
+
+
+def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
+    """start='sweep': turns >= 0 run up from 0 and turns < 0 down from the largest; each chained member starts
+    from the previous member's final pose turned by the increment (its Lk follows the clamp); a second call
+    reuses every finished member, and after one member's result is lost only that member runs again."""
+    from dnarod.protocols import hat_curve
+    from dnarod.protocols import tweezers as tw
+    from dnarod.protocols.sweep import add_turns, load_pose, sweep_chains
+
+    assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4]) == [[0.0, 0.4, 0.8], [-0.4, -1.2]]
+    kw = dict(force_pN=2.0, source="60", workers=0, start="sweep", settle_ns=0.005,
+              base=dict(time_ns=0.02, equilibration_ns=0.01, seed=3, sample_ps=2.0))
+    out = tmp_path / "hat"
+    c = hat_curve([-0.5, -0.25, 0.0, 0.25, 0.5], out, **kw)
+    rows = {r["turns"]: r for r in c.rows}
+    mem = out / "members"
+    name = {t: f"force_pN+2_turns{t:+g}" for t in rows}
+    for first in (0.0, -0.25):
+        assert not (mem / name[first] / "start_pose.npz").exists() and "static" in rows[first]["start"]
+        assert rows[first]["previous_turns"] is None
+    for t, prev in ((0.25, 0.0), (0.5, 0.25), (-0.5, -0.25)):
+        P, F = add_turns(*load_pose(mem / name[prev] / "final_pose.npz"), t - prev)
+        P1, F1 = load_pose(mem / name[t] / "start_pose.npz")
+        np.testing.assert_array_equal(P1, P)
+        np.testing.assert_array_equal(F1, F)
+        assert rows[t]["previous_turns"] == prev and "turn sweep" in rows[t]["start"]
+        assert rows[t]["equilibration_ps"] == pytest.approx(5.0)
+    for t, r in rows.items():
+        assert r["lk_slips"] == 0 and r["delta_lk"] == pytest.approx(r["end_turns"], abs=0.02)
+        assert abs(r["end_turns"] - t) < 0.05
+    calls = []
+    real = tw.sample_member
+    monkeypatch.setattr(tw, "sample_member", lambda *a, **k: calls.append(a[0]["turns"]) or real(*a, **k))
+    again = hat_curve([-0.5, -0.25, 0.0, 0.25, 0.5], out, **kw)
+    assert calls == [] and [r["wall_s"] for r in again.rows] == [r["wall_s"] for r in c.rows]
+    (mem / name[0.5] / "protocol_result.json").unlink()
+    hat_curve([-0.5, -0.25, 0.0, 0.25, 0.5], out, **kw)
+    assert calls == [0.5]
+
+
+def test_turn_sweep_bad_input(tmp_path):
+    from dnarod.protocols import force_extension, hat_curve
+
+    with pytest.raises(DnarodError, match="rotation-clamp"):
+        force_extension([1.0], tmp_path / "a", source="40", workers=0, start="sweep")
+    with pytest.raises(DnarodError, match="ns > 0"):
+        hat_curve([0.0], tmp_path / "b", source="40", workers=0, start="sweep", settle_ns=-1.0)
+    with pytest.raises(DnarodError, match="sweep only"):
+        hat_curve([0.0], tmp_path / "c", source="40", workers=0, settle_ns=2.0)
+    with pytest.raises(DnarodError, match="choose 'static'"):
+        hat_curve([0.0], tmp_path / "d", source="40", workers=0, start="ramp")
+    assert not any((tmp_path / x).exists() for x in "abcd")
+
+
+def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch):
+    """start='sweep-in': chains run towards zero turns; each head starts from a plectoneme grown at a lower force
+    (same Lk) and the next member from the head's final pose with the turns taken out."""
+    from dnarod.protocols import hat_curve, sweep
+    from dnarod.protocols.sweep import add_turns, load_pose, sweep_chains
+
+    assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4], inward=True) == [[0.8, 0.4, 0.0], [-1.2, -0.4]]
+    monkeypatch.setattr(sweep, "GROW_NS", 0.01)
+    c = hat_curve([-0.5, 0.5, 0.25], tmp_path / "in", force_pN=2.0, source="60", workers=0, start="sweep-in",
+                  base=dict(time_ns=0.02, equilibration_ns=0.01, seed=3, sample_ps=2.0))
+    rows = {r["turns"]: r for r in c.rows}
+    assert "grown plectoneme" in rows[0.5]["start"] and "grown plectoneme" in rows[-0.5]["start"]
+    assert rows[0.25]["previous_turns"] == 0.5 and "turn sweep" in rows[0.25]["start"]
+    mem = tmp_path / "in" / "members"
+    P, F = add_turns(*load_pose(mem / "force_pN+2_turns+0.5" / "final_pose.npz"), -0.25)
+    np.testing.assert_array_equal(load_pose(mem / "force_pN+2_turns+0.25" / "start_pose.npz")[1], F)
+    for t, r in rows.items():
+        assert r["lk_slips"] == 0 and abs(r["end_turns"] - t) < 0.05

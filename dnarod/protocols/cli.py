@@ -133,7 +133,19 @@ def _clamp_options(default_force):
                             help="Force(s), pN, comma-separated."),
                click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
                click.option("--clamp-k", type=float, default=250.0, show_default=True,
-                            help="Rotation clamp stiffness, kJ/mol.")]
+                            help="Rotation clamp stiffness, kJ/mol."),
+               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in"]),
+                            default="static", show_default=True,
+                            help="static: every member from the static pose under its loads; sweep: members run "
+                                 "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "
+                                 "from the largest), each from the previous turn value's final pose turned by the "
+                                 "increment, as magnets are turned in the lab; sweep-in: the same chains towards "
+                                 "zero, each begun at its largest |turns| from a plectoneme grown for 20 ns at 0.3 "
+                                 "of the force."),
+               click.option("--settle", "settle_ns", type=float, default=None,
+                            help="With --start sweep: equilibration of each chained member after its turn "
+                                 "increment, ns (default: 2 slowest bending relaxation times; the first member "
+                                 "of each chain uses --equilibration).")]
 
     def decorate(f):
         for option in reversed(options):
@@ -143,30 +155,38 @@ def _clamp_options(default_force):
     return decorate
 
 
-def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns):
+def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None):
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
+    import math
+
     _check_run_options(workers, out)
+    if settle_ns is not None and start not in ("sweep", "sweep-in"):
+        raise DnarodError(f"--settle {settle_ns:g}: the settle time applies to a turn sweep only; add --start sweep "
+                          f"(or sweep-in)")
+    if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
+        raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
-                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers)
+                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
+                      settle_ns=settle_ns)
     _report(c, "turns", columns)
 
 
 @protocol.command("hat")
 @_clamp_options("0.5")
 @_common
-def hat_cmd(forces, turns, clamp_k, workers, out, **kw):
+def hat_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"])
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns)
 
 
 @protocol.command("torque-turns")
 @_clamp_options("1.0")
 @_common
-def torque_turns_cmd(forces, turns, clamp_k, workers, out, **kw):
+def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
-                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"])
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns)
 
 
 @protocol.command("rings")

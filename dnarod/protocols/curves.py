@@ -129,7 +129,8 @@ def _checked(value, table, key):
     return value
 
 
-def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True):
+def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True, start="static",
+                 settle_ns=None):
     """Run a protocol over its axes and write its curve.
 
     Parameters
@@ -143,6 +144,16 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     outdir : path
     workers : int
         Dask local workers; 0 runs the members serially in this process.
+    start : {"static", "sweep", "sweep-in"}
+        "static": every member starts from the static pose under its loads (independent members, one dask task
+        each). "sweep" (hat and torque-turns): the members of each force run as chains along the turns axis
+        away from zero, each from the previous turn value's final pose turned by the increment
+        (:mod:`dnarod.protocols.sweep`; turns >= 0 and turns < 0 are two chains, two dask tasks); members in
+        ``outdir/members/``. "sweep-in": the same chains run towards zero, each begun at its largest |turns|
+        from a plectoneme grown at a lower force.
+    settle_ns : float, optional
+        With ``start="sweep"``: equilibration of each chained member after its turn increment (default two
+        slowest bending relaxation times); the first member of each chain equilibrates as a static start does.
 
     Returns
     -------
@@ -158,6 +169,16 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise DnarodError(f"workers {workers!r}: give a number of dask workers >= 0 (0: one after another in this "
                           f"process)")
+    if start not in ("static", "sweep", "sweep-in"):
+        raise DnarodError(f"start {start!r}: choose 'static' (every member from the static pose), 'sweep' "
+                          f"(members chained along the turns axis away from zero) or 'sweep-in' (towards zero)")
+    if start in ("sweep", "sweep-in"):
+        from .sweep import check_sweep
+
+        check_sweep(kind, settle_ns)
+    elif settle_ns is not None:
+        raise DnarodError(f"settle {settle_ns} ns: the settle time applies to a turn sweep only (start 'sweep' or "
+                          f"'sweep-in')")
     base = dict(base)
     if kind in ("magnetic_tweezers", "torque_turns"):
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
@@ -165,7 +186,9 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         base["ring"] = True  # the ensemble's model check builds a closed ring for delta_lk
     members = _members(kind, axes, base)
     outdir = ensure_dir(Path(outdir))
-    if workers:
+    if start in ("sweep", "sweep-in"):
+        rows = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, start == "sweep-in")
+    elif workers:
         rows = _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client)
     else:
         rows = []
@@ -227,6 +250,38 @@ def _thermal_corrections(kind, base, rows):
 
 def _member_name(m, axes):
     return "_".join(f"{k}{m[k]:+g}" if isinstance(m[k], (int, float)) else f"{k}{m[k]}" for k in axes) or "member"
+
+
+def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, inward=False):
+    """Run the members as turn-sweep chains (one per force and side of zero turns; one dask task each)."""
+    from .sweep import run_chain, sweep_chains
+
+    others = [k for k in axes if k != "turns"]
+    groups = {}
+    for m in members:
+        groups.setdefault(tuple(m.get(k) for k in others), []).append(m)
+    chains = []
+    for group in groups.values():
+        by_turns = {float(m.get("turns") or 0.0): m for m in group}
+        for chain in sweep_chains(by_turns, inward):
+            ms = [by_turns[t] for t in chain]
+            chains.append((ms, [str(outdir / "members" / _member_name(m, axes)) for m in ms]))
+    out = []
+    if not workers and client is None:
+        for ms, dirs in chains:
+            out.append((ms, run_chain(kind, ms, dirs, settle_ns, inward)))
+    else:
+        from ..ensemble.cluster import client_for
+
+        with client_for(client, None, workers) as c:
+            futs = [c.submit(run_chain, kind, ms, dirs, settle_ns, inward, pure=False) for ms, dirs in chains]
+            for (ms, _), f in zip(chains, futs):
+                out.append((ms, f.result()))
+    rows = []
+    for ms, results in out:
+        for m, r in zip(ms, results):
+            rows.append(dict(r, **{k: m[k] for k in axes}))
+    return rows
 
 
 def _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client):

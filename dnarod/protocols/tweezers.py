@@ -11,7 +11,9 @@ uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), r
 :func:`dnarod.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
 per step carries the turns, and the other strains follow the linear constitutive law ``K dxi = (0, 0, tau, 0, 0, F)``
 (twist-stretch coupling included). Past buckling this state is unstable and thermal noise takes the chain
-into its plectonemic state during equilibration.
+into its plectonemic state during equilibration. A member of a turn sweep starts instead from the previous turn
+value's final pose with the increment added as twist (``build_member(..., start_pose=...)``,
+:mod:`dnarod.protocols.sweep`).
 
 Friction (:func:`auto_friction`): the equilibrium does not depend on it, so it is chosen to decorrelate
 fast: ``zeta = 2 omega_1``, critical damping of the slowest bending mode of the chain under tension
@@ -151,7 +153,7 @@ def _settings(s):
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
                friction_per_ps=None, sample_ps=None, platform="CPU", threads=1, electrostatics=True,
                excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE, elastic="auto",
-               start_force_pN=None, start_ns=None)
+               start_force_pN=None, start_ns=None, previous_turns=None, start_pose_sha256=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -159,8 +161,18 @@ def _settings(s):
     return out
 
 
-def build_member(settings):
+def build_member(settings, start_pose=None):
     """Model, start pose, loads and run parameters of one tweezers member (validated).
+
+    Parameters
+    ----------
+    settings : dict
+        Member settings (see ``_settings``).
+    start_pose : tuple of ndarray, optional
+        ``(positions (n, 3) nm, frames (n, 3, 3))``: the final pose of the member at ``settings["previous_turns"]``
+        (a turn sweep, :mod:`dnarod.protocols.sweep`). The member starts from it with ``turns - previous_turns``
+        added as twist (:func:`dnarod.protocols.sweep.add_turns`) instead of from the static pose; equilibration
+        then defaults to two slowest bending relaxation times.
 
     Returns
     -------
@@ -189,18 +201,36 @@ def build_member(settings):
         target = start.frames[-1].copy()
         loads.append(RotationClamp(-1, float(s["clamp_k_kJ_mol"]), frame=target, axis=np.array([0.0, 0.0, 1.0])))
     ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
-    start_info = "strained helix (linear constitutive law)"
-    try:  # refine to the exact static equilibrium under the loads (a few Newton steps from the helix)
-        from ..statics import solve_static
+    if start_pose is not None:
+        from .sweep import add_turns
 
-        start, info = solve_static(start, loads)
-        start_info = f"static equilibrium under the loads (dnarod.statics, {info['iterations']} Newton steps)"
-    except ImportError:
-        pass
+        if s["previous_turns"] is None:
+            raise DnarodError("a start pose from a sweep needs previous_turns (the turns it was sampled at)")
+        if s["start_force_pN"] is not None:
+            raise DnarodError("start_force_pN with a sweep's start pose: a member starts either from the previous turn "
+                              "value's pose or from a plectoneme grown at a lower force, not both")
+        pos, frm = (np.asarray(a, float) for a in start_pose)
+        if pos.shape != start.positions.shape or frm.shape != start.frames.shape:
+            raise DnarodError(f"start pose of {len(pos)} nodes for a chain of {start.n_nodes}: the sweep's members "
+                              f"must share the source")
+        dt_ = turns - float(s["previous_turns"])
+        start = start.with_pose(*add_turns(pos, frm, dt_))
+        start_info = (f"final pose at {float(s['previous_turns']):+g} turns turned by {dt_:+g} turns "
+                      f"(turn sweep)")
+    else:
+        start_info = "strained helix (linear constitutive law)"
+        try:  # refine to the exact static equilibrium under the loads (a few Newton steps from the helix)
+            from ..statics import solve_static
+
+            start, info = solve_static(start, loads)
+            start_info = f"static equilibrium under the loads (dnarod.statics, {info['iterations']} Newton steps)"
+        except ImportError:
+            pass
     lp = persistence_length(model.params, model.ds, kT(T))
     fr = auto_friction(model, s["force_pN"], T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
     tau = bending_relaxation_time(model.ds * model.n_steps, lp, T, float(np.mean(model.mass)) / model.ds, fr, F)
-    eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
+    eq = (2.0 if start_pose is not None else 5.0) * tau if s["equilibration_ns"] is None \
+        else 1000.0 * float(s["equilibration_ns"])
     prod = 1000.0 * float(s["time_ns"])
     # at least ~200 samples per member (the autocorrelation time is measured from them), at most 10 per tau_1
     sample = float(np.clip(min(tau / 10.0, prod / 200.0), 1.0, 200.0)) if s["sample_ps"] is None \
@@ -284,7 +314,7 @@ def _member_simulation(m, model):
 CHECKPOINT_WALL_S = 120.0
 
 
-def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None):
+def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pose_out=None):
     """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs.
 
     With ``start_force_pN`` and ``start_ns`` set, the member first runs ``start_ns`` at ``start_force_pN`` (same
@@ -304,6 +334,9 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None):
         cost so far; if it exists at the start (same settings), the member resumes from it (the start run is
         not repeated), so an interrupted member loses at most that much work. Removed by :func:`run_member` once
         the member is written.
+    pose_out : path, optional
+        Where to write the last pose (``.npz``, :func:`dnarod.protocols.sweep.save_pose`): the next member of a
+        turn sweep starts from it.
     """
     from .measure import clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
 
@@ -389,6 +422,10 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None):
             progress(i + 1, n_samp)
         if i + 1 < n_samp and time.perf_counter() - last_ckpt >= every:
             save(i + 1)
+    if pose_out is not None:
+        from .sweep import save_pose
+
+        save_pose(pose_out, *sim.node_pose())
     wall, cpu = wall0 + time.perf_counter() - t0, cpu0 + time.process_time() - c0
     steps = n_eq + n_samp * stride
     cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
@@ -408,6 +445,7 @@ def summarize(samples, m, cost):
     start = m["start"]
     if s.get("start_force_pN") is not None and s.get("start_ns"):
         start += f", begun after {s['start_ns']} ns at {s['start_force_pN']} pN (grown plectoneme)"
+    res["previous_turns"] = s.get("previous_turns")
     res.update(start=start, contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
                tau_bend_estimate_ps=m["tau_ps"],
                equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
@@ -433,24 +471,33 @@ def summarize(samples, m, cost):
     return res
 
 
-def run_member(settings, member_dir, progress=None):
-    """Run (or reuse) one tweezers member in ``member_dir``: writes ``samples.csv`` and ``protocol_result.json``.
+def run_member(settings, member_dir, progress=None, start_pose=None):
+    """Run (or reuse) one tweezers member in ``member_dir``: writes ``samples.csv``, ``final_pose.npz`` and
+    ``protocol_result.json`` (and ``start_pose.npz`` for a member of a turn sweep).
 
     A finished member (``protocol_result.json`` present with the same settings) is returned without rerunning.
+    With ``start_pose`` (see :func:`build_member`) the key also holds the pose's SHA-256, so the member is
+    reused only if it started from that very pose.
     """
     from ..io_utils import ensure_dir, jsonable, write_text_atomic
+    from .sweep import FINAL_POSE, START_POSE, pose_sha256, save_pose
 
     member_dir = ensure_dir(Path(member_dir), "member folder")
-    m = build_member(settings)
+    if start_pose is not None:
+        settings = dict(settings, start_pose_sha256=pose_sha256(*start_pose))
+    m = build_member(settings, start_pose=start_pose)
     done = member_dir / "protocol_result.json"
     # start options left unset are not part of the key (members recorded before they existed stay valid)
-    key = jsonable({k: v for k, v in m["settings"].items() if not (k in ("start_force_pN", "start_ns") and v is None)})
+    key = jsonable({k: v for k, v in m["settings"].items()
+                    if not (k in ("start_force_pN", "start_ns", "previous_turns", "start_pose_sha256") and v is None)})
     if done.exists():
         old = json.loads(done.read_text())
         if old.get("settings") == key:
             return old["result"]
     ckpt = member_dir / "member_checkpoint.npz"
-    samples, cost = sample_member(m, progress, checkpoint=ckpt)
+    if start_pose is not None:
+        save_pose(member_dir / START_POSE, m["model"].positions, m["model"].frames)
+    samples, cost = sample_member(m, progress, checkpoint=ckpt, pose_out=member_dir / FINAL_POSE)
     res = summarize(samples, m, cost)
     lines = [",".join(COLUMNS)] + [",".join(f"{samples[c][i]:.10g}" for c in COLUMNS)
                                    for i in range(len(samples["time_ps"]))]

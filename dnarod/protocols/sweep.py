@@ -1,0 +1,169 @@
+"""Turn sweeps: tweezers members run as chains along the turns axis, "as the magnets are turned in the lab".
+
+Past buckling a member started from the straight (static) pose has to grow its plectoneme from nothing, which
+takes longer than the production itself at 1 kbp. In a sweep, the members of one force run one after the other
+in order of |turns| away from zero: each starts from the previous turn value's final pose with the turn
+increment added (:func:`add_turns`: the clamp target and the linking number follow) and settles for
+``settle_ns`` before its production. Only the first member of a chain starts from the static pose, with the
+full equilibration. Turns >= 0 form one chain (ascending), turns < 0 another (descending), so a two-worker
+cluster runs the two sides of a hat curve at once (:func:`sweep_chains`).
+
+Inward sweeps (``inward=True``, ``start="sweep-in"``) run the other way: each chain begins at the largest |turns|
+from a plectoneme grown for :data:`GROW_NS` at :data:`GROW_FORCE_FRACTION` of the member's force (same turns and
+clamp target, so the same linking number; :func:`dnarod.protocols.tweezers.sample_member`) and the turns are taken
+out step by step, so the post-buckling members start plectonemic instead of from a straight chain that has to
+nucleate its first loop (an outward sweep can stay straight, metastable, past the buckling point).
+
+Resume: a chained member's key holds the previous turn value and the SHA-256 of its start pose, so a finished
+member is reused only if it was started from the previous member's present final pose; an interrupted member
+resumes from its checkpoint (:func:`dnarod.protocols.tweezers.run_member`).
+
+Units: turns; ns; positions nm; frames (n, 3, 3) with the directors d1, d2, d3 as columns.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import DnarodError
+
+#: File of a member's last pose (written by :func:`dnarod.protocols.tweezers.run_member`).
+FINAL_POSE = "final_pose.npz"
+#: Head of an inward sweep: its plectoneme is grown at this fraction of the member's force ...
+GROW_FORCE_FRACTION = 0.3
+#: ... for this long (ns), before its equilibration at the member's force.
+GROW_NS = 20.0
+#: File of a chained member's start pose (the previous member's final pose with the turns added).
+START_POSE = "start_pose.npz"
+
+
+def add_turns(positions, frames, delta_turns):
+    """The pose with ``delta_turns`` extra turns of twist spread evenly along the chain.
+
+    Node ``i`` of ``n`` is turned about its own d3 by ``2 pi delta_turns i / (n - 1)``; positions are kept, so
+    the writhe is unchanged and the twist (hence the linking number) grows by ``delta_turns`` while node 0 (the
+    clamped surface node) keeps its frame and the last node turns by the whole increment, as the magnets turn
+    the bead (about +z when the last node's d3 is along the pull, which the clamp holds to thermal accuracy).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+        nm (returned unchanged, as a copy).
+    frames : ndarray, shape (n, 3, 3)
+        Directors as columns.
+    delta_turns : float
+
+    Returns
+    -------
+    positions, frames : ndarray
+    """
+    P = np.array(positions, float)
+    F = np.array(frames, float)
+    n = len(F)
+    if n < 2:
+        raise DnarodError("add_turns: a chain needs at least two nodes")
+    phi = 2.0 * np.pi * float(delta_turns) * np.arange(n) / (n - 1)
+    c, s = np.cos(phi), np.sin(phi)
+    d1, d2 = F[:, :, 0].copy(), F[:, :, 1].copy()
+    F[:, :, 0] = c[:, None] * d1 + s[:, None] * d2
+    F[:, :, 1] = -s[:, None] * d1 + c[:, None] * d2
+    return P, F
+
+
+def pose_sha256(positions, frames):
+    """SHA-256 (hex) of a pose's float64 bytes (the key of a chained member's start)."""
+    import hashlib
+
+    h = hashlib.sha256()
+    h.update(np.ascontiguousarray(positions, dtype=np.float64).tobytes())
+    h.update(np.ascontiguousarray(frames, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
+def save_pose(path, positions, frames):
+    """Write a pose (positions nm, frames) to ``path`` (``.npz``) atomically."""
+    from ..io_utils import atomic_path
+
+    with atomic_path(path) as tmp:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, positions=np.asarray(positions, float), frames=np.asarray(frames, float))
+
+
+def load_pose(path):
+    """``(positions, frames)`` from a file written by :func:`save_pose`."""
+    with np.load(path) as z:
+        return z["positions"], z["frames"]
+
+
+def sweep_chains(turns, inward=False):
+    """Split turn values into the chains of a sweep: ``[[0, 0.8, 1.6, ...], [-0.8, -1.6, ...]]``.
+
+    Turns >= 0 ascending, turns < 0 descending (each chain moves away from zero; a side with no values is
+    left out); with ``inward`` each chain is reversed (it starts at the largest |turns| and moves to zero).
+    """
+    t = sorted({float(x) for x in turns})
+    up = [x for x in t if x >= 0]
+    down = [x for x in reversed(t) if x < 0]
+    chains = [c for c in (up, down) if c]
+    return [c[::-1] for c in chains] if inward else chains
+
+
+def check_sweep(kind, settle_ns):
+    """Refuse a sweep where it has no meaning, and a settle time that is not a positive number (one line)."""
+    import math
+
+    if kind not in ("magnetic_tweezers", "torque_turns"):
+        raise DnarodError(f"start 'sweep' turns the bead from one member to the next: it needs a rotation-clamp "
+                          f"protocol (hat, torque-turns), not {kind.replace('_', '-')}")
+    if settle_ns is not None:
+        try:
+            v = float(settle_ns)
+        except (TypeError, ValueError):
+            raise DnarodError(f"settle {settle_ns!r}: give a time in ns > 0") from None
+        if not (math.isfinite(v) and v > 0):
+            raise DnarodError(f"settle {settle_ns}: give a time in ns > 0 (the settling of each chained member "
+                              f"after its turn increment)")
+
+
+def run_chain(kind, members, dirs, settle_ns=None, grow_head=False):
+    """Run one chain of members in order (on a dask worker or in this process); returns their result rows.
+
+    Parameters
+    ----------
+    kind : {"magnetic_tweezers", "torque_turns"}
+    members : list of dict
+        Ensemble-level member settings (``force_pN``, ``turns``, ``time_ns``, ...), in chain order.
+    dirs : list of path
+        One member folder each.
+    settle_ns : float, optional
+        Equilibration of every member after the first (default: two slowest bending relaxation times).
+    grow_head : bool
+        The first member starts from a plectoneme grown at :data:`GROW_FORCE_FRACTION` of its force for
+        :data:`GROW_NS` (an inward sweep).
+
+    Returns
+    -------
+    list of dict
+        Each member's result (:func:`dnarod.protocols.tweezers.summarize`).
+    """
+    from . import ensemble_hooks as hooks
+    from .tweezers import run_member
+
+    proto = {"magnetic_tweezers": hooks.MAGNETIC_TWEEZERS, "torque_turns": hooks.TORQUE_TURNS}[kind]
+    rows, prev = [], None
+    for m, d in zip(members, dirs):
+        s = proto.member_settings(m)
+        if prev is None:
+            if grow_head:
+                s = dict(s, start_force_pN=GROW_FORCE_FRACTION * float(s["force_pN"]), start_ns=GROW_NS)
+            rows.append(run_member(s, d))
+        else:
+            pfile = Path(prev[1]) / FINAL_POSE
+            if not pfile.exists():
+                raise DnarodError(f"{pfile}: the previous member of the sweep has no final pose (finished before "
+                                  f"sweeps existed?); delete {prev[1]} and run again")
+            s = dict(s, previous_turns=float(prev[0]), equilibration_ns=settle_ns)
+            rows.append(run_member(s, d, start_pose=load_pose(pfile)))
+        prev = (s["turns"], d)
+    return rows
