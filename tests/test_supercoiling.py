@@ -88,6 +88,27 @@ def test_block_standard_error_sees_a_slow_mode():
     assert naive < 0.8 * exact
 
 
+def test_bulk_P_from_a_ring_pair_cancels_the_end_loops():
+    """Plectonemic rings of L and 2L at one sigma, each a superhelix of bulk stiffness P_b plus two end loops
+    (length l, writhe w each, twist at the common torque): the single ring's C (1 - Wr/ΔLk) overstates P_b,
+    the pair's difference returns it (to the small difference of the two rings' torques)."""
+    C, P_b, ell, w_loop, sigma = 98.3, 14.0, 20.0, 0.1, 0.086  # nm, nm, nm, turns
+    rings = []
+    for L in (204.0, 408.0):
+        dlk = sigma * L / 3.57
+        # 2 pi ΔLk = (tau/kT) ((L - 2 l)/P_b + 2 l/C) + 2 (2 pi w): solve for tau/kT, then the writhe
+        t = (2 * math.pi * (dlk - 2 * w_loop)) / ((L - 2 * ell) / P_b + 2 * ell / C)
+        wr = (1 - P_b / C) * (t / P_b) * (L - 2 * ell) / (2 * math.pi) + 2 * w_loop
+        rings.append((wr, dlk))
+    single = th.plectoneme_P_from_writhe_fraction(rings[0][0] / rings[0][1], C)
+    assert single > 1.1 * P_b
+    P, err = th.plectoneme_P_from_ring_pair(rings[0][0], rings[0][1], rings[1][0], rings[1][1], C, 0.02, 0.03)
+    assert P == pytest.approx(P_b, rel=0.02)  # the two torques differ by the loops twist share: 1.4 % here
+    assert err == pytest.approx(C * math.hypot(0.02, 0.03) / abs(rings[1][1] - rings[0][1]))
+    with pytest.raises(Exception, match="too close"):
+        th.plectoneme_P_from_ring_pair(-4.0, -4.885, -4.1, -5.0, C)
+
+
 def test_writhe_fraction_and_P_are_inverse():
     assert th.plectoneme_P_from_writhe_fraction(th.writhe_fraction_from_P(25.0, 98.3), 98.3) == pytest.approx(25.0)
 
@@ -220,7 +241,8 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
 
     root = _recorded(tmp_path, "buckling_600bp")
     opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
-                ring_delta_lk=-3, ring_time_ns=10.0, bracket=False)  # the recorded members' settings
+                ring_delta_lk=-3, ring_time_ns=10.0, bracket=False,
+                ring_pair=False)  # the recorded members' settings (one ring: logic only)
     good = check_buckling(tmp_path, **opts)
     assert good["marko"]["passed"] and good["drift"]["settled"] and good["passed"], good
     bad = check_buckling(tmp_path, **opts,

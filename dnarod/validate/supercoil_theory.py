@@ -132,6 +132,38 @@ def plectoneme_P_from_writhe_fraction(writhe_fraction, C_nm):
     return float(C_nm) * (1.0 - float(writhe_fraction))
 
 
+def plectoneme_P_from_ring_pair(wr_1, dlk_1, wr_2, dlk_2, C_nm, wr_err_1=0.0, wr_err_2=0.0):
+    """The bulk plectoneme twist stiffness P (nm) from two plectonemic rings: ``C (1 - ΔWr / ΔΔLk)``.
+
+    A plectonemic ring of contour length L is a superhelix of length ``L - 2 l`` plus two end loops; the loops
+    take a linking difference ``2 lambda`` of their own (little writhe for their length), so
+    ``2 pi ΔLk = 2 lambda + Ω_b (L - 2 l)`` with the bulk density ``Ω_b = tau / (kT P_b)``, and the single ring's
+    ``C (1 - Wr/ΔLk)`` is ``P_b (1 + |delta| / (2 pi ΔLk))`` with ``delta = 2 lambda - 2 l Ω_b``: it overstates
+    P_b by a share that falls as 1/ΔLk. Two rings at the same torque (the same linking density sigma, lengths
+    L and 2L) have the same loops, so the difference of their writhes is the bulk's alone:
+    ``Wr_2 - Wr_1 = (1 - P_b/C)(ΔLk_2 - ΔLk_1)``. (The twist carries the torque in both, ``tau = kT C Ω_tw``.)
+
+    Parameters
+    ----------
+    wr_1, dlk_1, wr_2, dlk_2 : float
+        Mean writhe and linking difference (relative to the relaxed twist at T) of the two rings, turns.
+    C_nm : float
+    wr_err_1, wr_err_2 : float
+        Standard errors of the writhes.
+
+    Returns
+    -------
+    tuple of float
+        ``(P_b, standard_error)``, nm.
+    """
+    d = float(dlk_2) - float(dlk_1)
+    if abs(d) < 0.5:
+        raise DnarodError(f"ring pair: the linking differences {dlk_1:.3g} and {dlk_2:.3g} are too close to separate "
+                          f"the bulk from the end loops; use rings of two lengths at the same sigma")
+    f = (float(wr_2) - float(wr_1)) / d
+    return float(C_nm) * (1.0 - f), float(C_nm) * float(np.hypot(wr_err_1, wr_err_2)) / abs(d)
+
+
 def writhe_fraction_from_P(P_nm, C_nm):
     """Writhe fraction ``1 - P/C`` of a plectonemic ring."""
     return 1.0 - float(P_nm) / float(C_nm)
