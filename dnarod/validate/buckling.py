@@ -63,7 +63,8 @@ small-amplitude mode under fast noise that the autocorrelation-time window misse
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
 buckling and takes length in short chains (see the README for the measured numbers). ``c_override`` replaces the
-model's C in the theory, in C_s and in P = C (1 - Wr/ΔLk) (the tests show the check failing with C halved);
+model's C in the theory, in C_s and in P (both ring formulas scale with C; the tests show the check failing
+with C halved);
 ``P_nm``/``P_err_nm`` skip the rings; ``ring_pair=False`` (the quick form) takes P from the single ring (which
 overstates it, above).
 """
@@ -213,8 +214,8 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
             ring2 = run_ring_member(dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
                                          seed=ring_seed, temperature_K=temperature), root / f"ring{n2}_{dlk2}")
             tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=n2), temperature)
-            P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"], ring2["Lk"] - tw0_2,
-                                                         C_th, ring["Wr_err"], ring2["Wr_err"])
+            P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
+                                                         ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
     rows, drifts, twins = [], [], []
 
     def member(t, i, grown):
