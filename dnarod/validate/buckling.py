@@ -27,11 +27,12 @@ against the twisting moment of the steps: 600-bp rings at ΔLk -4.885 / +5.115 g
 16.99 +- 0.31 nm from the moment and 17.22 / 17.43 from the writhe, so neither the estimator nor the handedness
 matters). **P is the bulk superhelix's**: a single ring's ``C (1 - Wr/ΔLk)`` is not, because its two end loops
 take a linking difference of their own (little writhe for their length): it reads 19.7, 18.0, 17.2 nm at sigma
--0.051, -0.068, -0.086 (600 bp), i.e. ``P_b (1 + |delta| / (2 pi ΔLk))`` with P_b = 13.8 +- 1.7 nm and
-``|delta|`` ~ 1.3 turns, and the single ring at -0.086 puts tau* at 11.47 instead of ~10. The check therefore
-runs two rings at the same sigma, of n and 2n bp (600 and 1200 in the full form, ΔLk -5 and -10), and takes
+-0.051, -0.068, -0.086 (600 bp) and 14.35 nm for 1200 bp at sigma -0.086 (twisting moment), and the single
+600-bp ring puts tau* at 11.47 pN nm against a measured plateau of 10.33 +- 0.27. The check therefore runs two
+rings at the same sigma, of n and 2n bp (600 and 1200 in the full form, ΔLk -5 and -10), and takes
 ``P_b = C (1 - ΔWr / ΔΔLk)`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_ring_pair`): the loops
-cancel. (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
+cancel if both rings have the same loops (measured: P_b 12.09 +- 0.70 nm, tau* 9.26 +- 0.31; a long ring that
+branches has more loops, which this does not detect). (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
 loop cost they shift the buckling point, not the plateau, which is set by the bulk phases alone.)
 
 Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing else:
