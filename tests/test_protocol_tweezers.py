@@ -201,7 +201,7 @@ def test_buckling_check_runs_and_fails_before_buckling(tmp_path):
     """
     from dnarod.validate.buckling import check_buckling
 
-    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m", bracket=False)
+    opts = dict(n_bp=600, time_ns=6.0, plots=False, member_root=tmp_path / "m", bracket=False, ring_pair=False)
     good = check_buckling(tmp_path, **opts)
     assert good["plateau"]["both_plectonemic"] and np.isfinite(good["marko"]["torque_pN_nm"])
     bad = check_buckling(tmp_path, post_turns=(0.379, 0.76), **opts)

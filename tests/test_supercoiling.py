@@ -24,7 +24,8 @@ def test_two_phase_torque_is_the_common_tangent():
     """Marko's closed form against a direct minimisation of the two-phase free energy over the phase fraction."""
     A, Cs, P, f, L = 50.0, 84.2, 29.7, 1.0, 200.0
     r = th.marko_two_phase(A, Cs, P, f, KT, L)
-    g = f - math.sqrt(KT * f / A)
+    g = th.wlc_free_energy_exact(f, A, KT)
+    assert r["g_pN"] == pytest.approx(g)
 
     def free_energy(dlk):  # minimum over the extended fraction x of the coexisting state (per length)
         om = 2 * math.pi * dlk / L
@@ -47,6 +48,65 @@ def test_two_phase_torque_is_the_common_tangent():
         th.marko_two_phase(A, Cs, 90.0, f, KT, L)
     # halving C changes the plateau torque by far more than the check's tolerance (~2 pN nm)
     assert abs(th.marko_two_phase(A, Cs / 2, P, f, KT, L)["torque_pN_nm"] - r["torque_pN_nm"]) > 5.0
+
+
+def test_exact_worm_like_chain_free_energy():
+    """g(f) from the Legendre ground state against the worm-like chain's low- and high-force limits, and its
+    derivative against the extension (Marko-Siggia's exact high-force expansion)."""
+    A = 50.0
+    for f in (1e-4, 1e-3):  # linear response: z = 2 A f / (3 kT), g = A f² / (3 kT)
+        assert th.wlc_free_energy_exact(f, A, KT) == pytest.approx(A * f * f / (3 * KT), rel=2e-3)
+    for f in (10.0, 40.0):  # f - sqrt(kT f/A) + kT/(4A) + O(f^-1/2)
+        lead = f - math.sqrt(KT * f / A)
+        assert th.wlc_free_energy_exact(f, A, KT) - lead == pytest.approx(KT / (4 * A), rel=0.05)
+        assert th.wlc_extension_exact(f, A, KT) == pytest.approx(1 - 0.5 * math.sqrt(KT / (A * f)), abs=2e-4)
+    # at 1 pN the leading g is 2.9 % low; the plateau torque moves by half of that
+    g1, g0 = th.wlc_free_energy_exact(1.0, A, KT), float(th.wlc_free_energy_per_length(1.0, A, KT))
+    assert g1 / g0 - 1 == pytest.approx(0.0297, abs=0.001)
+    ex, lead = (th.marko_two_phase(A, 84.3, 17.3, 1.0, KT, 200.0, exact_wlc=e)["torque_pN_nm"] for e in (True, False))
+    assert ex / lead - 1 == pytest.approx(0.0147, abs=0.001)
+
+
+def test_block_standard_error_sees_a_slow_mode():
+    """Fast noise plus a slow small-amplitude mode: the blocked error finds the slow part that the
+    autocorrelation-time window misses."""
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
+    from dnarod.validate.buckling import block_standard_error
+
+    rng = np.random.default_rng(1)
+    n, tau_slow = 4000, 60.0
+    a = math.exp(-1 / tau_slow)
+    slow = np.zeros(n)
+    for i in range(1, n):
+        slow[i] = a * slow[i - 1] + math.sqrt(1 - a * a) * rng.normal()
+    x = 3.0 * rng.normal(size=n) + 0.5 * slow
+    exact = math.sqrt((9.0 + 0.25 * (1 + a) / (1 - a)) / n)  # large-n SE of the mean
+    blocked = block_standard_error(x)
+    tau = integrated_autocorrelation_time(x)
+    naive = x.std(ddof=1) * math.sqrt(2 * tau / n)
+    assert blocked == pytest.approx(exact, rel=0.3)
+    assert naive < 0.8 * exact
+
+
+def test_bulk_P_from_a_ring_pair_cancels_the_end_loops():
+    """Plectonemic rings of L and 2L at one sigma, each a superhelix of bulk stiffness P_b plus two end loops
+    (length l, writhe w each, twist at the common torque): the single ring's C (1 - Wr/ΔLk) overstates P_b,
+    the pair's difference returns it (to the small difference of the two rings' torques)."""
+    C, P_b, ell, w_loop, sigma = 98.3, 14.0, 20.0, 0.1, 0.086  # nm, nm, nm, turns
+    rings = []
+    for L in (204.0, 408.0):
+        dlk = sigma * L / 3.57
+        # 2 pi ΔLk = (tau/kT) ((L - 2 l)/P_b + 2 l/C) + 2 (2 pi w): solve for tau/kT, then the writhe
+        t = (2 * math.pi * (dlk - 2 * w_loop)) / ((L - 2 * ell) / P_b + 2 * ell / C)
+        wr = (1 - P_b / C) * (t / P_b) * (L - 2 * ell) / (2 * math.pi) + 2 * w_loop
+        rings.append((wr, dlk))
+    single = th.plectoneme_P_from_writhe_fraction(rings[0][0] / rings[0][1], C)
+    assert single > 1.1 * P_b
+    P, err = th.plectoneme_P_from_ring_pair(rings[0][0], rings[0][1], rings[1][0], rings[1][1], C, 0.02, 0.03)
+    assert P == pytest.approx(P_b, rel=0.02)  # the two torques differ by the loops twist share: 1.4 % here
+    assert err == pytest.approx(C * math.hypot(0.02, 0.03) / abs(rings[1][1] - rings[0][1]))
+    with pytest.raises(Exception, match="too close"):
+        th.plectoneme_P_from_ring_pair(-4.0, -4.885, -4.1, -5.0, C)
 
 
 def test_writhe_fraction_and_P_are_inverse():
@@ -183,7 +243,8 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
 
     root = _recorded(tmp_path, "buckling_600bp")
     opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
-                ring_delta_lk=-3, ring_time_ns=10.0, bracket=False)  # the recorded members' settings
+                ring_delta_lk=-3, ring_time_ns=10.0, bracket=False,
+                ring_pair=False)  # the recorded members' settings (one ring: logic only)
     good = check_buckling(tmp_path, **opts)
     assert good["marko"]["passed"] and good["drift"]["settled"] and good["passed"], good
     bad = check_buckling(tmp_path, **opts,

@@ -14,16 +14,26 @@ that gives P.
 Theory (:func:`dnarod.validate.supercoil_theory.marko_two_phase`; J. F. Marko, Phys. Rev. E 76:021926, 2007):
 plateau torque ``tau* = sqrt(2 kT g / (1/P - 1/C_s))`` (also the torque at buckling), buckling point
 ``ΔLk_b = tau* L / (2 pi kT C_s)`` and extension slope past buckling, with A the model's exact persistence
-length, C_s the Moroz-Nelson effective twist stiffness of the model's bare C at this force (as in check
-``torsion``) and P the plectoneme twist stiffness, which the two-phase model takes as a parameter: it is set by
-the plectoneme's bending, twist and self-repulsion, i.e. by the model's A, C and effective diameter at this salt
-(:func:`~dnarod.validate.supercoil_theory.effective_diameter`, reported). It is measured here from the same
-model in the other plectonemic geometry, a closed ring: ``P = C (1 - Wr/ΔLk)``. The model's plectoneme free
-energy is not exactly quadratic (P falls slowly with the linking density: 19.7, 18.0, 17.3 nm from 600-bp
-rings at sigma -0.051, -0.068, -0.086), so the ring is taken at the linking density of the plectonemic phase
-at coexistence, ``Omega_p = tau*/(kT P)`` (~0.16 rad/nm at 1 pN): ΔLk = -5 for 600 bp (sigma -0.086, 0.150
-rad/nm; both densities are reported). A ring at sigma -0.05, half that density, overstates P and the
-plateau (12.3 instead of 11.3 pN nm).
+length, ``g`` the exact worm-like-chain free energy per length at this force and A
+(:func:`~dnarod.validate.supercoil_theory.wlc_free_energy_exact`; Marko's leading ``f - sqrt(kT f/A)`` is 2.9 %
+low at 1 pN and puts tau* 1.5 % low), C_s the Moroz-Nelson effective twist stiffness of the model's bare C at
+this force (as in check ``torsion``; the exact extended phase under torque, the Moroz-Nelson eigenvalue problem
+solved numerically, differs from it by 0.15 % in tau*) and P the plectoneme twist stiffness, which the
+two-phase model takes as a parameter: it is set by the plectoneme's bending, twist and self-repulsion, i.e. by
+the model's A, C and effective diameter at this salt
+(:func:`~dnarod.validate.supercoil_theory.effective_diameter`, reported). It is measured from the same model in
+the other plectonemic geometry, closed rings, where the twist carries the torque (``tau = kT C Ω_tw``; checked
+against the twisting moment of the steps: 600-bp rings at ΔLk -4.885 / +5.115 give P 17.24 +- 0.28 /
+16.99 +- 0.31 nm from the moment and 17.22 / 17.43 from the writhe, so neither the estimator nor the handedness
+matters). **P is the bulk superhelix's**: a single ring's ``C (1 - Wr/ΔLk)`` is not, because its two end loops
+take a linking difference of their own (little writhe for their length): it reads 19.7, 18.0, 17.2 nm at sigma
+-0.051, -0.068, -0.086 (600 bp) and 14.35 nm for 1200 bp at sigma -0.086 (twisting moment), and the single
+600-bp ring puts tau* at 11.47 pN nm against a measured plateau of 10.33 +- 0.27. The check therefore runs two
+rings at the same sigma, of n and 2n bp (600 and 1200 in the full form, ΔLk -5 and -10), and takes
+``P_b = C (1 - ΔWr / ΔΔLk)`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_ring_pair`): the loops
+cancel if both rings have the same loops (measured: P_b 12.09 +- 0.70 nm, tau* 9.26 +- 0.31; a long ring that
+branches has more loops, which this does not detect). (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
+loop cost they shift the buckling point, not the plateau, which is set by the bulk phases alone.)
 
 Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing else:
 
@@ -42,17 +52,22 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    C_s (``theory_truncation_pN_nm``, reported).
 
 Turns: pre-buckling 0.01 Lk0 (below Marko's ΔLk_b ~ 0.018 Lk0), post-buckling 0.045 and 0.063 Lk0, about 40 %
-and 70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0 at 1 pN). The earlier 0.075 and
-0.098 Lk0 lay at and beyond the fully plectonemic point, outside the coexistence the model describes.
-Plectonemes grow for ~40 ns from the straight start at 600 bp and their size then fluctuates slowly
-(extension autocorrelation time 4-8 ns): the full form runs 150 ns of production per member (five members,
-~30 CPU minutes on the plugin); with 60 ns the 2.57-turn member still drifted (z -3.2).
+and 70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0 at 1 pN).
+
+Statistics: the plectoneme's length fluctuates slowly (tens of ns) and the torque follows it (600 bp, 1 pN,
+2.57 turns: -0.086 pN nm per nm of plectoneme, the two-phase model's fixed-Lk value being -0.078), a
+small-amplitude mode under fast noise that the autocorrelation-time window misses; member errors are blocked
+(:func:`block_standard_error`). The full form runs 400 ns of production per member (each twin at 2.57 turns:
+747-752 s CPU); with 150 ns the 2.57-turn twins disagreed (not settled), with 400 ns they agree
+(10.34 +- 0.28 and 10.32 +- 0.38 pN nm).
 
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
 buckling and takes length in short chains (see the README for the measured numbers). ``c_override`` replaces the
-model's C in the theory, in C_s and in P = C (1 - Wr/ΔLk) (the tests show the check failing with C halved);
-``P_nm``/``P_err_nm`` skip the ring.
+model's C in the theory, in C_s and in P (both ring formulas scale with C; the tests show the check failing
+with C halved);
+``P_nm``/``P_err_nm`` skip the rings; ``ring_pair=False`` (the quick form) takes P from the single ring (which
+overstates it, above).
 """
 from __future__ import annotations
 
@@ -68,17 +83,58 @@ Z_TOL = 3.0
 LINEAR_ALLOWANCE = 0.15
 
 
-def drift_z(samples_csv, column):
-    """z-score of the difference between the means of the two halves of a member's samples (block errors)."""
+#: Fewest blocks :func:`block_standard_error` uses (the error of a standard error from nb blocks is
+#: ~1/sqrt(2(nb - 1)): 19 % at 15 blocks).
+MIN_BLOCKS = 15
+
+
+def block_standard_error(x, min_blocks=MIN_BLOCKS):
+    """Standard error of the mean of a correlated series by blocking (Flyvbjerg & Petersen, J. Chem. Phys. 91,
+    461, 1989): the largest standard error of the block means over block lengths 1, 2, 4, ... samples that
+    leave at least ``min_blocks`` blocks.
+
+    Why not the integrated autocorrelation time: the torque and extension of a buckled member carry a slow,
+    small-amplitude mode (the plectoneme's length, tens of ns) under fast noise; Sokal's automatic window
+    stops on the fast part and misses it. Measured at 2.57 turns, 600 bp, 1 pN, 400 ns: the blocked error
+    of the twisting moment grows from 0.13 (single samples) to 0.28-0.38 pN nm (25.6-ns blocks) while the
+    autocorrelation-time estimate reads 0.20-0.24. Taking the largest level keeps the estimate from
+    falling back below the slow mode's share (a plain plateau pick is noisy at 15 blocks). Blocking in turn
+    underestimates a series only a few correlation times long (no block is longer than n/min_blocks), where
+    the autocorrelation-time estimate does better: the larger of the two is returned.
+
+    Parameters
+    ----------
+    x : array_like, shape (n,)
+    min_blocks : int
+
+    Returns
+    -------
+    float
+        Same unit as ``x``; NaN with fewer than 4 samples.
+    """
     from ..analysis.polymer import integrated_autocorrelation_time
 
+    x = np.asarray(x, float)
+    best, b = float("nan"), 1
+    if len(x) >= 4 and np.ptp(x) > 0:
+        tau = integrated_autocorrelation_time(x)
+        tau = tau if np.isfinite(tau) and tau > 0.5 else 0.5
+        best = float(x.std(ddof=1) * np.sqrt(2.0 * tau / len(x)))
+    while len(x) // b >= min_blocks:
+        nb = len(x) // b
+        m = x[: nb * b].reshape(nb, b).mean(axis=1)
+        se = float(m.std(ddof=1) / np.sqrt(nb))
+        best = se if not np.isfinite(best) else max(best, se)
+        b *= 2
+    return best
+
+
+def drift_z(samples_csv, column, min_blocks=8):
+    """z-score of the difference between the means of the two halves of a member's samples (blocked errors,
+    :func:`block_standard_error` with ``min_blocks`` per half)."""
     d = np.genfromtxt(samples_csv, delimiter=",", names=True)
     halves = np.array_split(np.asarray(d[column], float), 2)
-    se = []
-    for h in halves:
-        tau = integrated_autocorrelation_time(h)
-        tau = tau if np.isfinite(tau) and tau > 0.5 else 0.5
-        se.append(h.std(ddof=1) * np.sqrt(2 * tau / len(h)))
+    se = [block_standard_error(h, min_blocks) for h in halves]
     return float((halves[1].mean() - halves[0].mean()) / np.hypot(*se))
 
 
@@ -97,7 +153,7 @@ def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                    temperature=300.0, seed=31, plots=True, member_root=None, c_override=None, P_nm=None,
                    P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
-                   grown_force_pN=0.3, grown_ns=None):
+                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None):
     """Run the check (see the module docstring).
 
     ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
@@ -115,7 +171,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from ..protocols.rings import run_ring_member
     from ..protocols.measure import twisting_moment_offset
     from ..thermal import relaxed_ribbon_twist
-    from .supercoil_theory import effective_diameter, marko_two_phase
+    from .supercoil_theory import effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair
     from .torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
@@ -128,7 +184,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     # the fully plectonemic point)
     pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
     post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
-    time_ns = time_ns or (2.0 if quick else 150.0)
+    time_ns = time_ns or (2.0 if quick else 400.0)
     bracket = (not quick) if bracket is None else bool(bracket)
     grown_ns = grown_ns or (2.0 if quick else 20.0)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
@@ -140,7 +196,8 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     C_th = C0 if c_override is None else float(c_override)
     # relaxed linking number of the chain at T (mean ribbon twist of its free steps; below the T = 0 lk0)
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
-    ring = None
+    ring = ring2 = None
+    P_single = P_single_err = None
     if P_nm is None:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
         from ..forcefield import load_forcefield as _ff
 
@@ -151,6 +208,15 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                                     temperature_K=temperature), root / f"ring{ring_n_bp}_{ring_delta_lk}")
         tw0_T, tw0_T_se = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring_n_bp), temperature)
         P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th, tw0_T, tw0_T_se)
+        P_single, P_single_err = P_nm, P_err_nm
+        ring_pair = (not quick) if ring_pair is None else bool(ring_pair)
+        if ring_pair:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
+            n2, dlk2 = 2 * ring_n_bp, 2 * ring_delta_lk
+            ring2 = run_ring_member(dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
+                                         seed=ring_seed, temperature_K=temperature), root / f"ring{n2}_{dlk2}")
+            tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=n2), temperature)
+            P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
+                                                         ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
     rows, drifts, twins = [], [], []
 
     def member(t, i, grown):
@@ -159,6 +225,13 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
                             temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra), root / tag)
         csv = root / tag / "samples.csv"
+        r = dict(r)
+        d = np.genfromtxt(csv, delimiter=",", names=True)
+        for q, col in (("twist_torque_pN_nm", "twist_torque_pN_nm"), ("relative_extension", "extension_nm"),
+                       ("Wr", "Wr"), ("clamp_torque_pN_nm", "clamp_torque_pN_nm")):
+            # blocked standard errors (the member's own 10-block errors miss the slow plectoneme mode)
+            se = block_standard_error(np.asarray(d[col], float))
+            r[q + "_err"] = se / (r["contour_length_nm"] if q == "relative_extension" else 1.0)
         return r, dict(turns=r["turns"], start="grown" if grown else "straight",
                        extension_z=drift_z(csv, "extension_nm"), torque_z=drift_z(csv, "twist_torque_pN_nm"))
 
@@ -258,8 +331,14 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                             both_plectonemic=plectonemic, passed=bool(plateau_ok)),
                extension_drop=dict(difference=dx, standard_error=dx_se, passed=bool(falls)),
                marko=dict(persistence_length_nm=A, twist_persistence_nm=C_th, C_s_nm=c_s, P_nm=P_nm, P_err_nm=P_err_nm,
-                          P_source=("closed ring " + (f"{ring['n_bp']} bp at sigma {ring['sigma']:+.4f}: writhe fraction "
-                                                      f"{f_wr:.3f} +- {f_wr_err:.3f}") if ring else "given"),
+                          P_source=(("closed rings of " + f"{ring['n_bp']} and {ring2['n_bp']} bp at sigma "
+                                     f"{ring['sigma']:+.4f}: P_b = C (1 - ΔWr/ΔΔLk), Wr {ring['Wr']:.3f} and "
+                                     f"{ring2['Wr']:.3f}") if ring2 else
+                                    ("closed ring " + f"{ring['n_bp']} bp at sigma {ring['sigma']:+.4f}: writhe fraction "
+                                     f"{f_wr:.3f} +- {f_wr_err:.3f}") if ring else "given"),
+                          P_single_ring_nm=P_single, P_single_ring_err_nm=P_single_err,
+                          torque_single_ring_P_pN_nm=(marko_two_phase(A, c_s, P_single, force_pN, kt_pn, L)["torque_pN_nm"]
+                                                      if P_single is not None and P_single < c_s else None),
                           ring_linking_density_rad_per_nm=(TWO_PI_ * abs(ring["Lk"] - tw0_T) / (ring["n_bp"] * model.ds)
                                                            if ring else None),
                           coexistence_plectoneme_density_rad_per_nm=th["omega_p"],
