@@ -153,12 +153,14 @@ def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                    temperature=300.0, seed=31, plots=True, member_root=None, c_override=None, P_nm=None,
                    P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
-                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None):
+                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None, nonbonded=None):
     """Run the check (see the module docstring).
 
     ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
     a plectoneme grown for ``grown_ns`` at ``grown_force_pN`` (longer than at the member's force), and requires
-    the two to agree; ``time_ns`` is then each member's production after its equilibration.
+    the two to agree; ``time_ns`` is then each member's production after its equilibration. ``nonbonded``
+    (dict with ``charge`` and/or ``cutoff_debye``) runs the members and rings with other non-bonded terms than
+    the defaults (the recorded test members were run with Manning's charge and 5 Debye lengths).
     """
     import tempfile
     from pathlib import Path
@@ -167,7 +169,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from ..protocols.tweezers import intrinsic_turns, run_member
     from ..thermal import kT, persistence_length
     from ..units import PN
-    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.nonbonded import member_nonbonded
     from ..protocols.rings import run_ring_member
     from ..protocols.measure import twisting_moment_offset
     from ..thermal import relaxed_ribbon_twist
@@ -196,6 +198,8 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     C_th = C0 if c_override is None else float(c_override)
     # relaxed linking number of the chain at T (mean ribbon twist of its free steps; below the T = 0 lk0)
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
+    nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
+    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, **nb))
     ring = ring2 = None
     P_single = P_single_err = None
     if P_nm is None:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
@@ -205,7 +209,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         ring_delta_lk = ring_delta_lk or (-3 if quick else -5)
         ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
         ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
-                                    temperature_K=temperature), root / f"ring{ring_n_bp}_{ring_delta_lk}")
+                                    temperature_K=temperature, **nb), root / f"ring{ring_n_bp}_{ring_delta_lk}")
         tw0_T, tw0_T_se = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring_n_bp), temperature)
         P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th, tw0_T, tw0_T_se)
         P_single, P_single_err = P_nm, P_err_nm
@@ -213,7 +217,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         if ring_pair:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
             n2, dlk2 = 2 * ring_n_bp, 2 * ring_delta_lk
             ring2 = run_ring_member(dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
-                                         seed=ring_seed, temperature_K=temperature), root / f"ring{n2}_{dlk2}")
+                                         seed=ring_seed, temperature_K=temperature, **nb), root / f"ring{n2}_{dlk2}")
             tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=n2), temperature)
             P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
                                                          ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
@@ -223,7 +227,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         tag = f"turns{t:+.3f}" + ("_grown" if grown else "")
         extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
         r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
-                            temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra), root / tag)
+                            temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra, **nb), root / tag)
         csv = root / tag / "samples.csv"
         r = dict(r)
         d = np.genfromtxt(csv, delimiter=",", names=True)
@@ -342,7 +346,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                           ring_linking_density_rad_per_nm=(TWO_PI_ * abs(ring["Lk"] - tw0_T) / (ring["n_bp"] * model.ds)
                                                            if ring else None),
                           coexistence_plectoneme_density_rad_per_nm=th["omega_p"],
-                          effective_diameter_nm=effective_diameter(NonbondedSettings(salt=0.15), model.ds, temperature),
+                          effective_diameter_nm=effective_diameter(terms, model.ds, temperature),
                           torque_pN_nm=th["torque_pN_nm"], torque_se_from_P=tau_th_se, theory_truncation_pN_nm=trunc,
                           measured_plateau_pN_nm=tau_pl, tolerance_pN_nm=marko_tol, passed=bool(marko_ok),
                           buckling_delta_lk=th["buckling_delta_lk"], buckling_delta_lk_measured=dlk_b_meas,
