@@ -244,7 +244,8 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
     root = _recorded(tmp_path, "buckling_600bp")
     opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
                 ring_delta_lk=-3, ring_time_ns=10.0, bracket=False, ring_pair=False,
-                nonbonded=dict(charge="manning", cutoff_debye=5.0))  # the recorded members' settings (one ring: logic only)
+                # the recorded members' settings (one ring: logic only)
+                nonbonded=dict(charge="manning", cutoff_debye=5.0))
     good = check_buckling(tmp_path, **opts)
     assert good["marko"]["passed"] and good["drift"]["settled"] and good["passed"], good
     bad = check_buckling(tmp_path, **opts,
