@@ -129,7 +129,7 @@ def test_experiment_check_reports_the_comparisons_without_stated_uncertainty(tmp
     from dnarod.validate.experiment import (check_experiment, compare_force_extension_curve,
                                             compare_topoisomer_fit)
 
-    r = check_experiment(tmp_path, plots=False, d_override=2.31)
+    r = check_experiment(tmp_path, plots=False, d_override=5.0)  # the calibrated diameter (computing it is slow)
     assert r["passed"]
     fe = r["force_extension_curve"]
     # the model's S (1100 pN) vs the curve's 1000 pN; lp 50 nm in both: x/L agree to 1e-3 up to 10 pN

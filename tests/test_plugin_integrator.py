@@ -277,12 +277,16 @@ def test_node_report_equals_the_openmm_state_path(mod, integrator):
     from dnarod.openmm.loads import PullingForce
     from dnarod.openmm.simulation import RodSimulation
 
-    model = load_forcefield("dna-default").ring(n_nodes=30)  # small enough for Debye-Hueckel across the ring
+    from dnarod.openmm.nonbonded import NonbondedSettings
+
+    # small enough for Debye-Hueckel across the ring: a 5-Debye-length cutoff excludes 12 neighbours each side
+    # (the default 12 Debye lengths would exclude all 29)
+    model = load_forcefield("dna-default").ring(n_nodes=30)
     for loads in ([], [PullingForce(3, [0.0, 0.0, 5.0])]):
         ends = []
         for report in (True, False):
             sim = RodSimulation(model, integrator=integrator, temperature=300.0, elastic="plugin", seed=9,
-                                platform="CPU", loads=loads)
+                                platform="CPU", loads=loads, nonbonded=NonbondedSettings(cutoff_debye=5.0))
             assert sim._reports_in_plugin()
             for k in (0, 7, 1, 12):
                 if k:
