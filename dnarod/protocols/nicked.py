@@ -27,7 +27,7 @@ import numpy as np
 
 from ..errors import DnarodError
 
-COLUMNS = ("time_ps", "Wr_axis", "Wr", "Tw", "Lk", "radius_of_gyration_nm")
+COLUMNS = ("time_ps", "Wr_star", "Wr_axis", "Wr", "Tw", "Lk", "step_twist", "radius_of_gyration_nm")
 #: Base pairs per vertex of the smoothed axis whose writhe is the shape writhe (one helical turn).
 AXIS_BLOCK = 10
 
@@ -111,6 +111,19 @@ def soft_twist_model(model, softening, temperature=300.0, n_samples=200_000, see
     return dataclasses.replace(model, params=params)
 
 
+def step_twist_sum(positions, frames, ds, closure):
+    """Sum of the Cayley twist angles ``2 atan(ds Omega_3 / 2)`` of a ring's steps (turns).
+
+    ``Lk - step_twist_sum`` is the part of the linking number that is not step twist (``Wr_star``): the
+    exact complement of the twist whose variance :func:`dnarod.validate.supercoil_theory.twist_variance_exact`
+    gives, so ``ΔLk = Δ(step twist) + ΔWr_star`` with no smoothing choice.
+    """
+    from ..strains import strains
+
+    om, _ = strains(positions, frames, ds, closure)
+    return float(np.sum(2.0 * np.arctan(0.5 * ds * om[:, 2])) / (2.0 * np.pi))
+
+
 def twist_sum_moments(model, temperature, n_samples=400_000, seed=0):
     """Mean and variance (turns, turns²) of the total twist of the model's steps, from the exact step distribution."""
     from ..thermal import kT, sample_step_strains
@@ -188,6 +201,8 @@ def run_nicked_member(settings, member_dir, progress=None):
 
     def record(out, i, pos, frm):
         out["Wr_axis"][i] = writhe(smoothed_axis(pos))
+        out["step_twist"][i] = step_twist_sum(pos, frm, model.ds, model.closure)
+        out["Wr_star"][i] = out["Lk"][i] - out["step_twist"][i]
 
     out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.05, samples_per_ns=400.0,
                            max_sample_ps=100.0, min_samples=20, progress=progress)
@@ -197,13 +212,18 @@ def run_nicked_member(settings, member_dir, progress=None):
         raise DnarodError(f"nicked-ring member: the linking number changed during the run ({sorted(set(lk_int))}); "
                           f"the sampled topology is not fixed")
     lk = float(lk_int[0])
+    mom_star = free_writhe_moments(out["Wr_star"], lk, tw_mean, tw_var)
     mom = free_writhe_moments(out["Wr_axis"], lk, tw_mean, tw_var)
     mom_fine = free_writhe_moments(out["Wr"], lk, tw_mean, tw_var)
-    tau_wr2 = integrated_autocorrelation_time(out["Wr_axis"] ** 2)
-    tau_wr = integrated_autocorrelation_time(out["Wr_axis"])
+    dev2 = (out["Wr_star"] - mom_star["mean"]) ** 2
+    tau_wr2 = integrated_autocorrelation_time(dev2)
+    tau_wr = integrated_autocorrelation_time(out["Wr_star"])
     res = dict(n_bp=model.n_nodes, temperature_K=T, salt_M=float(s["salt_M"]), seed=int(s["seed"]),
                softening=float(s["softening"]), linking_number=lk,
                soft_twist_mean_turns=tw_mean, soft_twist_variance_turns2=tw_var,
+               wr_star_var=mom_star["variance"], wr_star_var_err=mom_star["variance_err"],
+               wr_star_mean=mom_star["mean"], wr_star_mean_err=mom_star["mean_err"],
+               wr_star_var_unweighted=float(np.var(out["Wr_star"])),
                wr2_free=mom["second_moment"], wr2_free_err=mom["second_moment_err"], wr_mean_free=mom["mean"],
                wr_mean_free_err=mom["mean_err"], wr2_unweighted=mom["unweighted_second_moment"],
                weight_spread=mom["weight_spread"], wr2_free_node_polygon=mom_fine["second_moment"],

@@ -60,10 +60,10 @@ def relaxed_ring(model):
     # the planar pose (d3 along the chords) carries a small torque (~0.015 kJ/mol at 100 bp): relax it
     from ..statics import solve_static
 
-    return solve_static(ring, gtol=1e-10)[0]
+    return solve_static(ring)[0]
 
 
-def position_covariance(model, temperature=300.0, zero_tol=1e-7):
+def position_covariance(model, temperature=300.0, zero_tol=1e-12):
     """Harmonic covariance (nm²) of the node positions of ``model`` at its pose, shape (3n, 3n), and the spectrum.
 
     Returns
@@ -92,6 +92,60 @@ def position_covariance(model, temperature=300.0, zero_tol=1e-7):
     F, tau = total_load_fn(model)(model.positions, model.frames)
     return cov, dict(n_zero_modes=int(zero.sum()), smallest_kept=float(lam[~zero].min()), largest=float(lam.max()),
                      max_load=float(max(np.abs(F).max(), np.abs(tau).max())))
+
+
+def tangent_curve(positions, frames):
+    """The closed curve whose step directions are the frames' tangents d3, shape (n, 3), nm.
+
+    Step k runs along the mean of ``d3_k`` and ``d3_{k+1}`` with the length of the chord ``r_{k+1} - r_k``;
+    the (small) closure gap is spread evenly over the steps. Its writhe is the shape writhe without the
+    shear wiggles of the node polygon (what ``Lk`` minus the step twist measures; see
+    :func:`dnarod.protocols.nicked.step_twist_sum`).
+    """
+    P = np.asarray(positions, float)
+    t = np.asarray(frames, float)[:, :, 2]
+    n = len(P)
+    steps = 0.5 * (t + np.roll(t, -1, axis=0)) * np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)[:, None]
+    steps -= steps.sum(axis=0) / n
+    return np.cumsum(steps, axis=0)
+
+
+def gaussian_writhe_samples(model, n_samples, temperature=300.0, seed=0, curves=("tangent",)):
+    """Exact writhe (turns) of ``n_samples`` poses drawn from the harmonic ensemble of ``model``'s relaxed ring.
+
+    Displacements ``(dr, dtheta)`` ~ N(0, kT H^+) over all 6n coordinates (zero modes left out), frames rotated
+    by ``exp(hat(dtheta))``. ``curves``: any of ``"tangent"`` (:func:`tangent_curve`), ``"axis"``
+    (:func:`dnarod.protocols.nicked.smoothed_axis`), ``"nodes"`` (the node polygon).
+
+    Returns
+    -------
+    dict of str to ndarray (n_samples,)
+    """
+    from ..analysis.writhe import writhe
+    from ..modes import hessian
+    from ..protocols.nicked import smoothed_axis
+    from ..rotations import rotation_about_axis
+    from ..thermal import kT
+
+    ring = relaxed_ring(model)
+    H = hessian(ring).toarray()
+    lam, V = np.linalg.eigh(0.5 * (H + H.T))
+    keep = np.abs(lam) > 1e-12 * lam.max()
+    amp = np.sqrt(kT(temperature) / lam[keep])
+    Vk = V[:, keep]
+    rng = np.random.default_rng(seed)
+    n = ring.n_nodes
+    out = {c: np.empty(int(n_samples)) for c in curves}
+    for i in range(int(n_samples)):
+        d = (Vk @ (rng.standard_normal(int(keep.sum())) * amp)).reshape(n, 6)
+        P = ring.positions + d[:, :3]
+        ang = np.linalg.norm(d[:, 3:], axis=1)
+        F = np.array([rotation_about_axis(v / a if a > 0 else np.array([0.0, 0.0, 1.0]), a) @ f
+                      for v, a, f in zip(d[:, 3:], ang, ring.frames)])
+        for c in curves:
+            X = tangent_curve(P, F) if c == "tangent" else smoothed_axis(P) if c == "axis" else P
+            out[c][i] = writhe(X)
+    return out
 
 
 def writhe_derivatives(points, h=None):
