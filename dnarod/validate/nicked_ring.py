@@ -14,7 +14,7 @@ steps' Cayley twist angles and ``Wr* = Lk - Tw`` (:func:`dnarod.protocols.nicked
 * Reference: the Vologodskii-type Monte Carlo of a worm-like ring (:mod:`dnarod.validate.wlc_ring_mc`) with the
   model's persistence length A and its effective diameter at this salt
   (:func:`~dnarod.validate.supercoil_theory.effective_diameter`), same length, segments of ``segment_nm``
-  (0.85 nm up to 300 bp, else 1.7 nm). Optionally (``harmonic_samples``) the harmonic ensemble of the model's
+  (1.7 nm up to 300 bp, else 3.4 nm). Optionally (``harmonic_samples``) the harmonic ensemble of the model's
   own relaxed ring (:mod:`dnarod.validate.ring_harmonic`), reported, not gating (it is the small-ring limit:
   13 % below the MD at 200 bp).
 
@@ -59,8 +59,8 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     t0 = time.perf_counter()
     n_bp = n_bp or (200 if quick else 600)
     time_ns = time_ns or (30.0 if quick else 200.0)
-    mc_samples = mc_samples or (2000 if quick else 4000)
-    segment_nm = segment_nm or (0.85 if n_bp <= 300 else 1.7)
+    mc_samples = mc_samples or 4000
+    segment_nm = segment_nm or (1.7 if n_bp <= 300 else 3.4)
     harmonic_samples = (1000 if n_bp <= 300 else 0) if harmonic_samples is None else int(harmonic_samples)
     full_mc_samples = full_mc_samples or (1000 if quick else 5000)
     root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="nicked_", dir=out_dir))
@@ -93,15 +93,20 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                     samples=int(harmonic_samples))
     K_model = depew_wang_K(n_bp, lk2_model)
     # full size: exact twist + reference writhe (the model's own MD at this size is estimated in cost below)
-    Lf = ring.ds * full_n_bp
-    full_ring = ff.ring(n_nodes=full_n_bp, delta_linking_number=0)
-    tw_full = twist_variance_exact(full_ring, temperature)
-    mcf = sample_ring_writhe(Lf, A_ref, d_eff, b_nm=5.1, n_samples=full_mc_samples, seed=seed + 1)
-    wf = mcf["wr"] ** 2
-    tau_f = max(float(integrated_autocorrelation_time(wf)), 0.5)
-    wr2_full, wr2_full_se = float(wf.mean()), float(wf.std(ddof=1) * np.sqrt(2 * tau_f / len(wf)))
-    K_full = depew_wang_K(full_n_bp, tw_full + wr2_full)
-    K_full_se = K_full * wr2_full_se / (tw_full + wr2_full)
+    full = None
+    if full_n_bp:  # full size: exact twist + reference writhe (the model's own MD there: docs/protocols.md)
+        Lf = ring.ds * full_n_bp
+        full_ring = ff.ring(n_nodes=full_n_bp, delta_linking_number=0)
+        tw_full = twist_variance_exact(full_ring, temperature)
+        mcf = sample_ring_writhe(Lf, A_ref, d_eff, b_nm=5.1, n_samples=full_mc_samples, seed=seed + 1)
+        wf = mcf["wr"] ** 2
+        tau_f = max(float(integrated_autocorrelation_time(wf)), 0.5)
+        wr2_full, wr2_full_se = float(wf.mean()), float(wf.std(ddof=1) * np.sqrt(2 * tau_f / len(wf)))
+        K_full = depew_wang_K(full_n_bp, tw_full + wr2_full)
+        full = dict(n_bp=full_n_bp, twist_variance_turns2=tw_full, reference_wr2=wr2_full,
+                    reference_wr2_err=wr2_full_se, K=K_full, K_err=K_full * wr2_full_se / (tw_full + wr2_full),
+                    writhe_share=wr2_full / (tw_full + wr2_full), segments=mcf["segments"],
+                    segment_nm=mcf["segment_nm"])
     from ..protocols import experiments as ex
 
     measured = ex.supercoiling_free_energy_reference()  # empty: no K could be read (experiments.MISSING)
@@ -124,9 +129,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                discrete_allowance_relative=DISCRETE_ALLOWANCE,
                K_sampled_size=K_model, K_sampled_size_err=K_model * lk2_model_err / lk2_model,
                writhe_share_sampled_size=model_w2 / lk2_model,
-               full=dict(n_bp=full_n_bp, twist_variance_turns2=tw_full, reference_wr2=wr2_full,
-                         reference_wr2_err=wr2_full_se, K=K_full, K_err=K_full_se,
-                         writhe_share=wr2_full / (tw_full + wr2_full), segments=mcf["segments"]),
+               full=full,
                measured_K=measured_K, measured_K_source=measured_K_source, passed=passed)
     if plots:
         fig, ax = new_figure(1, 1, width=5.0, height=3.8)
