@@ -58,7 +58,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
 
     t0 = time.perf_counter()
     n_bp = n_bp or (200 if quick else 600)
-    time_ns = time_ns or (30.0 if quick else 200.0)
+    time_ns = time_ns or (30.0 if quick else 400.0)
     mc_samples = mc_samples or 4000
     segment_nm = segment_nm or (1.7 if n_bp <= 300 else 3.4)
     harmonic_samples = (1000 if n_bp <= 300 else 0) if harmonic_samples is None else int(harmonic_samples)
