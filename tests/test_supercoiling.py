@@ -162,6 +162,10 @@ def test_nicked_member_runs_and_keeps_its_linking_number(tmp_path):
     r = run_nicked_member(dict(n_bp=100, time_ns=0.05, equilibration_ns=0.02, seed=3), tmp_path / "nick")
     assert r["linking_number"] == round(r["linking_number"])
     assert 0 <= r["wr2_free"] < 0.05 and r["wr2_free_err"] >= 0
+    assert 0 <= r["wr_star_var"] < 0.05 and r["wr_star_var_err"] >= 0
+    d = np.genfromtxt(tmp_path / "nick" / "samples.csv", delimiter=",", names=True)
+    assert np.allclose(d["Wr_star"], d["Lk"] - d["step_twist"])  # Wr* = Lk - the steps' Cayley twist
+    assert np.all(np.abs(d["Wr_star"] - d["Wr"]) < 0.2)  # close to the node polygon's writhe, not equal
     assert (tmp_path / "nick" / "samples.csv").exists()
 
 
