@@ -4,18 +4,19 @@ A nick (one step without twist stiffness) cannot change the linking number in th
 cannot pass 180 degrees (the Cayley strains diverge there), so a ring with one twist-free step still has a
 fixed Lk, and its axis writhe stays tied to the twist of the intact steps. What a real nick does is make
 ``Lk`` free, and then the twist of the intact steps and the shape of the axis are independent (the model's
-bending is isotropic and twist couples only to stretch), so ``<ΔLk²> = <ΔTw²> + <Wr²>`` with the twist part
-known exactly (:func:`dnarod.validate.supercoil_theory.twist_variance_exact`) and the writhe part the writhe
-variance of the axis of a ring free to writhe.
+bending is isotropic and twist couples only to stretch), so ``<ΔLk²> = <ΔTw²> + Var(Wr*)`` with ``Tw`` the sum of
+the steps' Cayley twist angles, known exactly (:func:`dnarod.validate.supercoil_theory.twist_variance_exact`),
+and ``Wr* = Lk - Tw`` (:func:`step_twist_sum`; column ``Wr_star``) of a ring free to writhe.
 
 That writhe variance is sampled here with the model (OpenMM engine, its excluded volume and electrostatics) in
 a ring whose twist is made soft at every step: the stiffness of each step is replaced by the Schur complement
 on the five non-twist strains (so the joint distribution of bending, shear and stretch, hence of the axis, is
-exactly the model's) plus a decoupled twist stiffness ``K_33 / softening``. The soft twist still ties the
-writhe to the fixed Lk, through a factor ``p_Tw(Lk - Wr)`` on the writhe density (``p_Tw`` the density of the
+exactly the model's) plus a decoupled twist stiffness ``K_33 / softening``. The soft twist still ties
+``Wr*`` to the fixed Lk, through a factor ``p_Tw(Lk - Wr*)`` on its density (``p_Tw`` the density of the
 soft chain's total twist: Gaussian, variance and mean from the exact step distribution); the samples are
-reweighted by ``1 / p_Tw(Lk - Wr)``, which removes it exactly. With the default softening (16: twist s.d.
-~0.26 rad per step) the reweighting changes ``<Wr²>`` by a few per cent (reported).
+reweighted by ``1 / p_Tw(Lk - Wr*)``, which removes it exactly. With the default softening (16: twist s.d.
+~0.26 rad per step) the reweighting changes the variance by 1 % at 200 bp and 8-20 % at 600 bp (reported);
+softening 4 and 16 agree at 200 bp.
 
 Units: nm, turns, ps.
 """
@@ -36,9 +37,11 @@ def smoothed_axis(positions, block=AXIS_BLOCK):
     """The ring's axis as the polygon through the centres of consecutive blocks of ``block`` nodes, shape (m, 3).
 
     The polygon through the node centres carries the shear of every step (edges tilted by ~0.16 rad from d3 at
-    random): local, chain-scale-free wiggles whose writhe adds to the writhe variance (measured: twice the
-    worm-like ring's at 200 bp) and is compensated by the ribbon twist in Lk = Tw + Wr. The shape writhe that
-    is independent of the twist, and the one the worm-like-ring reference has, is that of the smoothed axis.
+    random): local wiggles whose writhe adds to the writhe variance and is compensated by the ribbon twist in
+    Lk = Tw + Wr. Blocks remove them but, on short rings, also lose writhe: at 200 bp the 20-vertex polygon
+    has about half of the ring's writhe variance (harmonic ring with stiff shear: 0.00089 vs 0.00154 through
+    every node); at 600 bp (60 vertices) it agrees with ``Wr_star``. Reported for comparison; the nicked-ring
+    check uses ``Wr_star`` (:func:`step_twist_sum`).
     """
     n = len(positions)
     m = max(4, int(round(n / block)))

@@ -8,9 +8,10 @@ steps' Cayley twist angles and ``Wr* = Lk - Tw`` (:func:`dnarod.protocols.nicked
   twist_variance_exact`), beside the continuum ``L / (4 pi² C)``.
 * ``Wr*`` part, **model**: the variance of ``Wr*`` of the model's ring free to writhe, sampled with OpenMM
   (excluded volume and Debye-Hueckel at the chosen salt) by :func:`dnarod.protocols.nicked.run_nicked_member`
-  (soft twist, exactly reweighted), with a block-jackknife error. ``Wr*`` is the writhe of the curve the
-  frames' tangents d3 trace (measured on the model's harmonic ring: 0.00171 ± 0.00007 against the MD's
-  0.00196 ± 0.00006 at 200 bp), free of the node polygon's shear wiggles and of any smoothing.
+  (soft twist, exactly reweighted), with a block-jackknife error. ``Wr*`` needs no smoothing and carries no
+  shear wiggles; it is close to the writhe of the curve the frames' tangents d3 trace (200 bp: that curve's
+  ⟨Wr²⟩ on the model's harmonic ring is 0.00171 ± 0.00007, the MD's Var(Wr*) 0.00194 ± 0.00006; the harmonic
+  ring leaves out the anharmonic part).
 * Reference: the Vologodskii-type Monte Carlo of a worm-like ring (:mod:`dnarod.validate.wlc_ring_mc`) with the
   model's persistence length A and its effective diameter at this salt
   (:func:`~dnarod.validate.supercoil_theory.effective_diameter`), same length, segments of ``segment_nm``
