@@ -224,6 +224,10 @@ def test_nicked_member_runs_and_keeps_its_linking_number(tmp_path):
     r = run_nicked_member(dict(n_bp=100, time_ns=0.05, equilibration_ns=0.02, seed=3), tmp_path / "nick")
     assert r["linking_number"] == round(r["linking_number"])
     assert 0 <= r["wr2_free"] < 0.05 and r["wr2_free_err"] >= 0
+    assert 0 <= r["wr_star_var"] < 0.05 and r["wr_star_var_err"] >= 0
+    d = np.genfromtxt(tmp_path / "nick" / "samples.csv", delimiter=",", names=True)
+    assert np.allclose(d["Wr_star"], d["Lk"] - d["step_twist"])  # Wr* = Lk - the steps' Cayley twist
+    assert np.all(np.abs(d["Wr_star"] - d["Wr"]) < 0.2)  # close to the node polygon's writhe, not equal
     assert (tmp_path / "nick" / "samples.csv").exists()
 
 
@@ -270,12 +274,48 @@ def test_plectonemes_check_with_a_recorded_ring(tmp_path):
         assert not bad["passed"], kw
 
 
+#: the recorded 200-bp member's settings (tests/data/supercoil/nicked_200bp, written by the check itself)
+NICKED_REC = dict(quick=True, n_bp=200, time_ns=60.0, sample_ps=120.0, seed=41, harmonic_samples=0, full_n_bp=None,
+                  mc_samples=4000, plots=False, nonbonded=dict(charge="manning", cutoff_debye=5.0))
+
+
+def test_nicked_ring_check_with_a_recorded_ring(tmp_path):
+    """Var(Wr*) of a recorded 200-bp member vs the worm-like-ring MC: passes with the model's A, fails with A/2."""
+    from dnarod.validate.nicked_ring import check_nicked_ring
+
+    root = _recorded(tmp_path, "nicked_200bp")
+    good = check_nicked_ring(tmp_path, member_root=root, **NICKED_REC)
+    assert good["passed"], good
+    assert good["model_production_ns"] == pytest.approx(60.0, rel=0.01)  # the recorded member was reused
+    assert good["model_wr_star_var_err"] < 0.15 * good["model_wr_star_var"]
+    # the 10-bp-block axis misses much of the writhe (the reason the check uses Wr*)
+    assert good["model_wr2_axis"] < 0.75 * good["model_wr_star_var"]
+    assert good["measured_K"] is None and "none read" in good["measured_K_source"]  # no K could be read
+    bad = check_nicked_ring(tmp_path, member_root=root, a_override=0.5 * good["persistence_length_nm"], **NICKED_REC)
+    assert not bad["passed"]
+
+
+def test_harmonic_ring_writhe():
+    """The model's harmonic ring: the writhe gradient vanishes at the planar ring (mirror symmetry), the
+    second-order formula agrees with the exact writhe of Gaussian samples, and <Wr²> scales about as (L/A)²."""
+    from dnarod.validate.ring_harmonic import gaussian_writhe_samples, harmonic_writhe_variance
+
+    r = harmonic_writhe_variance(FF.ring(n_nodes=60), block=3, gaussian_samples=600, seed=1)
+    assert r["n_zero_modes"] == 7  # rigid motions and the uniform spin of the frames about the tangents
+    assert r["linear_term"] < 1e-12 * r["wr2"]
+    assert r["wr2_gaussian"] == pytest.approx(r["wr2"], rel=0.2)
+    w = {n: gaussian_writhe_samples(FF.ring(n_nodes=n), 400, seed=2)["tangent"] for n in (40, 80)}
+    ratio = np.mean(w[80] ** 2) / np.mean(w[40] ** 2)
+    assert 2.5 < ratio < 6.5  # (L/A)² would be 4
+
+
 @pytest.mark.slow
 def test_nicked_ring_check_quick_form(tmp_path):
     from dnarod.validate.nicked_ring import check_nicked_ring
 
     r = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m")
+    assert r["passed"], r
     assert np.isfinite(r["K_sampled_size"]) and r["full"]["K"] > 0
-    assert r["measured_K"] is None and "none read" in r["measured_K_source"]  # no K could be read
-    bad = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m", a_override=25.0)
+    bad = check_nicked_ring(tmp_path, quick=True, plots=False, member_root=tmp_path / "m", a_override=25.0,
+                            harmonic_samples=0)
     assert not bad["passed"]

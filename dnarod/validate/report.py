@@ -106,14 +106,19 @@ def headline(name, r):
                     f"{r['z_tolerance']} SE + diameter systematic {_fmt(r['diameter_systematic'], '.3f')} "
                     f"(= {_fmt(r['tolerance'], '.3f')})")
         if name == "nicked_ring":
-            f = r["full"]
-            return (f"<Wr²> {_fmt(r['model_wr2'], '.4f')}+-{_fmt(r['model_wr2_err'], '.4f')} vs worm-like ring MC "
-                    f"{_fmt(r['reference_wr2'], '.4f')}+-{_fmt(r['reference_wr2_err'], '.4f')}; <ΔTw²> "
-                    f"{_fmt(r['twist_variance_exact_turns2'], '.4f')} (continuum {_fmt(r['twist_variance_continuum_turns2'], '.4f')});"
-                    f" K {_fmt(r['K_sampled_size'], '.0f')} at this size; {f['n_bp']} bp (exact twist + MC writhe): K "
-                    f"{_fmt(f['K'], '.0f')}+-{_fmt(f['K_err'], '.0f')} (measured K: "
-                    f"{'none read' if r.get('measured_K') is None else _fmt(r['measured_K'], '.0f')})",
-                    f"{r['z_tolerance']} SE + {100 * r['discrete_allowance_relative']:.0f}% (= {_fmt(r['tolerance'], '.4f')})")
+            f = r.get("full") or {}
+            h = r.get("harmonic") or {}
+            return (f"Var(Wr*) {_fmt(r['model_wr_star_var'], '.5f')}+-{_fmt(r['model_wr_star_var_err'], '.5f')} (Wr* = Lk -"
+                    f" step twist) vs worm-like ring MC {_fmt(r['reference_wr2'], '.5f')}+-{_fmt(r['reference_wr2_err'], '.5f')}"
+                    f" ({_fmt(r['reference_segment_nm'], '.2f')}-nm segments)"
+                    + (f", harmonic ring {_fmt(h['wr2'], '.5f')}+-{_fmt(h['wr2_err'], '.5f')}" if h else "")
+                    + f"; <ΔTw²> {_fmt(r['twist_variance_exact_turns2'], '.4f')} (continuum "
+                    f"{_fmt(r['twist_variance_continuum_turns2'], '.4f')}); K {_fmt(r['K_sampled_size'], '.0f')}+-"
+                    f"{_fmt(r['K_sampled_size_err'], '.0f')} at this size"
+                    + (f"; {f['n_bp']} bp (exact twist + MC writhe): K {_fmt(f['K'], '.0f')}+-{_fmt(f['K_err'], '.0f')}"
+                       if f else "")
+                    + f" (measured K: {'none read' if r.get('measured_K') is None else _fmt(r['measured_K'], '.0f')})",
+                    f"{r['z_tolerance']} SE + {100 * r['discrete_allowance_relative']:.0f}% (= {_fmt(r['tolerance'], '.5f')})")
     except (KeyError, TypeError, ValueError, IndexError):
         pass
     return "see results.json", "-"

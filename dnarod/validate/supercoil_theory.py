@@ -225,7 +225,7 @@ def gaussian_unconstrained_variance(var_constrained, var_other):
     return vc * vo / (vo - vc)
 
 
-def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default"):
+def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default", nonbonded=None):
     """A relaxed ``forcefield`` ring of ``n_bp`` nodes and the constants the ring checks compare with.
 
     Returns
@@ -233,18 +233,20 @@ def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default"):
     dict
         ``ff`` (the force field), ``ring`` (RodModel, ΔLk = 0), ``L`` (contour length, nm), ``A`` (the exact
         bending persistence length, nm), ``C`` (the bare torsional persistence length, nm) and ``d_eff`` (the
-        effective diameter of the model's WCA + Debye-Hückel pair energy at ``salt_M``, nm).
+        effective diameter of the model's WCA + Debye-Hückel pair energy at ``salt_M``, nm; ``nonbonded``: a dict
+        with ``charge`` and/or ``cutoff_debye`` for other terms than the defaults, as in the members' settings).
     """
     from ..forcefield import load_forcefield
-    from ..openmm.nonbonded import NonbondedSettings
+    from ..openmm.nonbonded import member_nonbonded
     from ..thermal import kT, persistence_length
     from .torsion import bare_twist_persistence
 
+    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt_M, **dict(nonbonded or {})))
     ff = load_forcefield(forcefield)
     ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
     return dict(ff=ff, ring=ring, L=ring.ds * n_bp, A=persistence_length(ring.params, ring.ds, kT(temperature)),
                 C=bare_twist_persistence(ff.model_from_sequence(n_nodes=4), temperature),
-                d_eff=effective_diameter(NonbondedSettings(salt=salt_M), ring.ds, temperature))
+                d_eff=effective_diameter(terms, ring.ds, temperature))
 
 
 def effective_diameter(nonbonded, ds, temperature, n_h=160, n_gamma=16, n_offset=3):
