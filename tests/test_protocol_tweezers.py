@@ -369,3 +369,27 @@ def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch)
     np.testing.assert_array_equal(load_pose(mem / "force_pN+2_turns+0.25" / "start_pose.npz")[1], F)
     for t, r in rows.items():
         assert r["lk_slips"] == 0 and abs(r["end_turns"] - t) < 0.05
+
+
+def test_member_keys_carry_the_non_bonded_terms(tmp_path):
+    """A member folder recorded with other non-bonded terms (charge model, cutoff) is not taken for a member with
+    the defaults: the terms are member settings, so they are part of each protocol's cache key."""
+    import json
+
+    from dnarod.errors import DnarodError
+    from dnarod.io_utils import jsonable
+    from dnarod.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE, member_nonbonded
+    from dnarod.protocols import nicked, rings, tweezers
+
+    for mod in (rings, nicked, tweezers):
+        s = mod._settings({})
+        assert (s["charge"], s["cutoff_debye"]) == (DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE), mod.__name__
+        nb = member_nonbonded(s)
+        assert (nb.charge, nb.cutoff_debye, nb.salt) == (DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE, 0.15)
+    old = rings._settings({"charge": "manning", "cutoff_debye": 5.0})
+    (tmp_path / "protocol_result.json").write_text(json.dumps({"settings": jsonable(old), "result": {"x": 1}}))
+    assert rings.cached_member(tmp_path, jsonable(old))[0] == {"x": 1}
+    assert rings.cached_member(tmp_path, jsonable(rings._settings({})))[0] is None
+    for bad in (dict(charge="bogus"), dict(charge=-1.0), dict(cutoff_debye=0.0)):
+        with pytest.raises(DnarodError):
+            member_nonbonded(rings._settings(bad))
