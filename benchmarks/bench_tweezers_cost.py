@@ -31,6 +31,30 @@ from pathlib import Path
 import numpy as np
 
 
+
+def _net_force_cost_us(forces, x, platform, repeats):
+    """CPU µs per evaluation of ``forces`` (put in group 1) on particles at ``x`` (n, 3) nm, net of an evaluation
+    of the empty group 0, on one thread of ``platform``."""
+    import openmm
+
+    s = openmm.System()
+    for _ in range(len(x)):
+        s.addParticle(1.0)
+    for f in forces:
+        f.setForceGroup(1)
+        s.addForce(f)
+    ctx = openmm.Context(s, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName(platform),
+                         {"Threads": "1"} if platform == "CPU" else {})
+    ctx.setPositions(x)
+    out = []
+    for g in ({0}, {1}):
+        ctx.getState(getForces=True, getEnergy=True, groups=g)
+        c0 = time.process_time()
+        for _ in range(repeats):
+            ctx.getState(getForces=True, getEnergy=True, groups=g)
+        out.append(1e6 * (time.process_time() - c0) / repeats)
+    return out[1] - out[0]
+
 def custom_force_costs(n_nodes, repeats):
     """CPU microseconds per evaluation of the reference walls' Custom forces alone (CPU platform, one thread) on a
     System of ``3 n_nodes`` particles, with 0, 1 and 3 particles per node (surface) and 0 and 1 bonds per node
@@ -42,22 +66,7 @@ def custom_force_costs(n_nodes, repeats):
     x = rng.normal(size=(n, 3))
 
     def cost(f):
-        s = openmm.System()
-        for _ in range(n):
-            s.addParticle(1.0)
-        f.setForceGroup(1)
-        s.addForce(f)
-        ctx = openmm.Context(s, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName("CPU"),
-                             {"Threads": "1"})
-        ctx.setPositions(x)
-        out = []
-        for g in ({0}, {1}):
-            ctx.getState(getForces=True, getEnergy=True, groups=g)
-            c0 = time.process_time()
-            for _ in range(repeats):
-                ctx.getState(getForces=True, getEnergy=True, groups=g)
-            out.append(1e6 * (time.process_time() - c0) / repeats)
-        return out[1] - out[0]
+        return _net_force_cost_us([f], x, "CPU", repeats)
 
     rows = []
     for per_node in (0, 1, 3):
@@ -93,23 +102,7 @@ def wall_form_costs(n_nodes, repeats):
             forces = {"Custom forces": lambda: wl.wall_forces_reference(n_nodes, 0.0, 100.0, 3),
                       "compiled WallForce": lambda: wl.wall_forces_compiled(n_nodes, 0.0, 100.0, 3),
                       "numba PythonForce": lambda: wl.wall_forces_numba(n_nodes, 0.0, 100.0, 3)}[form]()
-            s = openmm.System()
-            for _ in range(n):
-                s.addParticle(1.0)
-            for f in forces:
-                f.setForceGroup(1)
-                s.addForce(f)
-            ctx = openmm.Context(s, openmm.VerletIntegrator(0.001), openmm.Platform.getPlatformByName(plat),
-                                 {"Threads": "1"} if plat == "CPU" else {})
-            ctx.setPositions(x)
-            out = []
-            for g in ({0}, {1}):
-                ctx.getState(getForces=True, getEnergy=True, groups=g)
-                c0 = time.process_time()
-                for _ in range(repeats):
-                    ctx.getState(getForces=True, getEnergy=True, groups=g)
-                out.append(1e6 * (time.process_time() - c0) / repeats)
-            rows.append(dict(platform=plat, form=form, us_net=out[1] - out[0]))
+            rows.append(dict(platform=plat, form=form, us_net=_net_force_cost_us(forces, x, plat, repeats)))
     return rows
 
 

@@ -30,3 +30,35 @@ def random_chain(seed, n=8, ds=0.34, twist=0.6, circular=False):
 @pytest.fixture(params=[0, 1, 2, 3, 4])
 def chain(request):
     return random_chain(request.param)
+
+
+@pytest.fixture
+def plot_labels(monkeypatch):
+    """``draw(kind, rows, path) -> (legend labels, axes texts)``: a protocol curve drawn by
+    :func:`dnarod.protocols.curves.plot_curve`, with what its legend and text calls received."""
+    import matplotlib.axes
+
+    from dnarod.protocols.curves import plot_curve
+
+    labels, texts = [], []
+    orig_legend, orig_text = matplotlib.axes.Axes.legend, matplotlib.axes.Axes.text
+
+    def legend(self, *a, **k):
+        labels.extend(self.get_legend_handles_labels()[1])
+        return orig_legend(self, *a, **k)
+
+    def text(self, x, y, s, *a, **k):
+        texts.append(s)
+        return orig_text(self, x, y, s, *a, **k)
+
+    monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
+    monkeypatch.setattr(matplotlib.axes.Axes, "text", text)
+
+    def draw(kind, rows, path):
+        labels.clear()
+        texts.clear()
+        out = plot_curve(kind, rows, path)
+        assert out.stat().st_size > 5000
+        return list(labels), list(texts)
+
+    return draw

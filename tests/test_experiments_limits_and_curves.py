@@ -71,42 +71,25 @@ def _rows(kind):
                  contour_length_nm=101.66, n_bp=300, temperature_K=300.0, salt_M=0.15) for t in (-1.0, 0.0, 1.0)]
 
 
-def _labels_and_texts(monkeypatch, tmp_path, kind):
-    import matplotlib.axes
-
-    from dnarod.protocols.curves import plot_curve
-
-    labels, texts = [], []
-    orig_legend, orig_text = matplotlib.axes.Axes.legend, matplotlib.axes.Axes.text
-
-    def legend(self, *a, **k):
-        labels.extend(self.get_legend_handles_labels()[1])
-        return orig_legend(self, *a, **k)
-
-    def text(self, x, y, s, *a, **k):
-        texts.append(s)
-        return orig_text(self, x, y, s, *a, **k)
-
-    monkeypatch.setattr(matplotlib.axes.Axes, "legend", legend)
-    monkeypatch.setattr(matplotlib.axes.Axes, "text", text)
-    out = plot_curve(kind, _rows(kind), tmp_path / f"{kind}.png")
-    assert out.stat().st_size > 5000
+def _labels_and_texts(plot_labels, tmp_path, kind):
+    labels, texts = plot_labels(kind, _rows(kind), tmp_path / f"{kind}.png")
     return " | ".join(labels), texts
 
 
-def test_plots_draw_the_limits_and_curves(tmp_path, monkeypatch):
-    fe, _ = _labels_and_texts(monkeypatch, tmp_path, "force_extension")
+def test_plots_draw_the_limits_and_curves(tmp_path, plot_labels):
+    fe, _ = _labels_and_texts(plot_labels, tmp_path, "force_extension")
     assert "eWLC lp 50 nm, S 1000 pN drawn over lambda-DNA data at 100 mM Na+ (PMC33432 Fig. 2)" in fe
-    hat, texts = _labels_and_texts(monkeypatch, tmp_path, "magnetic_tweezers")
+    hat, texts = _labels_and_texts(plot_labels, tmp_path, "magnetic_tweezers")
     assert "x/L at 1 pN: eWLC lp 50 nm" in hat and any("no measured hat-curve points" in t for t in texts)
-    tt, texts = _labels_and_texts(monkeypatch, tmp_path, "torque_turns")
+    tt, texts = _labels_and_texts(plot_labels, tmp_path, "torque_turns")
     assert "B->P transition torque 34+-2 pN nm at 45 pN (Bryant et al. 2003; a limit of B-DNA, not buckling" in tt
     assert "unwinding transition torque ~-10 pN nm, force not stated (Kwon et al. 2015, quoted" in tt
     assert any("no measured buckling torque or post-buckling plateau" in t for t in texts)
     assert "measured buckling torque" not in tt
 
 
-def test_torque_plot_draws_a_buckling_torque_at_the_run_force_when_one_is_tabulated(tmp_path, monkeypatch):
+def test_torque_plot_draws_a_buckling_torque_at_the_run_force_when_one_is_tabulated(tmp_path, monkeypatch,
+                                                                                    plot_labels):
     real = ex.read_table
 
     def fake(name):
@@ -119,7 +102,7 @@ def test_torque_plot_draws_a_buckling_torque_at_the_run_force_when_one_is_tabula
         return rows
 
     monkeypatch.setattr(ex, "read_table", fake)
-    tt, texts = _labels_and_texts(monkeypatch, tmp_path, "torque_turns")
+    tt, texts = _labels_and_texts(plot_labels, tmp_path, "torque_turns")
     assert "measured buckling torque 20 pN nm at 1 pN, 150 mM (Test & Row 2001)" in tt
     assert "31 pN nm" not in tt  # measured at 3 pN, the run is at 1 pN
     assert not any("no measured buckling torque" in t for t in texts)

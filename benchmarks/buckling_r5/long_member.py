@@ -2,7 +2,7 @@
 python long_member.py OUT.npz TURNS TIME_NS SEED [grown] [n_bp] [force]"""
 import sys, time, os, json
 import numpy as np
-from dnarod.protocols.tweezers import build_member, _member_simulation, COLUMNS
+from dnarod.protocols.tweezers import COLUMNS, _member_simulation, build_member, grown_start
 from dnarod.protocols.measure import (clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open,
                                       twisting_moment)
 
@@ -17,11 +17,7 @@ if grown:
 m = build_member(s)
 t0, c0 = time.perf_counter(), time.process_time()
 if grown:
-    pre = build_member({**m["settings"], "force_pN": 0.3, "start_force_pN": None, "start_ns": None})
-    psim = _member_simulation(pre, pre["model"])
-    psim.advance(int(round(20000.0 / psim.dt)))
-    m = {**m, "model": m["model"].with_pose(*psim.node_pose())}
-    del psim
+    m = grown_start(m, 0.3, 20.0)
 model = m["model"]
 sim = _member_simulation(m, model)
 dt = sim.dt

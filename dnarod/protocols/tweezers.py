@@ -314,6 +314,16 @@ def _member_simulation(m, model):
 CHECKPOINT_WALL_S = 120.0
 
 
+def grown_start(m, force_pN, ns):
+    """The member ``m`` (from :func:`build_member`) started from a plectoneme grown for ``ns`` ns at the lower
+    force ``force_pN`` (pN; same turns and clamp target, so the same linking number): "from above", a bracket of
+    the equilibrium with the straight start."""
+    pre = build_member({**m["settings"], "force_pN": force_pN, "start_force_pN": None, "start_ns": None})
+    psim = _member_simulation(pre, pre["model"])
+    psim.advance(int(round(1000.0 * float(ns) / psim.dt)))
+    return {**m, "model": m["model"].with_pose(*psim.node_pose())}
+
+
 def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pose_out=None):
     """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs.
 
@@ -345,11 +355,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     resuming = checkpoint is not None and Path(checkpoint).exists()
     if s["start_force_pN"] is not None and s["start_ns"] and not resuming:
         # start "from above": a longer plectoneme grown at a lower force (same turns, same clamp target)
-        pre = build_member({**s, "force_pN": s["start_force_pN"], "start_force_pN": None, "start_ns": None})
-        psim = _member_simulation(pre, pre["model"])
-        psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
-        m = {**m, "model": m["model"].with_pose(*psim.node_pose())}
-        del psim
+        m = grown_start(m, s["start_force_pN"], s["start_ns"])
     model = m["model"]
     sim = _member_simulation(m, model)
     dt = sim.dt
