@@ -113,7 +113,9 @@ class Ensemble:
         differ only in their seed (replicas) share one check."""
         if hasattr(self.protocol, "execute") or not hasattr(self.protocol, "build"):
             return
-        seen = set()
+        from .protocol import build_runspec
+
+        seen, models = set(), {}
         for m in self.members:
             s = m.settings
             key = json.dumps({k: v for k, v in s.items() if k not in ("seed", "sequence_name")}, sort_keys=True,
@@ -122,7 +124,9 @@ class Ensemble:
                 continue
             seen.add(key)
             try:
-                spec = self.protocol.build(s)
+                # the default build loads each source once for all members (a sweep of one structure)
+                spec = (build_runspec(s, model_cache=models) if self.protocol.build is build_runspec
+                        else self.protocol.build(s))
                 if hasattr(spec, "check"):
                     spec.check()
             except SpecError:

@@ -47,13 +47,14 @@ def _loads_module():
         return importlib.import_module("dnarod.openmm.loads")
 
 
-def build_runspec(settings):
+def build_runspec(settings, model_cache=None):
     """The :class:`dnarod.run.RunSpec` of a member's settings (keys with units -> MD units).
 
     Loads: ``clamp_first`` -> ``Clamp(0)``; ``force_pN`` -> ``PullingForce`` on the last node
     along the initial end-to-end axis (and the opposite force on node 0 unless clamped);
     ``torque_pN_nm`` -> ``Torque`` on the last node about that axis; ``rotation_clamp_kJ_mol``
-    with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run.
+    with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run. ``model_cache`` (a
+    dict) keeps the models loaded for the loads, so checking many members of one source loads it once.
     """
     from ..inputs import load_model
     RunSpec, _ = _run_api()
@@ -61,8 +62,13 @@ def build_runspec(settings):
     loads = []
     force, torque, rclamp = s.get("force_pN", 0.0), s.get("torque_pN_nm", 0.0), s.get("rotation_clamp_kJ_mol")
     if s.get("clamp_first") or force or torque or rclamp is not None:
-        model = load_model(s["source"], s.get("forcefield", "dna-default"), s.get("circular", False),
-                           s.get("ring", False), s.get("delta_lk", 0))
+        key = (s["source"], s.get("forcefield", "dna-default"), bool(s.get("circular", False)),
+               bool(s.get("ring", False)), s.get("delta_lk", 0))
+        model = None if model_cache is None else model_cache.get(key)
+        if model is None:
+            model = load_model(*key)
+            if model_cache is not None:
+                model_cache[key] = model
         # the command line's set-up and checks (overstretching, a torque with no equilibrium, turns without
         # a clamp, loads on a closed ring): the same loads, in the same order, as before
         from ..run.setup import tweezers_loads
