@@ -12,6 +12,7 @@ Used by the protocol plots (:mod:`dnarod.protocols.curves`) and by the "vs exper
 from __future__ import annotations
 
 import csv
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,7 +26,9 @@ MISSING = {
     "force_extension_points": "the individual force-extension points of Wang et al. (1997) and Bouchiat et al. "
                               "(1999), Wang's fitted stretch modulus (the stored abstract breaks off at 'approximately "
                               "110...') and Bouchiat's fitted persistence length (only an extensible-WLC curve drawn "
-                              "over lambda-DNA data at 100 mM Na+ could be read, force_extension_curves.csv)",
+                              "over lambda-DNA data at 100 mM Na+ could be read, force_extension_curves.csv, and, "
+                              "secondary, the ranges of measured stretch moduli an MD study tabulates, "
+                              "elastic_constant_ranges.csv)",
     "buckling_torque": "buckling torques, post-buckling torque plateaus, buckling turns and extension-vs-turns slopes "
                        "past buckling of Mosconi et al. (2009), Forth et al. (2008), Lipfert et al. (2010/2011/2014), "
                        "Brutzer et al. (2010) and the magnetic-torque-tweezers data set of Data in Brief "
@@ -343,9 +346,7 @@ def topoisomer_variance_fit_reference():
     (``supercoiling.csv``; C = 3.0e-19 erg cm, a = 500 Angstrom; secondary to Horowitz & Wang, ionic conditions not
     stated). Returns ``{"torsional_rigidity": Measurement, "persistence_length": Measurement}`` (empty if absent).
     C / kT is the torsional persistence length at the caller's temperature."""
-    from ..units import AVOGADRO
-
-    erg_cm = 1e-9 * 1e9 * AVOGADRO / 1000.0  # 1 erg cm = 1e-9 J m = 1e-9 J * 1e9 nm, per molecule -> kJ/mol nm
+    erg_cm = _erg_cm_to_md()
     out = {}
     for r in read_table("supercoiling.csv"):
         if r["quantity"] == "torsional_rigidity_fit_to_topoisomer_variance":
@@ -408,4 +409,55 @@ def plectoneme_geometry_reference(quantity=None):
         unc = _f(r.get("uncertainty"))
         out.append(_m(r, r["quantity"], float(r["value"]) * f, unit, None if unc is None else unc * f,
                       salt_M=_f(r.get("salt_M")), approximate=r.get("approximate") == "yes"))
+    return out
+
+
+def _erg_cm_to_md():
+    """1 erg cm per molecule in kJ/mol nm (1e-9 J m = 1e-9 J * 1e9 nm, times Avogadro / 1000)."""
+    from ..units import AVOGADRO
+
+    return 1e-9 * 1e9 * AVOGADRO / 1000.0
+
+
+def cyclization_fit_reference():
+    """Worm-like-chain parameters fitted to measured cyclization j-factors of short DNA fragments
+    (``cyclization_fit.csv``; a figure caption on the PubMed page of PMID 15778443, title and authors not shown on the
+    page read): bending persistence length a = 48.5 nm, helical repeat 10.49 bp per turn and torsional rigidity
+    C = 2.4e-19 erg cm. No uncertainty, buffer, salt or temperature stated.
+
+    Returns ``{"persistence_length": Measurement (nm), "helical_repeat": Measurement (bp per turn),
+    "torsional_rigidity": Measurement (kJ/mol nm)}`` (empty if the table is absent). C / kT is the torsional
+    persistence length at the caller's temperature.
+    """
+    out = {}
+    for r in read_table("cyclization_fit.csv"):
+        q, v = r["quantity"], float(r["value"])
+        if q == "bending_persistence_fit_to_cyclization":
+            assert r["unit"] == "nm", r["unit"]
+            out["persistence_length"] = _m(r, q, v, "nm")
+        elif q == "helical_repeat_fit_to_cyclization":
+            assert r["unit"] == "bp per turn", r["unit"]
+            out["helical_repeat"] = _m(r, q, v, "bp per turn")
+        elif q == "torsional_rigidity_fit_to_cyclization":
+            assert r["unit"] == "erg cm", r["unit"]
+            out["torsional_rigidity"] = _m(r, q, v * _erg_cm_to_md(), "kJ/mol nm")
+    return out
+
+
+def elastic_constant_ranges(quantity=None):
+    """Ranges of measured DNA elastic constants tabulated by an MD study beside its own values (**secondary**:
+    PNAS 114:7049 (2017) Table 1, column "dsDNA (exp. work)", ``elastic_constant_ranges.csv``; the table's numbered
+    references were not resolved). Each Measurement has ``value`` (low end) and ``value_max`` (high end) in MD units:
+    ``"stretch_modulus_range"`` in kJ/mol/nm (two rows, both labelled "S, pN" in the stored table; the symbol that
+    distinguishes them is lost), ``"torsional_rigidity_range"`` in kJ/mol nm, ``"twist_stretch_coupling_range"`` as
+    g/kBT (dimensionless, unit ``"1"``). ``conditions`` carries the table's reference numbers. No uncertainty: a
+    range across experiments, for reporting, not for a pass/fail tolerance."""
+    scale = {"pN": (PN, "kJ/mol/nm"), "pN nm^2": (PN, "kJ/mol nm"), "g/kBT": (1.0, "1")}
+    out = []
+    for r in read_table("elastic_constant_ranges.csv"):
+        if quantity not in (None, r["quantity"]):
+            continue
+        f, unit = scale[r["unit"]]
+        m = _m(r, r["quantity"], float(r["value"]) * f, unit, value_max=float(r["value_max"]) * f)
+        out.append(dataclasses.replace(m, conditions=f"{m.conditions} (table refs {r['table_refs']})"))
     return out

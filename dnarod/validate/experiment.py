@@ -44,7 +44,12 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
    modulus and x/L at ``forces_pN`` beside the extensible-WLC curve (lp 50 nm, S 1000 pN) that a source draws over
    lambda-DNA data at 100 mM Na+ (PMC33432 Fig. 2; :func:`compare_force_extension_curve`), and the model's bare C
    beside the C = 3.0e-19 erg cm that Frank-Kamenetskii et al. (1985) fitted to Horowitz & Wang's topoisomer
-   variances (:func:`compare_topoisomer_fit`).
+   variances (:func:`compare_topoisomer_fit`); the model's lp, C and helical repeat beside the worm-like-chain
+   fit to measured cyclization j-factors (a = 48.5 nm, C = 2.4e-19 erg cm, 10.49 bp per turn; figure caption on the
+   PubMed page of PMID 15778443; :func:`compare_cyclization_fit`); and the model's S, kT C and g/kT placed inside or
+   outside the ranges of measured values that an MD study tabulates (**secondary**: PNAS 114:7049 (2017) Table 1;
+   two stretch-modulus rows 1450-1750 and 649-1401 pN whose distinguishing label is lost in the stored text,
+   C 386-448 pN nm^2, g/kT -39 to -17; :func:`compare_elastic_ranges`).
 
 Not compared, because no value could be read (:data:`dnarod.protocols.experiments.MISSING`): buckling torques
 and post-buckling plateaus, the supercoiling free-energy coefficient K, measured (knotting) effective diameters
@@ -163,6 +168,64 @@ def compare_topoisomer_fit(c_model_nm, temperature):
                 source=m.source, url=m.url)
 
 
+def compare_cyclization_fit(lp_model_nm, c_model_nm, repeat_model_bp, temperature):
+    """Model bending persistence length (nm), bare torsional persistence length C (nm) and helical repeat (bp per
+    turn) beside the worm-like-chain parameters fitted to measured cyclization j-factors
+    (:func:`dnarod.protocols.experiments.cyclization_fit_reference`; C / kT at ``temperature``, K), reported only
+    (the caption read states no uncertainty). Returns a dict or None when none is tabulated."""
+    from ..protocols import experiments as ex
+    from ..thermal import kT
+
+    ref = ex.cyclization_fit_reference()
+    if not {"persistence_length", "torsional_rigidity", "helical_repeat"} <= set(ref):
+        return None
+    a, c, h = ref["persistence_length"], ref["torsional_rigidity"], ref["helical_repeat"]
+    c_ref = c.value / kT(temperature)
+    return dict(model_persistence_length_nm=float(lp_model_nm), reference_persistence_length_nm=a.value,
+                persistence_length_ratio=float(lp_model_nm) / a.value, model_twist_persistence_nm=float(c_model_nm),
+                reference_twist_persistence_nm=float(c_ref), twist_persistence_ratio=float(c_model_nm) / c_ref,
+                conversion_temperature_K=temperature, model_helical_repeat_bp=float(repeat_model_bp),
+                reference_helical_repeat_bp=h.value, kind="reported (a fit to cyclization j-factors; no uncertainty, "
+                "buffer or salt stated)", source="PMID 15778443 (figure caption)", conditions=a.conditions, url=a.url)
+
+
+def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
+    """Model stretch modulus S (pN), bare torsional persistence length C (nm, compared as kT C with kT at
+    ``temperature``) and twist-stretch coupling g (pN nm, compared as g / kT) against the ranges of measured values
+    that PNAS 114:7049 (2017) Table 1 tabulates (**secondary**; :func:`dnarod.protocols.experiments.
+    elastic_constant_ranges`). Reported only: a range across experiments carries no uncertainty. Returns a list of
+    dicts (``quantity``, ``model``, ``low``, ``high``, ``unit``, ``inside``, ...) or None when none is tabulated."""
+    from ..protocols import experiments as ex
+    from ..thermal import kT
+    from ..units import PN
+
+    kt_pn = kT(temperature) / PN
+    model = {"stretch_modulus_range": (float(s_model_pN), 1.0 / PN, "pN"),
+             "torsional_rigidity_range": (float(c_model_nm) * kt_pn, 1.0 / PN, "pN nm^2"),
+             "twist_stretch_coupling_range": (float(g_model_pN_nm) / kt_pn, 1.0, "g/kBT")}
+    rows = []
+    for m in ex.elastic_constant_ranges():
+        v, f, unit = model[m.quantity]
+        lo, hi = m.value * f, m.value_max * f
+        rows.append(dict(quantity=m.quantity, model=v, low=float(lo), high=float(hi), unit=unit,
+                         inside=bool(lo <= v <= hi), conditions=m.conditions, source=ex.cite_short(m.source),
+                         url=m.url, kind="reported (secondary range across experiments; no uncertainty)"))
+    return rows or None
+
+
+def model_helix_constants(forcefield="dna-default"):
+    """``(helical repeat bp per turn, twist-stretch coupling g pN nm)`` of a uniform chain of ``forcefield``: the
+    repeat from the intrinsic twist rate, ``2 pi / theta0`` with ``theta0 = 2 atan(ds Omega0_3 / 2)`` (the Cayley
+    chart), and ``g = B33 / cos^2(theta0/2)`` (the inverse of the derivation in :mod:`dnarod.dna_default`)."""
+    from ..forcefield import load_forcefield
+    from ..units import PN
+
+    model = load_forcefield(forcefield).model_from_sequence(n_nodes=20)
+    th0 = 2.0 * np.arctan(0.5 * model.ds * model.params.intrinsic[0, 2])
+    g = model.params.stiffness[0][2, 5] / np.cos(0.5 * th0) ** 2 / PN
+    return float(2.0 * np.pi / th0), float(g)
+
+
 def model_elastic_constants(temperature, forcefield="dna-default"):
     """``(lp nm, C nm, S pN)`` of a uniform chain of ``forcefield`` at ``temperature`` K (exact values)."""
     from ..forcefield import load_forcefield
@@ -250,6 +313,9 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
     writhe = None if writhe_fraction_model is None else compare_writhe_fraction(*writhe_fraction_model)
     fe_curve = compare_force_extension_curve(lp, S, F, temperature)
     topo = compare_topoisomer_fit(C, temperature)
+    repeat, g_model = model_helix_constants(forcefield)
+    cyclization = compare_cyclization_fit(lp, C, repeat, temperature)
+    ranges = compare_elastic_ranges(S, C, g_model, temperature)
 
     not_compared = {k: f"no value could be read: {v}" for k, v in ex.MISSING.items()}
     if writhe is None:
@@ -270,7 +336,8 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                persistence_length_used_nm=lp, twist_persistence_used_nm=C, stretch_modulus_pN=S,
                bending=bending, effective_torsional_stiffness=torsion_rows, bare_torsional_stiffness=bare_res,
                writhe_fraction=writhe, effective_diameter=diameter, force_extension_curve=fe_curve,
-               topoisomer_fit=topo, model_effective_diameter_nm=d_model,
+               topoisomer_fit=topo, cyclization_fit=cyclization, elastic_constant_ranges=ranges,
+               model_helical_repeat_bp=repeat, model_twist_stretch_pN_nm=g_model, model_effective_diameter_nm=d_model,
                effective_diameter_gating=bool(gate_effective_diameter), disagreements=disagreements,
                z_tolerance=Z_TOL, theory_allowance_relative=THEORY_ALLOWANCE, writhe_rounding=WRITHE_ROUNDING,
                diameter_tolerance_nm=DIAMETER_PRECISION_NM + DIAMETER_QUADRATURE_NM, not_compared=not_compared,
@@ -281,7 +348,16 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                          f"lambda-DNA data at {1000 * fe_curve['salt_M']:g} mM (max |dx/L| "
                          f"{fe_curve['max_abs_difference']:.3f}); " if fe_curve else "")
                       + (f"C {C:.1f} nm vs {topo['reference_nm']:.1f} nm fitted to Horowitz-Wang topoisomer "
-                         f"variances (Frank-Kamenetskii et al. 1985, at {temperature:g} K)." if topo else ""),
+                         f"variances (Frank-Kamenetskii et al. 1985, at {temperature:g} K); " if topo else "")
+                      + (f"lp {lp:.1f} nm, C {C:.1f} nm, repeat {repeat:.2f} bp vs "
+                         f"{cyclization['reference_persistence_length_nm']:g} nm, "
+                         f"{cyclization['reference_twist_persistence_nm']:.1f} nm, "
+                         f"{cyclization['reference_helical_repeat_bp']:g} bp fitted to cyclization j-factors "
+                         f"(PMID 15778443); " if cyclization else "")
+                      + ("; ".join(f"{q['quantity'].replace('_range', '')} {q['model']:.4g} {q['unit']} "
+                                   f"{'inside' if q['inside'] else 'OUTSIDE'} the measured range "
+                                   f"{q['low']:.4g} to {q['high']:.4g} (secondary, {q['source']})"
+                                   for q in ranges) + "." if ranges else ""),
                       "Effective diameter: the reference is computed (Poisson-Boltzmann), not measured; the model's "
                       "Debye-Hueckel line charge is calibrated to it at 0.15 M (dnarod.openmm.nonbonded), so at "
                       "0.15 M this checks the calibration (" + ("gating" if gate_effective_diameter else "not gating")
