@@ -38,9 +38,10 @@ def test_model_helix_constants_are_the_dna_default_targets():
     from dnarod.dna_default import TARGETS
     from dnarod.validate.experiment import model_helix_constants
 
-    repeat, g = model_helix_constants()
+    repeat, g, ds = model_helix_constants()
     assert repeat == pytest.approx(TARGETS["bp_per_turn"], rel=1e-9)
     assert g == pytest.approx(TARGETS["twist_stretch_pN_nm"], rel=1e-9)
+    assert ds == pytest.approx(TARGETS["rise"], rel=1e-12)
 
 
 def test_reported_comparisons_use_the_numbers_read_and_follow_the_model():
@@ -76,6 +77,8 @@ def test_experiment_check_reports_the_round6_values(tmp_path):
     assert cyc["twist_persistence_ratio"] == pytest.approx(1.70, abs=0.01)  # model C 98.3 nm vs 57.9 nm
     assert [q["inside"] for q in r["elastic_constant_ranges"]] == [False, True, True, True]
     notes = " ".join(r["notes"])
+    assert r["horowitz_wang"]["NK_200bp_ratio"] == pytest.approx(1.46, abs=0.01)
+    assert "twist-only N K 5704 vs 3900 RT bp (200-bp rings)" in notes
     assert "fitted to cyclization j-factors (PMID 15778443)" in notes
     assert "stretch_modulus 1100 pN OUTSIDE the measured range 1450 to 1750" in notes
     # a wrong C moves only the reported numbers, not the verdict of the reported comparisons' rows
@@ -83,3 +86,35 @@ def test_experiment_check_reports_the_round6_values(tmp_path):
     assert not r2["passed"]  # gated elsewhere (bare C outside the measured values)
     assert r2["cyclization_fit"]["twist_persistence_ratio"] == pytest.approx(150.0 / 57.94, rel=1e-3)
     assert not r2["elastic_constant_ranges"][2]["inside"]
+
+
+def test_horowitz_wang_abstract_read_as_stated():
+    # "For DNA rings with length N larger than 2000 bp, K is inversely proportional to N and the product NK is nearly a
+    # constant around 1150 RT X bp. ... for a 200 bp ring NK is 3900 RT X bp. ... the torsional rigidity of the DNA
+    # double helix is calculated to be 2.9 X 10(-19) erg cm. ... For the 210 bp rings, the repeat is measured to be
+    # 10.54 bp."
+    (k,) = ex.supercoiling_free_energy_reference()
+    assert (k.value, k.unit, k.uncertainty, k.approximate) == (1150.0, "1", None, True)
+    assert ex.cite_short(k.source) == "Horowitz & Wang 1984" and "6321743" in k.url
+    hw = ex.horowitz_wang_reference()
+    assert hw["NK_200bp"].value == 3900.0 and hw["helical_repeat_210bp"].value == 10.54
+    assert hw["torsional_rigidity"].value == pytest.approx(2.9e-19 * 1e-7 * 1e-2 * 1e9 * AVOGADRO / 1000.0, rel=1e-12)
+    assert hw["torsional_rigidity"].value == pytest.approx(290.0 * PN, rel=1e-12)
+    # Shurdov & Gruzdev 1989: K "more than doubled" from 0.3 M to 0.01 M NaCl (a lower bound), beside Rybenkov 1997
+    assert [m.value for m in ex.supercoiling_free_energy_ionic_variation()] == [1.5, 2.0]
+
+
+def test_horowitz_wang_comparison_reports_the_model_beside_the_abstract():
+    from dnarod.thermal import kT
+    from dnarod.validate.experiment import compare_horowitz_wang
+
+    r = compare_horowitz_wang(98.25, 0.34, 10.5, 300.0)
+    assert r["reference_twist_persistence_nm"] == pytest.approx(290.0 * PN / kT(300.0), rel=1e-12)  # 70.0 nm
+    # twist-only N K = N / (2 <dTw^2>) with <dTw^2> = L / (4 pi^2 C): 2 pi^2 C / ds
+    assert r["model_NK_twist_only_bp"] == pytest.approx(2 * 3.141592653589793 ** 2 * 98.25 / 0.34, rel=1e-12)
+    assert r["reference_NK_200bp"] == 3900.0 and r["reference_NK_long_rings"] == 1150.0
+    assert r["NK_200bp_ratio"] == pytest.approx(5704.2 / 3900.0, rel=1e-4)
+    assert (r["model_helical_repeat_bp"], r["reference_helical_repeat_bp"]) == (10.5, 10.54)
+    # follows the model: the C that would give 3900 RT bp twist-only
+    c_match = 3900.0 * 0.34 / (2 * 3.141592653589793 ** 2)
+    assert compare_horowitz_wang(c_match, 0.34, 10.5, 300.0)["NK_200bp_ratio"] == pytest.approx(1.0, rel=1e-12)

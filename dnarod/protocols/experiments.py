@@ -37,10 +37,11 @@ MISSING = {
     "writhe_fraction": "the measured writhe fraction of Boles, White & Cozzarelli (1990) and Vologodskii et al. with "
                        "its superhelical density and uncertainty (only a review's 'usually ~70%' could be read, "
                        "ring_writhe_fraction.csv)",
-    "supercoiling_free_energy": "the Depew-Wang (1975) / Horowitz-Wang (1984) coefficient K of "
-                                "dG = (K R T / N) dLk^2 (only Rybenkov et al. 1997's 'changed >1.5-fold' with "
-                                "ionic conditions and Frank-Kamenetskii et al. 1985's fit C = 3.0e-19 erg cm, "
-                                "a = 500 A to Horowitz-Wang's <dLk^2> could be read, supercoiling.csv)",
+    "supercoiling_free_energy": "Depew & Wang's (1975) own value of the coefficient K of dG = (K R T / N) dLk^2 and "
+                                "an uncertainty and ionic conditions for K (Horowitz & Wang 1984's abstract gives "
+                                "N K 'nearly a constant around 1150 RT x bp' above 2000 bp without them, "
+                                "supercoiling.csv; Rybenkov et al. 1997 and Shurdov & Gruzdev 1989 give only lower "
+                                "bounds on its change with salt)",
     "effective_diameter": "the measured (knotting) effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
                           "and Shaw & Wang (1993) and Stigter's (1977) values vs salt (searched again in round 5; "
                           "only the computed Poisson-Boltzmann second-virial diameter of Gebe et al. 1995, 5 nm at "
@@ -334,10 +335,37 @@ def writhe_variance_reference():
 
 
 def supercoiling_free_energy_reference():
-    """The Depew-Wang / Horowitz-Wang coefficient K (``supercoiling.csv`` rows ``supercoiling_free_energy_K``):
-    empty, no value could be read (:data:`MISSING`)."""
-    return [_m(r, r["quantity"], r["value"], "1") for r in read_table("supercoiling.csv")
-            if r["quantity"] == "supercoiling_free_energy_K"]
+    """The coefficient K of ``dG = (K RT / N) dLk^2`` of long rings (``supercoiling.csv`` rows
+    ``supercoiling_free_energy_K``; dimensionless, unit ``"1"``, i.e. ``N K`` of ``dG = K dLk^2`` in RT bp): Horowitz
+    & Wang (1984, abstract): for rings longer than 2000 bp "the product NK is nearly a constant around 1150 RT x bp"
+    (``approximate``; no uncertainty, ionic conditions or temperature stated). Depew & Wang's (1975) own value could
+    not be read (:data:`MISSING`)."""
+    out = []
+    for r in read_table("supercoiling.csv"):
+        if r["quantity"] == "supercoiling_free_energy_K":
+            assert r["unit"] == "RT bp", r["unit"]
+            out.append(_m(r, r["quantity"], r["value"], "1", approximate=r.get("approximate") == "yes"))
+    return out
+
+
+def horowitz_wang_reference():
+    """The other numbers of the Horowitz & Wang (1984) abstract (``supercoiling.csv``): ``"NK_200bp"``, N K of a
+    200-bp ring in RT bp (3900; unit ``"1"``), ``"torsional_rigidity"`` (kJ/mol nm; 2.9e-19 erg cm, computed by the
+    authors assuming the writhe contribution vanishes at 200 bp) and ``"helical_repeat_210bp"`` (10.54 bp per turn,
+    measured on 210-bp rings). Empty dict if absent. No uncertainty or ionic conditions stated."""
+    out = {}
+    for r in read_table("supercoiling.csv"):
+        q = r["quantity"]
+        if q == "supercoiling_free_energy_NK_200bp":
+            assert r["unit"] == "RT bp", r["unit"]
+            out["NK_200bp"] = _m(r, q, r["value"], "1")
+        elif q == "torsional_rigidity_from_small_ring_topoisomers":
+            assert r["unit"] == "erg cm", r["unit"]
+            out["torsional_rigidity"] = _m(r, q, float(r["value"]) * _erg_cm_to_md(), "kJ/mol nm")
+        elif q == "helical_repeat_210bp_rings":
+            assert r["unit"] == "bp per turn", r["unit"]
+            out["helical_repeat_210bp"] = _m(r, q, r["value"], "bp per turn")
+    return out
 
 
 def topoisomer_variance_fit_reference():

@@ -49,11 +49,14 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
    PubMed page of PMID 15778443; :func:`compare_cyclization_fit`); and the model's S, kT C and g/kT placed inside or
    outside the ranges of measured values that an MD study tabulates (**secondary**: PNAS 114:7049 (2017) Table 1;
    two stretch-modulus rows 1450-1750 and 649-1401 pN whose distinguishing label is lost in the stored text,
-   C 386-448 pN nm^2, g/kT -39 to -17; :func:`compare_elastic_ranges`).
+   C 386-448 pN nm^2, g/kT -39 to -17; :func:`compare_elastic_ranges`); and the model's C, twist-only N K and
+   helical repeat beside the Horowitz & Wang (1984) abstract (2.9e-19 erg cm; N K = 3900 RT bp for 200-bp rings,
+   whose writhe they take as vanishing; 10.54 bp for 210-bp rings; :func:`compare_horowitz_wang`). Their N K ~ 1150
+   RT bp of rings longer than 2000 bp is quoted by check ``nicked_ring`` beside the model's K at 3000 bp.
 
 Not compared, because no value could be read (:data:`dnarod.protocols.experiments.MISSING`): buckling torques
-and post-buckling plateaus, the supercoiling free-energy coefficient K, measured (knotting) effective diameters
-and the primary writhe-fraction measurements. ``lp_override`` / ``c_override`` / ``d_override`` replace the
+and post-buckling plateaus, Depew & Wang's own K and an uncertainty or ionic conditions for K, measured (knotting)
+effective diameters and the primary writhe-fraction measurements. ``lp_override`` / ``c_override`` / ``d_override`` replace the
 model's values (the tests show the check failing with wrong ones).
 """
 from __future__ import annotations
@@ -189,6 +192,35 @@ def compare_cyclization_fit(lp_model_nm, c_model_nm, repeat_model_bp, temperatur
                 "buffer or salt stated)", source="PMID 15778443 (figure caption)", conditions=a.conditions, url=a.url)
 
 
+def compare_horowitz_wang(c_model_nm, ds_nm, repeat_model_bp, temperature):
+    """The model beside the Horowitz & Wang (1984) abstract (:func:`dnarod.protocols.experiments.
+    horowitz_wang_reference`, :func:`~dnarod.protocols.experiments.supercoiling_free_energy_reference`), reported
+    only (no uncertainty stated): bare C (nm) vs their 2.9e-19 erg cm / kT; the twist-only ``N K = N / (2
+    <dTw^2>) = 2 pi^2 C / ds`` (bp; continuum twist variance ``L / (4 pi^2 C)``, exact for the uniform chain to the
+    Cayley-angle correction) vs their N K = 3900 RT bp of 200-bp rings, where they take the writhe contribution as
+    vanishing (so the twist-only value is the like-for-like one); the helical repeat vs their 10.54 bp of 210-bp
+    rings. The long-ring N K ~ 1150 needs the writhe variance and is compared by check ``nicked_ring`` (model K at
+    ``full_n_bp``). Returns a dict or None when nothing is tabulated."""
+    from ..protocols import experiments as ex
+    from ..thermal import kT
+
+    hw = ex.horowitz_wang_reference()
+    if not {"NK_200bp", "torsional_rigidity", "helical_repeat_210bp"} <= set(hw):
+        return None
+    c_ref = hw["torsional_rigidity"].value / kT(temperature)
+    nk_twist = 2.0 * np.pi ** 2 * float(c_model_nm) / float(ds_nm)
+    long = ex.supercoiling_free_energy_reference()
+    return dict(model_twist_persistence_nm=float(c_model_nm), reference_twist_persistence_nm=float(c_ref),
+                twist_persistence_ratio=float(c_model_nm) / c_ref, conversion_temperature_K=temperature,
+                model_NK_twist_only_bp=nk_twist, reference_NK_200bp=hw["NK_200bp"].value,
+                NK_200bp_ratio=nk_twist / hw["NK_200bp"].value,
+                model_helical_repeat_bp=float(repeat_model_bp),
+                reference_helical_repeat_bp=hw["helical_repeat_210bp"].value,
+                reference_NK_long_rings=long[0].value if long else None,
+                kind="reported (abstract values, no uncertainty or ionic conditions stated)",
+                source=ex.cite_short(hw["NK_200bp"].source), url=hw["NK_200bp"].url)
+
+
 def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
     """Model stretch modulus S (pN), bare torsional persistence length C (nm, compared as kT C with kT at
     ``temperature``) and twist-stretch coupling g (pN nm, compared as g / kT) against the ranges of measured values
@@ -214,7 +246,8 @@ def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
 
 
 def model_helix_constants(forcefield="dna-default"):
-    """``(helical repeat bp per turn, twist-stretch coupling g pN nm)`` of a uniform chain of ``forcefield``: the
+    """``(helical repeat bp per turn, twist-stretch coupling g pN nm, rise ds nm)`` of a uniform chain of
+    ``forcefield``: the
     repeat from the intrinsic twist rate, ``2 pi / theta0`` with ``theta0 = 2 atan(ds Omega0_3 / 2)`` (the Cayley
     chart), and ``g = B33 / cos^2(theta0/2)`` (the inverse of the derivation in :mod:`dnarod.dna_default`)."""
     from ..forcefield import load_forcefield
@@ -223,7 +256,7 @@ def model_helix_constants(forcefield="dna-default"):
     model = load_forcefield(forcefield).model_from_sequence(n_nodes=20)
     th0 = 2.0 * np.arctan(0.5 * model.ds * model.params.intrinsic[0, 2])
     g = model.params.stiffness[0][2, 5] / np.cos(0.5 * th0) ** 2 / PN
-    return float(2.0 * np.pi / th0), float(g)
+    return float(2.0 * np.pi / th0), float(g), float(model.ds)
 
 
 def model_elastic_constants(temperature, forcefield="dna-default"):
@@ -313,9 +346,10 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
     writhe = None if writhe_fraction_model is None else compare_writhe_fraction(*writhe_fraction_model)
     fe_curve = compare_force_extension_curve(lp, S, F, temperature)
     topo = compare_topoisomer_fit(C, temperature)
-    repeat, g_model = model_helix_constants(forcefield)
+    repeat, g_model, ds_model = model_helix_constants(forcefield)
     cyclization = compare_cyclization_fit(lp, C, repeat, temperature)
     ranges = compare_elastic_ranges(S, C, g_model, temperature)
+    hw = compare_horowitz_wang(C, ds_model, repeat, temperature)
 
     not_compared = {k: f"no value could be read: {v}" for k, v in ex.MISSING.items()}
     if writhe is None:
@@ -336,7 +370,7 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                persistence_length_used_nm=lp, twist_persistence_used_nm=C, stretch_modulus_pN=S,
                bending=bending, effective_torsional_stiffness=torsion_rows, bare_torsional_stiffness=bare_res,
                writhe_fraction=writhe, effective_diameter=diameter, force_extension_curve=fe_curve,
-               topoisomer_fit=topo, cyclization_fit=cyclization, elastic_constant_ranges=ranges,
+               topoisomer_fit=topo, cyclization_fit=cyclization, elastic_constant_ranges=ranges, horowitz_wang=hw,
                model_helical_repeat_bp=repeat, model_twist_stretch_pN_nm=g_model, model_effective_diameter_nm=d_model,
                effective_diameter_gating=bool(gate_effective_diameter), disagreements=disagreements,
                z_tolerance=Z_TOL, theory_allowance_relative=THEORY_ALLOWANCE, writhe_rounding=WRITHE_ROUNDING,
@@ -354,6 +388,11 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                          f"{cyclization['reference_twist_persistence_nm']:.1f} nm, "
                          f"{cyclization['reference_helical_repeat_bp']:g} bp fitted to cyclization j-factors "
                          f"(PMID 15778443); " if cyclization else "")
+                      + (f"C {C:.1f} nm vs {hw['reference_twist_persistence_nm']:.1f} nm, twist-only N K "
+                         f"{hw['model_NK_twist_only_bp']:.0f} vs {hw['reference_NK_200bp']:g} RT bp (200-bp rings), "
+                         f"repeat {repeat:.2f} vs {hw['reference_helical_repeat_bp']:g} bp (210-bp rings) "
+                         f"(Horowitz & Wang 1984; their N K ~ {hw['reference_NK_long_rings']:g} RT bp above 2000 bp is "
+                         f"compared by check nicked_ring); " if hw else "")
                       + ("; ".join(f"{q['quantity'].replace('_range', '')} {q['model']:.4g} {q['unit']} "
                                    f"{'inside' if q['inside'] else 'OUTSIDE'} the measured range "
                                    f"{q['low']:.4g} to {q['high']:.4g} (secondary, {q['source']})"

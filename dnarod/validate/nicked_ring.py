@@ -30,8 +30,8 @@ Monte Carlo. It is still reported (``model_wr2_axis``).
 
 The free energy coefficient K is reported at the sampled size (model) and, from the exact twist part and the
 reference writhe, at ``full_n_bp`` (default 3000 bp), beside the measured Depew-Wang / Horowitz-Wang K when one
-is tabulated (:func:`dnarod.protocols.experiments.supercoiling_free_energy_reference`; none could be read, so
-``measured_K`` is None and no K is quoted). ``a_override`` gives the reference a wrong persistence length (the
+is tabulated (:func:`dnarod.protocols.experiments.supercoiling_free_energy_reference`: Horowitz & Wang's (1984)
+N K "nearly a constant around 1150 RT x bp" for rings longer than 2000 bp; ``measured_K`` is None when none is). ``a_override`` gives the reference a wrong persistence length (the
 tests show the check failing).
 """
 from __future__ import annotations
@@ -114,7 +114,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                     segment_nm=mcf["segment_nm"])
     from ..protocols import experiments as ex
 
-    measured = ex.supercoiling_free_energy_reference()  # empty: no K could be read (experiments.MISSING)
+    measured = ex.supercoiling_free_energy_reference()  # Horowitz & Wang 1984: N K ~ 1150 RT bp above 2000 bp
     measured_K = measured[0].value if measured else None
     measured_K_source = (ex.cite_short(measured[0].source) if measured
                          else "none read: " + ex.MISSING["supercoiling_free_energy"])
