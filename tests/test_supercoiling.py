@@ -307,6 +307,11 @@ def test_plectonemes_check_with_a_recorded_ring(tmp_path):
     assert abs(good["hard_core_minus_reference"]) < 4 * good["hard_core_minus_reference_err"]
     w = good["vs_experiment"]  # against the "usually ~70%" read (reported; gating in check experiment)
     assert w["measured"] == 0.7 and w["model"] == pytest.approx(good["model_writhe_fraction"]) and w["passed"]
+    from dnarod.validate.report import headline
+
+    measured, tolerance = headline("plectonemes", good)
+    assert "pair energy: calibrated 3.01 e/bp" in measured and "hard core d_eff 5.00 nm" in measured, measured
+    assert tolerance.startswith("3.0 SE (= "), tolerance
     for kw in (dict(c_override=0.5 * good["twist_persistence_nm"]),
                dict(a_override=2.0 * good["persistence_length_nm"])):
         bad = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800, hard_core=False,
