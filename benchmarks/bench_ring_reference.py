@@ -66,8 +66,8 @@ def main():
                        tau_samples=tau, acceptance=r["acceptance"], cpu_s=time.process_time() - c0,
                        wall_s=time.perf_counter() - t0)
             rows.append(row)
-            print(f"{n_bp:4d} bp  {label:44s} {f:.3f} ± {se:.3f}  CPU {row['cpu_s']:6.1f} s  wall {row['wall_s']:6.1f} s",
-                  flush=True)
+            print(f"{n_bp:4d} bp  {label:44s} {f:.3f} ± {se:.3f}  CPU {row['cpu_s']:6.1f} s  "
+                  f"wall {row['wall_s']:6.1f} s", flush=True)
     H.write_results(args.json, "bench_ring_reference", rows=rows,
                     note="first reference of a process includes numba compilation")
 

@@ -203,13 +203,14 @@ def check_cutoff_holds_contact(nb, temperature):
     if nb.cutoff_debye * lam <= contact:
         raise ParameterError(f"cutoff_debye {nb.cutoff_debye:g}: {nb.cutoff_debye:g} Debye lengths are "
                              f"{nb.cutoff_debye * lam:.2f} nm at {nb.salt:g} M, inside the {contact:.2f}-nm contact "
-                             f"of the excluded-volume core, so the electrostatics would never act; give more than "
+                             f"of the excluded-volume core, so the electrostatics would act only where the cores "
+                             f"already repel; give more than "
                              f"{contact / lam:.2f} (default {DEFAULT_CUTOFF_DEBYE:g})")
 
 
 def debye_length(salt_M, temperature, dielectric=78.5):
-    """Debye length (nm) of monovalent salt ``salt_M`` (mol/L) at ``temperature`` (K), as :meth:`NonbondedSettings.resolve`
-    computes it."""
+    """Debye length (nm) of monovalent salt ``salt_M`` (mol/L) at ``temperature`` (K), as
+    :meth:`NonbondedSettings.resolve` computes it."""
     lB = ONE_4PI_EPS0 / (dielectric * kT_of(temperature))
     return 1.0 / math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * salt_M)
 
