@@ -339,8 +339,8 @@ def compare_fingerprints(old, new, where):
             and "charge_model" not in nb_old and "charge_model" in nb_new):
         raise ParameterError(f"cannot resume: {where} does not record the non-bonded charge it ran with (written "
                              f"before runs recorded it; the default was Manning's 0.48 e/bp with a 5-Debye-length "
-                             f"cutoff until 2026-12-02, the calibrated 3.01 e/bp with 12 since), so continuing could "
-                             f"mix two models; start a new run (-o NEWDIR, or --overwrite)")
+                             f"cutoff until 2026-12-02, the calibrated charge (3.01 e/bp at 0.15 M) with 12 since), "
+                             f"so continuing could mix two models; start a new run (-o NEWDIR, or --overwrite)")
     for key in list(old) + [k for k in new if k not in old]:
         a, b = old.get(key), new.get(key)
         if not _same(a, b):
