@@ -39,6 +39,7 @@ calibrated charge (400 bp, ΔLk -1.923: 0.650 ± 0.007 at 5.00 nm, 0.746 ± 0.01
 passed the quick form. The mapping itself is good to ~0.015 (soft vs hard core at d_eff: 0.657 ± 0.009 vs
 0.650 ± 0.007 at 400 bp, 0.710 ± 0.003 vs 0.707 ± 0.004 at 600 bp; ``benchmarks/bench_ring_reference.py``).
 
+Full form: 0.712 ± 0.006 vs 0.711 ± 0.003, tolerance 0.021, passed (hard core at d_eff 0.700 ± 0.005).
 ``c_override`` and ``a_override`` give the reference wrong parameters (the tests show the check failing). Quick
 form on the recorded 400-bp ring (1500 MC samples): 0.627 ± 0.025 vs 0.664 ± 0.011, tolerance 0.082, passed; with
 C halved the reference reads 0.489 (0.138 away, tolerance 0.078: fails), with A doubled 0.511, with C x 0.3 0.238.
