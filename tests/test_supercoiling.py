@@ -257,21 +257,66 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
     assert not bad["marko"]["passed"] and not bad["passed"]
 
 
+def test_soft_pair_energy_of_the_ring_reference():
+    """The MC's soft pair energy between moved and unmoved segments equals the model's pair energy summed over
+    the same site pairs (numpy, :func:`dnarod.openmm.nonbonded.pair_energy`), exclusions included."""
+    from dnarod.openmm.nonbonded import member_nonbonded, pair_energy
+    from dnarod.thermal import kT
+    from dnarod.validate import wlc_ring_mc as mc
+
+    mc.sample_ring_writhe(68.0, 50.0, 2.0, n_samples=2, equilibration_sweeps=1, seed=0)  # compiles the kernels
+    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15))
+    nbp = mc.pair_parameters(terms, 0.34, 300.0, 3.4)
+    numbers = terms.resolve(0.34, 300.0)
+    assert nbp[6] == 10 and nbp[7] == numbers["n_exclude"] == 28
+    M, n = 40, 10
+    t = 2 * np.pi * np.arange(M) / M  # a narrow ellipse: the two long sides 3.6-5 nm apart interact
+    P = np.stack([34.0 * np.cos(t), 2.5 * np.sin(t) + 0.4 * np.cos(3 * t), 0.3 * np.sin(2 * t)], 1)
+    sites = (P[:, None, :] + (np.arange(n)[None, :, None] / n) * (np.roll(P, -1, 0) - P)[:, None, :]).reshape(-1, 3)
+    N = M * n
+    for i, length in ((3, 7), (30, 15), (0, 20)):
+        moved = np.array([((i + m) % M) * n + s for m in range(length) for s in range(n)])
+        other = np.setdiff1d(np.arange(N), moved)
+        d = np.abs(moved[:, None] - other[None, :])
+        keep = np.minimum(d, N - d) > numbers["n_exclude"]
+        r = np.linalg.norm(sites[moved][:, None, :] - sites[other][None, :, :], axis=2)
+        want = float(np.sum(np.where(keep, pair_energy(r, numbers), 0.0))) / kT(300.0)
+        assert want > 1.0  # the test configuration does interact
+        assert mc._CROSS(P, i, length, nbp) == pytest.approx(want, rel=1e-10)
+
+
 def test_plectonemes_check_with_a_recorded_ring(tmp_path):
+    """400 bp, recorded 3-ns ring (calibrated charge): passes with the model's parameters, fails with C halved.
+
+    The reference has the model's own pair energy, so the tolerance is 3 combined SE and nothing more (it was 3 SE
+    + 0.10 with a hard-core reference and its WCA-core variant as the diameter allowance, inside which C halved
+    passed).
+    """
     from dnarod.validate.plectonemes import check_plectonemes
 
     root = _recorded(tmp_path, "plectonemes_400bp")
     good = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800)
     assert good["passed"], good
+    assert good["model_production_ns"] == pytest.approx(3.0, rel=0.01)  # the recorded member was reused
+    assert good["tolerance"] == pytest.approx(3.0 * good["standard_error"]) and good["tolerance"] < 0.1
+    nb = good["nonbonded"]  # the terms the reference used are the model's
+    assert nb["charge_model"] == "calibrated" and nb["cutoff_debye"] == pytest.approx(12.0)
+    assert nb["charge_e_per_node"] == pytest.approx(3.01, abs=0.01)
+    # the hard-core ring at the model's effective diameter (reported) agrees with the soft reference
+    assert good["effective_diameter_nm"] == pytest.approx(5.0, abs=0.01)
+    assert abs(good["hard_core_minus_reference"]) < 4 * good["hard_core_minus_reference_err"]
     w = good["vs_experiment"]  # against the "usually ~70%" read (reported; gating in check experiment)
     assert w["measured"] == 0.7 and w["model"] == pytest.approx(good["model_writhe_fraction"]) and w["passed"]
-    # The check's diameter allowance (reference with the model's effective diameter vs with its WCA core alone) is
-    # ~0.10 with the calibrated charge (5.0 vs 2.13 nm; it was ~0.006 with Manning's charge, 2.31 nm), so C halved
-    # (reference 0.45 vs model 0.63, tolerance 0.23) no longer fails the quick form; C x 0.3 and A doubled do.
-    for kw in (dict(c_override=0.3 * good["twist_persistence_nm"]),
+    from dnarod.validate.report import headline
+
+    measured, tolerance = headline("plectonemes", good)
+    assert "pair energy: calibrated 3.01 e/bp" in measured and "hard core d_eff 5.00 nm" in measured, measured
+    assert tolerance.startswith("3.0 SE (= "), tolerance
+    for kw in (dict(c_override=0.5 * good["twist_persistence_nm"]),
                dict(a_override=2.0 * good["persistence_length_nm"])):
-        bad = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800, **kw)
-        assert not bad["passed"], kw
+        bad = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800, hard_core=False,
+                                **kw)
+        assert not bad["passed"], (kw, bad["model_writhe_fraction"], bad["reference_writhe_fraction"], bad["tolerance"])
 
 
 #: the recorded 200-bp member's settings (tests/data/supercoil/nicked_200bp, written by the check itself)

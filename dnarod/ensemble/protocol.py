@@ -79,7 +79,8 @@ def build_runspec(settings, model_cache=None):
               time_ns=s.get("time_ns", 1.0), temperature=s.get("temperature_K", 300.0),
               friction=s.get("friction_per_ps", 1.0), dt=s.get("dt_ps"), seed=s.get("seed"), loads=tuple(loads),
               salt=s.get("salt_M", 0.15), excluded_volume=s.get("excluded_volume", True),
-              electrostatics=s.get("electrostatics", True), platform=s.get("platform"),
+              electrostatics=s.get("electrostatics", True), charge=s.get("charge"),
+              cutoff_debye=s.get("cutoff_debye"), platform=s.get("platform"),
               circular=s.get("circular", False), ring=s.get("ring", False), delta_lk=s.get("delta_lk", 0),
               start=s.get("start", "intrinsic"), frame_interval_ps=s.get("frame_interval_ps", 1.0),
               velocities=s.get("velocities", False), export=s.get("export", False))

@@ -45,6 +45,9 @@ RUN_KEYS = {k.name: k for k in [
     Key("salt_M", float, 0.15, "monovalent salt, mol/L (Debye length)", ">0"),
     Key("excluded_volume", bool, True, "WCA excluded volume between non-neighbouring nodes"),
     Key("electrostatics", bool, True, "Debye-Hueckel electrostatics"),
+    Key("charge", str, "calibrated", "non-bonded charge model: calibrated (Poisson-Boltzmann far-field charge, "
+        "effective diameter 5.0 nm at 0.15 M) or manning (0.48 e/bp)", "calibrated|manning"),
+    Key("cutoff_debye", float, 12.0, "Debye-Hueckel cutoff, Debye lengths", ">0"),
     Key("circular", bool, False, "periodic chain (screw-closed helix)"),
     Key("ring", bool, False, "closed planar ring"),
     Key("delta_lk", int, 0, "with ring: linking number relative to the relaxed ring"),

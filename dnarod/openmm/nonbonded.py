@@ -185,7 +185,64 @@ def member_nonbonded(settings):
                  nb.dielectric)
     if not (np.isfinite(nb.cutoff_debye) and nb.cutoff_debye > 0):
         raise ParameterError(f"cutoff_debye must be a positive number of Debye lengths, got {nb.cutoff_debye}")
+    check_cutoff_holds_contact(nb, float(settings.get("temperature_K", CALIBRATION["temperature_K"])))
     return nb
+
+
+def check_cutoff_holds_contact(nb, temperature):
+    """Refuse (:class:`ParameterError`, one line) a Debye-Hueckel cutoff that ends inside the excluded-volume
+    contact (the WCA range ``2^(1/6) sigma``, 2.24 nm by default): the screened repulsion would then act only where
+    the cores already overlap, i.e. never. ``nb``: :class:`NonbondedSettings`; ``temperature`` K."""
+    if not (nb.electrostatics and nb.excluded_volume):
+        return
+    if not (np.isfinite(nb.salt) and nb.salt > 0 and np.isfinite(nb.dielectric) and nb.dielectric > 0
+            and temperature > 0):
+        return  # resolve() names these
+    lam = debye_length(nb.salt, temperature, nb.dielectric)
+    contact = 2 ** (1 / 6) * float(nb.diameter)
+    if nb.cutoff_debye * lam <= contact:
+        raise ParameterError(f"cutoff_debye {nb.cutoff_debye:g}: {nb.cutoff_debye:g} Debye lengths are "
+                             f"{nb.cutoff_debye * lam:.2f} nm at {nb.salt:g} M, inside the {contact:.2f}-nm contact "
+                             f"of the excluded-volume core, so the electrostatics would act only where the cores "
+                             f"already repel; give more than "
+                             f"{contact / lam:.2f} (default {DEFAULT_CUTOFF_DEBYE:g})")
+
+
+def debye_length(salt_M, temperature, dielectric=78.5):
+    """Debye length (nm) of monovalent salt ``salt_M`` (mol/L) at ``temperature`` (K), as
+    :meth:`NonbondedSettings.resolve` computes it."""
+    lB = ONE_4PI_EPS0 / (dielectric * kT_of(temperature))
+    return 1.0 / math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * salt_M)
+
+
+def nonbonded_record(settings, ds, temperature):
+    """What a run or member records of its non-bonded terms (JSON-safe dict; ``None`` when both are off).
+
+    Parameters
+    ----------
+    settings : NonbondedSettings or None or False
+    ds : float
+        nm per node.
+    temperature : float
+        K.
+
+    Returns
+    -------
+    dict or None
+        ``excluded_volume``, ``electrostatics``, ``salt_mol_L``, ``wca_sigma_nm``, ``charge_model``
+        (``"calibrated"``, ``"manning"`` or ``"explicit"`` for a number), ``charge_e_per_node``, ``cutoff_debye``,
+        ``cutoff_nm``, ``debye_length_nm`` and ``n_exclude`` (nodes); the charge entries are ``None`` without
+        electrostatics.
+    """
+    if not settings or not (settings.excluded_volume or settings.electrostatics):
+        return None
+    nb = settings.resolve(ds, temperature)
+    es = bool(settings.electrostatics)
+    return dict(excluded_volume=bool(settings.excluded_volume), electrostatics=es, salt_mol_L=float(settings.salt),
+                wca_sigma_nm=float(settings.diameter) if settings.excluded_volume else None,
+                charge_model=nb["charge_model"] if es else None, charge_e_per_node=float(nb["charge"]) if es else None,
+                cutoff_debye=float(settings.cutoff_debye) if es else None, cutoff_nm=float(nb["rc_dh"]) if es else None,
+                debye_length_nm=float(nb["debye_length"]), n_exclude=int(nb["n_exclude"]))
 
 
 def _node_charge(charge, ds, lB, salt, temperature, dielectric):

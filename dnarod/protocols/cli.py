@@ -81,6 +81,11 @@ def _common(f):
         click.option("--temperature", "temperature_K", type=float, default=300.0, show_default=True, help="K."),
         click.option("--salt", "salt_M", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L."),
         click.option("--seed", type=int, default=1, show_default=True),
+        click.option("--charge", default=None,
+                     help="Non-bonded charge model: calibrated (Poisson-Boltzmann far-field charge, effective diameter "
+                          "5.0 nm at 0.15 M; the default) or manning (0.48 e/bp)."),
+        click.option("--cutoff-debye", "cutoff_debye", type=float, default=None,
+                     help="Debye-Hueckel cutoff, Debye lengths (default 12)."),
         click.option("--workers", type=int, default=2, show_default=True,
                      help="Dask local workers (0: run members one after another in this process)."),
         click.option("--out", "-o", type=click.Path(file_okay=False), required=True, help="Output folder."),
@@ -90,12 +95,40 @@ def _common(f):
     return f
 
 
-def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, seed, **extra):
+def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, seed, charge=None, cutoff_debye=None,
+          **extra):
     b = dict(source=str(source), forcefield=forcefield, time_ns=time_ns, temperature_K=temperature_K, salt_M=salt_M,
              seed=seed, **extra)
     if equilibration_ns is not None:
         b["equilibration_ns"] = equilibration_ns
+    b.update(_nonbonded_options(charge, cutoff_debye, salt_M, temperature_K))
     return b
+
+
+def _nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
+    """``--charge`` / ``--cutoff-debye`` as member settings (only those given), checked before anything runs."""
+    import math
+
+    from ..openmm.nonbonded import CHARGE_MODELS, DEFAULT_CUTOFF_DEBYE, NonbondedSettings, check_cutoff_holds_contact
+
+    out = {}
+    if charge is not None:
+        name = str(charge).strip().lower()
+        if name not in CHARGE_MODELS:
+            raise DnarodError(f"--charge {charge!r}: choose calibrated (Poisson-Boltzmann far-field charge, the "
+                              f"default) or manning (0.48 e/bp)")
+        out["charge"] = name
+    if cutoff_debye is not None:
+        if not (math.isfinite(cutoff_debye) and cutoff_debye > 0):
+            raise DnarodError(f"--cutoff-debye {cutoff_debye}: give a positive, finite number of Debye lengths "
+                              f"(default {DEFAULT_CUTOFF_DEBYE:g})")
+        if 0 < salt_M <= 6.0 and temperature_K > 0:  # other salts and temperatures are refused by their options
+            try:
+                check_cutoff_holds_contact(NonbondedSettings(salt=salt_M, cutoff_debye=cutoff_debye), temperature_K)
+            except DnarodError as exc:
+                raise DnarodError(f"--{exc}".replace("cutoff_debye", "cutoff-debye", 1)) from None
+        out["cutoff_debye"] = float(cutoff_debye)
+    return out
 
 
 def _report(curve, x, ys):

@@ -3,7 +3,8 @@
 A spec names one as ``protocol = "dnarod.protocols:MAGNETIC_TWEEZERS"``. Settings read from the
 ensemble's canonical keys: ``source`` (a node count or a sequence), ``forcefield``, ``force_pN``,
 ``turns``, ``rotation_clamp_kJ_mol`` (clamp stiffness), ``time_ns`` (production), ``temperature_K``,
-``salt_M``, ``seed``, ``excluded_volume``, ``electrostatics``, ``platform``, ``delta_lk`` (rings);
+``salt_M``, ``seed``, ``excluded_volume``, ``electrostatics``, ``charge``, ``cutoff_debye``, ``platform``,
+``delta_lk`` (rings);
 plus the protocol keys ``equilibration_ns``, ``sample_ps`` and ``friction_mode`` ("auto": critical
 damping of the slowest bending mode; "fixed": the spec's ``friction_per_ps``).
 """
@@ -66,6 +67,7 @@ class TweezersProtocol:
                    seed=settings.get("seed") if settings.get("seed") is not None else 1,
                    excluded_volume=settings.get("excluded_volume", True),
                    electrostatics=settings.get("electrostatics", True),
+                   charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
                    platform=settings.get("platform") or "CPU", threads=_threads(), sample_ps=settings.get("sample_ps"))
         if clamp and settings.get("rotation_clamp_kJ_mol"):
             out["clamp_k_kJ_mol"] = settings["rotation_clamp_kJ_mol"]
@@ -96,6 +98,7 @@ class RingProtocol:
                    salt_M=settings.get("salt_M"), seed=settings.get("seed") if settings.get("seed") is not None else 1,
                    excluded_volume=settings.get("excluded_volume", True),
                    electrostatics=settings.get("electrostatics", True), platform=settings.get("platform") or "CPU",
+                   charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
                    threads=_threads(), sample_ps=settings.get("sample_ps"))
         if settings.get("friction_mode", "auto") == "fixed":
             out["friction_per_ps"] = settings.get("friction_per_ps")

@@ -103,12 +103,13 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     out : dict of str to ndarray, shape (n_samples,)
     run : dict
         ``friction_per_ps, tau_bend_estimate_ps, equilibration_ps, production_ps, wall_s, cpu_s, dt_ps,
-        n_steps, n_samples, sample_ps, ns_per_day, contour_length_nm`` and ``stride`` (steps per sample) and
-        ``elastic_path``.
+        n_steps, n_samples, sample_ps, ns_per_day, contour_length_nm``, ``stride`` (steps per sample),
+        ``elastic_path`` and ``nonbonded`` (the terms' record, :func:`dnarod.openmm.nonbonded.nonbonded_record`:
+        charge model, e per node, cutoff in Debye lengths and nm).
     """
     from ..analysis.polymer import bending_relaxation_time
     from ..analysis.writhe import twist, writhe
-    from ..openmm.nonbonded import member_nonbonded
+    from ..openmm.nonbonded import member_nonbonded, nonbonded_record
     from ..openmm.simulation import RodSimulation
     from .tweezers import auto_friction
 
@@ -154,7 +155,7 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq,
                production_ps=n_samp * stride * dt, wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps,
                n_samples=n_samp, sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0,
-               stride=stride, elastic_path=sim.rs.elastic)
+               stride=stride, elastic_path=sim.rs.elastic, nonbonded=nonbonded_record(nb, model.ds, T))
     return out, run
 
 

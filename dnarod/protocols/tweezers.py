@@ -505,6 +505,11 @@ def run_member(settings, member_dir, progress=None, start_pose=None):
         save_pose(member_dir / START_POSE, m["model"].positions, m["model"].frames)
     samples, cost = sample_member(m, progress, checkpoint=ckpt, pose_out=member_dir / FINAL_POSE)
     res = summarize(samples, m, cost)
+    from ..openmm.nonbonded import member_nonbonded, nonbonded_record
+
+    # the non-bonded terms as run: charge model, e per node, cutoff in Debye lengths and nm
+    res["nonbonded"] = nonbonded_record(member_nonbonded(m["settings"]), m["model"].ds,
+                                        float(m["settings"]["temperature_K"]))
     lines = [",".join(COLUMNS)] + [",".join(f"{samples[c][i]:.10g}" for c in COLUMNS)
                                    for i in range(len(samples["time_ps"]))]
     write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")

@@ -159,11 +159,9 @@ def make_engine(spec, model, dt, seed, omega):
         from .engine import LaxEngine
 
         return LaxEngine(model, dt, spec.temperature, spec.friction, seed, spec.loads, duration_ps, omega)
-    from ..openmm.nonbonded import NonbondedSettings
     from ..openmm.simulation import RodSimulation
 
-    nb = NonbondedSettings(excluded_volume=spec.excluded_volume, electrostatics=spec.electrostatics,
-                           salt=spec.salt) if spec.nonbonded else False
+    nb = spec.nonbonded_settings()
     return RodSimulation(model, integrator="langevin" if spec.friction > 0 else "verlet",
                          temperature=spec.temperature, dt=dt, friction=spec.friction,
                          platform=spec.platform, elastic=spec.elastic, nonbonded=nb, loads=spec.loads,

@@ -137,7 +137,9 @@ def _report(result, spec):
     if nb:
         echo(f"nonbonded: Debye length {nb['debye_length']:.3g} nm, charge {nb['charge']:.3g} e/bp"
              f"{' (' + nb['charge_model'] + ')' if nb.get('charge_model') else ''}, "
-             f"cutoff {nb['cutoff']:.3g} nm, chain exclusion {nb['n_exclude']} bp")
+             f"cutoff {nb['cutoff']:.3g} nm"
+             + (f" ({nb['rc_dh'] * nb['kappa']:.3g} Debye lengths)" if nb.get("rc_dh") else "")
+             + f", chain exclusion {nb['n_exclude']} bp")
     echo(f"wall: {s['wall_s']:.1f} s (CPU {s['cpu_s']:.1f} s)  speed: {s['ns_per_day']:.4g} ns/day  "
          f"mean kinetic temperature: {s['mean_temperature_K']:.1f} K")
     echo("wrote: " + ", ".join(str(p) for p in result.files.values()))

@@ -46,6 +46,10 @@ class RunSpec:
         External loads (:mod:`dnarod.loads` dataclasses), MD units.
     salt, excluded_volume, electrostatics
         Non-bonded interactions (OpenMM engine; the Lax engine has none and refuses them on).
+    charge, cutoff_debye : str or float, float, optional
+        Non-bonded charge model (``"calibrated"``, ``"manning"`` or e per base pair) and Debye-Hueckel cutoff
+        (Debye lengths) of :class:`dnarod.openmm.nonbonded.NonbondedSettings`; ``None``: its defaults. What they
+        resolve to (model, e per node, cutoff in nm and Debye lengths) is recorded in the run's fingerprint.
     platform : str or None
         OpenMM platform (default CPU).
     circular, ring, delta_lk
@@ -89,6 +93,8 @@ class RunSpec:
     salt: float = 0.15
     excluded_volume: bool = True
     electrostatics: bool = True
+    charge: object = None
+    cutoff_debye: float | None = None
     platform: str | None = None
     circular: bool = False
     ring: bool = False
@@ -161,6 +167,14 @@ class RunSpec:
         finite("salt", self.salt, lambda x: 0 < x <= MAX_SALT,
                f"a salt concentration in mol/L above 0 and at most {MAX_SALT:g} (Debye-Hueckel screening is "
                f"meaningless beyond)")
+        if self.charge is not None or self.cutoff_debye is not None:
+            given = "--charge" if self.charge is not None else "--cutoff-debye"
+            if not self.electrostatics:
+                raise ParameterError(f"{given} sets the Debye-Hueckel electrostatics, which are off; drop it or turn "
+                                     f"electrostatics on")
+            if self.cutoff_debye is not None:
+                finite("cutoff_debye", self.cutoff_debye, lambda x: x > 0, "a positive number of Debye lengths")
+            self.nonbonded_settings(check=True)
         if self.threads is not None and self.platform not in (None, "CPU"):
             raise ParameterError(f"--threads applies to OpenMM's CPU platform, not --platform {self.platform}; drop "
                                  f"one of them")
@@ -210,6 +224,20 @@ class RunSpec:
         if not isinstance(self.extra, dict):
             raise ParameterError(f"extra {self.extra!r}: must be a dict")
         return self
+
+    def nonbonded_settings(self, check=False):
+        """The :class:`dnarod.openmm.nonbonded.NonbondedSettings` of the run, or ``False`` when both terms are off
+        (``check``: refuse a bad charge or cutoff with one line, :class:`ParameterError`)."""
+        if not self.nonbonded:
+            return False
+        from ..openmm.nonbonded import NonbondedSettings, member_nonbonded
+
+        extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
+        if check:
+            return member_nonbonded(dict(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
+                                         salt_M=self.salt, temperature_K=self.temperature or 300.0, **extra))
+        return NonbondedSettings(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
+                                 salt=self.salt, **extra)
 
     def to_json(self):
         """JSON-safe dict of the spec (loads as ``{"type": ..., fields...}``; a model source as its name)."""
@@ -271,12 +299,29 @@ def fingerprint(spec, model, dt, seed):
         "engine": spec.engine, "ensemble": spec.ensemble,
         "temperature_K": float(spec.temperature), "friction_per_ps": float(spec.friction),
         "dt_ps": float(dt), "loads": loads, "seed": int(seed),
-        "nonbonded": dict(excluded_volume=bool(spec.excluded_volume), electrostatics=bool(spec.electrostatics),
-                          salt_mol_L=float(spec.salt) if spec.nonbonded else None),
+        "nonbonded": _nonbonded_fingerprint(spec, model),
         "frame_interval_ps": float(spec.frame_interval_ps), "velocities": bool(spec.velocities),
     }
     if any(float(getattr(x, "turns", 0.0) or 0.0) != 0.0 for x in spec.loads):
         fp["time_ns"] = float(spec.time_ns)
+    return fp
+
+
+#: Entries of a run's non-bonded fingerprint that say which charge and cutoff it ran with (recorded since they
+#: became choosable; a run folder without them ran with the default of its day, which changed on 2026-12-02).
+CHARGE_ENTRIES = ("charge_model", "charge_e_per_node", "cutoff_debye", "cutoff_nm")
+
+
+def _nonbonded_fingerprint(spec, model):
+    """The non-bonded entries of a fingerprint: on/off and salt, and with electrostatics the charge model, its
+    charge per node (e), the cutoff in Debye lengths and nm (resolved at the run's temperature, 300 K at T = 0)."""
+    fp = dict(excluded_volume=bool(spec.excluded_volume), electrostatics=bool(spec.electrostatics),
+              salt_mol_L=float(spec.salt) if spec.nonbonded else None)
+    if spec.engine == "openmm" and spec.electrostatics:
+        from ..openmm.nonbonded import nonbonded_record
+
+        rec = nonbonded_record(spec.nonbonded_settings(), model.ds, spec.temperature or 300.0)
+        fp.update({k: rec[k] for k in CHARGE_ENTRIES})
     return fp
 
 
@@ -286,9 +331,16 @@ def compare_fingerprints(old, new, where):
              "temperature_K": "temperature (-T)", "friction_per_ps": "friction (--friction)",
              "seed": "seed (--seed)", "loads": "loads", "engine": "engine (--engine)",
              "frame_interval_ps": "frame interval (--frame-interval)", "velocities": "velocities (--velocities)",
-             "nonbonded": "non-bonded settings (--salt/--excluded-volume/--electrostatics)",
+             "nonbonded": "non-bonded settings (--salt/--excluded-volume/--electrostatics/charge/cutoff)",
              "sequence": "sequence", "n_nodes": "number of nodes", "ensemble": "ensemble (--friction 0 = NVE)",
              "time_ns": "total time (--time), over which the rotation clamp spreads its --turns"}
+    nb_old, nb_new = old.get("nonbonded"), new.get("nonbonded")
+    if (isinstance(nb_old, dict) and isinstance(nb_new, dict) and nb_old.get("electrostatics")
+            and "charge_model" not in nb_old and "charge_model" in nb_new):
+        raise ParameterError(f"cannot resume: {where} does not record the non-bonded charge it ran with (written "
+                             f"before runs recorded it; the default was Manning's 0.48 e/bp with a 5-Debye-length "
+                             f"cutoff until 2026-12-02, the calibrated charge (3.01 e/bp at 0.15 M) with 12 since), "
+                             f"so continuing could mix two models; start a new run (-o NEWDIR, or --overwrite)")
     for key in list(old) + [k for k in new if k not in old]:
         a, b = old.get(key), new.get(key)
         if not _same(a, b):

@@ -78,7 +78,7 @@ def headline(name, r):
             pl, mk = r["plateau"], r["marko"]
             return (f"plateau {_fmt(pl['mean_torque_pN_nm'], '.1f')}+-{_fmt(pl['mean_torque_se'], '.1f')} pN nm vs Marko "
                     f"two-phase {_fmt(mk['torque_pN_nm'], '.1f')}+-{_fmt(mk['torque_se_from_P'], '.1f')} pN nm (A "
-                    f"{_fmt(mk['persistence_length_nm'], '.1f')}, C_s {_fmt(mk['C_s_nm'], '.1f')}, P "
+                    f"{_fmt(mk['persistence_length_nm'], '.1f')}, C_s {_fmt(mk['C_s_nm'], '.1f')}, {_p_label(mk)} "
                     f"{_fmt(mk['P_nm'], '.1f')} nm); plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}"
                     f"+-{_fmt(pl['standard_error'], '.2f')}; buckling at ΔLk {_fmt(mk['buckling_delta_lk_measured'], '.2f')}"
                     f" (Marko {_fmt(mk['buckling_delta_lk'], '.2f')}); slope {_fmt(mk['extension_slope_measured_nm_per_turn'], '.0f')}"
@@ -99,12 +99,15 @@ def headline(name, r):
             return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
                     f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC {_fmt(r['reference_writhe_fraction'], '.3f')}"
                     f"+-{_fmt(r['reference_writhe_fraction_err'], '.3f')} (A {_fmt(r['reference_persistence_length_nm'], '.1f')},"
-                    f" C {_fmt(r['reference_twist_persistence_nm'], '.1f')}, d {_fmt(r['effective_diameter_nm'], '.2f')} nm);"
+                    f" C {_fmt(r['reference_twist_persistence_nm'], '.1f')}, the model's pair energy: "
+                    f"{r['nonbonded']['charge_model']} {_fmt(r['nonbonded']['charge_e_per_node'], '.2f')} e/bp, cutoff "
+                    f"{_fmt(r['nonbonded']['cutoff_debye'], '.0f')} Debye lengths); hard core d_eff "
+                    f"{_fmt(r['effective_diameter_nm'], '.2f')} nm: {_fmt(r['hard_core_writhe_fraction'], '.3f')}"
+                    f"+-{_fmt(r['hard_core_writhe_fraction_err'], '.3f')};"
                     f" ΔLk {_fmt(r['delta_lk'], '.3f')} relative to the relaxed twist at T"
                     + (f"; planar vs writhed start: ΔWr {_fmt(r['bracket']['difference'], '.3f')}"
                        f"+-{_fmt(r['bracket']['standard_error'], '.3f')}" if r.get("bracket") else ""),
-                    f"{r['z_tolerance']} SE + diameter systematic {_fmt(r['diameter_systematic'], '.3f')} "
-                    f"(= {_fmt(r['tolerance'], '.3f')})")
+                    f"{r['z_tolerance']} SE (= {_fmt(r['tolerance'], '.3f')})")
         if name == "nicked_ring":
             f = r.get("full") or {}
             h = r.get("harmonic") or {}
@@ -122,6 +125,16 @@ def headline(name, r):
     except (KeyError, TypeError, ValueError, IndexError):
         pass
     return "see results.json", "-"
+
+
+def _p_label(marko):
+    """Which plectoneme twist stiffness the buckling check used (from its ``P_source``)."""
+    src = str(marko.get("P_source") or "")
+    if src.startswith("closed rings of"):
+        return "P_b (ring pair)"
+    if src.startswith("closed ring"):
+        return "P (single ring)"
+    return "P (given)"
 
 
 def _scalars(d, prefix=""):

@@ -17,6 +17,12 @@ move could carry a segment through another: a 600-bp ring at ΔLk = -2.9 with d 
 sweeps and its mean writhe jumped from -2.3 to -3.1 (writhe fraction 0.90 instead of 0.80). The few knots with
 determinant 1 (none below 10 crossings in the standard tables) are not distinguished from the unknot.
 
+Soft pair energy (``pair``): instead of the hard core, the model's own non-bonded energy (WCA + shifted screened
+Coulomb between interaction sites spaced along the segments, the model's node spacing, cutoff and chain-distance
+exclusion; :func:`pair_parameters`) enters the Metropolis test: a screened-Coulomb ring without an effective
+diameter, so nothing of the model's energy is mapped. A crankshaft move rotates segments ``i .. j-1`` rigidly
+(both end vertices lie on the axis), so only their pairs with the unmoved segments change energy.
+
 Units: nm, turns.
 """
 from __future__ import annotations
@@ -129,14 +135,67 @@ def _kernels():
         return int(round(abs(np.linalg.det(A[:n - 1, :n - 1]))))
 
     @njit(cache=False)
-    def sweep(pos, g, d2, exclude, n_moves, phi_max, seed_state, tw_coeff, dlk, wr_now):
-        # tw_coeff > 0: a twist energy tw_coeff (dlk - Wr)^2 (kT) with the twist integrated out (fixed Lk)
+    def cross_energy(P, i, length, nbp):
+        # soft pair energy (kT) between the sites of segments i .. i+length-1 and those of the other segments;
+        # nbp = (eps, sigma, rc_wca, a_dh, kappa, rc_dh, n_sub, n_exclude) in kT and nm, sites n_sub per segment
+        M = P.shape[0]
+        eps, sig, rc_wca, a_dh, kappa, rc_dh = nbp[0], nbp[1], nbp[2], nbp[3], nbp[4], nbp[5]
+        n_sub, nex = int(nbp[6]), int(nbp[7])
+        N = M * n_sub
+        rc = max(rc_wca, rc_dh)
+        rc2, rw2, s2 = rc * rc, rc_wca * rc_wca, sig * sig
+        shift = a_dh * math.exp(-kappa * rc_dh) / rc_dh if rc_dh > 0.0 else 0.0
+        j = (i + length) % M
+        e = 0.0
+        for m in range(length):
+            a = (i + m) % M
+            a1 = (a + 1) % M
+            for q in range(M - length):
+                bq = (j + q) % M
+                sep = abs(a - bq)
+                sep = min(sep, M - sep)
+                if sep * n_sub + n_sub - 1 <= nex:
+                    continue  # every site pair of the two segments is excluded along the chain
+                b1 = (bq + 1) % M
+                if seg_dist2(P, a, a1, bq, b1) >= rc2:
+                    continue
+                for s in range(n_sub):
+                    fs = s / n_sub
+                    ax = P[a, 0] + fs * (P[a1, 0] - P[a, 0])
+                    ay = P[a, 1] + fs * (P[a1, 1] - P[a, 1])
+                    az = P[a, 2] + fs * (P[a1, 2] - P[a, 2])
+                    ia = a * n_sub + s
+                    for t in range(n_sub):
+                        ib = bq * n_sub + t
+                        d = abs(ia - ib)
+                        if min(d, N - d) <= nex:
+                            continue
+                        ft = t / n_sub
+                        dx = P[bq, 0] + ft * (P[b1, 0] - P[bq, 0]) - ax
+                        dy = P[bq, 1] + ft * (P[b1, 1] - P[bq, 1]) - ay
+                        dz = P[bq, 2] + ft * (P[b1, 2] - P[bq, 2]) - az
+                        r2 = dx * dx + dy * dy + dz * dz
+                        if r2 >= rc2:
+                            continue
+                        if r2 < rw2:
+                            s6 = (s2 / r2) ** 3
+                            e += 4.0 * eps * (s6 * s6 - s6) + eps
+                        if r2 < rc_dh * rc_dh:
+                            r = math.sqrt(r2)
+                            e += a_dh * math.exp(-kappa * r) / r - shift
+        return e
+
+    @njit(cache=False)
+    def sweep(pos, g, d2, exclude, n_moves, phi_max, seed_state, tw_coeff, dlk, wr_now, nbp):
+        # tw_coeff > 0: a twist energy tw_coeff (dlk - Wr)^2 (kT) with the twist integrated out (fixed Lk);
+        # nbp[6] > 0: the soft pair energy of cross_energy instead of (or besides) the hard core d2
         M = pos.shape[0]
         np.random.seed(seed_state)
         acc = 0
         new = np.empty_like(pos)
         Q = np.empty_like(pos)
         wr_cur = wr_now
+        soft = nbp[6] > 0.0
         for _ in range(n_moves):
             i = np.random.randint(M)
             length = 2 + np.random.randint(M - 3)  # vertices i+1 .. i+length-1 move; j = i + length
@@ -146,6 +205,8 @@ def _kernels():
             axis = axis / math.sqrt(axis @ axis)
             c, s = math.cos(phi), math.sin(phi)
             e_old = g * (2.0 - vertex_cos(pos, i, M) - vertex_cos(pos, j, M))
+            if soft:
+                e_old += cross_energy(pos, i, length, nbp)
             ux, uy, uz = axis[0], axis[1], axis[2]
             for m in range(1, length):
                 k = (i + m) % M
@@ -157,6 +218,8 @@ def _kernels():
                 pos[k, 1] = pos[i, 1] + vy * c + (uz * vx - ux * vz) * s + uy * dot
                 pos[k, 2] = pos[i, 2] + vz * c + (ux * vy - uy * vx) * s + uz * dot
             e_new = g * (2.0 - vertex_cos(pos, i, M) - vertex_cos(pos, j, M))
+            if soft:
+                e_new += cross_energy(pos, i, length, nbp)
             ok = True
             de = e_new - e_old
             if tw_coeff <= 0.0 and de > 0.0 and np.random.random() >= math.exp(-de):
@@ -193,15 +256,47 @@ def _kernels():
                     pos[k, 0], pos[k, 1], pos[k, 2] = new[k, 0], new[k, 1], new[k, 2]
         return acc, wr_cur
 
-    return sweep, knot_determinant
+    return sweep, knot_determinant, cross_energy
 
 
 _SWEEP = None
 _KNOT = None
+_CROSS = None
+
+
+def pair_parameters(nonbonded, ds, temperature, b_nm):
+    """The soft pair energy of :func:`sample_ring_writhe` from the model's non-bonded settings.
+
+    Parameters
+    ----------
+    nonbonded : dnarod.openmm.nonbonded.NonbondedSettings
+    ds : float
+        The model's node spacing, nm: each segment of length ``b_nm`` carries ``round(b_nm / ds)`` interaction sites
+        spaced evenly along it (spacing ``ds`` when ``b_nm`` is a multiple of it).
+    temperature : float
+        K.
+    b_nm : float
+        Segment length, nm.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(eps, sigma, rc_wca, a_dh, kappa, rc_dh, n_sub, n_exclude)``: WCA depth and Debye-Hueckel prefactor in kT
+        (kT nm), lengths in nm, sites per segment, chain-distance exclusion in sites (the model's own, from
+        :meth:`NonbondedSettings.resolve`).
+    """
+    from ..thermal import kT
+
+    nb = nonbonded.resolve(ds, temperature)
+    kt = kT(temperature)
+    n_sub = max(1, int(round(b_nm / ds)))
+    return np.array([nb["eps"] / kt, nb["sigma"], nb["rc_wca"], nb["a_dh"] / kt, nb["kappa"], nb["rc_dh"],
+                     float(n_sub), float(nb["n_exclude"])])
 
 
 def sample_ring_writhe(length_nm, A_nm, diameter_nm, b_nm=3.4, n_samples=2000, sweeps_between=1,
-                       equilibration_sweeps=200, exclude=None, phi_max=1.0, seed=0, C_nm=None, delta_lk=0.0):
+                       equilibration_sweeps=200, exclude=None, phi_max=1.0, seed=0, C_nm=None, delta_lk=0.0,
+                       pair=None):
     """Writhe samples of the worm-like ring (see the module docstring).
 
     Parameters
@@ -220,17 +315,21 @@ def sample_ring_writhe(length_nm, A_nm, diameter_nm, b_nm=3.4, n_samples=2000, s
         With ``C_nm``: a closed ring of fixed linking difference ``delta_lk`` (turns), its twist integrated out
         (Gaussian, ``E_tw = 2 pi² kT C (ΔLk - Wr)² / L``), as in Vologodskii's simulations of supercoiled rings;
         without: the nicked ring (writhe free).
+    pair : numpy.ndarray, optional
+        A soft pair energy instead of the hard core (:func:`pair_parameters`: the model's own WCA + screened
+        Coulomb between sites spaced along the segments, with its cutoff and chain-distance exclusion; give
+        ``diameter_nm = 0``). Metropolis on bending + pair (+ twist) energy; about 10x slower than the hard core.
 
     Returns
     -------
     dict
         ``wr`` (n_samples,), ``radius_of_gyration_nm`` (n_samples,, of the vertices), ``segments``, ``bending_coefficient``, ``acceptance``.
     """
-    global _SWEEP, _KNOT
+    global _SWEEP, _KNOT, _CROSS
     from ..analysis.writhe import writhe
 
     if _SWEEP is None:
-        _SWEEP, _KNOT = _kernels()
+        _SWEEP, _KNOT, _CROSS = _kernels()
     M = int(round(length_nm / b_nm))
     b = length_nm / M
     g = bending_coefficient(b, A_nm)
@@ -242,12 +341,18 @@ def sample_ring_writhe(length_nm, A_nm, diameter_nm, b_nm=3.4, n_samples=2000, s
     d2 = float(diameter_nm) ** 2
     tc = 0.0 if C_nm is None else 2.0 * math.pi ** 2 * float(C_nm) / float(length_nm)
     dlk = float(delta_lk)
-    _, w = _SWEEP(pos, g, d2, ex, equilibration_sweeps * M, phi_max, int(rng.integers(2**31)), tc, dlk, 0.0)
+    if pair is None:
+        nbp = np.zeros(8)
+    else:
+        nbp = np.array(pair, float)
+        if nbp.shape != (8,) or round(length_nm / b_nm) * nbp[6] <= 2 * nbp[7] + 1:
+            raise ValueError("pair: 8 numbers of pair_parameters, on a ring longer than twice the exclusion")
+    _, w = _SWEEP(pos, g, d2, ex, equilibration_sweeps * M, phi_max, int(rng.integers(2**31)), tc, dlk, 0.0, nbp)
     wr = np.empty(n_samples)
     rg = np.empty(n_samples)
     acc = 0
     for k in range(n_samples):
-        a, w = _SWEEP(pos, g, d2, ex, sweeps_between * M, phi_max, int(rng.integers(2**31)), tc, dlk, w)
+        a, w = _SWEEP(pos, g, d2, ex, sweeps_between * M, phi_max, int(rng.integers(2**31)), tc, dlk, w, nbp)
         acc += a
         wr[k] = writhe(pos)
         rg[k] = math.sqrt(float(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
