@@ -83,6 +83,13 @@ def test_member_record_and_contact_rule():
     member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, cutoff_debye=2.86))
     with pytest.raises(ParameterError, match="give more than 2.85"):
         member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, cutoff_debye=2.84))
+    # high salt: the contact lies beyond 12 Debye lengths (above ~2.7 M), where the screened repulsion is below
+    # e^-12 of its contact value, so the default cut-off is accepted (protocols run up to 6 M) ...
+    for salt in (3.0, 6.0):
+        member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt))
+    # ... while a cut-off that truncates a repulsion that still matters at 1 M is refused
+    with pytest.raises(ParameterError, match="inside the 2.24-nm contact"):
+        member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=1.0, cutoff_debye=5.0))
 
 
 PROTO = ["rings", "--delta-lk", "0", "--source", "40", "--time", "0.001", "--equilibration", "0.001",

@@ -192,7 +192,9 @@ def member_nonbonded(settings):
 def check_cutoff_holds_contact(nb, temperature):
     """Refuse (:class:`ParameterError`, one line) a Debye-Hueckel cutoff that ends inside the excluded-volume
     contact (the WCA range ``2^(1/6) sigma``, 2.24 nm by default): the screened repulsion would then act only where
-    the cores already overlap, i.e. never. ``nb``: :class:`NonbondedSettings`; ``temperature`` K."""
+    the cores already overlap, i.e. never. Not refused where the contact lies beyond ``DEFAULT_CUTOFF_DEBYE`` Debye
+    lengths (high salt): the repulsion is negligible there whatever the cut-off.
+    ``nb``: :class:`NonbondedSettings`; ``temperature`` K."""
     if not (nb.electrostatics and nb.excluded_volume):
         return
     if not (np.isfinite(nb.salt) and nb.salt > 0 and np.isfinite(nb.dielectric) and nb.dielectric > 0
@@ -200,7 +202,9 @@ def check_cutoff_holds_contact(nb, temperature):
         return  # resolve() names these
     lam = debye_length(nb.salt, temperature, nb.dielectric)
     contact = 2 ** (1 / 6) * float(nb.diameter)
-    if nb.cutoff_debye * lam <= contact:
+    # at high salt the contact lies beyond the default reach (12 Debye lengths, above ~2.7 M at 0.15-M defaults):
+    # the screened repulsion there is below e^-12 of its contact value and the cut-off changes nothing
+    if nb.cutoff_debye * lam <= contact and contact / lam < DEFAULT_CUTOFF_DEBYE:
         raise ParameterError(f"cutoff_debye {nb.cutoff_debye:g}: {nb.cutoff_debye:g} Debye lengths are "
                              f"{nb.cutoff_debye * lam:.2f} nm at {nb.salt:g} M, inside the {contact:.2f}-nm contact "
                              f"of the excluded-volume core, so the electrostatics would act only where the cores "
