@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..io_utils import check_dir_path, ensure_dir, jsonable, write_text_atomic
+from ..io_utils import check_dir_path, folder_lock, jsonable, write_text_atomic
 from .spec import RunSpec, compare_fingerprints, fingerprint
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
@@ -265,13 +265,17 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     engine = make_engine(spec, start if start is not None else model, dt, seed, omega)
     if start is None:  # OpenMM energy minimisation of the context (no static solver available)
         engine.minimize()
-    ensure_dir(outdir)
-    for p in present:  # overwrite: only now, when the new run is known to start
-        p.unlink()
-    meta = dict(format="dnarod-run", version=1, run_id=run_id, spec=spec.to_json(), fingerprint=fp, seed=seed,
-                dt_ps=dt, omega_max=omega, segments=[])
-    write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
-    return _execute(spec, outdir, paths, engine, model, meta, resume_step=None, progress=progress)
+    with folder_lock(outdir):  # a second process writing into outdir is refused, not interleaved
+        present_now = [p for p in paths.values() if p.exists()]
+        if not overwrite and present_now:  # another process started a run here while this one was set up
+            raise ParameterError(f"{outdir} already holds a run ({present_now[0].name}); continue it with --resume, "
+                                 f"replace it with --overwrite, or choose another folder with -o")
+        for p in present_now:  # overwrite: only now, when the new run is known to start
+            p.unlink()
+        meta = dict(format="dnarod-run", version=1, run_id=run_id, spec=spec.to_json(), fingerprint=fp, seed=seed,
+                    dt_ps=dt, omega_max=omega, segments=[])
+        write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
+        return _execute(spec, outdir, paths, engine, model, meta, resume_step=None, progress=progress)
 
 
 def _resume(spec, outdir, paths, progress):
@@ -281,7 +285,8 @@ def _resume(spec, outdir, paths, progress):
         raise ParameterError(f"cannot resume: {paths['run_json']} does not exist (no run was started in {outdir}); "
                              f"drop --resume to start one")
     try:
-        meta = json.loads(paths["run_json"].read_text())
+        run_json_text = paths["run_json"].read_text()
+        meta = json.loads(run_json_text)
         old_fp, seed, dt = meta["fingerprint"], int(meta["seed"]), float(meta["dt_ps"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ParameterError(f"{paths['run_json']}: not a readable dnarod run file ({type(exc).__name__}); "
@@ -306,10 +311,14 @@ def _resume(spec, outdir, paths, progress):
                                              seed=seed, engine=spec.engine), resumed_from=step)
     start = start_model(spec, model, seed)
     engine = make_engine(spec, start if start is not None else model, dt, seed, meta.get("omega_max"))
-    engine.load_checkpoint(paths["checkpoint"])
-    meta["spec"] = spec.to_json()
-    write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
-    return _execute(spec, outdir, paths, engine, model, meta, resume_step=engine.step, progress=progress)
+    with folder_lock(outdir):  # not while another process still runs (or resumes) in outdir
+        if paths["run_json"].read_text() != run_json_text:
+            raise ParameterError(f"cannot resume: {paths['run_json']} changed while this resume was set up (another "
+                                 f"process wrote the run); run the command again")
+        engine.load_checkpoint(paths["checkpoint"])
+        meta["spec"] = spec.to_json()
+        write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
+        return _execute(spec, outdir, paths, engine, model, meta, resume_step=engine.step, progress=progress)
 
 
 def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
