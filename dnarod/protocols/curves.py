@@ -98,7 +98,7 @@ def _members(kind, axes, base):
 def _checked_settings(base, names, values):
     """``base`` and the axis values checked against the ensemble schema (the keys the members read): an
     unknown key, a value of the wrong type, a non-finite or out-of-range number is one line naming it."""
-    from ..ensemble.schema import RUN_KEYS, coerce, unknown_key
+    from ..ensemble.schema import RUN_KEYS, check_distinct, coerce, unknown_key
     from .ensemble_hooks import protocol_keys
 
     known = {**RUN_KEYS, **protocol_keys()}
@@ -111,7 +111,7 @@ def _checked_settings(base, names, values):
     for n, v in zip(names, values):
         if n not in known:
             raise unknown_key("axes", n, known)
-        vals.append([_checked(coerce("axes", n, known[n], x), "axes", n) for x in v])
+        vals.append(check_distinct("axes", n, [_checked(coerce("axes", n, known[n], x), "axes", n) for x in v]))
     return out, vals
 
 
