@@ -70,12 +70,12 @@ def _members(kind, axes, base):
     from ..forcefield import load_forcefield
 
     ff = load_forcefield(base.get("forcefield", "dna-default"))
-    src = str(base.get("source", "")).strip()
-    if not src:
-        raise DnarodError("source: give a node count (e.g. 600) or a sequence")
+    from ..inputs import protocol_source
     from ..run.api import check_start_pose
+    from .tweezers import WALL_SKIP
 
-    seq, n_nodes = (None, int(src)) if src.isdigit() else (src, None)
+    # tweezers: the surface and bead walls leave WALL_SKIP nodes free at each end
+    seq, n_nodes = protocol_source(base.get("source", ""), min_nodes=3 if kind == "rings" else 2 * WALL_SKIP + 2)
     if kind == "rings":
         ring = ff.ring(seq, n_nodes=n_nodes)
         tw0 = relaxed_twist(ring)
