@@ -180,10 +180,10 @@ def preflight(spec, model=None):
         raise ParameterError("start 'equilibrium' samples the free open chain exactly; this model is circular "
                              "(a ring or a periodic chain): use start 'intrinsic' or 'minimized'")
     omega = default_omega_max(model, spec.loads)
+    check_load_stiffness(spec, model, omega)
     if spec.dt is not None and spec.dt > 1.05 * MAX_OMEGA_DT / omega:
         choose_dt(spec, model, omega)              # raises, naming the limit
     intervals(spec, spec.dt if spec.dt is not None else _default_dt(omega))
-    check_load_stiffness(spec, model, omega)
     return model
 
 
