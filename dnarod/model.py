@@ -215,8 +215,8 @@ class RodModel:
         kind = file_kind(path)
         if kind is not None and kind not in ("a zip/.npz archive", "an empty file"):
             # numpy would try to unpickle it and suggest allow_pickle=True: say what the file is instead
-            raise ParameterError(f"{path}: {kind}, not a dnarod model file (.npz); give a .npz written by `dnarod "
-                                 f"build` or a run's final_model.npz")
+            raise ParameterError(f"{path}: cannot read dnarod model file (it is {kind}, not an .npz archive); give "
+                                 f"a .npz written by `dnarod build` or a run's final_model.npz")
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))

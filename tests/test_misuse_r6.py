@@ -41,7 +41,25 @@ def work(tmp_path):
     }
     for name, t in specs.items():
         (tmp_path / f"{name}.toml").write_text(t)
+    (tmp_path / "rna.pdb").write_text(_rna_text(text))
     return tmp_path
+
+
+def _rna_text(pdb_text):
+    """355D made into an RNA duplex: T -> U (methyl dropped), an O2' on every sugar."""
+    out = []
+    for line in pdb_text.splitlines():
+        if not line.startswith(("ATOM", "HETATM")) or line[17:20].strip() not in ("A", "C", "G", "T"):
+            continue
+        name, res = line[12:16].strip(), line[17:20].strip()
+        if res == "T" and name in ("C7", "C5M"):
+            continue
+        line = line[:17] + f"{'U' if res == 'T' else res:>3s}" + line[20:]
+        out.append(line)
+        if name in ("C2'", "C2*"):
+            x, y, z = (float(line[i:i + 8]) for i in (30, 38, 46))
+            out.append(line[:12] + " O2'" + line[16:30] + f"{x + 1.0:8.3f}{y + 0.9:8.3f}{z + 0.3:8.3f}" + line[54:])
+    return "\n".join(out) + "\nEND\n"
 
 
 def _snapshot(folder):
@@ -79,8 +97,13 @@ CASES = [
      None),
     # files whose content is not what the command reads (numpy's "allow_pickle" advice no longer shown)
     ("model-is-a-pdb-text", ["rebuild", "{w}/pdb_named.npz", "-o", "{w}/x.pdb", "--no-minimize"],
-     ["pdb_named.npz", "a PDB text file, not a dnarod model"], None),
-    ("model-is-json", ["simulate", "{w}/run.json", "-o", "{w}/n", *LAX], ["run.json", "a JSON text file"], None),
+     ["pdb_named.npz", "cannot read dnarod model file (it is a PDB text file"], None),
+    ("model-is-json", ["simulate", "{w}/run.json", "-o", "{w}/n", *LAX], ["run.json", "it is a JSON text file"], None),
+    # analyze: a refusal found while analysing used to follow a line already printed on stdout
+    ("analyze-single-structure", ["analyze", str(PDB), "-o", "{w}/n", "--no-plots"],
+     ["355D.pdb", "1 frame(s) x 9 steps", "dnarod steps"], None),
+    ("analyze-rna", ["analyze", "{w}/rna.pdb", "-o", "{w}/n", "--no-plots"], ["rna.pdb", "other than A, C, G, T"],
+     None),
     # protocol sources the protocols cannot build
     ("protocol-source-file", ["protocol", "hat", "--turns", "0", "--source", str(PDB), *PROTO],
      ["--source", "not from a file"], None),
