@@ -136,6 +136,10 @@ CASES = [
      ["1000000000 members", "more than 100000"], None),
     ("ensemble-cross-huge", ["ensemble", "{w}/cross_huge.toml", "-o", "{w}/n", "--workers", "0"],
      ["2000 x 2000", "more than 100000"], None),
+    ("protocol-workers-huge", ["protocol", "hat", "--turns", "0", "--source", "40", *PROTO[:2], "--workers",
+                               "100000", "-o", "{w}/n"], ["--workers 100000", "per core"], None),
+    ("ensemble-workers-huge", ["ensemble", "{w}/dt_huge.toml", "-o", "{w}/n", "--workers", "100000"],
+     ["--workers 100000", "per core"], None),
     # unreadable or wrong inputs that raised a Python error or were silently ignored
     ("ensemble-binary-fasta", ["ensemble", "{w}/fasta_binary.toml", "-o", "{w}/n", "--workers", "0"],
      ["binary.fa", "not a FASTA text file"], None),

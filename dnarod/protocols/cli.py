@@ -58,9 +58,9 @@ def _check_run_options(workers, out):
 
     from ..io_utils import check_dir_path
 
-    if workers < 0:
-        raise DnarodError(f"--workers {workers}: give a number of dask workers >= 0 (0: one after another in this "
-                          f"process)")
+    from ..ensemble.cluster import check_workers
+
+    check_workers(workers)
     out = Path(out)
     check_dir_path(out, what="output folder")
     if out.is_dir() and any(out.iterdir()) and not ((out / "curve.csv").exists() or (out / "members").is_dir()
