@@ -99,6 +99,12 @@ CASES = [
     ("model-is-a-pdb-text", ["rebuild", "{w}/pdb_named.npz", "-o", "{w}/x.pdb", "--no-minimize"],
      ["pdb_named.npz", "cannot read dnarod model file (it is a PDB text file"], None),
     ("model-is-json", ["simulate", "{w}/run.json", "-o", "{w}/n", *LAX], ["run.json", "it is a JSON text file"], None),
+    # empty or conflicting names in the structure options (they matched nothing, silently)
+    ("map-empty-name", ["pairs", str(PDB), "--map", "=A"], ["--map '=A'", "NAME is empty"], None),
+    ("map-twice-differently", ["steps", str(PDB), "--map", "XX=A", "--map", "xx=C"], ["already mapped to A"], None),
+    ("ignore-empty", ["build", str(PDB), "-o", "{w}/m.npz", "--ignore", ""], ["--ignore ''"], None),
+    ("altloc-empty", ["pairs", str(PDB), "--altloc", ""], ["--altloc ''"], None),
+    ("ignore-and-map", ["pairs", str(PDB), "--ignore", "SPM", "--map", "SPM=A"], ["--ignore SPM", "--map"], None),
     # analyze: a refusal found while analysing used to follow a line already printed on stdout
     ("analyze-single-structure", ["analyze", str(PDB), "-o", "{w}/n", "--no-plots"],
      ["355D.pdb", "1 frame(s) x 9 steps", "dnarod steps"], None),
