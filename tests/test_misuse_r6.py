@@ -258,3 +258,31 @@ def test_legitimate_stiff_loads_and_default_clamp_still_run(tmp_path):
     loads = tweezers_loads(model, 1.0, None, 1e7, 0.0, True, ())
     with pytest.raises(Exception, match=r"--rotation-clamp 1e\+07 .*use at most"):
         check_load_stiffness(RunSpec(source="40", loads=loads), model)
+
+
+def test_protocol_folder_of_other_settings_is_refused(tmp_path):
+    """A protocol run again into its folder with other settings (or another protocol) is refused, its files
+    unchanged; the same settings reuse the finished member; --overwrite runs it again."""
+    out = tmp_path / "hat"
+    args = ["protocol", "hat", "--turns", "0", "--source", "40", "--equilibration", "0.001", "--workers", "0",
+            "-o", str(out)]
+    r = CliRunner().invoke(main, [*args, "--time", "0.001"])
+    assert r.exit_code == 0, r.output
+    before = _snapshot(out)
+    for other, words in ((["--time", "0.002"], ["time_ns 0.001 -> 0.002", "--overwrite"]),
+                         (["--time", "0.001", "--salt", "0.3"], ["salt_M 0.15 -> 0.3"])):
+        r = CliRunner().invoke(main, [*args, *other])
+        assert r.exit_code == 2 and r.stdout == "", r.output
+        assert all(w in r.stderr for w in words) and "\n" not in r.stderr.strip(), r.stderr
+        assert _snapshot(out) == before
+    tt = ["protocol", "torque-turns", *args[2:], "--time", "0.001"]
+    r = CliRunner().invoke(main, tt)
+    assert r.exit_code == 2 and "a magnetic_tweezers run, not torque_turns" in r.stderr, r.output
+    r = CliRunner().invoke(main, [*args, "--time", "0.001"])      # same settings: the member is reused
+    assert r.exit_code == 0, r.output
+    assert (out / "members").exists() and _snapshot(out / "members") == {
+        p: d for p, d in before.items() if "members" in p.parts}
+    from dnarod.protocols.folder import check_protocol_folder
+
+    check_protocol_folder(out, "torque_turns", {}, overwrite=True)     # --overwrite lets the run go on
+
