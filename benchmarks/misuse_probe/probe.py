@@ -135,8 +135,8 @@ for f in sorted(p for p in (W / "spec").iterdir() if p.name not in ("linspace_hu
     q(f"ensemble-{f.name}", "ensemble", str(f), "-o", "{n}", "--workers", "0", "--no-progress")
 for s in ["{w}/nope.toml", "{w}/adir", "{w}/binary.toml", S + "/355D.pdb"]:
     q(f"ensemble-specfile={s}", "ensemble", s, "-o", "{n}", "--workers", "0")
-q("ensemble-out-file", "ensemble", "/work/wt/misuse/examples/force_extension.toml", "-o", "{w}/afile", "--workers", "0")
-q("ensemble-out-run", "ensemble", "/work/wt/misuse/examples/force_extension.toml", "-o", "{copy:run}", "--workers", "0")
+q("ensemble-out-file", "ensemble", str(Path(__file__).resolve().parents[2] / "examples" / "force_extension.toml"), "-o", "{w}/afile", "--workers", "0")
+q("ensemble-out-run", "ensemble", str(Path(__file__).resolve().parents[2] / "examples" / "force_extension.toml"), "-o", "{copy:run}", "--workers", "0")
 # protocols
 PR = lambda kind, *a: ["protocol", kind, *P, "-o", "{n}", *a]
 q("hat-turns-dup", *PR("hat", "--turns", "0,0"))
