@@ -42,6 +42,15 @@ def work(tmp_path):
     for name, t in specs.items():
         (tmp_path / f"{name}.toml").write_text(t)
     (tmp_path / "rna.pdb").write_text(_rna_text(text))
+    from dnarod.inputs import load_model
+    from dnarod.trajectory import HEADER_SIZE, Trajectory
+
+    m = load_model("ACGTACGTAC")
+    Trajectory([0.0, 1.0], np.repeat(m.positions[None], 2, 0), np.repeat(m.frames[None], 2, 0),
+               [0, 10]).save(tmp_path / "t.dtraj")
+    data = (tmp_path / "t.dtraj").read_bytes()
+    (tmp_path / "t.dtraj").write_bytes(data[:HEADER_SIZE + 100])   # killed before its first frame was complete
+    m.save(tmp_path / "final_model.npz")
     return tmp_path
 
 
@@ -108,6 +117,8 @@ CASES = [
     # analyze: a refusal found while analysing used to follow a line already printed on stdout
     ("analyze-single-structure", ["analyze", str(PDB), "-o", "{w}/n", "--no-plots"],
      ["355D.pdb", "1 frame(s) x 9 steps", "dnarod steps"], None),
+    ("analyze-truncated-trajectory", ["analyze", "{w}/t.dtraj", "-o", "{w}/n", "--no-plots"],
+     ["t.dtraj", "no complete frame", "truncated"], None),
     ("analyze-rna", ["analyze", "{w}/rna.pdb", "-o", "{w}/n", "--no-plots"], ["rna.pdb", "other than A, C, G, T"],
      None),
     # protocol sources the protocols cannot build

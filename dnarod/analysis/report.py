@@ -235,6 +235,9 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     traj, model, kind = load_input(input_path, topology, duplex, start, stop, step)
     ff = load_forcefield(forcefield or "dna-default")
     # refused here, before the old report's files go and before anything is printed
+    if traj.n_frames == 0 and start is None and stop is None and step is None:
+        raise DnarodError(f"{input_path}: holds no complete frame (an empty or truncated trajectory, or a run "
+                          f"stopped before its first frame); analyse a trajectory with frames")
     if traj.n_frames == 0:
         raise DnarodError(f"{input_path}: no frame left with --start {start} --stop {stop} --step {step}; widen the "
                           f"range")
