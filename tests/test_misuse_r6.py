@@ -128,6 +128,13 @@ CASES = [
      ["--source 3", "at least 8"], None),
     ("protocol-source-letters", ["protocol", "rings", "--delta-lk", "0", "--source", "ACGU" * 10, *PROTO],
      ["--source", "not a node count or a DNA sequence"], None),
+    # protocol member times that would never finish (a traceback, a MemoryError, or a hang)
+    ("protocol-time-huge", ["protocol", "hat", "--turns", "0", "--source", "40", "--time", "1e300", *PROTO[2:]],
+     ["--time (time_ns)", "more than 10000 ns"], None),
+    ("protocol-equilibration-huge", ["protocol", "rings", "--delta-lk", "0", "--source", "40", *PROTO,
+                                     "--equilibration", "1e12"], ["--equilibration", "more than 10000 ns"], None),
+    ("protocol-settle-huge", ["protocol", "hat", "--turns", "0", "--source", "40", "--start", "sweep", "--settle",
+                              "1e9", *PROTO], ["--settle 1e+09", "10000 ns"], None),
     # a load so stiff it sets the time step (it used to be blamed on --time/--dt)
     ("rotation-clamp-huge", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--clamp-first", "--rotation-clamp", "1e300"],
      ["--rotation-clamp 1e+300", "use at most"], None),

@@ -178,6 +178,11 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
                           f"(or sweep-in)")
     if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
         raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
+    from .curves import MAX_MEMBER_NS
+
+    if settle_ns is not None and settle_ns > MAX_MEMBER_NS:
+        raise DnarodError(f"--settle {settle_ns:g}: more than {MAX_MEMBER_NS:g} ns (10 us) per member would not "
+                          f"finish here; give a shorter time")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                       _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
                       settle_ns=settle_ns, overwrite=overwrite)

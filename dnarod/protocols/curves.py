@@ -115,12 +115,20 @@ def _checked_settings(base, names, values):
     return out, vals
 
 
+#: Longest production or equilibration of one protocol member, ns: the members sample every 1-200 ps into
+#: memory and run at ~10-100 ns per hour here, so more is a typo (a time in ps) that would hang or exhaust memory.
+MAX_MEMBER_NS = 1e4
+
+
 def _checked(value, table, key):
     """Ranges the schema leaves to the run layer, refused here before any member runs."""
     if key == "seed" and not 0 <= value < 2**31:
         raise DnarodError(f"[{table}] seed: must be an integer in [0, 2^31), got {value}")
     if key in ("time_ns", "equilibration_ns", "salt_M") and not value > 0:
         raise DnarodError(f"[{table}] {key}: must be > 0, got {value:g}")
+    if key in ("time_ns", "equilibration_ns") and value > MAX_MEMBER_NS:
+        raise DnarodError(f"[{table}] {key}: {value:g} ns per member is more than {MAX_MEMBER_NS:g} ns (10 us): it "
+                          f"would not finish here and its samples would not fit in memory; give a shorter time")
     if key == "salt_M" and value > MAX_SALT:
         raise DnarodError(f"[{table}] salt_M: must be at most {MAX_SALT:g} mol/L (Debye-Hueckel screening is "
                           f"meaningless beyond), got {value:g}")
