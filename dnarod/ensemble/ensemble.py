@@ -111,7 +111,13 @@ class Ensemble:
         """Build and check the RunSpec of every distinct member (client side), so a sweep with one bad value
         (a salt, force or time outside the run layer's ranges) is refused before any member runs. Members that
         differ only in their seed (replicas) share one check."""
-        if hasattr(self.protocol, "execute") or not hasattr(self.protocol, "build"):
+        if hasattr(self.protocol, "execute"):
+            # a protocol that runs its members itself may check their settings: before any member runs
+            check = getattr(self.protocol, "check", None)
+            if callable(check):
+                self._check_each(check)
+            return
+        if not hasattr(self.protocol, "build"):
             return
         from ..run import RunSpec
         from ..run.api import preflight
@@ -149,6 +155,22 @@ class Ensemble:
             except SpecError:
                 raise
             except DnarodError as exc:        # the run layer refuses these settings
+                raise SpecError(f"member {m.index} ({m.id}): {' '.join(str(exc).split())}") from None
+
+    def _check_each(self, check):
+        """``check(settings)`` for every distinct member (seed and label aside), one line naming the member."""
+        seen = set()
+        for m in self.members:
+            key = json.dumps({k: v for k, v in m.settings.items() if k not in ("seed", "sequence_name")},
+                             sort_keys=True, default=str)
+            if key in seen:
+                continue
+            seen.add(key)
+            try:
+                check(m.settings)
+            except SpecError:
+                raise
+            except DnarodError as exc:
                 raise SpecError(f"member {m.index} ({m.id}): {' '.join(str(exc).split())}") from None
 
     def prepare(self):
