@@ -38,6 +38,10 @@ def work(tmp_path):
         "fasta_binary": '[base]\ntime_ns = 0.001\n[axes]\nfasta = "binary.fa"\n',
         "not_a_protocol": '[ensemble]\nprotocol = "os:getcwd"\n' + base,
         "stiff_clamp": base + "clamp_first = true\nforce_pN = 1\nrotation_clamp_kJ_mol = 1e300\n",
+        "hat_time_huge": '[ensemble]\nprotocol = "magnetic-tweezers"\n[base]\nsource = "40"\ntime_ns = 1e300\n'
+                         'force_pN = 1\nrotation_clamp_kJ_mol = 250\n[axes]\nturns = [0, 0.5]\n',
+        "rings_sigma": '[ensemble]\nprotocol = "rings"\n[base]\nsource = "60"\ntime_ns = 0.01\nring = true\n[axes]\n'
+                       'delta_lk = [0, 3]\n',
     }
     for name, t in specs.items():
         (tmp_path / f"{name}.toml").write_text(t)
@@ -153,6 +157,10 @@ CASES = [
      ["member 0", "--rotation-clamp", "use at most"], None),
     ("ensemble-one-block", ["ensemble", "{w}/blocks_one.toml", "-o", "{w}/n", "--workers", "0"],
      ["[analysis] blocks", ">= 2"], None),
+    ("ensemble-protocol-member-time", ["ensemble", "{w}/hat_time_huge.toml", "-o", "{w}/n", "--workers", "0"],
+     ["member 0", "time_ns", "more than 10000 ns"], None),
+    ("ensemble-protocol-ring-sigma", ["ensemble", "{w}/rings_sigma.toml", "-o", "{w}/n", "--workers", "0"],
+     ["member 1", "sigma"], None),
     # sizes that fill the memory before anything runs
     ("ensemble-linspace-huge", ["ensemble", "{w}/linspace_huge.toml", "-o", "{w}/n", "--workers", "0"],
      ["linspace of 1000000000 values", "100000"], None),
