@@ -70,6 +70,11 @@ class DnarodGroup(click.Group):
             raise
         except click.UsageError as exc:
             raise _one_line_usage(exc) from None
+        except KeyboardInterrupt:
+            # click would print "Aborted!" and exit 1; say what is kept and how to go on
+            click.echo("dnarod: interrupted; the files written so far are kept (a run continues from its last "
+                       "checkpoint with --resume; an ensemble skips its finished members when run again)", err=True)
+            sys.exit(130)
         except MemoryError:
             click.echo("dnarod: error: not enough memory for this input (a node count, a sequence or a file too "
                        "large?); give a smaller one", err=True)

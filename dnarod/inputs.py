@@ -166,3 +166,40 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
             _check_ring_twist(ff.ring(**kw), delta_lk)
         return ff.ring(**kw, delta_linking_number=delta_lk)
     return ff.model_from_sequence(**kw, circular=circular)
+
+
+def protocol_source(source, min_nodes=2, option="--source"):
+    """``(sequence, n_nodes)`` of a protocol's source: a node count or a DNA sequence (one of the two is None).
+
+    A protocol builds its chain with the force field from a count or a sequence; a file (structure, model,
+    FASTA) is refused with one line saying so, as are other letters, a chain shorter than ``min_nodes`` and
+    one longer than :data:`MAX_NODES`.
+
+    Raises
+    ------
+    ParameterError
+    """
+    src = "".join(str(source if source is not None else "").split())
+    if not src:
+        raise ParameterError(f"{option}: give a node count (e.g. 600) or a DNA sequence")
+    if src.isdigit():
+        n, seq = int(src), None
+    elif SEQUENCE_RE.fullmatch(src):
+        n, seq = len(src), src.upper()
+    else:
+        p = Path(str(source).strip())
+        looks_like_file = _is_file(p) or "/" in src or p.suffix.lower() in SEQUENCE_SUFFIXES | {
+            ".npz", ".pdb", ".cif", ".mmcif", ".ent", ".gz"}
+        short = f"{src[:40]}{'...' if len(src) > 40 else ''}"
+        if looks_like_file:
+            raise ParameterError(f"{option} {short}: a protocol builds its chain from a node count or a DNA sequence, "
+                                 f"not from a file; give the sequence itself or a node count (`dnarod simulate` "
+                                 f"reads structure, model and sequence files)")
+        raise ParameterError(f"{option} {short}: not a node count or a DNA sequence (letters A, C, G, T)")
+    if n < min_nodes:
+        raise ParameterError(f"{option} {src if seq is None else seq[:20]}: {n} nodes; this protocol needs at least "
+                             f"{min_nodes}")
+    if n > MAX_NODES:
+        raise ParameterError(f"{option} {src[:20]}: {n} nodes is more than {MAX_NODES:.0e}; give a shorter chain")
+    return seq, (n if seq is None else None)
+

@@ -21,7 +21,13 @@ def atomic_path(path):
 
         raise DnarodError(f"cannot write {path}: {bad} is a regular file, not a folder; choose another path")
     ensure_dir(path.parent, what=f"folder of {path}")
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as exc:  # name the file asked for, not the temporary one (/proc, a read-only disk, ...)
+        from .errors import DnarodError
+
+        raise DnarodError(f"cannot write {path}: no file can be created in {path.parent} ({exc.strerror or exc}); "
+                          f"choose another path") from None
     os.close(fd)
     try:
         yield tmp
@@ -81,6 +87,81 @@ def ensure_dir(path, what="output folder"):
     except OSError as exc:
         raise DnarodError(f"{what} {path}: cannot create it ({exc.strerror or exc})") from None
     return path
+
+
+def file_kind(path):
+    """What the first bytes of ``path`` say it is, in words ("a dnarod .dtraj trajectory", "a PDB or other
+    text file", "binary data", ...), for messages about a file given where another kind was expected.
+    None if it cannot be read."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(512)
+    except OSError:
+        return None
+    if not head:
+        return "an empty file"
+    if head.startswith(b"PK\x03\x04"):
+        return "a zip/.npz archive"
+    if head.startswith(b"DTRAJ"):
+        return "a dnarod .dtraj trajectory"
+    if head.startswith(b"\x1f\x8b"):
+        return "a gzip file"
+    if head.startswith(b"\x93NUMPY"):
+        return "a single numpy array (.npy)"
+    text = head.lstrip()
+    if text.startswith((b"{", b"[")):
+        return "a JSON text file"
+    if text.startswith(b"data_"):
+        return "an mmCIF text file"
+    if text[:6].rstrip() in (b"HEADER", b"ATOM", b"HETATM", b"REMARK", b"CRYST1", b"MODEL", b"TITLE", b"COMPND"):
+        return "a PDB text file"
+    if b"\0" in head or sum(1 for b in head if b < 9 or 13 < b < 32) > 0.05 * len(head):
+        return "binary data"
+    return "a text file"
+
+
+#: Name of the lock file a writer holds in its output folder while it writes (see :func:`folder_lock`).
+LOCK_NAME = ".dnarod.lock"
+
+
+@contextlib.contextmanager
+def folder_lock(folder, what="output folder"):
+    """Hold an exclusive lock on ``folder`` (created if needed) while the body writes into it.
+
+    A second dnarod process writing into the same folder (two runs with the same ``-o``, a resume while
+    the run still goes on) is refused at once instead of interleaving its files with the first one's.
+    The lock is ``fcntl.flock`` on ``folder/.dnarod.lock``, released by the operating system if the
+    process dies, so a killed run never leaves a stale lock. The file (holding the owner's pid) stays.
+
+    Raises
+    ------
+    DnarodError
+        Another process holds the lock (the message names its pid when known).
+    """
+    import fcntl
+
+    from .errors import DnarodError
+
+    folder = ensure_dir(folder, what)
+    fh = open(folder / LOCK_NAME, "a+")
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        fh.seek(0)
+        owner = fh.read().strip()
+        fh.close()
+        who = f" (pid {owner})" if owner.isdigit() else ""
+        raise DnarodError(f"{what} {folder} is in use by another dnarod process{who}: wait for it to finish, or "
+                          f"choose another folder with -o") from None
+    try:
+        fh.seek(0)
+        fh.truncate()
+        fh.write(str(os.getpid()))
+        fh.flush()
+        yield folder
+    finally:
+        fcntl.flock(fh, fcntl.LOCK_UN)
+        fh.close()
 
 
 def check_output_file(path, overwrite=False, what="output file"):

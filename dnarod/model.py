@@ -210,6 +210,13 @@ class RodModel:
     @classmethod
     def load(cls, path):
         """Read a model written by :meth:`save`."""
+        from .io_utils import file_kind
+
+        kind = file_kind(path)
+        if kind is not None and kind not in ("a zip/.npz archive", "an empty file"):
+            # numpy would try to unpickle it and suggest allow_pickle=True: say what the file is instead
+            raise ParameterError(f"{path}: cannot read dnarod model file (it is {kind}, not an .npz archive); give "
+                                 f"a .npz written by `dnarod build` or a run's final_model.npz")
         try:
             with np.load(path, allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))

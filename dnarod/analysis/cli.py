@@ -37,5 +37,10 @@ def analyze_cmd(input_path, topology, forcefield, out, circular, temperature, st
     """
     from .report import analyze
 
+    # the report's lines are printed when the analysis has finished: a refusal found on the way (too few
+    # frames, an open chain with --circular) is then its one line on stderr, with nothing on stdout before it
+    lines = []
     analyze(input_path, topology, forcefield, out, circular, temperature, start, stop, step, exclude_ends,
-            blocks, allow_gaps, duplex, plots=not no_plots, echo=click.echo, overwrite=overwrite)
+            blocks, allow_gaps, duplex, plots=not no_plots, echo=lines.append, overwrite=overwrite)
+    for line in lines:
+        click.echo(line)

@@ -235,16 +235,19 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     traj, model, kind = load_input(input_path, topology, duplex, start, stop, step)
     ff = load_forcefield(forcefield or "dna-default")
     # refused here, before the old report's files go and before anything is printed
+    if traj.n_frames == 0 and start is None and stop is None and step is None:
+        raise DnarodError(f"{input_path}: holds no complete frame (an empty or truncated trajectory, or a run "
+                          f"stopped before its first frame); analyse a trajectory with frames")
     if traj.n_frames == 0:
         raise DnarodError(f"{input_path}: no frame left with --start {start} --stop {stop} --step {step}; widen the "
                           f"range")
     closed = bool(circular or traj.metadata.get("circular") or (model is not None and model.closure is not None))
     n_steps = traj.n_nodes - 1
-    if exclude_ends is not None and not closed and n_steps - 2 * int(exclude_ends) < 1:
-        raise DnarodError(f"--exclude-ends {exclude_ends} leaves no steps of {n_steps}; use at most "
+    ends_asked = (1 if kind == "all-atom" else 0) if exclude_ends is None else int(exclude_ends)
+    if not closed and n_steps - 2 * ends_asked < 1:
+        default = " (the default for all-atom input)" if exclude_ends is None else ""
+        raise DnarodError(f"--exclude-ends {ends_asked}{default} leaves no steps of {n_steps}; use at most "
                           f"{max((n_steps - 1) // 2, 0)}")
-    for p in stale:  # overwrite: the old report's files go once the input has been read
-        p.unlink(missing_ok=True)
     closure = model.closure if model is not None else None
     circular = circular or bool(traj.metadata.get("circular"))
     if circular and closure is None:
@@ -255,6 +258,20 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     seq = (model.sequence if model is not None else None) or traj.metadata.get("sequence") or None
     if seq is not None and len(seq) != traj.n_nodes:
         seq = None
+    if seq is not None and set(seq.upper()) - set("ACGT"):
+        bad = sorted(set(seq.upper()) - set("ACGT"))
+        raise DnarodError(f"{input_path}: strand I {seq[:40]}{'...' if len(seq) > 40 else ''} has bases other than "
+                          f"A, C, G, T ({', '.join(bad)}: RNA or unmapped modified bases); the step analysis and its "
+                          f"force-field comparison are for DNA duplexes")
+    from .stiffness import MIN_SAMPLES
+
+    n_used = n_steps + (1 if closed else 0) - (0 if closed else 2 * ends_asked)
+    if traj.n_frames * n_used < MIN_SAMPLES:  # refused before any file of the report is written
+        raise DnarodError(f"{input_path}: {traj.n_frames} frame(s) x {n_used} steps = {traj.n_frames * n_used} "
+                          f"step samples; the stiffness fit needs at least {MIN_SAMPLES}: analyse more frames (a "
+                          f"single structure is one frame; `dnarod steps` gives its step parameters)")
+    for p in stale:  # overwrite: the old report's files go once the input has been read
+        p.unlink(missing_ok=True)
     T = float(temperature or traj.metadata.get("temperature_K") or ff.temperature)
     ends = (1 if kind == "all-atom" else 0) if exclude_ends is None else int(exclude_ends)
     if is_ring:

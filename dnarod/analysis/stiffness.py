@@ -167,13 +167,16 @@ class StiffnessFit(AnalysisBase):
             samples = xi[:, steps].reshape(-1, 6)
             try:
                 if len(samples) < MIN_SAMPLES:
-                    raise DnarodError(f"step type {name}: only {len(samples)} samples ({nf} frames x {len(steps)} "
+                    label = "all step types pooled" if name == "*" else f"step type {name}"
+                    raise DnarodError(f"{label}: only {len(samples)} samples ({nf} frames x {len(steps)} "
                                       f"steps); need at least {MIN_SAMPLES} for a 6x6 covariance: analyse more "
-                                      f"frames")
+                                      f"frames (a single structure is one frame)")
                 fits = {rw: stiffness_from_samples(samples, self.ds, kt, reweight=rw) for rw in (True, False)}
             except DnarodError as exc:
                 if name == "*":  # the pooled fit is required; a single rare step type is only skipped
-                    raise DnarodError(f"step type {name}: {exc}") from None
+                    msg = str(exc)
+                    raise DnarodError(msg if msg.startswith("all step types") else f"step type {name}: {msg}") \
+                        from None
                 r.skipped_types[name] = str(exc)
                 continue
             out = {"n_samples": len(samples), "steps": [int(s) for s in steps]}

@@ -32,8 +32,9 @@ def ensemble_cmd(spec, outdir, scheduler, workers, timeout, overwrite, dashboard
     from .cluster import available_cores, connect
     from .ensemble import Ensemble
 
-    if workers is not None and workers < 0:
-        raise ParameterError(f"--workers {workers}: give a number of worker processes (0: run in this process)")
+    from .cluster import check_workers
+
+    check_workers(workers)
     import math
     import re
 

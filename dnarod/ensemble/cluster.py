@@ -30,6 +30,26 @@ def available_cores():
         return os.cpu_count() or 1
 
 
+#: Most local worker processes per core: each is a Python process with OpenMM loaded (a few hundred MB), so far
+#: more than the cores only fills the memory (the same bound as OpenMM's --threads).
+MAX_WORKERS_PER_CORE = 4
+
+
+def check_workers(workers, option="--workers"):
+    """Refuse a local worker count that is not an integer >= 0 or above :data:`MAX_WORKERS_PER_CORE` per core
+    (one line naming ``option``); returns it. 0 means: no cluster, members one after another."""
+    if workers is None:
+        return None
+    if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
+        raise SchedulerError(f"{option} {workers!r}: give a number of worker processes >= 0 (0: one after another "
+                             f"in this process)")
+    most = MAX_WORKERS_PER_CORE * available_cores()
+    if workers > most:
+        raise SchedulerError(f"{option} {workers}: more than {most} local worker processes ({MAX_WORKERS_PER_CORE} "
+                             f"per core here) only fill the memory; use at most {most} (the default is one per core)")
+    return workers
+
+
 def local_cluster(workers=None, dashboard=False, **kw):
     """A :class:`distributed.LocalCluster` of ``workers`` processes (default: the cores), one thread each.
 
@@ -43,6 +63,7 @@ def local_cluster(workers=None, dashboard=False, **kw):
     """
     from distributed import LocalCluster
 
+    check_workers(workers)
     n = int(workers or available_cores())
     if dashboard:
         try:

@@ -111,9 +111,18 @@ class Ensemble:
         """Build and check the RunSpec of every distinct member (client side), so a sweep with one bad value
         (a salt, force or time outside the run layer's ranges) is refused before any member runs. Members that
         differ only in their seed (replicas) share one check."""
-        if hasattr(self.protocol, "execute") or not hasattr(self.protocol, "build"):
+        if hasattr(self.protocol, "execute"):
+            # a protocol that runs its members itself may check their settings: before any member runs
+            check = getattr(self.protocol, "check", None)
+            if callable(check):
+                self._check_each(check)
             return
+        if not hasattr(self.protocol, "build"):
+            return
+        from ..run import RunSpec
+        from ..run.api import preflight
         from .protocol import build_runspec
+        from .schema import RUN_KEYS
 
         seen, models = set(), {}
         for m in self.members:
@@ -129,9 +138,39 @@ class Ensemble:
                         else self.protocol.build(s))
                 if hasattr(spec, "check"):
                     spec.check()
+                if isinstance(spec, RunSpec):
+                    # what the run layer refuses before it writes (dt above the stability limit, more than
+                    # 10^12 steps, an equilibrium start of a ring, a too-stiff load): refused here, not as a
+                    # failed member after the others ran
+                    key = (spec.source, spec.forcefield, bool(spec.circular), bool(spec.ring), spec.delta_lk) \
+                        if isinstance(spec.source, str) else None
+                    model = preflight(spec, models.get(key) if key is not None else None)
+                    if key is not None:
+                        models[key] = model
+                discard = self.spec.analysis.get("discard_ns", 0.0)
+                if discard and discard >= s.get("time_ns", RUN_KEYS["time_ns"].default):
+                    raise SpecError(f"[analysis] discard_ns = {discard:g} leaves nothing of the "
+                                    f"{s.get('time_ns', RUN_KEYS['time_ns'].default):g} ns run; give a discard_ns "
+                                    f"below time_ns")
             except SpecError:
                 raise
             except DnarodError as exc:        # the run layer refuses these settings
+                raise SpecError(f"member {m.index} ({m.id}): {' '.join(str(exc).split())}") from None
+
+    def _check_each(self, check):
+        """``check(settings)`` for every distinct member (seed and label aside), one line naming the member."""
+        seen = set()
+        for m in self.members:
+            key = json.dumps({k: v for k, v in m.settings.items() if k not in ("seed", "sequence_name")},
+                             sort_keys=True, default=str)
+            if key in seen:
+                continue
+            seen.add(key)
+            try:
+                check(m.settings)
+            except SpecError:
+                raise
+            except DnarodError as exc:
                 raise SpecError(f"member {m.index} ({m.id}): {' '.join(str(exc).split())}") from None
 
     def prepare(self):

@@ -104,7 +104,7 @@ def resolve_protocol(protocol):
     if protocol is None:
         return DEFAULT
     if not isinstance(protocol, str):
-        return protocol
+        return _check_hooks(protocol, protocol)
     target = PROTOCOLS.get(protocol, protocol)
     if ":" not in target:
         names = ", ".join(sorted(PROTOCOLS)) or "none"
@@ -115,8 +115,27 @@ def resolve_protocol(protocol):
         obj = importlib.import_module(mod)
         for part in attr.split("."):
             obj = getattr(obj, part)
-    except (ImportError, AttributeError) as exc:
-        raise SpecError(f"[ensemble] protocol {protocol!r}: cannot import {target}: {exc}") from None
+    except Exception as exc:  # ImportError, AttributeError, or whatever the module raises on import
+        raise SpecError(f"[ensemble] protocol {protocol!r}: cannot import {target}: "
+                        f"{' '.join(str(exc).split()) or type(exc).__name__}") from None
+    return _check_hooks(obj, protocol)
+
+
+#: The hooks a protocol object may have (at least one of them).
+HOOKS = ("build", "reduce", "execute")
+
+
+def _check_hooks(obj, name):
+    """Refuse an object that is not a protocol: none of :data:`HOOKS`, or a hook that is not callable (it
+    would silently run the default protocol, or fail in every member)."""
+    present = [h for h in HOOKS if hasattr(obj, h)]
+    if not present:
+        raise SpecError(f"[ensemble] protocol {name!r}: {type(obj).__name__} {getattr(obj, '__name__', '')!s} has "
+                        f"none of build, reduce, execute; name an object with the protocol hooks (see "
+                        f"dnarod.ensemble.protocol)".replace("  ", " "))
+    for h in present:
+        if not callable(getattr(obj, h)):
+            raise SpecError(f"[ensemble] protocol {name!r}: its {h} is not callable")
     return obj
 
 

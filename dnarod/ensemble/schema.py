@@ -27,7 +27,7 @@ class Key:
     kind: type
     default: object
     doc: str
-    check: str = ""          # "", ">0", ">=0", or "|"-separated allowed strings
+    check: str = ""          # "", ">0", ">=0", ">=2", or "|"-separated allowed strings
 
 
 #: Settings of one run (``[base]`` and ``[axes]``), in RunSpec units. Defaults are the run layer's.
@@ -79,7 +79,7 @@ ENSEMBLE_KEYS = {k.name: k for k in [
 #: ``[analysis]`` keys (how a member's run is reduced; not part of a member's identity).
 ANALYSIS_KEYS = {k.name: k for k in [
     Key("discard_ns", float, 0.0, "leave out the first part of each run (equilibration), ns", ">=0"),
-    Key("blocks", int, 10, "blocks for the block standard errors", ">0"),
+    Key("blocks", int, 10, "blocks for the block standard errors (at least 2)", ">=2"),
 ]}
 
 #: Physical quantities and the one key (with its unit) that spells each.
@@ -128,9 +128,21 @@ def coerce(table, key, spec, value):
         raise SpecError(f"{where}: must be > 0, got {value}")
     if c == ">=0" and not value >= 0:
         raise SpecError(f"{where}: must be >= 0, got {value}")
+    if c == ">=2" and not value >= 2:
+        raise SpecError(f"{where}: must be >= 2, got {value}")
     if "|" in c and value not in c.split("|"):
         raise SpecError(f"{where}: must be one of {c.replace('|', ', ')}, got {value!r}")
     return value
+
+
+def check_distinct(table, key, values):
+    """Refuse an axis that repeats a value (the same member twice, or one run counted twice in a curve)."""
+    seen = set()
+    for v in values:
+        if repr(v) in seen:
+            raise SpecError(f"[{table}] {key}: repeated values {list(values)} ({v} twice); each member must differ")
+        seen.add(repr(v))
+    return values
 
 
 def schema_rows():

@@ -38,10 +38,13 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DnarodError
-from .schema import ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, coerce, unknown_key
+from .schema import ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, check_distinct, coerce, unknown_key
 
 #: Seed of the first replica when the spec gives none (members must be reproducible to resume).
 DEFAULT_SEED = 1
+#: Most members a spec may expand to: each member is at least one run folder and one dask task, so more is
+#: a typo (an n of 10^9 in a linspace, replicas = 10^6) that would otherwise fill the memory before running.
+MAX_MEMBERS = 100_000
 
 
 @dataclass(frozen=True)
@@ -126,7 +129,12 @@ def read_fasta(path):
     if not p.is_file():
         raise SpecError(f"[axes] fasta: file not found: {p}")
     records, name, chunks = [], None, []
-    for ln, line in enumerate(p.read_text().splitlines(), 1):
+    try:
+        text = p.read_text()
+    except (UnicodeDecodeError, OSError) as exc:
+        raise SpecError(f"[axes] fasta {p}: not a FASTA text file ({type(exc).__name__}: "
+                        f"{' '.join(str(exc).split())[:80]})") from None
+    for ln, line in enumerate(text.splitlines(), 1):
         line = line.strip()
         if not line or line.startswith(";"):
             continue
@@ -163,6 +171,9 @@ def _axis_values(key, spec, raw):
             coerce("axes", key, Key(key, float, None, ""), args[1]), args[2]
         if n < 1:
             raise SpecError(f"{where}: axis of length {n}; give at least one value")
+        if n > MAX_MEMBERS:
+            raise SpecError(f"{where}: {kind} of {n} values is more than the {MAX_MEMBERS} members an ensemble may "
+                            f"have; give a smaller n")
         if kind == "logspace":
             if a <= 0 or b <= 0:
                 raise SpecError(f"{where}: logspace needs positive start and stop, got {a}, {b}")
@@ -176,9 +187,7 @@ def _axis_values(key, spec, raw):
     if not raw:
         raise SpecError(f"{where}: axis of length zero; give at least one value")
     vals = [coerce("axes", key, spec, v) for v in raw]
-    if len(set(map(repr, vals))) != len(vals):
-        raise SpecError(f"{where}: repeated values {vals}; each member must differ")
-    return vals
+    return check_distinct("axes", key, vals)
 
 
 def _resolve_source(value, base_dir):
@@ -277,6 +286,14 @@ def parse_spec(doc, base_dir=".", protocol_keys=None):
             raise SpecError("[ensemble] combine = 'zip' zips every axis; drop zip = [...] or use combine = 'cross'")
         zip_groups = [[k for g in groups for k in g]] if groups else []
     groups = _zip(groups, zip_groups)
+    n_members = replicas
+    for g in groups:
+        n_members *= len(next(iter(g.values())))
+    if n_members > MAX_MEMBERS:
+        sizes = " x ".join([str(len(next(iter(g.values())))) for g in groups] + ([f"{replicas} replicas"]
+                                                                                 if replicas > 1 else []))
+        raise SpecError(f"[axes] {sizes} = {n_members} members, more than {MAX_MEMBERS}; give fewer values or "
+                        f"replicas (or split the spec)")
     axes = list(order) + (["seed"] if replicas > 1 else [])
     return EnsembleSpec(name=ens.get("name", "ensemble"), base=base, groups=groups, replicas=replicas,
                         protocol=ens.get("protocol"), analysis=analysis, axes=axes,

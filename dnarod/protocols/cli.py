@@ -36,19 +36,27 @@ _OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "t
                   "forcefield": "--forcefield"}
 
 
-def _run_protocol(*args, **kw):
-    """:func:`dnarod.protocols.curves.run_protocol`, its settings errors named by the command's options."""
+def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
+    """:func:`dnarod.protocols.curves.run_protocol`, its settings errors named by the command's options; a
+    folder holding this protocol run with other settings is refused unless ``overwrite``
+    (:mod:`dnarod.protocols.folder`)."""
     import re
 
+    from ..io_utils import jsonable
     from .curves import run_protocol
+    from .folder import check_protocol_folder, write_protocol_record
 
+    shared = jsonable(dict(base, start=kw.get("start", "static"), settle_ns=kw.get("settle_ns")))
+    check_protocol_folder(out, kind, shared, overwrite)
     try:
-        return run_protocol(*args, **kw)
+        curve = run_protocol(kind, axes, base, out, **kw)
     except DnarodError as exc:
         m = re.match(r"\[(base|axes)\] (\w+)(.*)", str(exc), re.S)
         if m and m.group(2) in _OPTION_OF_KEY:
             raise DnarodError(f"{_OPTION_OF_KEY[m.group(2)]} ({m.group(2)}){m.group(3)}") from None
         raise
+    write_protocol_record(out, kind, shared)
+    return curve
 
 
 def _check_run_options(workers, out):
@@ -58,12 +66,13 @@ def _check_run_options(workers, out):
 
     from ..io_utils import check_dir_path
 
-    if workers < 0:
-        raise DnarodError(f"--workers {workers}: give a number of dask workers >= 0 (0: one after another in this "
-                          f"process)")
+    from ..ensemble.cluster import check_workers
+
+    check_workers(workers)
     out = Path(out)
     check_dir_path(out, what="output folder")
     if out.is_dir() and any(out.iterdir()) and not ((out / "curve.csv").exists() or (out / "members").is_dir()
+                                                    or (out / "protocol.json").exists()
                                                     or (out / "ensemble.json").exists()):
         raise DnarodError(f"{out}: not a protocol folder (no curve.csv or members/) and not empty; choose a new or "
                           f"empty -o folder")
@@ -89,6 +98,8 @@ def _common(f):
         click.option("--workers", type=int, default=2, show_default=True,
                      help="Dask local workers (0: run members one after another in this process)."),
         click.option("--out", "-o", type=click.Path(file_okay=False), required=True, help="Output folder."),
+        click.option("--overwrite", is_flag=True,
+                     help="Run the members again if --out holds this protocol run with other settings."),
     ]
     for o in reversed(opts):
         f = o(f)
@@ -148,7 +159,7 @@ def protocol():
 @click.option("--force", "forces", required=True, help="Forces, pN, comma-separated (e.g. 0.1,0.3,1,3,10).")
 @click.option("--turns", default=None, help="Refused: the force-extension bead end is torsionally free.")
 @_common
-def force_extension_cmd(forces, turns, workers, out, **kw):
+def force_extension_cmd(forces, turns, workers, out, overwrite, **kw):
     """Extension vs force with a torsionally free bead end."""
     _check_run_options(workers, out)
     run_protocol = _run_protocol
@@ -156,7 +167,8 @@ def force_extension_cmd(forces, turns, workers, out, **kw):
     if turns not in (None, "", "0"):
         raise DnarodError(f"--turns {turns}: turns need a rotation clamp; the force-extension bead end is "
                           f"torsionally free: use `dnarod protocol hat` or `dnarod protocol torque-turns`")
-    c = run_protocol("force_extension", {"force_pN": _floats(forces, "--force")}, _base(**kw), out, workers=workers)
+    c = run_protocol("force_extension", {"force_pN": _floats(forces, "--force")}, _base(**kw), out, workers=workers,
+                     overwrite=overwrite)
     _report(c, "force_pN", ["relative_extension"])
 
 
@@ -188,7 +200,8 @@ def _clamp_options(default_force):
     return decorate
 
 
-def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None):
+def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None,
+                 overwrite=False):
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
     import math
 
@@ -198,34 +211,39 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
                           f"(or sweep-in)")
     if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
         raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
+    from .curves import MAX_MEMBER_NS
+
+    if settle_ns is not None and settle_ns > MAX_MEMBER_NS:
+        raise DnarodError(f"--settle {settle_ns:g}: more than {MAX_MEMBER_NS:g} ns (10 us) per member would not "
+                          f"finish here; give a shorter time")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                       _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
-                      settle_ns=settle_ns)
+                      settle_ns=settle_ns, overwrite=overwrite)
     _report(c, "turns", columns)
 
 
 @protocol.command("hat")
 @_clamp_options("0.5")
 @_common
-def hat_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, **kw):
+def hat_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, overwrite, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns)
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, overwrite)
 
 
 @protocol.command("torque-turns")
 @_clamp_options("1.0")
 @_common
-def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, **kw):
+def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, overwrite, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
-                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns)
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns, overwrite)
 
 
 @protocol.command("rings")
 @click.option("--delta-lk", required=True, help="Linking differences, comma-separated integers.")
 @_common
-def rings_cmd(delta_lk, workers, out, **kw):
+def rings_cmd(delta_lk, workers, out, overwrite, **kw):
     """Closed rings: Tw, Wr and plectonemes vs linking difference."""
     _check_run_options(workers, out)
     run_protocol = _run_protocol
@@ -233,5 +251,6 @@ def rings_cmd(delta_lk, workers, out, **kw):
     vals = _floats(delta_lk, "--delta-lk")
     if any(v != int(v) for v in vals):
         raise DnarodError(f"--delta-lk {delta_lk}: the linking number of a closed ring is an integer")
-    c = run_protocol("rings", {"delta_lk": [int(v) for v in vals]}, _base(**kw), out, workers=workers)
+    c = run_protocol("rings", {"delta_lk": [int(v) for v in vals]}, _base(**kw), out, workers=workers,
+                     overwrite=overwrite)
     _report(c, "delta_lk", ["Wr", "Tw", "writhe_fraction", "plectoneme_fraction"])

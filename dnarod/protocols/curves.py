@@ -70,12 +70,12 @@ def _members(kind, axes, base):
     from ..forcefield import load_forcefield
 
     ff = load_forcefield(base.get("forcefield", "dna-default"))
-    src = str(base.get("source", "")).strip()
-    if not src:
-        raise DnarodError("source: give a node count (e.g. 600) or a sequence")
+    from ..inputs import protocol_source
     from ..run.api import check_start_pose
+    from .tweezers import WALL_SKIP
 
-    seq, n_nodes = (None, int(src)) if src.isdigit() else (src, None)
+    # tweezers: the surface and bead walls leave WALL_SKIP nodes free at each end
+    seq, n_nodes = protocol_source(base.get("source", ""), min_nodes=3 if kind == "rings" else 2 * WALL_SKIP + 2)
     if kind == "rings":
         ring = ff.ring(seq, n_nodes=n_nodes)
         tw0 = relaxed_twist(ring)
@@ -98,7 +98,7 @@ def _members(kind, axes, base):
 def _checked_settings(base, names, values):
     """``base`` and the axis values checked against the ensemble schema (the keys the members read): an
     unknown key, a value of the wrong type, a non-finite or out-of-range number is one line naming it."""
-    from ..ensemble.schema import RUN_KEYS, coerce, unknown_key
+    from ..ensemble.schema import RUN_KEYS, check_distinct, coerce, unknown_key
     from .ensemble_hooks import protocol_keys
 
     known = {**RUN_KEYS, **protocol_keys()}
@@ -111,8 +111,13 @@ def _checked_settings(base, names, values):
     for n, v in zip(names, values):
         if n not in known:
             raise unknown_key("axes", n, known)
-        vals.append([_checked(coerce("axes", n, known[n], x), "axes", n) for x in v])
+        vals.append(check_distinct("axes", n, [_checked(coerce("axes", n, known[n], x), "axes", n) for x in v]))
     return out, vals
+
+
+#: Longest production or equilibration of one protocol member, ns: the members sample every 1-200 ps into
+#: memory and run at ~10-100 ns per hour here, so more is a typo (a time in ps) that would hang or exhaust memory.
+MAX_MEMBER_NS = 1e4
 
 
 def _checked(value, table, key):
@@ -121,6 +126,9 @@ def _checked(value, table, key):
         raise DnarodError(f"[{table}] seed: must be an integer in [0, 2^31), got {value}")
     if key in ("time_ns", "equilibration_ns", "salt_M") and not value > 0:
         raise DnarodError(f"[{table}] {key}: must be > 0, got {value:g}")
+    if key in ("time_ns", "equilibration_ns") and value > MAX_MEMBER_NS:
+        raise DnarodError(f"[{table}] {key}: {value:g} ns per member is more than {MAX_MEMBER_NS:g} ns (10 us): it "
+                          f"would not finish here and its samples would not fit in memory; give a shorter time")
     if key == "salt_M" and value > MAX_SALT:
         raise DnarodError(f"[{table}] salt_M: must be at most {MAX_SALT:g} mol/L (Debye-Hueckel screening is "
                           f"meaningless beyond), got {value:g}")

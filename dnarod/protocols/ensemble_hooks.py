@@ -75,6 +75,13 @@ class TweezersProtocol:
             out["friction_per_ps"] = settings.get("friction_per_ps")
         return out
 
+    def check(self, settings):
+        """Refuse a member's settings as the protocol commands do (:func:`dnarod.protocols.curves._members`);
+        the ensemble calls it for every member before any runs."""
+        from .curves import _members
+
+        _members(self.kind, {}, dict(settings))
+
     def execute(self, settings, member_dir, analysis=None):
         from .tweezers import run_member
 
@@ -103,6 +110,13 @@ class RingProtocol:
         if settings.get("friction_mode", "auto") == "fixed":
             out["friction_per_ps"] = settings.get("friction_per_ps")
         return out
+
+    def check(self, settings):
+        """Refuse a member's settings as the protocol commands do (:func:`dnarod.protocols.curves._members`);
+        the ensemble calls it for every member before any runs."""
+        from .curves import _members
+
+        _members(self.kind, {}, dict(settings))
 
     def execute(self, settings, member_dir, analysis=None):
         from .rings import run_ring_member

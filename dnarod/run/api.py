@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..io_utils import check_dir_path, ensure_dir, jsonable, write_text_atomic
+from ..io_utils import check_dir_path, folder_lock, jsonable, write_text_atomic
 from .spec import RunSpec, compare_fingerprints, fingerprint
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
@@ -152,6 +152,82 @@ def check_start_pose(model, temperature):
         warnings.warn(msg, RuntimeWarning, stacklevel=3)
 
 
+def preflight(spec, model=None):
+    """The checks :func:`run` makes before it writes anything, without running: the settings
+    (:meth:`RunSpec.check`), the source, the start pose, an equilibrium start on a closed model, the time
+    step against the stability limit and the number of steps. An ensemble calls it for every distinct
+    member on the client, so a member refused by the run layer is refused before any member runs.
+
+    The time step is checked on the source pose under the loads (:func:`run` uses the start pose, which for
+    ``start="minimized"`` or ``"equilibrium"`` differs a little): a ``dt`` within 5 % of the limit is left
+    to the run.
+
+    Returns
+    -------
+    RodModel
+        The source model (for a cache).
+
+    Raises
+    ------
+    ParameterError
+        The first refusal, with the message :func:`run` would give.
+    """
+    spec.check()
+    if model is None:
+        model = source_model(spec)
+    check_start_pose(model, spec.temperature)
+    if spec.start == "equilibrium" and model.closure is not None:
+        raise ParameterError("start 'equilibrium' samples the free open chain exactly; this model is circular "
+                             "(a ring or a periodic chain): use start 'intrinsic' or 'minimized'")
+    omega = default_omega_max(model, spec.loads)
+    check_load_stiffness(spec, model, omega)
+    if spec.dt is not None and spec.dt > 1.05 * MAX_OMEGA_DT / omega:
+        choose_dt(spec, model, omega)              # raises, naming the limit
+    intervals(spec, spec.dt if spec.dt is not None else _default_dt(omega))
+    return model
+
+
+def _default_dt(omega):
+    from ..modes import DEFAULT_OMEGA_DT
+
+    return DEFAULT_OMEGA_DT / omega
+
+
+#: Largest ratio of the fastest mode with the loads to the free model's before a load's stiffness is refused:
+#: 10 means a time step 10 times shorter (and a run 10 times longer) than the chain itself needs.
+MAX_LOAD_OMEGA_RATIO = 10.0
+
+
+def check_load_stiffness(spec, model, omega=None):
+    """Refuse a trap or rotation clamp so stiff that its own vibration, not the chain's, sets the time step
+    (more than :data:`MAX_LOAD_OMEGA_RATIO` times the free chain's fastest mode): the run would be that many
+    times longer for no physics (a clamp that stiff holds no better). Names the option and the largest
+    stiffness that stays within the ratio (the mode frequency grows as the square root of the stiffness)."""
+    from ..loads import RotationClamp, Trap
+
+    stiff = [ld for ld in spec.loads if isinstance(ld, (Trap, RotationClamp))]
+    if not stiff:
+        return
+    omega = default_omega_max(model, spec.loads) if omega is None else omega
+    free = default_omega_max(model, tuple(ld for ld in spec.loads if ld not in stiff))
+    ratio = omega / free
+    if not ratio > MAX_LOAD_OMEGA_RATIO:
+        return
+    from ..units import PN
+
+    parts = []
+    for ld in stiff:
+        if isinstance(ld, Trap):
+            k = float(ld.k) / PN
+            parts.append(f"--trap {ld.node}:{k:g} (pN/nm; use at most {k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
+        else:
+            k = float(ld.k)
+            parts.append(f"--rotation-clamp {k:g} (kJ/mol; use at most {k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
+    raise ParameterError(f"{', '.join(parts)}: so stiff that its vibration ({omega:.3g} rad/ps) is {ratio:.3g} times "
+                         f"the chain's fastest mode ({free:.3g} rad/ps) and sets the time step; a stiffer load holds "
+                         f"no better, the run only gets longer")
+
+
 def make_engine(spec, model, dt, seed, omega):
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
@@ -256,6 +332,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     seed = int(np.random.SeedSequence().entropy % 2**31) if spec.seed is None else int(spec.seed)
     start = start_model(spec, model, seed)
     omega = default_omega_max(start if start is not None else model, spec.loads)
+    check_load_stiffness(spec, model)
     dt = choose_dt(spec, model, omega)
     intervals(spec, dt)  # refuses an absurd number of steps before anything is written
     fp = fingerprint(spec, model, dt, seed)
@@ -263,13 +340,17 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     engine = make_engine(spec, start if start is not None else model, dt, seed, omega)
     if start is None:  # OpenMM energy minimisation of the context (no static solver available)
         engine.minimize()
-    ensure_dir(outdir)
-    for p in present:  # overwrite: only now, when the new run is known to start
-        p.unlink()
-    meta = dict(format="dnarod-run", version=1, run_id=run_id, spec=spec.to_json(), fingerprint=fp, seed=seed,
-                dt_ps=dt, omega_max=omega, segments=[])
-    write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
-    return _execute(spec, outdir, paths, engine, model, meta, resume_step=None, progress=progress)
+    with folder_lock(outdir):  # a second process writing into outdir is refused, not interleaved
+        present_now = [p for p in paths.values() if p.exists()]
+        if not overwrite and present_now:  # another process started a run here while this one was set up
+            raise ParameterError(f"{outdir} already holds a run ({present_now[0].name}); continue it with --resume, "
+                                 f"replace it with --overwrite, or choose another folder with -o")
+        for p in present_now:  # overwrite: only now, when the new run is known to start
+            p.unlink()
+        meta = dict(format="dnarod-run", version=1, run_id=run_id, spec=spec.to_json(), fingerprint=fp, seed=seed,
+                    dt_ps=dt, omega_max=omega, segments=[])
+        write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
+        return _execute(spec, outdir, paths, engine, model, meta, resume_step=None, progress=progress)
 
 
 def _resume(spec, outdir, paths, progress):
@@ -279,7 +360,8 @@ def _resume(spec, outdir, paths, progress):
         raise ParameterError(f"cannot resume: {paths['run_json']} does not exist (no run was started in {outdir}); "
                              f"drop --resume to start one")
     try:
-        meta = json.loads(paths["run_json"].read_text())
+        run_json_text = paths["run_json"].read_text()
+        meta = json.loads(run_json_text)
         old_fp, seed, dt = meta["fingerprint"], int(meta["seed"]), float(meta["dt_ps"])
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ParameterError(f"{paths['run_json']}: not a readable dnarod run file ({type(exc).__name__}); "
@@ -304,10 +386,14 @@ def _resume(spec, outdir, paths, progress):
                                              seed=seed, engine=spec.engine), resumed_from=step)
     start = start_model(spec, model, seed)
     engine = make_engine(spec, start if start is not None else model, dt, seed, meta.get("omega_max"))
-    engine.load_checkpoint(paths["checkpoint"])
-    meta["spec"] = spec.to_json()
-    write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
-    return _execute(spec, outdir, paths, engine, model, meta, resume_step=engine.step, progress=progress)
+    with folder_lock(outdir):  # not while another process still runs (or resumes) in outdir
+        if paths["run_json"].read_text() != run_json_text:
+            raise ParameterError(f"cannot resume: {paths['run_json']} changed while this resume was set up (another "
+                                 f"process wrote the run); run the command again")
+        engine.load_checkpoint(paths["checkpoint"])
+        meta["spec"] = spec.to_json()
+        write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
+        return _execute(spec, outdir, paths, engine, model, meta, resume_step=engine.step, progress=progress)
 
 
 def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):

@@ -109,10 +109,31 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                    frame_interval_ps=frame_interval, checkpoint_interval_ps=checkpoint_interval, velocities=velocities,
                    export=export, xtc=xtc, elastic=elastic, threads=threads)
     spec.check()
+    _refuse_ignored_options(spec, xtc, export)
     if pull is not None or torque is not None or rotation_clamp is not None or clamp_first or trap or turns:
         model = source_model(spec)
         spec = spec.replace(loads=tweezers_loads(model, pull, torque, rotation_clamp, turns, clamp_first, trap))
     return spec
+
+
+def _given(name):
+    """True if option ``name`` (the parameter name) was given on the command line (not its default)."""
+    from click.core import ParameterSource
+
+    ctx = click.get_current_context(silent=True)
+    return ctx is not None and ctx.get_parameter_source(name) in (ParameterSource.COMMANDLINE,
+                                                                  ParameterSource.ENVIRONMENT)
+
+
+def _refuse_ignored_options(spec, xtc, export):
+    """An option given explicitly that these settings would ignore is refused (it was silently dropped)."""
+    if _given("salt") and not spec.nonbonded:
+        why = "the lax engine has none" if spec.engine == "lax" else "--no-electrostatics --no-excluded-volume"
+        raise ParameterError(f"--salt {spec.salt:g}: sets the Debye screening of the non-bonded terms, which are "
+                             f"off here ({why}); drop --salt or turn them on")
+    if _given("xtc") and xtc and not export:
+        raise ParameterError("--xtc writes trajectory.xtc beside the exported PDB/DCD, but --no-export was given; "
+                             "drop one of them")
 
 
 def _report(result, spec):

@@ -102,7 +102,12 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
         loads.append(Torque(n - 1, torque * PN * axis))
     if rotation_clamp is not None:
         loads.append(RotationClamp(n - 1, rotation_clamp, axis=axis, turns=float(turns)))
+    trapped = {}
     for t in traps:
         node, k = parse_trap(t, n)
+        if node % n in trapped:  # two traps on one node add up silently: say so
+            raise ParameterError(f"--trap {t!r}: node {node % n} already has a trap ({trapped[node % n]!r}); give "
+                                 f"one --trap per node with the stiffness you want")
+        trapped[node % n] = t
         loads.append(Trap(node, k * PN))
     return tuple(loads)

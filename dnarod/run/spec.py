@@ -184,6 +184,13 @@ class RunSpec:
                                      "--no-excluded-volume --no-electrostatics (or use --engine openmm)")
             if self.platform not in (None, "CPU"):
                 raise ParameterError(f"--platform {self.platform}: the lax engine runs on the CPU (numba)")
+            # options of the OpenMM engine that the lax engine would silently ignore
+            if self.threads is not None:
+                raise ParameterError(f"--threads {self.threads}: sets OpenMM's CPU threads; the lax engine ignores it "
+                                     f"(drop --threads or use --engine openmm)")
+            if self.elastic != "auto":
+                raise ParameterError(f"--elastic {self.elastic}: chooses the OpenMM engine's elastic path; the lax "
+                                     f"engine ignores it (drop --elastic or use --engine openmm)")
         if self.duplex is not None:
             integer("--duplex", self.duplex, lambda k: k >= 1, "from 1 (duplexes are numbered from 1)")
         if self.intrinsic not in ("sequence", "structure"):

@@ -55,10 +55,26 @@ def _parse_map(items):
         if "=" not in it:
             raise StructureError(f"--map {it!r}: use NAME=LETTER, e.g. --map XYZ=C")
         name, letter = it.split("=", 1)
+        if not name.strip():
+            raise StructureError(f"--map {it!r}: the residue NAME is empty; use NAME=LETTER, e.g. --map XYZ=C")
         if letter.strip().upper() not in ("A", "C", "G", "T", "U"):
             raise StructureError(f"--map {it!r}: the parent base must be A, C, G, T or U")
-        out[name.strip().upper()] = letter.strip().upper()
+        key = name.strip().upper()
+        if key in out and out[key] != letter.strip().upper():
+            raise StructureError(f"--map {it!r}: {key} is already mapped to {out[key]}; give one --map per residue name")
+        out[key] = letter.strip().upper()
     return out
+
+
+def _check_names(altloc, ignore, maps):
+    """Empty names (they matched nothing, silently) and a residue both ignored and mapped are refused."""
+    if altloc is not None and not altloc.strip():
+        raise StructureError("--altloc '': give the alternate location to keep (e.g. A), or leave the option out")
+    for name in ignore:
+        if not name.strip():
+            raise StructureError("--ignore '': give a residue name (e.g. HOH)")
+        if name.strip().upper() in maps:
+            raise StructureError(f"--ignore {name}: the residue is also given to --map; drop one of them")
 
 
 def structure_options(f):
@@ -77,8 +93,10 @@ def structure_options(f):
 def _analyze(path, model, altloc, pairs_file, maps, ignore):
     from .analysis import analyze_structure
 
+    extra = _parse_map(maps)
+    _check_names(altloc, ignore, extra)
     pairs = _read_pairs_file(pairs_file) if pairs_file else None
-    return analyze_structure(path, model=model, altloc=altloc, pairs=pairs, extra_residues=_parse_map(maps),
+    return analyze_structure(path, model=model, altloc=altloc, pairs=pairs, extra_residues=extra,
                              ignore_residues=ignore)
 
 

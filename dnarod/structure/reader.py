@@ -262,8 +262,11 @@ def _read_gemmi(path, text, source):
             raise StructureError(f"{source}: the file is empty; give a PDB or mmCIF file")
         if b"\0" in head or _mostly_binary(head):
             raise StructureError(f"{source}: binary data, not a PDB or mmCIF text file")
-        # keep chain parts apart so that atoms stay in file order (trajectory atom indices)
-        return gemmi.read_structure(str(p), merge_chain_parts=False)
+        # The format is taken from the content, not the name: a PDB file named .cif (or an mmCIF file named
+        # .pdb, .ent, .txt) is read as what it is. Keep chain parts apart so that atoms stay in file order
+        # (trajectory atom indices).
+        fmt = gemmi.CoorFormat.Mmcif if _looks_like_cif(head) else gemmi.CoorFormat.Pdb
+        return gemmi.read_structure(str(p), merge_chain_parts=False, format=fmt)
     except StructureError:
         raise
     except Exception as exc:  # gemmi raises RuntimeError/ValueError/... with the line; keep its words
@@ -273,11 +276,21 @@ def _read_gemmi(path, text, source):
     try:
         if text is not None and not text.lstrip().startswith("data_"):
             return gemmi.read_pdb_string(text, max_line_length=72)
-        if path is not None and not str(path).lower().endswith((".cif", ".mmcif", ".cif.gz")):
+        if path is not None and not _looks_like_cif(head):
             return gemmi.read_pdb(str(path), max_line_length=72)
     except Exception:  # same as above: report the first error
         pass
     raise StructureError(f"{source}: cannot parse as PDB/mmCIF (truncated or malformed?): {msg}")
+
+
+def _looks_like_cif(head):
+    """True if the first bytes of a file are mmCIF (its first line that is not blank or a comment is a
+    ``data_`` block header), False for anything else (read as PDB)."""
+    for line in head.splitlines():
+        line = line.strip()
+        if line and not line.startswith(b"#"):
+            return line.startswith(b"data_")
+    return False
 
 
 def _mostly_binary(head):
