@@ -87,6 +87,10 @@ LINEAR_ALLOWANCE = 0.15
 #: ~1/sqrt(2(nb - 1)): 19 % at 15 blocks).
 MIN_BLOCKS = 15
 
+#: Production (ns) of the pre-buckling member in the full form (shorter than the post-buckling members': it has
+#: no plectoneme; 600 bp at 1 pN: slowest bending relaxation time ~2.3 ns).
+PRE_TIME_NS = 100.0
+
 
 def block_standard_error(x, min_blocks=MIN_BLOCKS):
     """Standard error of the mean of a correlated series by blocking (Flyvbjerg & Petersen, J. Chem. Phys. 91,
@@ -150,10 +154,81 @@ def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=
     return C_nm * (1.0 - f), C_nm * f_err, f, f_err
 
 
+def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
+                temperature=300.0, seed=31, P_nm=None, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None,
+                ring_seed=5, bracket=None, grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None,
+                nonbonded=None, pre_time_ns=None, ring_pair_equilibration_ns=None):
+    """The members :func:`check_buckling` runs with these options, in the order it runs them.
+
+    Each entry is a dict: ``kind`` (``"tweezers"``: :func:`dnarod.protocols.tweezers.run_member`; ``"ring"``:
+    :func:`dnarod.protocols.rings.run_ring_member`), ``folder`` (the member's folder name under the check's member
+    root), ``settings`` (the member's settings dict) and ``role`` (``"ring"``, ``"ring_pair"``, ``"pre"``,
+    ``"post"``, ``"post_grown"``) with ``index`` (0 pre-buckling, 1 and 2 post-buckling). Members run in
+    advance with exactly these settings into the member root (e.g. in parallel processes) are reused by the
+    check. Same keywords as :func:`check_buckling`.
+    """
+    from ..forcefield import load_forcefield
+    from ..protocols.tweezers import intrinsic_turns
+
+    n_bp = n_bp or (400 if quick else 600)
+    lk0 = intrinsic_turns(load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp))
+    # pre-buckling below Marko's buckling point (ΔLk_b ~ 0.018 Lk0 here, relative to the relaxed chain at T);
+    # post-buckling at ~40 % and ~70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0), so
+    # that both are in the two-phase coexistence the model describes (earlier 0.075/0.098 Lk0: at and beyond
+    # the fully plectonemic point)
+    pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
+    post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
+    time_ns = time_ns or (2.0 if quick else 400.0)
+    # the pre-buckling member has no plectoneme (no slow mode): PRE_TIME_NS is ~40 slowest bending relaxation times
+    pre_time_ns = pre_time_ns or min(time_ns, PRE_TIME_NS)
+    bracket = (not quick) if bracket is None else bool(bracket)
+    grown_ns = grown_ns or (2.0 if quick else 20.0)
+    nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
+    plan = []
+    if P_nm is None:  # the model's plectoneme twist stiffness, from plectonemic rings of the same model
+        ring_n_bp = ring_n_bp or (400 if quick else 600)
+        ring_delta_lk = ring_delta_lk or (-3 if quick else -5)
+        ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
+        plan.append(dict(kind="ring", role="ring", index=0, folder=f"ring{ring_n_bp}_{ring_delta_lk}",
+                         settings=dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
+                                       temperature_K=temperature, **nb)))
+        if (not quick) if ring_pair is None else bool(ring_pair):
+            # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
+            n2, dlk2 = 2 * ring_n_bp, 2 * ring_delta_lk
+            plan.append(dict(kind="ring", role="ring_pair", index=1, folder=f"ring{n2}_{dlk2}",
+                             settings=dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
+                                           seed=ring_seed, temperature_K=temperature,
+                                           # default: the ring protocol's five slowest bending relaxation times
+                                           **({} if ring_pair_equilibration_ns is None
+                                              else dict(equilibration_ns=ring_pair_equilibration_ns)), **nb)))
+    for i, t in enumerate((pre_turns, *post_turns)):
+        for grown in ((False, True) if bracket and i > 0 else (False,)):
+            extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
+            plan.append(dict(kind="tweezers", role=("pre" if i == 0 else "post_grown" if grown else "post"), index=i,
+                             folder=f"turns{t:+.3f}" + ("_grown" if grown else ""),
+                             settings=dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4),
+                                           time_ns=pre_time_ns if i == 0 else time_ns,
+                                           temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra,
+                                           **nb)))
+    return plan
+
+
+def run_planned(entry, member_root, progress=None):
+    """Run (or reuse) one entry of :func:`member_plan` in ``member_root``; returns the member's result row."""
+    from pathlib import Path
+
+    from ..protocols.rings import run_ring_member
+    from ..protocols.tweezers import run_member
+
+    fn = run_ring_member if entry["kind"] == "ring" else run_member
+    return fn(entry["settings"], Path(member_root) / entry["folder"], progress=progress)
+
+
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                    temperature=300.0, seed=31, plots=True, member_root=None, c_override=None, P_nm=None,
                    P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
-                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None, nonbonded=None):
+                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None, nonbonded=None,
+                   pre_time_ns=None, ring_pair_equilibration_ns=None):
     """Run the check (see the module docstring).
 
     ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
@@ -162,34 +237,34 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     (dict with ``charge`` and/or ``cutoff_debye``) runs the members and rings with other non-bonded terms than
     the defaults (the recorded test members were run with Manning's charge and 5 Debye lengths).
     """
-    import tempfile
     from pathlib import Path
 
     from ..forcefield import load_forcefield
-    from ..protocols.tweezers import intrinsic_turns, run_member
+    from ..protocols.tweezers import intrinsic_turns
     from ..thermal import kT, persistence_length
     from ..units import PN
     from ..openmm.nonbonded import member_nonbonded
-    from ..protocols.rings import run_ring_member
     from ..protocols.measure import twisting_moment_offset
     from ..thermal import relaxed_ribbon_twist
     from .supercoil_theory import effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair
     from .torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
+    plan = member_plan(quick=quick, n_bp=n_bp, force_pN=force_pN, pre_turns=pre_turns, post_turns=post_turns,
+                       time_ns=time_ns, temperature=temperature, seed=seed, P_nm=P_nm, ring_n_bp=ring_n_bp,
+                       ring_delta_lk=ring_delta_lk, ring_time_ns=ring_time_ns, ring_seed=ring_seed, bracket=bracket,
+                       grown_force_pN=grown_force_pN, grown_ns=grown_ns, ring_pair=ring_pair,
+                       ring_pair_time_ns=ring_pair_time_ns, nonbonded=nonbonded, pre_time_ns=pre_time_ns,
+                       ring_pair_equilibration_ns=ring_pair_equilibration_ns)
     n_bp = n_bp or (400 if quick else 600)
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lk0 = intrinsic_turns(model)
-    # pre-buckling below Marko's buckling point (ΔLk_b ~ 0.018 Lk0 here, relative to the relaxed chain at T);
-    # post-buckling at ~40 % and ~70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0), so
-    # that both are in the two-phase coexistence the model describes (earlier 0.075/0.098 Lk0: at and beyond
-    # the fully plectonemic point)
-    pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
-    post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
     time_ns = time_ns or (2.0 if quick else 400.0)
     bracket = (not quick) if bracket is None else bool(bracket)
     grown_ns = grown_ns or (2.0 if quick else 20.0)
-    root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
+    # the members' folder: given, or one per report folder (a rerun into the same report folder reuses the
+    # finished members and resumes an interrupted one from its checkpoint)
+    root = Path(member_root) if member_root else Path(out_dir) / "buckling_members"
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
     A = persistence_length(model.params, model.ds, kT(temperature))
@@ -202,55 +277,47 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, **nb))
     ring = ring2 = None
     P_single = P_single_err = None
-    if P_nm is None:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
+    rings = {e["role"]: e for e in plan if e["kind"] == "ring"}
+    if "ring" in rings:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
         from ..forcefield import load_forcefield as _ff
 
-        ring_n_bp = ring_n_bp or (400 if quick else 600)
-        ring_delta_lk = ring_delta_lk or (-3 if quick else -5)
-        ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
-        ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
-                                    temperature_K=temperature, **nb), root / f"ring{ring_n_bp}_{ring_delta_lk}")
+        ring = run_planned(rings["ring"], root)
+        ring_n_bp = ring["n_bp"]
         tw0_T, tw0_T_se = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring_n_bp), temperature)
         P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th, tw0_T, tw0_T_se)
         P_single, P_single_err = P_nm, P_err_nm
-        ring_pair = (not quick) if ring_pair is None else bool(ring_pair)
-        if ring_pair:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
-            n2, dlk2 = 2 * ring_n_bp, 2 * ring_delta_lk
-            ring2 = run_ring_member(dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
-                                         seed=ring_seed, temperature_K=temperature, **nb), root / f"ring{n2}_{dlk2}")
-            tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=n2), temperature)
+        if "ring_pair" in rings:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
+            ring2 = run_planned(rings["ring_pair"], root)
+            tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring2["n_bp"]), temperature)
             P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
                                                          ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
     rows, drifts, twins = [], [], []
 
-    def member(t, i, grown):
-        tag = f"turns{t:+.3f}" + ("_grown" if grown else "")
-        extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
-        r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
-                            temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra, **nb), root / tag)
-        csv = root / tag / "samples.csv"
-        r = dict(r)
+    def member(entry):
+        r = dict(run_planned(entry, root))
+        csv = root / entry["folder"] / "samples.csv"
         d = np.genfromtxt(csv, delimiter=",", names=True)
         for q, col in (("twist_torque_pN_nm", "twist_torque_pN_nm"), ("relative_extension", "extension_nm"),
                        ("Wr", "Wr"), ("clamp_torque_pN_nm", "clamp_torque_pN_nm")):
             # blocked standard errors (the member's own 10-block errors miss the slow plectoneme mode)
             se = block_standard_error(np.asarray(d[col], float))
             r[q + "_err"] = se / (r["contour_length_nm"] if q == "relative_extension" else 1.0)
-        return r, dict(turns=r["turns"], start="grown" if grown else "straight",
+        return r, dict(turns=r["turns"], start="grown" if entry["role"] == "post_grown" else "straight",
                        extension_z=drift_z(csv, "extension_nm"), torque_z=drift_z(csv, "twist_torque_pN_nm"))
 
-    for i, t in enumerate((pre_turns, *post_turns)):
-        r, d = member(t, i, False)
-        rows.append(r)
+    for entry in (e for e in plan if e["kind"] == "tweezers"):
+        r, d = member(entry)
         drifts.append(d)
-        if bracket and i > 0:
-            g, dg = member(t, i, True)
-            drifts.append(dg)
-            dq = {q: (g[q] - r[q], float(np.hypot(g[q + "_err"], r[q + "_err"])))
-                  for q in ("twist_torque_pN_nm", "relative_extension", "Wr")}
-            twins.append(dict(turns=r["turns"], straight=r, grown=g,
-                              differences={q: dict(difference=v[0], standard_error=v[1]) for q, v in dq.items()},
-                              agree=bool(all(abs(v[0]) <= Z_TOL * v[1] for v in dq.values()))))
+        if entry["role"] != "post_grown":
+            rows.append(r)
+            continue
+        g, dg = r, d
+        r = rows[-1]
+        dq = {q: (g[q] - r[q], float(np.hypot(g[q + "_err"], r[q + "_err"])))
+              for q in ("twist_torque_pN_nm", "relative_extension", "Wr")}
+        twins.append(dict(turns=r["turns"], straight=r, grown=g,
+                          differences={q: dict(difference=v[0], standard_error=v[1]) for q, v in dq.items()},
+                          agree=bool(all(abs(v[0]) <= Z_TOL * v[1] for v in dq.values()))))
     if twins:  # both starts of a member pooled (error-weighted; they agree, or the check fails below)
         pooled = []
         for tw in twins:
