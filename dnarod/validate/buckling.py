@@ -154,6 +154,50 @@ def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=
     return C_nm * (1.0 - f), C_nm * f_err, f, f_err
 
 
+#: Largest difference of the two rings' mean numbers of plectoneme end loops for the ring pair to cancel them
+#: (an end loop takes ~0.13 turns of linking difference as twist, measured from the 600-bp ring's excess P:
+#: 0.1 loop moves P_b by ~0.3 nm, about half its standard error).
+LOOP_TOL = 0.1
+
+
+def ring_series(member_dir, column):
+    """One column of a ring member's ``samples.csv`` (ndarray, shape (n_samples,)); None if not recorded."""
+    from pathlib import Path
+
+    d = np.genfromtxt(Path(member_dir) / "samples.csv", delimiter=",", names=True)
+    return np.asarray(d[column], float) if column in d.dtype.names else None
+
+
+def ring_pair_premise(short_dir, long_dir, loop_tol=None, z_tol=Z_TOL):
+    """Whether two ring members can give the bulk P (:func:`plectoneme_P_from_ring_pair`): both settled (the
+    means of Wr over the halves of each production agree within ``z_tol`` blocked SE) and with the same
+    number of plectoneme end loops on average (``|<n_long> - <n_short>| <= loop_tol``, :data:`LOOP_TOL`; the
+    per-sample count :func:`dnarod.protocols.measure.plectoneme_end_loops`, column ``end_loops``). A ring
+    that branches has more end loops than the pair formula cancels.
+
+    Returns
+    -------
+    dict
+        ``end_loops`` (mean per ring), ``end_loop_histograms`` (samples with 0, 1, 2, ... loops),
+        ``loop_difference``, ``wr_drift_z`` (per ring), ``settled``, ``same_loops`` and ``passed``;
+        ``same_loops`` is False with a ``reason`` when a ring has no ``end_loops`` column.
+    """
+    loop_tol = LOOP_TOL if loop_tol is None else float(loop_tol)
+    loops = [ring_series(d, "end_loops") for d in (short_dir, long_dir)]
+    z = [drift_z(f"{d}/samples.csv", "Wr") for d in (short_dir, long_dir)]
+    settled = bool(all(abs(v) <= z_tol for v in z))
+    out = dict(wr_drift_z=z, settled=settled, loop_tolerance=loop_tol)
+    if any(x is None for x in loops):
+        out.update(end_loops=None, end_loop_histograms=None, loop_difference=None, same_loops=False,
+                   reason="end loops not recorded (ring members run before the end_loops column existed)")
+    else:
+        m = [float(x.mean()) for x in loops]
+        out.update(end_loops=m, end_loop_histograms=[np.bincount(x.astype(int)).tolist() for x in loops],
+                   loop_difference=m[1] - m[0], same_loops=bool(abs(m[1] - m[0]) <= loop_tol))
+    out["passed"] = bool(settled and out["same_loops"])
+    return out
+
+
 def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                 temperature=300.0, seed=31, P_nm=None, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None,
                 ring_seed=5, bracket=None, grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None,
@@ -275,7 +319,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
     terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, **nb))
-    ring = ring2 = None
+    ring = ring2 = premise = None
     P_single = P_single_err = None
     rings = {e["role"]: e for e in plan if e["kind"] == "ring"}
     if "ring" in rings:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
@@ -289,8 +333,11 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         if "ring_pair" in rings:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
             ring2 = run_planned(rings["ring_pair"], root)
             tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring2["n_bp"]), temperature)
+            ring, ring2 = (dict(x, Wr_err=block_standard_error(ring_series(root / rings[k]["folder"], "Wr")))
+                           for x, k in ((ring, "ring"), (ring2, "ring_pair")))
             P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
                                                          ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
+            premise = ring_pair_premise(root / rings["ring"]["folder"], root / rings["ring_pair"]["folder"])
     rows, drifts, twins = [], [], []
 
     def member(entry):
@@ -372,7 +419,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     # slowly), and with ``bracket`` the straight and grown starts agree
     settled = all(abs(d["extension_z"]) <= Z_TOL and abs(d["torque_z"]) <= Z_TOL for d in drifts[1:])
     settled = settled and all(tw["agree"] for tw in twins)
-    passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled)
+    # the ring pair: both rings settled (no writhe drift) with the same number of end loops
+    premise_ok = premise is None or premise["passed"]
+    passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled and premise_ok)
     res = dict(model=f"dna-default open chain, {n_bp} bp (L = {L:.1f} nm, Lk0 = {lk0:.2f}), {force_pN} pN, 0.15 M",
                temperature_K=temperature, production_ns_per_member=time_ns,
                twisting_moment_offset_pN_nm=tq_off, twisting_moment_offset_se=tq_off_se,
@@ -420,7 +469,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                           extension_slope_nm_per_turn=th["extension_slope_nm_per_turn"],
                           extension_slope_measured_nm_per_turn=slope_meas,
                           plectonemic_delta_lk=th["plectonemic_delta_lk"]),
-               drift=dict(members=drifts, settled=bool(settled)), z_tolerance=Z_TOL, passed=passed)
+               drift=dict(members=drifts, settled=bool(settled)), ring_pair_premise=premise, z_tolerance=Z_TOL,
+               pre_buckling_production_ns=next(e["settings"]["time_ns"] for e in plan if e["role"] == "pre"),
+               passed=passed)
     res["production_ns_per_member"] = time_ns
     if plots:
         fig, ax = new_figure(2, 1, width=4.5, height=3.6)
