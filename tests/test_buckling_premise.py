@@ -79,3 +79,33 @@ def test_ring_pair_premise_fails_on_a_branched_or_drifting_ring(tmp_path):
     # members recorded without the end-loop count: the premise is not shown, so it does not pass
     old = ring_pair_premise(short, _ring_dir(tmp_path / "old", wr(-7.0)))
     assert not old["passed"] and "not recorded" in old["reason"]
+
+
+def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, monkeypatch):
+    """member_plan gives exactly the members check_buckling runs (the check itself is shown reusing them in
+    test_supercoiling): the recorded members' folders and settings are found, nothing is simulated (the
+    samplers are disabled here)."""
+    import shutil
+    from pathlib import Path
+
+    import dnarod.protocols.rings as rings
+    import dnarod.protocols.tweezers as tweezers
+    from dnarod.validate.buckling import member_plan, run_planned
+
+    root = tmp_path / "members"
+    shutil.copytree(Path(__file__).parent / "data" / "supercoil" / "buckling_600bp", root)
+    opts = dict(time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907), ring_delta_lk=-3, ring_time_ns=10.0,
+                bracket=False, ring_pair=False, nonbonded=dict(charge="manning", cutoff_debye=5.0))
+    plan = member_plan(**opts)
+    assert sorted(e["folder"] for e in plan) == sorted(p.name for p in root.iterdir() if p.is_dir())
+
+    def refuse(*a, **k):
+        raise AssertionError("a planned member was simulated instead of reused")
+
+    monkeypatch.setattr(tweezers, "sample_member", refuse)
+    monkeypatch.setattr(rings, "sample_ring", refuse)
+    rows = [run_planned(e, root) for e in plan]
+    assert [r["seed"] for r in rows] == [e["settings"]["seed"] for e in plan]
+    # another production time is another member (a rerun, refused here)
+    with pytest.raises(AssertionError, match="simulated instead of reused"):
+        run_planned(member_plan(**dict(opts, time_ns=7.0))[-1], root)
