@@ -41,6 +41,10 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    production agree within ``Z_TOL`` SE, and (``bracket``, the full form) each member run from the straight
    start and from a plectoneme grown at 0.3 pN (longer than at 1 pN) agrees with its twin in torque,
    extension and writhe within ``Z_TOL`` SE; the twins are then pooled;
+   with the ring pair, both rings are settled (no drift of Wr between the halves of their production, ``Z_TOL``
+   SE) and have the same mean number of plectoneme end loops within ``LOOP_TOL`` (0.1;
+   :func:`dnarod.protocols.measure.plectoneme_end_loops`, recorded per sample by the ring members): a ring that
+   branches has more end loops than the pair formula cancels (:func:`ring_pair_premise`);
 1. both post-buckling members are plectonemic (detector of :mod:`dnarod.protocols.measure`);
 2. their torques agree (the plateau is flat): ``|Δtau| <= Z_TOL SE``;
 3. the extension falls between them by more than ``Z_TOL SE``;
@@ -60,6 +64,14 @@ small-amplitude mode under fast noise that the autocorrelation-time window misse
 (:func:`block_standard_error`). The full form runs 400 ns of production per member (each twin at 2.57 turns:
 747-752 s CPU); with 150 ns the 2.57-turn twins disagreed (not settled), with 400 ns they agree
 (10.34 +- 0.28 and 10.32 +- 0.38 pN nm).
+
+Members: :func:`member_plan` lists the members the check runs with given options (folders, settings, seeds);
+members run in advance with exactly those settings (e.g. in two processes, ``benchmarks/buckling_r6/
+premembers.py``) into the member root are reused. Without ``member_root`` the members live in
+``<report folder>/buckling_members``, so running the check again into the same report folder (``dnarod
+validate --only buckling -o SAME``) reuses the finished members and resumes an interrupted one from its
+checkpoint. The pre-buckling member has no plectoneme and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending
+relaxation times) in the full form.
 
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
