@@ -302,7 +302,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from ..openmm.nonbonded import member_nonbonded
     from ..protocols.measure import twisting_moment_offset
     from ..thermal import relaxed_ribbon_twist
-    from .supercoil_theory import effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair
+    from ..errors import DnarodError
+    from .supercoil_theory import (effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair,
+                                   plectoneme_P_from_rings_with_loops)
     from .torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
@@ -331,7 +333,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
     terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, **nb))
-    ring = ring2 = premise = None
+    ring = ring2 = premise = P_loops = None
     P_single = P_single_err = None
     rings = {e["role"]: e for e in plan if e["kind"] == "ring"}
     if "ring" in rings:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
@@ -350,6 +352,13 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
             P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
                                                          ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
             premise = ring_pair_premise(root / rings["ring"]["folder"], root / rings["ring_pair"]["folder"])
+            if premise["end_loops"] is not None:  # diagnostic: the loops counted instead of assumed equal
+                try:
+                    P_loops = plectoneme_P_from_rings_with_loops(
+                        ring["Wr"], ring["Lk"] - tw0_T, premise["end_loops"][0], ring2["Wr"], ring2["Lk"] - tw0_2,
+                        premise["end_loops"][1], C_th, ring["Wr_err"], ring2["Wr_err"])
+                except DnarodError:
+                    P_loops = None
     rows, drifts, twins = [], [], []
 
     def member(entry):
@@ -469,6 +478,11 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                                     ("closed ring " + f"{ring['n_bp']} bp at sigma {ring['sigma']:+.4f}: writhe fraction "
                                      f"{f_wr:.3f} +- {f_wr_err:.3f}") if ring else "given"),
                           P_single_ring_nm=P_single, P_single_ring_err_nm=P_single_err,
+                          P_loop_corrected_nm=P_loops[0] if P_loops else None,
+                          P_loop_corrected_err_nm=P_loops[1] if P_loops else None,
+                          loop_writhe_deficit_turns=P_loops[2] if P_loops else None,
+                          torque_loop_corrected_P_pN_nm=(marko_two_phase(A, c_s, P_loops[0], force_pN, kt_pn, L)
+                                                         ["torque_pN_nm"] if P_loops and 0 < P_loops[0] < c_s else None),
                           torque_single_ring_P_pN_nm=(marko_two_phase(A, c_s, P_single, force_pN, kt_pn, L)["torque_pN_nm"]
                                                       if P_single is not None and P_single < c_s else None),
                           ring_linking_density_rad_per_nm=(TWO_PI_ * abs(ring["Lk"] - tw0_T) / (ring["n_bp"] * model.ds)
