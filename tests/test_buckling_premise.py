@@ -109,3 +109,20 @@ def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, 
     # another production time is another member (a rerun, refused here)
     with pytest.raises(AssertionError, match="simulated instead of reused"):
         run_planned(member_plan(**dict(opts, time_ns=7.0))[-1], root)
+
+
+def test_loop_corrected_ring_pair_recovers_the_bulk_P():
+    """Rings whose writhe is a bulk share of ΔLk less a fixed deficit per end loop: with different loop counts
+    the pair formula is biased, the loop-counted one is exact, and with equal counts the two coincide."""
+    from dnarod.validate.supercoil_theory import plectoneme_P_from_ring_pair, plectoneme_P_from_rings_with_loops
+
+    C, P_b, mu = 98.3, 18.0, 0.3
+    f = 1 - P_b / C
+    rings = [(dlk, n, f * dlk + n * mu) for dlk, n in ((-4.9, 1.96), (-9.8, 2.64))]  # ΔLk < 0: Wr less negative
+    (d1, n1, w1), (d2, n2, w2) = rings
+    P, err, m = plectoneme_P_from_rings_with_loops(w1, d1, n1, w2, d2, n2, C, 0.02, 0.02)
+    assert P == pytest.approx(P_b, rel=1e-9) and m == pytest.approx(mu, rel=1e-9) and 0 < err < 2.0
+    assert plectoneme_P_from_ring_pair(w1, d1, w2, d2, C)[0] > P_b + 3.0  # branching biases the pair upwards
+    w2_same = f * d2 + n1 * mu
+    assert plectoneme_P_from_rings_with_loops(w1, d1, n1, w2_same, d2, n1, C)[0] == pytest.approx(
+        plectoneme_P_from_ring_pair(w1, d1, w2_same, d2, C)[0], rel=1e-9)
