@@ -31,8 +31,15 @@ take a linking difference of their own (little writhe for their length): it read
 600-bp ring puts tau* at 11.47 pN nm against a measured plateau of 10.33 +- 0.27. The check therefore runs two
 rings at the same sigma, of n and 2n bp (600 and 1200 in the full form, ΔLk -5 and -10), and takes
 ``P_b = C (1 - ΔWr / ΔΔLk)`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_ring_pair`): the loops
-cancel if both rings have the same loops (measured: P_b 12.09 +- 0.70 nm, tau* 9.26 +- 0.31; a long ring that
-branches has more loops, which this does not detect). (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
+cancel if both rings have the same loops (measured with Manning's charge: P_b 12.09 +- 0.70 nm, tau* 9.26 +-
+0.31). A long ring that branches has more end loops: the check counts them per sample (``end_loops`` of the ring
+members) and fails when the two rings' means differ (premise below). With the calibrated charge (d_eff 5.00 nm,
+round 6) it does: at sigma -0.0875 the 600-bp ring (40 ns after 36 ns) has 1.96 end loops on average (2 in 96 %
+of samples) and writhe fraction 0.695 (single-ring P 29.9 +- 0.5 nm), the 1200-bp ring (100 ns after 100 ns)
+2.64 (3 in 56 %, 4 in 4 %; the loops are hairpin tips: nodes 20 nm either side are 7.6 nm apart against
+30.6 at random nodes) and 0.735, so the pair's P_b = 22.2 +- 0.6 nm is biased upwards; counting the loops
+(:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_rings_with_loops`, reported, not gating) gives
+18.2 +- 1.1 nm and tau* 11.9 pN nm (pair 13.6, single ring 16.8). (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
 loop cost they shift the buckling point, not the plateau, which is set by the bulk phases alone.)
 
 Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing else:
