@@ -70,7 +70,13 @@ Statistics: the plectoneme's length fluctuates slowly (tens of ns) and the torqu
 small-amplitude mode under fast noise that the autocorrelation-time window misses; member errors are blocked
 (:func:`block_standard_error`). The full form runs 400 ns of production per member (each twin at 2.57 turns:
 747-752 s CPU); with 150 ns the 2.57-turn twins disagreed (not settled), with 400 ns they agree
-(10.34 +- 0.28 and 10.32 +- 0.38 pN nm).
+(10.34 +- 0.28 and 10.32 +- 0.38 pN nm; Manning's charge). With the calibrated charge (round 6, a reduced full
+form: 200-ns twins, 600/1200-bp rings, the long one after 100 ns; ``benchmarks/buckling_r6``) the check fails:
+plateau 14.71 +- 0.37 / 14.91 +- 0.38 pN nm at 2.57 / 3.59 turns (flat), the 2.57-turn twins disagree (13.25 +-
+0.61 vs 15.50 +- 0.45, z 3.0; one plectoneme each, its end loop mid-chain in one and near the bead in the
+other), the 1200-bp ring branches (premise), Marko 13.55 +- 0.24 with the biased pair P_b. Cost there (CPU
+time, load average 8-16): 600-bp twin 397-538 CPU-s per 200 ns (+ 11.5 ns equilibration, + 20 ns at 0.3 pN
+for the grown start), 1200-bp ring 1012 CPU-s per 200 ns, 600-bp ring 168 CPU-s per 76 ns.
 
 Members: :func:`member_plan` lists the members the check runs with given options (folders, settings, seeds);
 members run in advance with exactly those settings (e.g. in two processes, ``benchmarks/buckling_r6/
