@@ -237,7 +237,7 @@ def _recorded(tmp_path, name):
     return dst
 
 
-def test_buckling_check_against_marko_with_recorded_members(tmp_path):
+def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatch):
     """600 bp at 1 pN, recorded members of 6 ns: the check passes with the model's C and fails with C halved.
 
     These members decide the check's logic only: 30-ns members of the same chain keep relaxing (see
@@ -245,6 +245,14 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path):
     """
     from dnarod.validate.buckling import check_buckling
 
+    import dnarod.protocols.rings as rings
+    import dnarod.protocols.tweezers as tweezers
+
+    def refuse(*a, **k):
+        raise AssertionError("a recorded member was simulated again instead of reused")
+
+    monkeypatch.setattr(tweezers, "sample_member", refuse)  # the check must reuse every recorded member
+    monkeypatch.setattr(rings, "sample_ring", refuse)
     root = _recorded(tmp_path, "buckling_600bp")
     opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
                 ring_delta_lk=-3, ring_time_ns=10.0, bracket=False, ring_pair=False,

@@ -259,3 +259,57 @@ def twisting_moment_offset(model, temperature, n_samples=400_000, seed=0):
         vals.append(cache[key][0])
         errs.append(cache[key][1])
     return float(np.mean(vals)), float(np.sqrt(np.mean(np.square(errs))))
+
+
+def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=25.0, contact_distance_nm=6.0,
+                         merge_nm=20.0, min_share=0.1):
+    """Number of plectoneme end loops (hairpin tips) in one pose, and where they are.
+
+    The self-contacts of :func:`plectoneme_state` (same ``min_separation_nm`` and ``contact_distance_nm``)
+    pair the two duplexes of a superhelix arm; the chain between the two nodes of a contact runs out along the
+    arm, round its end loop and back, so the midpoint of that stretch (the shorter way round for a ring) is
+    the arm's end loop, the same for every contact of the arm. The midpoints are grouped (gaps up to
+    ``merge_nm`` of chain bridged); a group holding at least ``min_share`` of the contacts is an end loop.
+    An unbranched plectoneme has one end loop in an open chain and two in a closed ring (its two tips); a
+    branched one (arms meeting at a junction) has one more per extra arm. Chosen because it needs no
+    superhelix axis and reuses the contact definition of the plectoneme detector.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+        nm.
+    ds : float
+        nm per step.
+    circular : bool
+        Closed ring (contact midpoints taken the shorter way round).
+
+    Returns
+    -------
+    n_loops : int
+    centres : ndarray, shape (n_loops,)
+        Node index (fractional) of each end loop.
+    """
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(positions, float)
+    n = len(P)
+    pairs = cKDTree(P).query_pairs(contact_distance_nm, output_type="ndarray")
+    if not len(pairs):
+        return 0, np.empty(0)
+    i, j = pairs.min(axis=1), pairs.max(axis=1)
+    d = j - i
+    if circular:
+        fwd = d <= n - d
+        sep = np.where(fwd, d, n - d)
+        mid = np.where(fwd, i + 0.5 * d, j + 0.5 * (n - d)) % n
+    else:
+        sep, mid = d, 0.5 * (i + j)
+    mid = np.sort(mid[sep >= int(np.ceil(min_separation_nm / ds))])
+    if not len(mid):
+        return 0, np.empty(0)
+    gap = merge_nm / ds
+    groups = np.split(mid, np.flatnonzero(np.diff(mid) > gap) + 1)
+    if circular and len(groups) > 1 and mid[0] + n - mid[-1] <= gap:  # a group across the ring's node 0
+        groups = [np.concatenate([groups[-1], groups[0] + n])] + groups[1:-1]
+    big = [g for g in groups if len(g) >= min_share * len(mid)]
+    return len(big), np.array([float(np.median(g)) % n if circular else float(np.median(g)) for g in big])

@@ -6,7 +6,9 @@ each sample reports Tw (ribbon twist of d1), Wr (exact polygon writhe), Lk = Tw 
 integer set), the writhe fraction ``Wr / (Lk - Tw0_T)`` with ``Tw0_T`` the relaxed ring's mean twist at the
 run's temperature (:func:`dnarod.validate.supercoil_theory.thermal_relaxed_twist`; ``relaxed_twist`` is the
 T = 0 value, the sum of intrinsic twist angles, 0.27 turns higher for 600 bp of dna-default), and the plectoneme
-detector of :mod:`dnarod.protocols.measure` with chain separations wrapping around.
+detector of :mod:`dnarod.protocols.measure` with chain separations wrapping around, and the number of plectoneme
+end loops (:func:`~dnarod.protocols.measure.plectoneme_end_loops`: 2 for an unbranched plectoneme, more if it
+branches).
 
 Nicked rings (free linking number) are not sampled by this module: a nick with zero twist stiffness
 still cannot let the strand pass 180 degrees of step rotation in the Cayley coordinates (the energy
@@ -26,7 +28,7 @@ import numpy as np
 from ..errors import DnarodError
 
 COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_length_nm", "plectonemic",
-           "radius_of_gyration_nm")
+           "radius_of_gyration_nm", "end_loops")
 
 
 def _settings(s):
@@ -175,7 +177,7 @@ def run_ring_member(settings, member_dir, progress=None):
     from ..forcefield import load_forcefield
     from ..io_utils import jsonable
     from ..thermal import kT, persistence_length
-    from .measure import plectoneme_state
+    from .measure import plectoneme_end_loops, plectoneme_state
 
     s = _settings(settings)
     # start options left unset are not part of the key (members recorded before they existed stay valid)
@@ -195,6 +197,7 @@ def run_ring_member(settings, member_dir, progress=None):
     def record(out, i, pos, frm):
         f, length, plec = plectoneme_state(pos, model.ds, circular=True)
         out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
+        out["end_loops"][i] = plectoneme_end_loops(pos, model.ds, circular=True)[0]  # 2 unbranched, more branched
 
     out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.1, samples_per_ns=200.0,
                            max_sample_ps=200.0, min_samples=4, progress=progress)

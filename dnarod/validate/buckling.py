@@ -31,8 +31,20 @@ take a linking difference of their own (little writhe for their length): it read
 600-bp ring puts tau* at 11.47 pN nm against a measured plateau of 10.33 +- 0.27. The check therefore runs two
 rings at the same sigma, of n and 2n bp (600 and 1200 in the full form, ΔLk -5 and -10), and takes
 ``P_b = C (1 - ΔWr / ΔΔLk)`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_ring_pair`): the loops
-cancel if both rings have the same loops (measured: P_b 12.09 +- 0.70 nm, tau* 9.26 +- 0.31; a long ring that
-branches has more loops, which this does not detect). (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
+cancel if both rings have the same loops (measured with Manning's charge: P_b 12.09 +- 0.70 nm, tau* 9.26 +-
+0.31). A long ring that branches has more end loops: the check counts them per sample (``end_loops`` of the ring
+members) and fails when the two rings' means differ (premise below). With the calibrated charge (d_eff 5.00 nm,
+round 6) it does: at sigma -0.0875 the 600-bp ring (40 ns after 36 ns) has 1.96 end loops on average (2 in 96 %
+of samples) and writhe fraction 0.695 (single-ring P 29.9 +- 0.5 nm), the 1200-bp ring (100 ns after 100 ns)
+2.64 (3 in 56 %, 4 in 4 %; the loops are hairpin tips: nodes 20 nm either side are 7.6 nm apart against
+30.6 at random nodes) and 0.735, so the pair's P_b = 22.2 +- 0.6 nm is biased upwards; counting the loops
+(:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_rings_with_loops`, reported, not gating) gives
+18.2 +- 1.1 nm and tau* 11.9 pN nm (pair 13.6, single ring 16.8). A shorter pair, 400/800 bp at sigma -0.0787
+(40 ns after 16 ns / 100 ns after 65 ns), does not branch (1.84 / 1.94 end loops, at most 2 in any sample; the
+difference 0.104 is just over ``LOOP_TOL``): P_b 19.3 +- 0.8 nm, loops counted 18.5 +- 0.9 (agreeing with the
+600/1200 estimate), tau* 12.3 +- 0.3 -- 2.5 pN nm below the measured plateau, so with the calibrated charge the
+check would fail on the Marko comparison too (cause not settled: the ring's linking density, 0.135 rad/nm, is
+below the coexistence 0.154; the 2.57-turn twins are not settled). (The tweezers plectoneme has one end loop and a junction; in the two-phase model with a constant
 loop cost they shift the buckling point, not the plateau, which is set by the bulk phases alone.)
 
 Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing else:
@@ -41,6 +53,10 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    production agree within ``Z_TOL`` SE, and (``bracket``, the full form) each member run from the straight
    start and from a plectoneme grown at 0.3 pN (longer than at 1 pN) agrees with its twin in torque,
    extension and writhe within ``Z_TOL`` SE; the twins are then pooled;
+   with the ring pair, both rings are settled (no drift of Wr between the halves of their production, ``Z_TOL``
+   SE) and have the same mean number of plectoneme end loops within ``LOOP_TOL`` (0.1;
+   :func:`dnarod.protocols.measure.plectoneme_end_loops`, recorded per sample by the ring members): a ring that
+   branches has more end loops than the pair formula cancels (:func:`ring_pair_premise`);
 1. both post-buckling members are plectonemic (detector of :mod:`dnarod.protocols.measure`);
 2. their torques agree (the plateau is flat): ``|Δtau| <= Z_TOL SE``;
 3. the extension falls between them by more than ``Z_TOL SE``;
@@ -59,7 +75,21 @@ Statistics: the plectoneme's length fluctuates slowly (tens of ns) and the torqu
 small-amplitude mode under fast noise that the autocorrelation-time window misses; member errors are blocked
 (:func:`block_standard_error`). The full form runs 400 ns of production per member (each twin at 2.57 turns:
 747-752 s CPU); with 150 ns the 2.57-turn twins disagreed (not settled), with 400 ns they agree
-(10.34 +- 0.28 and 10.32 +- 0.38 pN nm).
+(10.34 +- 0.28 and 10.32 +- 0.38 pN nm; Manning's charge). With the calibrated charge (round 6, a reduced full
+form: 200-ns twins, 600/1200-bp rings, the long one after 100 ns; ``benchmarks/buckling_r6``) the check fails:
+plateau 14.71 +- 0.37 / 14.91 +- 0.38 pN nm at 2.57 / 3.59 turns (flat), the 2.57-turn twins disagree (13.25 +-
+0.61 vs 15.50 +- 0.45, z 3.0; one plectoneme each, its end loop mid-chain in one and near the bead in the
+other), the 1200-bp ring branches (premise), Marko 13.55 +- 0.24 with the biased pair P_b. Cost there (CPU
+time, load average 8-16): 600-bp twin 397-538 CPU-s per 200 ns (+ 11.5 ns equilibration, + 20 ns at 0.3 pN
+for the grown start), 1200-bp ring 1012 CPU-s per 200 ns, 600-bp ring 168 CPU-s per 76 ns.
+
+Members: :func:`member_plan` lists the members the check runs with given options (folders, settings, seeds);
+members run in advance with exactly those settings (e.g. in two processes, ``benchmarks/buckling_r6/
+premembers.py``) into the member root are reused. Without ``member_root`` the members live in
+``<report folder>/buckling_members``, so running the check again into the same report folder (``dnarod
+validate --only buckling -o SAME``) reuses the finished members and resumes an interrupted one from its
+checkpoint. The pre-buckling member has no plectoneme and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending
+relaxation times) in the full form.
 
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
@@ -86,6 +116,10 @@ LINEAR_ALLOWANCE = 0.15
 #: Fewest blocks :func:`block_standard_error` uses (the error of a standard error from nb blocks is
 #: ~1/sqrt(2(nb - 1)): 19 % at 15 blocks).
 MIN_BLOCKS = 15
+
+#: Production (ns) of the pre-buckling member in the full form (shorter than the post-buckling members': it has
+#: no plectoneme; 600 bp at 1 pN: slowest bending relaxation time ~2.3 ns).
+PRE_TIME_NS = 100.0
 
 
 def block_standard_error(x, min_blocks=MIN_BLOCKS):
@@ -150,10 +184,125 @@ def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=
     return C_nm * (1.0 - f), C_nm * f_err, f, f_err
 
 
+#: Largest difference of the two rings' mean numbers of plectoneme end loops for the ring pair to cancel them
+#: (calibrated charge: an end loop lowers the writhe by 0.25-0.30 turns, from the loop-counted pair formula on the
+#: 400/800 and 600/1200-bp pairs, so 0.1 loop moves P_b by 0.6-0.9 nm, about one standard error).
+LOOP_TOL = 0.1
+
+
+def ring_series(member_dir, column):
+    """One column of a ring member's ``samples.csv`` (ndarray, shape (n_samples,)); None if not recorded."""
+    from pathlib import Path
+
+    d = np.genfromtxt(Path(member_dir) / "samples.csv", delimiter=",", names=True)
+    return np.asarray(d[column], float) if column in d.dtype.names else None
+
+
+def ring_pair_premise(short_dir, long_dir, loop_tol=None, z_tol=Z_TOL):
+    """Whether two ring members can give the bulk P (:func:`plectoneme_P_from_ring_pair`): both settled (the
+    means of Wr over the halves of each production agree within ``z_tol`` blocked SE) and with the same
+    number of plectoneme end loops on average (``|<n_long> - <n_short>| <= loop_tol``, :data:`LOOP_TOL`; the
+    per-sample count :func:`dnarod.protocols.measure.plectoneme_end_loops`, column ``end_loops``). A ring
+    that branches has more end loops than the pair formula cancels.
+
+    Returns
+    -------
+    dict
+        ``end_loops`` (mean per ring), ``end_loop_histograms`` (samples with 0, 1, 2, ... loops),
+        ``loop_difference``, ``wr_drift_z`` (per ring), ``settled``, ``same_loops`` and ``passed``;
+        ``same_loops`` is False with a ``reason`` when a ring has no ``end_loops`` column.
+    """
+    loop_tol = LOOP_TOL if loop_tol is None else float(loop_tol)
+    loops = [ring_series(d, "end_loops") for d in (short_dir, long_dir)]
+    z = [drift_z(f"{d}/samples.csv", "Wr") for d in (short_dir, long_dir)]
+    settled = bool(all(abs(v) <= z_tol for v in z))
+    out = dict(wr_drift_z=z, settled=settled, loop_tolerance=loop_tol)
+    if any(x is None for x in loops):
+        out.update(end_loops=None, end_loop_histograms=None, loop_difference=None, same_loops=False,
+                   reason="end loops not recorded (ring members run before the end_loops column existed)")
+    else:
+        m = [float(x.mean()) for x in loops]
+        out.update(end_loops=m, end_loop_histograms=[np.bincount(x.astype(int)).tolist() for x in loops],
+                   loop_difference=m[1] - m[0], same_loops=bool(abs(m[1] - m[0]) <= loop_tol))
+    out["passed"] = bool(settled and out["same_loops"])
+    return out
+
+
+def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
+                temperature=300.0, seed=31, P_nm=None, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None,
+                ring_seed=5, bracket=None, grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None,
+                nonbonded=None, pre_time_ns=None, ring_pair_equilibration_ns=None):
+    """The members :func:`check_buckling` runs with these options, in the order it runs them.
+
+    Each entry is a dict: ``kind`` (``"tweezers"``: :func:`dnarod.protocols.tweezers.run_member`; ``"ring"``:
+    :func:`dnarod.protocols.rings.run_ring_member`), ``folder`` (the member's folder name under the check's member
+    root), ``settings`` (the member's settings dict) and ``role`` (``"ring"``, ``"ring_pair"``, ``"pre"``,
+    ``"post"``, ``"post_grown"``) with ``index`` (0 pre-buckling, 1 and 2 post-buckling). Members run in
+    advance with exactly these settings into the member root (e.g. in parallel processes) are reused by the
+    check. Same keywords as :func:`check_buckling`.
+    """
+    from ..forcefield import load_forcefield
+    from ..protocols.tweezers import intrinsic_turns
+
+    n_bp = n_bp or (400 if quick else 600)
+    lk0 = intrinsic_turns(load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp))
+    # pre-buckling below Marko's buckling point (ΔLk_b ~ 0.018 Lk0 here, relative to the relaxed chain at T);
+    # post-buckling at ~40 % and ~70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0), so
+    # that both are in the two-phase coexistence the model describes (earlier 0.075/0.098 Lk0: at and beyond
+    # the fully plectonemic point)
+    pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
+    post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
+    time_ns = time_ns or (2.0 if quick else 400.0)
+    # the pre-buckling member has no plectoneme (no slow mode): PRE_TIME_NS is ~40 slowest bending relaxation times
+    pre_time_ns = pre_time_ns or min(time_ns, PRE_TIME_NS)
+    bracket = (not quick) if bracket is None else bool(bracket)
+    grown_ns = grown_ns or (2.0 if quick else 20.0)
+    nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
+    plan = []
+    if P_nm is None:  # the model's plectoneme twist stiffness, from plectonemic rings of the same model
+        ring_n_bp = ring_n_bp or (400 if quick else 600)
+        ring_delta_lk = ring_delta_lk or (-3 if quick else -5)
+        ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
+        plan.append(dict(kind="ring", role="ring", index=0, folder=f"ring{ring_n_bp}_{ring_delta_lk}",
+                         settings=dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
+                                       temperature_K=temperature, **nb)))
+        if (not quick) if ring_pair is None else bool(ring_pair):
+            # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
+            n2, dlk2 = 2 * ring_n_bp, 2 * ring_delta_lk
+            plan.append(dict(kind="ring", role="ring_pair", index=1, folder=f"ring{n2}_{dlk2}",
+                             settings=dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
+                                           seed=ring_seed, temperature_K=temperature,
+                                           # default: the ring protocol's five slowest bending relaxation times
+                                           **({} if ring_pair_equilibration_ns is None
+                                              else dict(equilibration_ns=ring_pair_equilibration_ns)), **nb)))
+    for i, t in enumerate((pre_turns, *post_turns)):
+        for grown in ((False, True) if bracket and i > 0 else (False,)):
+            extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
+            plan.append(dict(kind="tweezers", role=("pre" if i == 0 else "post_grown" if grown else "post"), index=i,
+                             folder=f"turns{t:+.3f}" + ("_grown" if grown else ""),
+                             settings=dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4),
+                                           time_ns=pre_time_ns if i == 0 else time_ns,
+                                           temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra,
+                                           **nb)))
+    return plan
+
+
+def run_planned(entry, member_root, progress=None):
+    """Run (or reuse) one entry of :func:`member_plan` in ``member_root``; returns the member's result row."""
+    from pathlib import Path
+
+    from ..protocols.rings import run_ring_member
+    from ..protocols.tweezers import run_member
+
+    fn = run_ring_member if entry["kind"] == "ring" else run_member
+    return fn(entry["settings"], Path(member_root) / entry["folder"], progress=progress)
+
+
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
                    temperature=300.0, seed=31, plots=True, member_root=None, c_override=None, P_nm=None,
                    P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
-                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None, nonbonded=None):
+                   grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None, nonbonded=None,
+                   pre_time_ns=None, ring_pair_equilibration_ns=None):
     """Run the check (see the module docstring).
 
     ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
@@ -162,34 +311,36 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     (dict with ``charge`` and/or ``cutoff_debye``) runs the members and rings with other non-bonded terms than
     the defaults (the recorded test members were run with Manning's charge and 5 Debye lengths).
     """
-    import tempfile
     from pathlib import Path
 
     from ..forcefield import load_forcefield
-    from ..protocols.tweezers import intrinsic_turns, run_member
+    from ..protocols.tweezers import intrinsic_turns
     from ..thermal import kT, persistence_length
     from ..units import PN
     from ..openmm.nonbonded import member_nonbonded
-    from ..protocols.rings import run_ring_member
     from ..protocols.measure import twisting_moment_offset
     from ..thermal import relaxed_ribbon_twist
-    from .supercoil_theory import effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair
+    from ..errors import DnarodError
+    from .supercoil_theory import (effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair,
+                                   plectoneme_P_from_rings_with_loops)
     from .torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
+    plan = member_plan(quick=quick, n_bp=n_bp, force_pN=force_pN, pre_turns=pre_turns, post_turns=post_turns,
+                       time_ns=time_ns, temperature=temperature, seed=seed, P_nm=P_nm, ring_n_bp=ring_n_bp,
+                       ring_delta_lk=ring_delta_lk, ring_time_ns=ring_time_ns, ring_seed=ring_seed, bracket=bracket,
+                       grown_force_pN=grown_force_pN, grown_ns=grown_ns, ring_pair=ring_pair,
+                       ring_pair_time_ns=ring_pair_time_ns, nonbonded=nonbonded, pre_time_ns=pre_time_ns,
+                       ring_pair_equilibration_ns=ring_pair_equilibration_ns)
     n_bp = n_bp or (400 if quick else 600)
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lk0 = intrinsic_turns(model)
-    # pre-buckling below Marko's buckling point (ΔLk_b ~ 0.018 Lk0 here, relative to the relaxed chain at T);
-    # post-buckling at ~40 % and ~70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0), so
-    # that both are in the two-phase coexistence the model describes (earlier 0.075/0.098 Lk0: at and beyond
-    # the fully plectonemic point)
-    pre_turns = 0.01 * lk0 if pre_turns is None else float(pre_turns)
-    post_turns = (0.045 * lk0, 0.063 * lk0) if post_turns is None else tuple(post_turns)
     time_ns = time_ns or (2.0 if quick else 400.0)
     bracket = (not quick) if bracket is None else bool(bracket)
     grown_ns = grown_ns or (2.0 if quick else 20.0)
-    root = Path(member_root) if member_root else Path(tempfile.mkdtemp(prefix="buckling_", dir=out_dir))
+    # the members' folder: given, or one per report folder (a rerun into the same report folder reuses the
+    # finished members and resumes an interrupted one from its checkpoint)
+    root = Path(member_root) if member_root else Path(out_dir) / "buckling_members"
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
     A = persistence_length(model.params, model.ds, kT(temperature))
@@ -200,57 +351,59 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
     terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, **nb))
-    ring = ring2 = None
+    ring = ring2 = premise = P_loops = None
     P_single = P_single_err = None
-    if P_nm is None:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
+    rings = {e["role"]: e for e in plan if e["kind"] == "ring"}
+    if "ring" in rings:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
         from ..forcefield import load_forcefield as _ff
 
-        ring_n_bp = ring_n_bp or (400 if quick else 600)
-        ring_delta_lk = ring_delta_lk or (-3 if quick else -5)
-        ring_time_ns = ring_time_ns or (3.0 if quick else 40.0)
-        ring = run_ring_member(dict(n_bp=ring_n_bp, delta_lk=ring_delta_lk, time_ns=ring_time_ns, seed=ring_seed,
-                                    temperature_K=temperature, **nb), root / f"ring{ring_n_bp}_{ring_delta_lk}")
+        ring = run_planned(rings["ring"], root)
+        ring_n_bp = ring["n_bp"]
         tw0_T, tw0_T_se = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring_n_bp), temperature)
         P_nm, P_err_nm, f_wr, f_wr_err = plectoneme_twist_stiffness(ring, C_th, tw0_T, tw0_T_se)
         P_single, P_single_err = P_nm, P_err_nm
-        ring_pair = (not quick) if ring_pair is None else bool(ring_pair)
-        if ring_pair:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
-            n2, dlk2 = 2 * ring_n_bp, 2 * ring_delta_lk
-            ring2 = run_ring_member(dict(n_bp=n2, delta_lk=dlk2, time_ns=ring_pair_time_ns or 2.5 * ring_time_ns,
-                                         seed=ring_seed, temperature_K=temperature, **nb), root / f"ring{n2}_{dlk2}")
-            tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=n2), temperature)
+        if "ring_pair" in rings:  # the bulk P: a second ring twice as long at the same sigma (the end loops cancel)
+            ring2 = run_planned(rings["ring_pair"], root)
+            tw0_2, _ = relaxed_ribbon_twist(_ff("dna-default").ring(n_nodes=ring2["n_bp"]), temperature)
+            ring, ring2 = (dict(x, Wr_err=block_standard_error(ring_series(root / rings[k]["folder"], "Wr")))
+                           for x, k in ((ring, "ring"), (ring2, "ring_pair")))
             P_nm, P_err_nm = plectoneme_P_from_ring_pair(ring["Wr"], ring["Lk"] - tw0_T, ring2["Wr"],
                                                          ring2["Lk"] - tw0_2, C_th, ring["Wr_err"], ring2["Wr_err"])
+            premise = ring_pair_premise(root / rings["ring"]["folder"], root / rings["ring_pair"]["folder"])
+            if premise["end_loops"] is not None:  # diagnostic: the loops counted instead of assumed equal
+                try:
+                    P_loops = plectoneme_P_from_rings_with_loops(
+                        ring["Wr"], ring["Lk"] - tw0_T, premise["end_loops"][0], ring2["Wr"], ring2["Lk"] - tw0_2,
+                        premise["end_loops"][1], C_th, ring["Wr_err"], ring2["Wr_err"])
+                except DnarodError:
+                    P_loops = None
     rows, drifts, twins = [], [], []
 
-    def member(t, i, grown):
-        tag = f"turns{t:+.3f}" + ("_grown" if grown else "")
-        extra = dict(start_force_pN=grown_force_pN, start_ns=grown_ns) if grown else {}
-        r = run_member(dict(n_bp=n_bp, force_pN=force_pN, turns=round(float(t), 4), time_ns=time_ns,
-                            temperature_K=temperature, seed=seed + i + (10 if grown else 0), **extra, **nb), root / tag)
-        csv = root / tag / "samples.csv"
-        r = dict(r)
+    def member(entry):
+        r = dict(run_planned(entry, root))
+        csv = root / entry["folder"] / "samples.csv"
         d = np.genfromtxt(csv, delimiter=",", names=True)
         for q, col in (("twist_torque_pN_nm", "twist_torque_pN_nm"), ("relative_extension", "extension_nm"),
                        ("Wr", "Wr"), ("clamp_torque_pN_nm", "clamp_torque_pN_nm")):
             # blocked standard errors (the member's own 10-block errors miss the slow plectoneme mode)
             se = block_standard_error(np.asarray(d[col], float))
             r[q + "_err"] = se / (r["contour_length_nm"] if q == "relative_extension" else 1.0)
-        return r, dict(turns=r["turns"], start="grown" if grown else "straight",
+        return r, dict(turns=r["turns"], start="grown" if entry["role"] == "post_grown" else "straight",
                        extension_z=drift_z(csv, "extension_nm"), torque_z=drift_z(csv, "twist_torque_pN_nm"))
 
-    for i, t in enumerate((pre_turns, *post_turns)):
-        r, d = member(t, i, False)
-        rows.append(r)
+    for entry in (e for e in plan if e["kind"] == "tweezers"):
+        r, d = member(entry)
         drifts.append(d)
-        if bracket and i > 0:
-            g, dg = member(t, i, True)
-            drifts.append(dg)
-            dq = {q: (g[q] - r[q], float(np.hypot(g[q + "_err"], r[q + "_err"])))
-                  for q in ("twist_torque_pN_nm", "relative_extension", "Wr")}
-            twins.append(dict(turns=r["turns"], straight=r, grown=g,
-                              differences={q: dict(difference=v[0], standard_error=v[1]) for q, v in dq.items()},
-                              agree=bool(all(abs(v[0]) <= Z_TOL * v[1] for v in dq.values()))))
+        if entry["role"] != "post_grown":
+            rows.append(r)
+            continue
+        g, dg = r, d
+        r = rows[-1]
+        dq = {q: (g[q] - r[q], float(np.hypot(g[q + "_err"], r[q + "_err"])))
+              for q in ("twist_torque_pN_nm", "relative_extension", "Wr")}
+        twins.append(dict(turns=r["turns"], straight=r, grown=g,
+                          differences={q: dict(difference=v[0], standard_error=v[1]) for q, v in dq.items()},
+                          agree=bool(all(abs(v[0]) <= Z_TOL * v[1] for v in dq.values()))))
     if twins:  # both starts of a member pooled (error-weighted; they agree, or the check fails below)
         pooled = []
         for tw in twins:
@@ -305,7 +458,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     # slowly), and with ``bracket`` the straight and grown starts agree
     settled = all(abs(d["extension_z"]) <= Z_TOL and abs(d["torque_z"]) <= Z_TOL for d in drifts[1:])
     settled = settled and all(tw["agree"] for tw in twins)
-    passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled)
+    # the ring pair: both rings settled (no writhe drift) with the same number of end loops
+    premise_ok = premise is None or premise["passed"]
+    passed = bool(lin_ok and plectonemic and plateau_ok and falls and marko_ok and settled and premise_ok)
     res = dict(model=f"dna-default open chain, {n_bp} bp (L = {L:.1f} nm, Lk0 = {lk0:.2f}), {force_pN} pN, 0.15 M",
                temperature_K=temperature, production_ns_per_member=time_ns,
                twisting_moment_offset_pN_nm=tq_off, twisting_moment_offset_se=tq_off_se,
@@ -341,6 +496,11 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                                     ("closed ring " + f"{ring['n_bp']} bp at sigma {ring['sigma']:+.4f}: writhe fraction "
                                      f"{f_wr:.3f} +- {f_wr_err:.3f}") if ring else "given"),
                           P_single_ring_nm=P_single, P_single_ring_err_nm=P_single_err,
+                          P_loop_corrected_nm=P_loops[0] if P_loops else None,
+                          P_loop_corrected_err_nm=P_loops[1] if P_loops else None,
+                          loop_writhe_deficit_turns=P_loops[2] if P_loops else None,
+                          torque_loop_corrected_P_pN_nm=(marko_two_phase(A, c_s, P_loops[0], force_pN, kt_pn, L)
+                                                         ["torque_pN_nm"] if P_loops and 0 < P_loops[0] < c_s else None),
                           torque_single_ring_P_pN_nm=(marko_two_phase(A, c_s, P_single, force_pN, kt_pn, L)["torque_pN_nm"]
                                                       if P_single is not None and P_single < c_s else None),
                           ring_linking_density_rad_per_nm=(TWO_PI_ * abs(ring["Lk"] - tw0_T) / (ring["n_bp"] * model.ds)
@@ -353,7 +513,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                           extension_slope_nm_per_turn=th["extension_slope_nm_per_turn"],
                           extension_slope_measured_nm_per_turn=slope_meas,
                           plectonemic_delta_lk=th["plectonemic_delta_lk"]),
-               drift=dict(members=drifts, settled=bool(settled)), z_tolerance=Z_TOL, passed=passed)
+               drift=dict(members=drifts, settled=bool(settled)), ring_pair_premise=premise, z_tolerance=Z_TOL,
+               pre_buckling_production_ns=next(e["settings"]["time_ns"] for e in plan if e["role"] == "pre"),
+               passed=passed)
     res["production_ns_per_member"] = time_ns
     if plots:
         fig, ax = new_figure(2, 1, width=4.5, height=3.6)

@@ -92,7 +92,14 @@ def headline(name, r):
                         f"+-{_fmt(b['differences']['twist_torque_pN_nm']['standard_error'], '.2f')}"
                         for b in r.get("brackets") or []) if r.get("brackets") else "")
                     + f"; P from a ring at {_fmt(mk.get('ring_linking_density_rad_per_nm'), '.3f')} rad/nm "
-                      f"(coexistence {_fmt(mk.get('coexistence_plectoneme_density_rad_per_nm'), '.3f')})",
+                      f"(coexistence {_fmt(mk.get('coexistence_plectoneme_density_rad_per_nm'), '.3f')})"
+                    + (f"; ring pair: mean end loops "
+                       + " / ".join(_fmt(x, '.2f') for x in (r['ring_pair_premise']['end_loops'] or [None, None]))
+                       + ", Wr drift z "
+                       + ", ".join(_fmt(z, '.1f') for z in r['ring_pair_premise']['wr_drift_z'])
+                       + f", premise {'met' if r['ring_pair_premise']['passed'] else 'NOT met'}"
+                       + (f" ({r['ring_pair_premise']['reason']})" if r['ring_pair_premise'].get('reason') else "")
+                       if r.get("ring_pair_premise") else ""),
                     f"drift |z| <= {r['z_tolerance']}; |tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
                     f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE")
         if name == "plectonemes":

@@ -289,3 +289,39 @@ def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
     from ..openmm.nonbonded import effective_diameter as nb_effective_diameter
 
     return float(nb_effective_diameter(nonbonded, ds, temperature, n_angles=n_gamma, n_phase=n_offset, n_h=n_h))
+
+
+def plectoneme_P_from_rings_with_loops(wr_1, dlk_1, loops_1, wr_2, dlk_2, loops_2, C_nm, wr_err_1=0.0,
+                                       wr_err_2=0.0):
+    """Bulk P (nm) from two plectonemic rings with different mean numbers of end loops (a ring that branches).
+
+    The model of :func:`plectoneme_P_from_ring_pair` with the end loops counted instead of assumed equal: each
+    end loop, wherever it is, lowers the ring's writhe by the same ``mu`` (turns; its linking taken as twist,
+    less its own writhe) and a branch junction costs nothing, so ``Wr_i = (1 - P_b/C) ΔLk_i - n_i mu sign(ΔLk)``
+    for ring i with ``n_i`` end loops on average. Two rings give ``P_b`` and ``mu``; with ``n_1 = n_2`` this is
+    the pair formula. An estimate under that assumption (not tested against rings of known loops), used by
+    check ``buckling`` as a diagnostic only.
+
+    Parameters
+    ----------
+    wr_1, dlk_1, loops_1, wr_2, dlk_2, loops_2 : float
+        Mean writhe, linking difference relative to the relaxed twist at T (turns) and mean number of end loops
+        (:func:`dnarod.protocols.measure.plectoneme_end_loops`) of each ring.
+    C_nm : float
+    wr_err_1, wr_err_2 : float
+        Standard errors of the writhes (the loop counts are taken as exact).
+
+    Returns
+    -------
+    tuple of float
+        ``(P_b, standard_error, mu)``: nm, nm, turns per end loop.
+    """
+    s = np.sign(float(dlk_2))
+    M = np.array([[float(dlk_1), -float(loops_1) * s], [float(dlk_2), -float(loops_2) * s]])
+    if abs(np.linalg.det(M)) < 1e-9 * max(1.0, np.abs(M).max() ** 2):
+        raise DnarodError("ring pair: the two rings have the same loops per linking difference; the loops and the "
+                          "bulk cannot be separated")
+    Minv = np.linalg.inv(M)
+    f, mu = Minv @ np.array([float(wr_1), float(wr_2)])
+    f_err = float(np.hypot(Minv[0, 0] * wr_err_1, Minv[0, 1] * wr_err_2))
+    return float(C_nm) * (1.0 - f), float(C_nm) * f_err, float(mu)
