@@ -145,7 +145,11 @@ def _clamp_options(default_force):
                click.option("--settle", "settle_ns", type=float, default=None,
                             help="With --start sweep: equilibration of each chained member after its turn "
                                  "increment, ns (default: 2 slowest bending relaxation times; the first member "
-                                 "of each chain uses --equilibration).")]
+                                 "of each chain uses --equilibration)."),
+               click.option("--settle-buckled", "settle_buckled_ns", type=float, default=None,
+                            help="With --start sweep/sweep-in: settle of the chained members at or past the buckling "
+                                 "point, ns (|Delta Lk at T| >= 0.8 x Marko's two-phase buckling point with the "
+                                 "model's A, C_s(F) and plectoneme P; default: --settle).")]
 
     def decorate(f):
         for option in reversed(options):
@@ -155,7 +159,8 @@ def _clamp_options(default_force):
     return decorate
 
 
-def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None):
+def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None,
+                 settle_buckled_ns=None):
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
     import math
 
@@ -165,28 +170,34 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
                           f"(or sweep-in)")
     if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
         raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
+    if settle_buckled_ns is not None and start not in ("sweep", "sweep-in"):
+        raise DnarodError(f"--settle-buckled {settle_buckled_ns:g}: the settle time applies to a turn sweep only; add "
+                          f"--start sweep (or sweep-in)")
+    if settle_buckled_ns is not None and not (math.isfinite(settle_buckled_ns) and settle_buckled_ns > 0):
+        raise DnarodError(f"--settle-buckled {settle_buckled_ns}: give a time in ns > 0")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                       _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
-                      settle_ns=settle_ns)
+                      settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns)
     _report(c, "turns", columns)
 
 
 @protocol.command("hat")
 @_clamp_options("0.5")
 @_common
-def hat_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, **kw):
+def hat_cmd(forces, turns, clamp_k, start, settle_ns, settle_buckled_ns, workers, out, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns)
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, settle_buckled_ns)
 
 
 @protocol.command("torque-turns")
 @_clamp_options("1.0")
 @_common
-def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, **kw):
+def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, settle_buckled_ns, workers, out, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
-                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns)
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns,
+                 settle_buckled_ns)
 
 
 @protocol.command("rings")
