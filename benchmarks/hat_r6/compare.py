@@ -31,6 +31,8 @@ def command_cost(path):
     if not p.exists():
         return None
     t = p.read_text()
+    if "User time" not in t:  # still running
+        return None
     user = float(re.search(r"User time \(seconds\): ([\d.]+)", t).group(1))
     sys_ = float(re.search(r"System time \(seconds\): ([\d.]+)", t).group(1))
     wall = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): ([\d:.]+)", t).group(1)

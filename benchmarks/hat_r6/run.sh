@@ -13,7 +13,7 @@ TURNS=-4.8,-4,-3.2,-2.4,-1.6,-0.8,0,0.8,1.6,2.4,3.2,4
 for d in $DIRS; do
   echo "$(date -u +%FT%T) start $d" >> "$ROOT/times.log"
   /usr/bin/time -v -o "$ROOT/time_$d.txt" nice -n 8 .venv/bin/dnarod protocol hat --source 1000 --force 1 \
-      --turns=$TURNS --start "$d" --equilibration 30 --settle 8 --settle-buckled 60 --time 30 \
+      --turns=$TURNS --start "$d" --equilibration 30 --settle 8 --settle-buckled 120 --time 50 \
       -o "$ROOT/$d" > "$ROOT/$d.log" 2>&1
   echo "$(date -u +%FT%T) end $d rc $?" >> "$ROOT/times.log"
 done
