@@ -169,6 +169,8 @@ def figure(res, by, path):
         if d not in by:
             continue
         rs = [by[d][t] for t in sorted(by[d])]
+        if len(rs) < 12:  # an unfinished sweep: no line across the members it has not run
+            mk, lab = mk[0], lab + f", {len(rs)} members finished"
         a.errorbar([r["turns"] for r in rs], [r["x_over_L"] for r in rs],
                    yerr=[max(r["se_block"], r["se_tau"]) for r in rs], fmt=mk, ms=4, capsize=3, label=lab)
     a.set_ylabel("extension / contour length")
