@@ -327,6 +327,13 @@ def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
     for t, r in rows.items():
         assert r["lk_slips"] == 0 and r["delta_lk"] == pytest.approx(r["end_turns"], abs=0.02)
         assert abs(r["end_turns"] - t) < 0.05
+    # every member its own noise stream, derived reproducibly from the curve's seed, force, turns and direction
+    from dnarod.protocols.ensemble_hooks import member_seed
+
+    seeds = {t: r["seed"] for t, r in rows.items()}
+    assert len(set(seeds.values())) == len(seeds)
+    for t, sd in seeds.items():
+        assert sd == member_seed(member_seed(3, "magnetic_tweezers", 2.0, t), "sweep")
     calls = []
     real = tw.sample_member
     monkeypatch.setattr(tw, "sample_member", lambda *a, **k: calls.append(a[0]["turns"]) or real(*a, **k))
@@ -369,6 +376,95 @@ def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch)
     np.testing.assert_array_equal(load_pose(mem / "force_pN+2_turns+0.25" / "start_pose.npz")[1], F)
     for t, r in rows.items():
         assert r["lk_slips"] == 0 and abs(r["end_turns"] - t) < 0.05
+    from dnarod.protocols.ensemble_hooks import member_seed
+
+    for t, r in rows.items():  # not the outward sweep's stream at the same turns
+        base = member_seed(3, "magnetic_tweezers", 2.0, t)
+        assert r["seed"] == member_seed(base, "sweep-in") != member_seed(base, "sweep")
+
+
+def test_member_seed_is_distinct_and_reproducible():
+    """The same base seed and key give the same seed; another key, base seed or direction another one; all in
+    [1, 2^31); static members of a curve get distinct seeds too (each one from its force and turns)."""
+    from dnarod.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, member_seed
+
+    a = member_seed(1, "magnetic_tweezers", 1.0, 0.8)
+    assert a == member_seed(1, "magnetic_tweezers", 1.0, 0.8) == member_seed(1, "magnetic_tweezers", 1, 0.8)
+    others = [member_seed(2, "magnetic_tweezers", 1.0, 0.8), member_seed(1, "torque_turns", 1.0, 0.8),
+              member_seed(1, "magnetic_tweezers", 0.5, 0.8), member_seed(1, "magnetic_tweezers", 1.0, -0.8),
+              member_seed(a, "sweep"), member_seed(a, "sweep-in")]
+    assert len({a, *others}) == 7 and all(1 <= x < 2**31 for x in (a, *others))
+    turns = [-4.8, -4, -3.2, -2.4, -1.6, -0.8, 0, 0.8, 1.6, 2.4, 3.2, 4]
+    seeds = [MAGNETIC_TWEEZERS.member_settings(dict(source="100", force_pN=1.0, turns=t, seed=1))["seed"]
+             for t in turns]
+    assert len(set(seeds)) == len(turns)
+
+
+def test_buckling_turns_place_marko_buckling_point():
+    """The long settle starts at margin x Marko's buckling Delta Lk (the model's A, Moroz-Nelson C_s, P), counted
+    from the relaxed linking number at T: for 1 kbp at 1 pN Delta Lk_b = 1.78 turns (the 1.76 of the buckling
+    check's theory, docs/protocols.md), and the hat's centre is at -0.42 turns (0.42 milliturn per step)."""
+    import math
+
+    from dnarod.protocols.sweep import buckling_estimate, buckling_turns, member_settles
+    from dnarod.validate.supercoil_theory import wlc_free_energy_exact
+
+    e = buckling_estimate("1000", 1.0, 300.0)
+    kt = kT(300.0) / PN
+    A, C = 50.0, 98.25
+    M, K0 = C / A, math.sqrt(A * 1.0 / kt)  # Moroz & Nelson 1998 to third order in 1/K0, written out here
+    c_s = C * (1 - M / (4 * K0) + (M * M - 2 * M) / (16 * K0 ** 2) - (4 * M ** 3 - 16 * M * M + 21 * M) / (256 * K0 ** 3))
+    tau = math.sqrt(2 * kt * wlc_free_energy_exact(1.0, A, kt) / (1 / 17.3 - 1 / c_s))
+    L = 999 * FF.model_from_sequence(n_nodes=10).ds
+    assert e["C_s_nm"] == pytest.approx(c_s, rel=1e-3)
+    assert e["buckling_delta_lk"] == pytest.approx(tau * L / (2 * math.pi * kt * c_s), rel=1e-3)
+    assert 1.70 < e["buckling_delta_lk"] < 1.85
+    assert 0.38e-3 < e["thermal_offset_turns"] / 999 < 0.46e-3
+    lo, hi = buckling_turns("1000", 1.0)
+    assert hi == pytest.approx(0.8 * e["buckling_delta_lk"] - e["thermal_offset_turns"])
+    assert lo == pytest.approx(-0.8 * e["buckling_delta_lk"] - e["thermal_offset_turns"])
+    assert -1.9 < lo < -1.8 and 0.95 < hi < 1.05
+    turns = [-4.8, -4, -3.2, -2.4, -1.6, -0.8, 0, 0.8, 1.6, 2.4, 3.2, 4]
+    assert member_settles(turns, 8.0, 60.0, (lo, hi)) == [60.0] * 4 + [8.0] * 4 + [60.0] * 4
+    assert member_settles(turns, 8.0, None, (lo, hi)) == [8.0] * 12
+    assert buckling_estimate("1000", 4.0)["buckling_delta_lk"] > e["buckling_delta_lk"]  # buckles later at 4 pN
+    with pytest.raises(DnarodError, match="margin"):
+        buckling_estimate("100", 1.0, margin=1.5)
+
+
+def test_turn_sweep_settles_long_only_past_buckling(tmp_path):
+    """settle_buckled_ns: chained members at or beyond the buckling bounds settle that long, the others settle_ns,
+    the chain heads their equilibration; the rows carry the bounds."""
+    from dnarod.protocols import hat_curve
+    from dnarod.protocols.sweep import buckling_turns
+
+    lo, hi = buckling_turns("60", 2.0)
+    assert -0.25 < lo < -0.1 and 0.05 < hi < 0.15
+    c = hat_curve([-0.25, -0.1, 0.0, 0.05, 0.2], tmp_path / "hat", force_pN=2.0, source="60", workers=0,
+                  start="sweep", settle_ns=0.004, settle_buckled_ns=0.012,
+                  base=dict(time_ns=0.01, equilibration_ns=0.008, seed=3, sample_ps=2.0))
+    eq = {r["turns"]: r["equilibration_ps"] for r in c.rows}
+    assert eq == {0.0: pytest.approx(8.0), -0.1: pytest.approx(8.0), 0.05: pytest.approx(4.0),
+                  0.2: pytest.approx(12.0), -0.25: pytest.approx(12.0)}
+    assert all(r["buckled_settle_from_turns_hi"] == pytest.approx(hi) for r in c.rows)
+
+
+def test_settle_buckled_bad_input(tmp_path):
+    """--settle-buckled without a sweep, <= 0 or not finite: one line, exit 2, nothing written."""
+    from dnarod.protocols import hat_curve
+
+    with pytest.raises(DnarodError, match="settle_buckled 0.0: give a time in ns > 0"):
+        hat_curve([0.0], tmp_path / "a", source="40", workers=0, start="sweep", settle_buckled_ns=0.0)
+    with pytest.raises(DnarodError, match="sweep only"):
+        hat_curve([0.0], tmp_path / "b", source="40", workers=0, settle_buckled_ns=2.0)
+    base = ["protocol", "hat", "--source", "40", "--turns", "0,0.2", "--time", "0.01"]
+    for extra, msg in ((["--settle-buckled", "5"], "turn sweep only"),
+                       (["--start", "sweep", "--settle-buckled", "-1"], "give a time in ns > 0"),
+                       (["--start", "sweep", "--settle-buckled", "nan"], "give a time in ns > 0")):
+        r = CliRunner().invoke(main, [*base, *extra, "-o", str(tmp_path / "c")])
+        assert r.exit_code == 2 and msg in r.output and "Traceback" not in r.output, r.output
+        assert len(r.output.strip().splitlines()) == 1, r.output
+    assert not any((tmp_path / x).exists() for x in "abc")
 
 
 def test_member_keys_carry_the_non_bonded_terms(tmp_path):

@@ -46,7 +46,8 @@ def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
     from .curves import run_protocol
     from .folder import check_protocol_folder, write_protocol_record
 
-    shared = jsonable(dict(base, start=kw.get("start", "static"), settle_ns=kw.get("settle_ns")))
+    shared = jsonable(dict(base, start=kw.get("start", "static"), settle_ns=kw.get("settle_ns"),
+                           settle_buckled_ns=kw.get("settle_buckled_ns")))
     check_protocol_folder(out, kind, shared, overwrite)
     try:
         curve = run_protocol(kind, axes, base, out, **kw)
@@ -190,7 +191,11 @@ def _clamp_options(default_force):
                click.option("--settle", "settle_ns", type=float, default=None,
                             help="With --start sweep: equilibration of each chained member after its turn "
                                  "increment, ns (default: 2 slowest bending relaxation times; the first member "
-                                 "of each chain uses --equilibration).")]
+                                 "of each chain uses --equilibration)."),
+               click.option("--settle-buckled", "settle_buckled_ns", type=float, default=None,
+                            help="With --start sweep/sweep-in: settle of the chained members at or past the buckling "
+                                 "point, ns (|Delta Lk at T| >= 0.8 x Marko's two-phase buckling point with the "
+                                 "model's A, C_s(F) and plectoneme P; default: --settle).")]
 
     def decorate(f):
         for option in reversed(options):
@@ -201,7 +206,7 @@ def _clamp_options(default_force):
 
 
 def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None,
-                 overwrite=False):
+                 settle_buckled_ns=None, overwrite=False):
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
     import math
 
@@ -211,33 +216,40 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
                           f"(or sweep-in)")
     if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
         raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
+    if settle_buckled_ns is not None and start not in ("sweep", "sweep-in"):
+        raise DnarodError(f"--settle-buckled {settle_buckled_ns:g}: the settle time applies to a turn sweep only; add "
+                          f"--start sweep (or sweep-in)")
+    if settle_buckled_ns is not None and not (math.isfinite(settle_buckled_ns) and settle_buckled_ns > 0):
+        raise DnarodError(f"--settle-buckled {settle_buckled_ns}: give a time in ns > 0")
     from .curves import MAX_MEMBER_NS
 
-    if settle_ns is not None and settle_ns > MAX_MEMBER_NS:
-        raise DnarodError(f"--settle {settle_ns:g}: more than {MAX_MEMBER_NS:g} ns (10 us) per member would not "
-                          f"finish here; give a shorter time")
+    for name, v in (("--settle", settle_ns), ("--settle-buckled", settle_buckled_ns)):
+        if v is not None and v > MAX_MEMBER_NS:
+            raise DnarodError(f"{name} {v:g}: more than {MAX_MEMBER_NS:g} ns (10 us) per member would not "
+                              f"finish here; give a shorter time")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                       _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
-                      settle_ns=settle_ns, overwrite=overwrite)
+                      settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns, overwrite=overwrite)
     _report(c, "turns", columns)
 
 
 @protocol.command("hat")
 @_clamp_options("0.5")
 @_common
-def hat_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, overwrite, **kw):
+def hat_cmd(forces, turns, clamp_k, start, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, overwrite)
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, settle_buckled_ns, overwrite)
 
 
 @protocol.command("torque-turns")
 @_clamp_options("1.0")
 @_common
-def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, workers, out, overwrite, **kw):
+def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
-                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns, overwrite)
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns,
+                 settle_buckled_ns, overwrite)
 
 
 @protocol.command("rings")

@@ -138,7 +138,7 @@ def _checked(value, table, key):
 
 
 def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True, start="static",
-                 settle_ns=None):
+                 settle_ns=None, settle_buckled_ns=None):
     """Run a protocol over its axes and write its curve.
 
     Parameters
@@ -162,6 +162,10 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     settle_ns : float, optional
         With ``start="sweep"``: equilibration of each chained member after its turn increment (default two
         slowest bending relaxation times); the first member of each chain equilibrates as a static start does.
+    settle_buckled_ns : float, optional
+        With a sweep: the settle of the chained members at or past the buckling point
+        (:func:`dnarod.protocols.sweep.buckling_turns`: Marko's two-phase model with the model's parameters and a
+        margin); default ``settle_ns`` for every member.
 
     Returns
     -------
@@ -183,10 +187,11 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     if start in ("sweep", "sweep-in"):
         from .sweep import check_sweep
 
-        check_sweep(kind, settle_ns)
-    elif settle_ns is not None:
-        raise DnarodError(f"settle {settle_ns} ns: the settle time applies to a turn sweep only (start 'sweep' or "
-                          f"'sweep-in')")
+        check_sweep(kind, settle_ns, settle_buckled_ns)
+    elif settle_ns is not None or settle_buckled_ns is not None:
+        which = "settle" if settle_ns is not None else "settle_buckled"
+        raise DnarodError(f"{which} {settle_ns if settle_ns is not None else settle_buckled_ns} ns: the settle time "
+                          f"applies to a turn sweep only (start 'sweep' or 'sweep-in')")
     base = dict(base)
     if kind in ("magnetic_tweezers", "torque_turns"):
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
@@ -195,7 +200,8 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     members = _members(kind, axes, base)
     outdir = ensure_dir(Path(outdir))
     if start in ("sweep", "sweep-in"):
-        rows = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, start == "sweep-in")
+        rows = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, start == "sweep-in",
+                          settle_buckled_ns)
     elif workers:
         rows = _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client)
     else:
@@ -260,9 +266,12 @@ def _member_name(m, axes):
     return "_".join(f"{k}{m[k]:+g}" if isinstance(m[k], (int, float)) else f"{k}{m[k]}" for k in axes) or "member"
 
 
-def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, inward=False):
-    """Run the members as turn-sweep chains (one per force and side of zero turns; one dask task each)."""
-    from .sweep import run_chain, sweep_chains
+def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, inward=False,
+               settle_buckled_ns=None):
+    """Run the members as turn-sweep chains (one per force and side of zero turns; one dask task each); with
+    ``settle_buckled_ns`` the chained members at or past the buckling point (per force and temperature) settle
+    that long instead of ``settle_ns``."""
+    from .sweep import buckling_estimate, member_settles, run_chain, sweep_chains
 
     others = [k for k in axes if k != "turns"]
     groups = {}
@@ -271,24 +280,36 @@ def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns
     chains = []
     for group in groups.values():
         by_turns = {float(m.get("turns") or 0.0): m for m in group}
+        est = None
+        if settle_buckled_ns is not None:
+            m0 = group[0]
+            est = buckling_estimate(m0.get("source"), m0.get("force_pN"), m0.get("temperature_K") or 300.0,
+                                    m0.get("forcefield") or "dna-default")
         for chain in sweep_chains(by_turns, inward):
             ms = [by_turns[t] for t in chain]
-            chains.append((ms, [str(outdir / "members" / _member_name(m, axes)) for m in ms]))
+            settles = (member_settles(chain, settle_ns, settle_buckled_ns, (est["turns_lo"], est["turns_hi"]))
+                       if est else settle_ns)
+            chains.append((ms, [str(outdir / "members" / _member_name(m, axes)) for m in ms], settles, est))
     out = []
     if not workers and client is None:
-        for ms, dirs in chains:
-            out.append((ms, run_chain(kind, ms, dirs, settle_ns, inward)))
+        for ms, dirs, settles, est in chains:
+            out.append((ms, run_chain(kind, ms, dirs, settles, inward), est))
     else:
         from ..ensemble.cluster import client_for
 
         with client_for(client, None, workers) as c:
-            futs = [c.submit(run_chain, kind, ms, dirs, settle_ns, inward, pure=False) for ms, dirs in chains]
-            for (ms, _), f in zip(chains, futs):
-                out.append((ms, f.result()))
+            futs = [c.submit(run_chain, kind, ms, dirs, settles, inward, pure=False)
+                    for ms, dirs, settles, est in chains]
+            for (ms, _, _, est), f in zip(chains, futs):
+                out.append((ms, f.result(), est))
     rows = []
-    for ms, results in out:
+    for ms, results, est in out:
         for m, r in zip(ms, results):
-            rows.append(dict(r, **{k: m[k] for k in axes}))
+            row = dict(r, **{k: m[k] for k in axes})
+            if est:
+                row.update(buckling_delta_lk_marko=est["buckling_delta_lk"], buckled_settle_from_turns_lo=
+                           est["turns_lo"], buckled_settle_from_turns_hi=est["turns_hi"])
+            rows.append(row)
     return rows
 
 

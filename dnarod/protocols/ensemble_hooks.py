@@ -31,6 +31,35 @@ def _threads():
     return int(t) if t else 1
 
 
+def member_seed(seed, *key):
+    """A distinct, reproducible seed for one member: from the curve's ``seed`` and the member's ``key``.
+
+    Members of one curve share the base seed; run with it unchanged, the members of a turn sweep (each
+    continuing the previous member's pose) would restart the same noise stream, and two members of a static
+    curve would draw the same noise. The member's seed is the first four bytes of the SHA-256 of
+    ``[seed, *key]`` (JSON; floats as ``repr``) in [1, 2^31 - 1]: the same base seed and key always give the
+    same seed (so a member's cache key and resume are reproducible), different keys different streams.
+
+    Parameters
+    ----------
+    seed : int
+        The curve's (base) seed.
+    *key : str, int or float
+        What tells the member apart (protocol kind, force in pN, turns, sweep direction, ...).
+
+    Returns
+    -------
+    int
+    """
+    import hashlib
+    import json
+
+    parts = [int(seed)] + [repr(float(k)) if isinstance(k, (int, float)) and not isinstance(k, bool) else str(k)
+                           for k in key]
+    h = hashlib.sha256(json.dumps(parts).encode()).digest()
+    return 1 + int.from_bytes(h[:4], "big") % (2**31 - 1)
+
+
 def protocol_keys():
     from ..ensemble.schema import Key
 
@@ -64,7 +93,8 @@ class TweezersProtocol:
                    force_pN=settings.get("force_pN"), turns=float(turns) if clamp else None,
                    time_ns=settings.get("time_ns"), equilibration_ns=settings.get("equilibration_ns"),
                    temperature_K=settings.get("temperature_K"), salt_M=settings.get("salt_M"),
-                   seed=settings.get("seed") if settings.get("seed") is not None else 1,
+                   seed=member_seed(settings.get("seed") if settings.get("seed") is not None else 1, self.kind,
+                                    settings.get("force_pN"), float(turns) if clamp else 0.0),
                    excluded_volume=settings.get("excluded_volume", True),
                    electrostatics=settings.get("electrostatics", True),
                    charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
