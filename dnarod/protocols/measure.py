@@ -129,6 +129,22 @@ def twist_writhe_open(positions, frames):
     return open_twist(P, np.asarray(frames)[:, :, 0]), float(writhe(closed_polygon(P)))
 
 
+def _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circular):
+    """Self-contacts of one pose: node pairs ``(i, j)``, ``i < j``, closer than ``contact_distance_nm`` in space
+    and at least ``min_separation_nm`` apart along the chain (the shorter way round for a ring); two int arrays."""
+    from scipy.spatial import cKDTree
+
+    P = np.asarray(positions, float)
+    n = len(P)
+    pairs = cKDTree(P).query_pairs(contact_distance_nm, output_type="ndarray")
+    if not len(pairs):
+        return np.empty(0, int), np.empty(0, int)
+    i, j = pairs.min(axis=1), pairs.max(axis=1)
+    sep = np.minimum(j - i, n - (j - i)) if circular else j - i
+    keep = sep >= int(np.ceil(min_separation_nm / ds))
+    return i[keep], j[keep]
+
+
 def plectoneme_state(positions, ds, min_separation_nm=25.0, contact_distance_nm=6.0, min_fraction=0.05,
                      circular=False, return_mask=False):
     """Self-contact plectoneme detector for one pose (see the module docstring).
@@ -152,20 +168,12 @@ def plectoneme_state(positions, ds, min_separation_nm=25.0, contact_distance_nm=
     mask : ndarray of bool, shape (n,)
         Only with ``return_mask``: nodes in a self-contact.
     """
-    from scipy.spatial import cKDTree
-
-    P = np.asarray(positions, float)
-    n = len(P)
+    n = len(positions)
     sep_min = int(np.ceil(min_separation_nm / ds))
-    pairs = cKDTree(P).query_pairs(contact_distance_nm, output_type="ndarray")
+    i, j = _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circular)
     inside = np.zeros(n, bool)
-    if len(pairs):
-        sep = np.abs(pairs[:, 1] - pairs[:, 0])
-        if circular:
-            sep = np.minimum(sep, n - sep)
-        far = pairs[sep >= sep_min]
-        inside[far[:, 0]] = True
-        inside[far[:, 1]] = True
+    inside[i] = True
+    inside[j] = True
     frac = float(inside.mean())
     # plectoneme length: contact nodes grouped into clusters, bridging gaps up to 2 sep_min nodes (the end
     # loop of a plectoneme has no partner at sep_min or more); the largest cluster's span
@@ -289,22 +297,14 @@ def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=25.0, 
     centres : ndarray, shape (n_loops,)
         Node index (fractional) of each end loop.
     """
-    from scipy.spatial import cKDTree
-
-    P = np.asarray(positions, float)
-    n = len(P)
-    pairs = cKDTree(P).query_pairs(contact_distance_nm, output_type="ndarray")
-    if not len(pairs):
-        return 0, np.empty(0)
-    i, j = pairs.min(axis=1), pairs.max(axis=1)
+    n = len(positions)
+    i, j = _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circular)
     d = j - i
     if circular:
-        fwd = d <= n - d
-        sep = np.where(fwd, d, n - d)
-        mid = np.where(fwd, i + 0.5 * d, j + 0.5 * (n - d)) % n
+        mid = np.where(d <= n - d, i + 0.5 * d, j + 0.5 * (n - d)) % n
     else:
-        sep, mid = d, 0.5 * (i + j)
-    mid = np.sort(mid[sep >= int(np.ceil(min_separation_nm / ds))])
+        mid = 0.5 * (i + j)
+    mid = np.sort(mid)
     if not len(mid):
         return 0, np.empty(0)
     gap = merge_nm / ds
