@@ -139,3 +139,22 @@ def test_equilibrium_start_of_a_pulled_chain_points_along_the_force():
         assert np.allclose(m.positions[0], model.positions[0])
     free = start_model(spec, model, seed=5)  # no pull: node 0 keeps the model's pose
     assert np.allclose(free.frames[0], model.frames[0])
+
+
+@pytest.mark.parametrize("engine", ["openmm", "lax"])
+def test_run_killed_after_its_last_checkpoint_gets_its_final_model_on_resume(tmp_path, engine):
+    """A process killed between the run's last checkpoint and ``final_model.npz`` (an ensemble member whose
+    worker died there): the resume finds the run complete and writes the end state from the checkpoint, so the
+    member can be reduced."""
+    from dnarod.model import RodModel
+
+    base = dict(BASE, platform=None) if engine == "lax" else BASE
+    spec = RunSpec(engine=engine, time_ns=0.002, temperature=300.0, friction=1.0, export=False, **base)
+    run(spec, tmp_path / "r", progress=False)
+    final = tmp_path / "r" / "final_model.npz"
+    want = RodModel.load(final)
+    final.unlink()
+    done = run(spec, tmp_path / "r", resume=True, progress=False)
+    assert done.summary["already_done"]
+    got = RodModel.load(final)
+    assert np.array_equal(got.positions, want.positions) and np.array_equal(got.frames, want.frames)

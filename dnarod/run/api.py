@@ -378,6 +378,12 @@ def _resume(spec, outdir, paths, progress):
     step = int(ck_meta["step"])
     n_steps, fi, ci = intervals(spec, dt)
     if step >= n_steps:
+        if not paths["final_model"].exists():
+            # killed between the run's last checkpoint and its final model: the end state is the checkpoint's
+            engine = make_engine(spec, model, dt, seed, meta.get("omega_max"))
+            with folder_lock(outdir):
+                engine.load_checkpoint(paths["checkpoint"])
+                engine.current_model().save(paths["final_model"])
         files = run_files(outdir)
         msg = (f"the run in {outdir} is already at step {step} ({step * dt / 1000:.6g} ns) >= the requested "
                f"{spec.time_ns:g} ns; nothing to do (nothing changed)")
