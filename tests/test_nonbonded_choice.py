@@ -133,3 +133,18 @@ def test_report_says_which_P_the_buckling_check_used():
         == "P_b (ring pair)"
     assert _p_label({"P_source": "closed ring 400 bp at sigma -0.0500: writhe fraction 0.6"}) == "P (single ring)"
     assert _p_label({"P_source": "given"}) == "P (given)"
+
+
+def test_protocol_rows_through_the_ensemble_carry_the_nonbonded_record_as_scalars(tmp_path):
+    """The ensemble keeps scalars per member: the members' nested non-bonded record becomes
+    ``nonbonded_<key>`` columns (a nested dict failed every member of a tweezers or ring curve run on dask)."""
+    from dnarod.ensemble.member import _scalars
+    from dnarod.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, RINGS, flat_row
+
+    assert flat_row({"a": 1.0, "nonbonded": {"charge_model": "calibrated", "cutoff_debye": 12.0}}) == \
+        {"a": 1.0, "nonbonded_charge_model": "calibrated", "nonbonded_cutoff_debye": 12.0}
+    short = dict(source="40", time_ns=0.002, equilibration_ns=0.001)
+    for proto, extra in ((MAGNETIC_TWEEZERS, dict(force_pN=1.0, turns=0.0, rotation_clamp_kJ_mol=1000.0)),
+                         (RINGS, dict(delta_lk=0, ring=True))):
+        row = _scalars(proto.execute(dict(short, **extra), tmp_path / proto.kind))
+        assert row["nonbonded_charge_model"] == "calibrated" and row["nonbonded_cutoff_debye"] == 12.0

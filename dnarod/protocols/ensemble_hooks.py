@@ -115,7 +115,19 @@ class TweezersProtocol:
     def execute(self, settings, member_dir, analysis=None):
         from .tweezers import run_member
 
-        return run_member(self.member_settings(settings), member_dir)
+        return flat_row(run_member(self.member_settings(settings), member_dir))
+
+
+def flat_row(result):
+    """A member's result as the ensemble's row of scalars: a nested record (``nonbonded``: charge model, e per
+    node, cut-off) becomes ``nonbonded_<key>`` columns; ``protocol_result.json`` keeps it nested."""
+    out = {}
+    for k, v in result.items():
+        if isinstance(v, dict):
+            out.update({f"{k}_{k2}": v2 for k2, v2 in v.items()})
+        else:
+            out[k] = v
+    return out
 
 
 @dataclass(frozen=True)
@@ -151,7 +163,7 @@ class RingProtocol:
     def execute(self, settings, member_dir, analysis=None):
         from .rings import run_ring_member
 
-        return run_ring_member(self.member_settings(settings), member_dir)
+        return flat_row(run_ring_member(self.member_settings(settings), member_dir))
 
 
 FORCE_EXTENSION = TweezersProtocol("force_extension")
