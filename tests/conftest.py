@@ -62,3 +62,38 @@ def plot_labels(monkeypatch):
         return list(labels), list(texts)
 
     return draw
+
+
+def folder_snapshot(folder):
+    """Every file under ``folder`` -> its bytes (to show that a refused command changed nothing)."""
+    from pathlib import Path
+
+    return {p: p.read_bytes() for p in sorted(Path(folder).rglob("*")) if p.is_file()}
+
+
+@pytest.fixture
+def assert_refused():
+    """``check(work, args, words, strict=False)``: the CLI run with ``args`` (``{w}`` -> ``work``) exits 2 with one
+    stderr line "dnarod: error: ..." holding every one of ``words``, prints nothing on stdout, changes no file
+    under ``work`` (``strict``: adds none either) and leaves ``work/n`` empty or absent."""
+    from click.testing import CliRunner
+
+    from dnarod.cli import main
+
+    def check(work, args, words, strict=False):
+        before = folder_snapshot(work)
+        r = CliRunner().invoke(main, [a.replace("{w}", str(work)) for a in args])
+        assert r.exit_code == 2, (r.output, r.exception)
+        assert r.stdout == ""
+        err = r.stderr.strip()
+        assert "\n" not in err and err.startswith("dnarod: error: "), err
+        for w in words:
+            assert w in err, (w, err)
+        after = folder_snapshot(work)
+        if strict:
+            assert after == before
+        for p, data in before.items():
+            assert after.get(p) == data, f"{p} changed"
+        assert not (work / "n").exists() or not any((work / "n").iterdir())
+
+    return check

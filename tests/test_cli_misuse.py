@@ -243,23 +243,11 @@ CASES += [
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
-def test_misuse_is_one_line_exit_2_and_changes_nothing(work, case):
+def test_misuse_is_one_line_exit_2_and_changes_nothing(work, case, assert_refused):
     _, args, words, setup = case
     if setup is not None:
         setup(work)
-    before = _snapshot(work)
-    args = [a.replace("{w}", str(work)) for a in args]
-    r = CliRunner().invoke(main, args)
-    assert r.exit_code == 2, (r.output, r.exception)
-    assert r.stdout == ""
-    err = r.stderr.strip()
-    assert "\n" not in err and err.startswith("dnarod: error: "), err
-    for w in words:
-        assert w in err, (w, err)
-    after = _snapshot(work)
-    for p, data in before.items():
-        assert after.get(p) == data, f"{p} changed"
-    assert not (work / "n").exists() or not any((work / "n").iterdir())
+    assert_refused(work, args, words)
 
 
 @pytest.mark.parametrize("var", ["DNAROD_PLUGIN", "DNAROD_DEVICE_KERNELS"])

@@ -181,21 +181,11 @@ CASES = [
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
-def test_misuse_class_is_one_line_exit_2_and_changes_nothing(work, case):
+def test_misuse_class_is_one_line_exit_2_and_changes_nothing(work, case, assert_refused):
     _, args, words, setup = case
     held = setup(work) if setup is not None else None
     try:
-        before = _snapshot(work)
-        args = [a.replace("{w}", str(work)) for a in args]
-        r = CliRunner().invoke(main, args)
-        assert r.exit_code == 2, (r.output, r.exception)
-        assert r.stdout == ""
-        err = r.stderr.strip()
-        assert "\n" not in err and err.startswith("dnarod: error: "), err
-        for w in words:
-            assert w in err, (w, err)
-        assert _snapshot(work) == before
-        assert not (work / "n").exists() or not any((work / "n").iterdir())
+        assert_refused(work, args, words, strict=True)
     finally:
         if held is not None:
             held.__exit__(None, None, None)
