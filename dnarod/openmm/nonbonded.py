@@ -156,7 +156,7 @@ class NonbondedSettings:
             raise ParameterError(f"nonbonded skin must be >= 0 nm and finite, got {self.skin}")
         kt = kT_of(temperature)
         lB = ONE_4PI_EPS0 / (self.dielectric * kt)
-        kappa = math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * self.salt)
+        kappa = 1.0 / debye_length(self.salt, temperature, self.dielectric)
         q, model = _node_charge(self.charge, ds, lB, float(self.salt), float(temperature), float(self.dielectric))
         rc_dh = self.cutoff_debye / kappa if self.electrostatics else 0.0
         rc_wca = 2 ** (1 / 6) * self.diameter if self.excluded_volume else 0.0
@@ -213,8 +213,8 @@ def check_cutoff_holds_contact(nb, temperature):
 
 
 def debye_length(salt_M, temperature, dielectric=78.5):
-    """Debye length (nm) of monovalent salt ``salt_M`` (mol/L) at ``temperature`` (K), as
-    :meth:`NonbondedSettings.resolve` computes it."""
+    """Debye length (nm) of monovalent salt ``salt_M`` (mol/L) at ``temperature`` (K) in a medium of relative
+    permittivity ``dielectric``: ``1/sqrt(8 pi l_B N_A c)``; the one place it is computed."""
     lB = ONE_4PI_EPS0 / (dielectric * kT_of(temperature))
     return 1.0 / math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * salt_M)
 
@@ -306,7 +306,7 @@ def pb_far_field_line_charge(salt_M, temperature, radius=CALIBRATED_RADIUS, diel
         raise ParameterError(f"Poisson-Boltzmann charge needs positive salt, temperature, radius and dielectric, got "
                              f"{salt_M} M, {temperature} K, {radius} nm, {dielectric}")
     lB = ONE_4PI_EPS0 / (dielectric * kT_of(temperature))
-    kap = math.sqrt(8 * math.pi * lB * AVOGADRO_PER_NM3_PER_M * salt_M)
+    kap = 1.0 / debye_length(salt_M, temperature, dielectric)
     if bare == 0:
         return 0.0
     a = float(radius)
