@@ -129,39 +129,147 @@ def folder_lock(folder, what="output folder"):
     """Hold an exclusive lock on ``folder`` (created if needed) while the body writes into it.
 
     A second dnarod process writing into the same folder (two runs with the same ``-o``, a resume while
-    the run still goes on) is refused at once instead of interleaving its files with the first one's.
-    The lock is ``fcntl.flock`` on ``folder/.dnarod.lock``, released by the operating system if the
-    process dies, so a killed run never leaves a stale lock. The file (holding the owner's pid) stays.
+    the run still goes on, two protocol or validation commands into one folder) is refused at once instead
+    of interleaving its files with the first one's. The lock is ``fcntl.flock`` on ``folder/.dnarod.lock``
+    (holding the owner's pid and host), released by the operating system if the process dies; the file is
+    removed when the body ends (normally or by an exception). A lock file left by a process that was killed
+    (``kill -9``, a crash of the machine) is taken over with a one-line notice (a :class:`RuntimeWarning`
+    naming its pid; on the command line ``dnarod: warning: ...``).
 
     Raises
     ------
     DnarodError
         Another process holds the lock (the message names its pid when known).
     """
-    import fcntl
-
     from .errors import DnarodError
 
     folder = ensure_dir(folder, what)
-    fh = open(folder / LOCK_NAME, "a+")
-    try:
-        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
-    except OSError:
-        fh.seek(0)
-        owner = fh.read().strip()
-        fh.close()
-        who = f" (pid {owner})" if owner.isdigit() else ""
+    path = folder / LOCK_NAME
+    fh, previous = _take_lock(path)
+    if fh is None:
+        who = f" (pid {previous.split()[0]})" if previous and previous.split()[0].isdigit() else ""
         raise DnarodError(f"{what} {folder} is in use by another dnarod process{who}: wait for it to finish, or "
-                          f"choose another folder with -o") from None
+                          f"choose another folder with -o")
     try:
+        if previous:
+            import warnings
+
+            warnings.warn(f"{folder}: took over the lock left by {_describe_owner(previous)}, which ended without "
+                          f"releasing it (killed?); its files are kept", RuntimeWarning, stacklevel=3)
         fh.seek(0)
         fh.truncate()
-        fh.write(str(os.getpid()))
+        fh.write(f"{os.getpid()} {_hostname()}\n")
         fh.flush()
         yield folder
     finally:
+        import fcntl
+
+        with contextlib.suppress(OSError):
+            if _same_file(fh, path):  # ours still: remove it while holding the lock (see _take_lock)
+                path.unlink()
         fcntl.flock(fh, fcntl.LOCK_UN)
         fh.close()
+
+
+def _take_lock(path):
+    """``(open file holding the flock, text the lock file held before)``, or ``(None, its text)`` when another
+    process holds it. A holder removes the file before releasing the lock, so a lock won on a file that is no
+    longer at ``path`` is a lock on nothing: it is dropped and taken again on the new file."""
+    import fcntl
+
+    for _ in range(100):
+        fh = open(path, "a+")
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            fh.seek(0)
+            owner = fh.read().strip()
+            fh.close()
+            return None, owner
+        if _same_file(fh, path):
+            fh.seek(0)
+            return fh, fh.read().strip()
+        fcntl.flock(fh, fcntl.LOCK_UN)
+        fh.close()
+    from .errors import DnarodError
+
+    raise DnarodError(f"{path}: the lock file keeps being replaced by other processes; try again")
+
+
+def _same_file(fh, path):
+    """True if the open file ``fh`` is the file at ``path`` (not one removed from under it)."""
+    try:
+        a, b = os.fstat(fh.fileno()), os.stat(path)
+    except OSError:
+        return False
+    return (a.st_dev, a.st_ino) == (b.st_dev, b.st_ino)
+
+
+def _hostname():
+    import socket
+
+    return socket.gethostname()
+
+
+def _describe_owner(text):
+    """Words for the owner recorded in a lock file (``"PID HOST"``): whether it still runs, if on this host."""
+    parts = text.split()
+    if not parts or not parts[0].isdigit():
+        return "an earlier process"
+    pid, host = int(parts[0]), parts[1] if len(parts) > 1 else None
+    if host is not None and host != _hostname():
+        return f"pid {pid} on host {host}"
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return f"pid {pid} (no longer running)"
+    except OSError:
+        pass
+    return f"pid {pid}"
+
+
+def _a(word):
+    return ("an " if word[:1].lower() in "aeiou" else "a ") + word
+
+
+def check_output_folder(folder, mine, kind, what="output folder"):
+    """Refuse to write a ``kind`` into an existing folder that is not empty and holds none of ``mine`` (the names
+    that mark a ``kind`` folder): ``-o /``, ``-o ~``, a project folder, another command's output. The lock file
+    (:data:`LOCK_NAME`) does not count. Nothing is created.
+
+    Parameters
+    ----------
+    folder : str or Path
+    mine : iterable of str
+        File or folder names, any one of which marks ``folder`` as a ``kind`` folder.
+    kind : str
+        What the command writes, in words ("run", "protocol", "validation report").
+    what : str
+        The folder's role in messages.
+
+    Returns
+    -------
+    bool
+        True if ``folder`` holds one of ``mine`` (the writer's own rules for an earlier result then apply).
+
+    Raises
+    ------
+    ParameterError
+        One line naming the folder and the first entries it holds.
+    """
+    from .errors import ParameterError
+
+    folder = check_dir_path(folder, what)
+    if not folder.is_dir():
+        return False
+    if any((folder / m).exists() for m in mine):
+        return True
+    entries = sorted(p.name for p in folder.iterdir() if p.name != LOCK_NAME)
+    if not entries:
+        return False
+    shown = ", ".join(entries[:4]) + (f", ... ({len(entries)} entries)" if len(entries) > 4 else "")
+    raise ParameterError(f"{folder}: not {_a(kind)} folder and not empty (it holds {shown}); choose a new or empty -o "
+                      f"folder")
 
 
 def check_output_file(path, overwrite=False, what="output file"):

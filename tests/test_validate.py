@@ -151,7 +151,7 @@ def test_cli_exit_status_and_summary(tmp_path, monkeypatch):
     assert "paper_scheme" in res.output and "PASS" in res.output and "runtime" in res.output
     assert json.loads((out / "results.json").read_text())["checks"]["paper_scheme"]["passed"] is True
     monkeypatch.setattr(V, "check_function", lambda name: (lambda out_dir, quick=False: {"passed": False, "x": 1.0}))
-    res = runner.invoke(main, ["validate", "--only", "helix", "--out", str(out)])
+    res = runner.invoke(main, ["validate", "--only", "helix", "--out", str(out), "--overwrite"])
     assert res.exit_code == 1
     assert "FAIL" in res.output
     res = runner.invoke(main, ["validate", "--only", "nonsense", "--out", str(out)])

@@ -31,11 +31,13 @@ def prepare_report_folder(out, overwrite=False):
     Raises
     ------
     DnarodError
-        ``out`` (or a parent) is a regular file, or it holds a report and ``overwrite`` is false.
+        ``out`` (or a parent) is a regular file, it holds a report and ``overwrite`` is false, or it is not empty
+        and holds no report (``-o ~``, a run folder; :func:`dnarod.io_utils.check_output_folder`).
     """
-    from ..io_utils import check_dir_path, ensure_dir
+    from ..io_utils import check_dir_path, check_output_folder, ensure_dir
 
     out = check_dir_path(Path(out), what="report folder")
+    check_output_folder(out, REPORT_FILES, "analysis report", what="report folder")
     present = [out / f for f in REPORT_FILES if (out / f).exists()]
     if present and not overwrite:
         raise DnarodError(f"{out} already holds an analysis report ({present[0].name}); pass --overwrite to replace "

@@ -20,7 +20,7 @@ import uuid
 from pathlib import Path
 
 from ..errors import DnarodError
-from ..io_utils import write_text_atomic
+from ..io_utils import check_output_folder, write_text_atomic
 from .member import is_finished, member_dir, read_result, run_member, RESULT
 from .protocol import protocol_keys, resolve_protocol
 from .results import CSV, SUMMARY, TABLE, collect_rows, plot_axes, rows_to_table, write_summary, write_table
@@ -197,9 +197,11 @@ class Ensemble:
                         p.unlink()
                 for p in out.glob("plot_*.png"):
                     p.unlink()
-        elif out.exists() and any(out.iterdir()):
-            raise SpecError(f"{out}: not an ensemble folder (no {MANIFEST}) and not empty; choose a new or empty -o "
-                            f"folder")
+        else:
+            try:
+                check_output_folder(out, (MANIFEST,), "ensemble")
+            except DnarodError as exc:
+                raise SpecError(str(exc)) from None
         out.mkdir(parents=True, exist_ok=True)
         if not man.exists():
             if self.spec_text is not None:

@@ -189,6 +189,51 @@ def member_nonbonded(settings):
     return nb
 
 
+def nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
+    """The command-line options ``--charge`` / ``--cutoff-debye`` as settings (only those given), checked before
+    anything runs, with one-line messages in the options' names; the one check of both ``dnarod simulate`` and
+    ``dnarod protocol``.
+
+    Parameters
+    ----------
+    charge : str or None
+        A name of :data:`CHARGE_MODELS` (any case).
+    cutoff_debye : float or None
+        Debye lengths, > 0; must reach past the excluded-volume contact (:func:`check_cutoff_holds_contact`).
+    salt_M, temperature_K : float
+        mol/L and K of the run (other values than 0 < salt <= 6 M, T > 0 are refused by their own options).
+
+    Returns
+    -------
+    dict
+        ``charge`` (lower case) and/or ``cutoff_debye`` (float), those given.
+
+    Raises
+    ------
+    DnarodError
+    """
+    from ..errors import DnarodError
+
+    out = {}
+    if charge is not None:
+        name = str(charge).strip().lower()
+        if name not in CHARGE_MODELS:
+            raise DnarodError(f"--charge {charge!r}: choose calibrated (Poisson-Boltzmann far-field charge, the "
+                              f"default) or manning (0.48 e/bp)")
+        out["charge"] = name
+    if cutoff_debye is not None:
+        if not (math.isfinite(cutoff_debye) and cutoff_debye > 0):
+            raise DnarodError(f"--cutoff-debye {cutoff_debye}: give a positive, finite number of Debye lengths "
+                              f"(default {DEFAULT_CUTOFF_DEBYE:g})")
+        if 0 < salt_M <= 6.0 and temperature_K > 0:  # other salts and temperatures are refused by their options
+            try:
+                check_cutoff_holds_contact(NonbondedSettings(salt=salt_M, cutoff_debye=cutoff_debye), temperature_K)
+            except DnarodError as exc:
+                raise DnarodError(f"--{exc}".replace("cutoff_debye", "cutoff-debye", 1)) from None
+        out["cutoff_debye"] = float(cutoff_debye)
+    return out
+
+
 def check_cutoff_holds_contact(nb, temperature):
     """Refuse (:class:`ParameterError`, one line) a Debye-Hueckel cutoff that ends inside the excluded-volume
     contact (the WCA range ``2^(1/6) sigma``, 2.24 nm by default): the screened repulsion would then act only where

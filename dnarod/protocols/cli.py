@@ -9,6 +9,7 @@ from __future__ import annotations
 import click
 
 from ..errors import DnarodError
+from ..run.cli import CHARGE_OPTIONS
 
 
 def _floats(text, what):
@@ -37,46 +38,29 @@ _OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "t
 
 
 def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
-    """:func:`dnarod.protocols.curves.run_protocol`, its settings errors named by the command's options; a
-    folder holding this protocol run with other settings is refused unless ``overwrite``
-    (:mod:`dnarod.protocols.folder`)."""
+    """:func:`dnarod.protocols.curves.run_protocol` (which refuses a folder of other settings unless ``overwrite``,
+    any other non-empty folder, and a folder in use), its settings errors named by the command's options."""
     import re
 
-    from ..io_utils import jsonable
     from .curves import run_protocol
-    from .folder import check_protocol_folder, write_protocol_record
 
-    shared = jsonable(dict(base, start=kw.get("start", "static"), settle_ns=kw.get("settle_ns"),
-                           settle_buckled_ns=kw.get("settle_buckled_ns")))
-    check_protocol_folder(out, kind, shared, overwrite)
     try:
-        curve = run_protocol(kind, axes, base, out, **kw)
+        return run_protocol(kind, axes, base, out, overwrite=overwrite, **kw)
     except DnarodError as exc:
         m = re.match(r"\[(base|axes)\] (\w+)(.*)", str(exc), re.S)
         if m and m.group(2) in _OPTION_OF_KEY:
             raise DnarodError(f"{_OPTION_OF_KEY[m.group(2)]} ({m.group(2)}){m.group(3)}") from None
         raise
-    write_protocol_record(out, kind, shared)
-    return curve
 
 
 def _check_run_options(workers, out):
-    """Refuse a negative worker count and an output folder that holds something other than a protocol's
-    results (a run, a report, any other files), before anything runs."""
-    from pathlib import Path
-
+    """Refuse a negative worker count and an output path under a regular file, before anything runs (the
+    folder's content is checked by :func:`~dnarod.protocols.curves.run_protocol`)."""
+    from ..ensemble.cluster import check_workers
     from ..io_utils import check_dir_path
 
-    from ..ensemble.cluster import check_workers
-
     check_workers(workers)
-    out = Path(out)
     check_dir_path(out, what="output folder")
-    if out.is_dir() and any(out.iterdir()) and not ((out / "curve.csv").exists() or (out / "members").is_dir()
-                                                    or (out / "protocol.json").exists()
-                                                    or (out / "ensemble.json").exists()):
-        raise DnarodError(f"{out}: not a protocol folder (no curve.csv or members/) and not empty; choose a new or "
-                          f"empty -o folder")
 
 
 def _common(f):
@@ -91,16 +75,17 @@ def _common(f):
         click.option("--temperature", "temperature_K", type=float, default=300.0, show_default=True, help="K."),
         click.option("--salt", "salt_M", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L."),
         click.option("--seed", type=int, default=1, show_default=True),
-        click.option("--charge", default=None,
-                     help="Non-bonded charge model: calibrated (Poisson-Boltzmann far-field charge, effective diameter "
-                          "5.0 nm at 0.15 M; the default) or manning (0.48 e/bp)."),
-        click.option("--cutoff-debye", "cutoff_debye", type=float, default=None,
-                     help="Debye-Hueckel cutoff, Debye lengths (default 12)."),
+        *CHARGE_OPTIONS,
         click.option("--workers", type=int, default=2, show_default=True,
                      help="Dask local workers (0: run members one after another in this process)."),
-        click.option("--out", "-o", type=click.Path(file_okay=False), required=True, help="Output folder."),
+        click.option("--out", "-o", type=click.Path(file_okay=False), required=True,
+                     help="Output folder: new, empty or a protocol's (any other non-empty folder is refused); "
+                          "locked (OUT/.dnarod.lock) while the protocol runs."),
         click.option("--overwrite", is_flag=True,
-                     help="Run the members again if --out holds this protocol run with other settings."),
+                     help="Run into --out although it holds a protocol run with other settings (or another "
+                          "protocol); without it that is refused. The same settings reuse the finished members "
+                          "(more values extend the curve). A non-empty folder that is not a protocol's is "
+                          "always refused."),
     ]
     for o in reversed(opts):
         f = o(f)
@@ -113,34 +98,10 @@ def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, 
              seed=seed, **extra)
     if equilibration_ns is not None:
         b["equilibration_ns"] = equilibration_ns
-    b.update(_nonbonded_options(charge, cutoff_debye, salt_M, temperature_K))
+    from ..openmm.nonbonded import nonbonded_options
+
+    b.update(nonbonded_options(charge, cutoff_debye, salt_M, temperature_K))
     return b
-
-
-def _nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
-    """``--charge`` / ``--cutoff-debye`` as member settings (only those given), checked before anything runs."""
-    import math
-
-    from ..openmm.nonbonded import CHARGE_MODELS, DEFAULT_CUTOFF_DEBYE, NonbondedSettings, check_cutoff_holds_contact
-
-    out = {}
-    if charge is not None:
-        name = str(charge).strip().lower()
-        if name not in CHARGE_MODELS:
-            raise DnarodError(f"--charge {charge!r}: choose calibrated (Poisson-Boltzmann far-field charge, the "
-                              f"default) or manning (0.48 e/bp)")
-        out["charge"] = name
-    if cutoff_debye is not None:
-        if not (math.isfinite(cutoff_debye) and cutoff_debye > 0):
-            raise DnarodError(f"--cutoff-debye {cutoff_debye}: give a positive, finite number of Debye lengths "
-                              f"(default {DEFAULT_CUTOFF_DEBYE:g})")
-        if 0 < salt_M <= 6.0 and temperature_K > 0:  # other salts and temperatures are refused by their options
-            try:
-                check_cutoff_holds_contact(NonbondedSettings(salt=salt_M, cutoff_debye=cutoff_debye), temperature_K)
-            except DnarodError as exc:
-                raise DnarodError(f"--{exc}".replace("cutoff_debye", "cutoff-debye", 1)) from None
-        out["cutoff_debye"] = float(cutoff_debye)
-    return out
 
 
 def _report(curve, x, ys):

@@ -92,7 +92,21 @@ def _members(kind, axes, base):
             check_tweezers(m.get("force_pN", 0.0), m.get("turns"), rotation_clamp=kind != "force_extension",
                            lk0=lk0, torque_pN_nm=m.get("torque_pN_nm"))
         check_start_pose(model, 300.0)
+        if kind != "force_extension":
+            _check_clamp_stiffness(model, members, "axes" if "rotation_clamp_kJ_mol" in names else "base")
     return members
+
+
+def _check_clamp_stiffness(model, members, table):
+    """The rotation clamp of the tweezers members against the one bound on load stiffness
+    (:func:`dnarod.loads.check_load_stiffness`, as ``dnarod simulate --rotation-clamp``), on the free chain with
+    node 0 clamped; named as the setting ``rotation_clamp_kJ_mol`` (``--clamp-k``)."""
+    from ..loads import Clamp, RotationClamp, check_load_stiffness
+    from .tweezers import DEFAULT_CLAMP_K
+
+    for k in sorted({float(m.get("rotation_clamp_kJ_mol") or DEFAULT_CLAMP_K) for m in members}):
+        loads = (Clamp(0), RotationClamp(model.n_nodes - 1, k, axis=[0.0, 0.0, 1.0]))
+        check_load_stiffness(model, loads, names={"RotationClamp": f"[{table}] rotation_clamp_kJ_mol"})
 
 
 def _checked_settings(base, names, values):
@@ -138,7 +152,7 @@ def _checked(value, table, key):
 
 
 def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True, start="static",
-                 settle_ns=None, settle_buckled_ns=None):
+                 settle_ns=None, settle_buckled_ns=None, overwrite=False):
     """Run a protocol over its axes and write its curve.
 
     Parameters
@@ -166,13 +180,26 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         With a sweep: the settle of the chained members at or past the buckling point
         (:func:`dnarod.protocols.sweep.buckling_turns`: Marko's two-phase model with the model's parameters and a
         margin); default ``settle_ns`` for every member.
+    overwrite : bool
+        Run into ``outdir`` although it holds this protocol run made with other settings (or another protocol;
+        :mod:`dnarod.protocols.folder`). Without it such a folder is refused, as is any other non-empty folder
+        that is not a protocol's; the same settings reuse the finished members (more axis values extend the
+        curve). While the protocol runs, ``outdir`` is locked against a second writer
+        (:func:`dnarod.io_utils.folder_lock`).
 
     Returns
     -------
     Curve
+
+    Raises
+    ------
+    DnarodError
+        Bad settings, a folder of another protocol run or of something else, a folder in use (before any member
+        runs), or a failed member.
     """
-    from ..io_utils import ensure_dir
+    from ..io_utils import check_output_folder, folder_lock, jsonable
     from . import ensemble_hooks as hooks
+    from .folder import PROTOCOL_MARKERS, check_protocol_folder, write_protocol_record
 
     proto = {"force_extension": hooks.FORCE_EXTENSION, "magnetic_tweezers": hooks.MAGNETIC_TWEEZERS,
              "torque_turns": hooks.TORQUE_TURNS, "rings": hooks.RINGS}.get(kind)
@@ -192,13 +219,30 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         which = "settle" if settle_ns is not None else "settle_buckled"
         raise DnarodError(f"{which} {settle_ns if settle_ns is not None else settle_buckled_ns} ns: the settle time "
                           f"applies to a turn sweep only (start 'sweep' or 'sweep-in')")
+    if not isinstance(outdir, (str, Path)) or not str(outdir).strip():
+        raise DnarodError(f"output folder {outdir!r}: give a folder path (-o DIR)")
+    # the settings every member shares, as given (protocol.json; the defaults below are the protocol's own)
+    shared = jsonable(dict(base, start=start, settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns))
     base = dict(base)
     if kind in ("magnetic_tweezers", "torque_turns"):
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
     if kind == "rings":
         base["ring"] = True  # the ensemble's model check builds a closed ring for delta_lk
     members = _members(kind, axes, base)
-    outdir = ensure_dir(Path(outdir))
+    outdir = Path(outdir)
+    check_output_folder(outdir, PROTOCOL_MARKERS, "protocol")
+    check_protocol_folder(outdir, kind, shared, overwrite)
+    with folder_lock(outdir):
+        check_protocol_folder(outdir, kind, shared, overwrite)  # again: another process may have written it since
+        curve = _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
+                             settle_buckled_ns, proto)
+        write_protocol_record(outdir, kind, shared)
+    return curve
+
+
+def _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
+                 settle_buckled_ns, proto):
+    """The members of :func:`run_protocol` (run or reused) and the curve written from them."""
     if start in ("sweep", "sweep-in"):
         rows = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, start == "sweep-in",
                           settle_buckled_ns)

@@ -3,7 +3,8 @@
 Running a protocol again into the same folder with the same settings reuses its finished members (more
 turn or force values are added to the curve); with other settings (another source, time, temperature, salt,
 start, ...) it is refused with one line naming what changed, unless ``--overwrite`` (then the members are
-run again with the new settings), as an ensemble folder of another spec is refused.
+run again with the new settings), as an ensemble folder of another spec is refused. The check is made by
+:func:`dnarod.protocols.run_protocol` (the command line and the Python API alike).
 """
 from __future__ import annotations
 
@@ -13,6 +14,9 @@ from pathlib import Path
 from ..errors import DnarodError
 
 MANIFEST = "protocol.json"
+#: Names that mark a protocol's folder (any of them; a protocol run stopped early may have only its members).
+#: Any other non-empty folder is refused (:func:`dnarod.io_utils.check_output_folder`).
+PROTOCOL_MARKERS = (MANIFEST, "curve.csv", "members", "ensemble")
 
 
 def _describe(key, old, new):

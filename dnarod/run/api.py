@@ -6,9 +6,11 @@ A run folder holds ``run.json`` (the spec and its fingerprint, written atomicall
 ``trajectory.xtc`` unless ``xtc=False``), re-exported from the ``.dtraj`` at the end of every run.
 
 Nothing is lost or silently changed: a new run refuses a folder holding a run unless
-``overwrite`` (which removes only this layer's own files); ``resume`` refuses any change of what
-defines the run (:func:`dnarod.run.spec.fingerprint`), reads the checkpoint before touching any
-file, and a time already reached changes nothing.
+``overwrite`` (which removes only this layer's own files) and any other non-empty folder (``-o /``, a
+project folder; :func:`run_folder_markers`); ``resume`` refuses any change of what defines the run
+(:func:`dnarod.run.spec.fingerprint`), reads the checkpoint before touching any file, and a time already
+reached changes nothing. While a run writes, its folder is locked (:func:`dnarod.io_utils.folder_lock`,
+``.dnarod.lock``, removed when the run ends).
 """
 from __future__ import annotations
 
@@ -21,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from ..io_utils import check_dir_path, folder_lock, jsonable, write_text_atomic
+from ..io_utils import check_dir_path, check_output_folder, folder_lock, jsonable, write_text_atomic
 from .spec import RunSpec, compare_fingerprints, fingerprint
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
@@ -193,39 +195,12 @@ def _default_dt(omega):
     return DEFAULT_OMEGA_DT / omega
 
 
-#: Largest ratio of the fastest mode with the loads to the free model's before a load's stiffness is refused:
-#: 10 means a time step 10 times shorter (and a run 10 times longer) than the chain itself needs.
-MAX_LOAD_OMEGA_RATIO = 10.0
-
-
 def check_load_stiffness(spec, model, omega=None):
-    """Refuse a trap or rotation clamp so stiff that its own vibration, not the chain's, sets the time step
-    (more than :data:`MAX_LOAD_OMEGA_RATIO` times the free chain's fastest mode): the run would be that many
-    times longer for no physics (a clamp that stiff holds no better). Names the option and the largest
-    stiffness that stays within the ratio (the mode frequency grows as the square root of the stiffness)."""
-    from ..loads import RotationClamp, Trap
+    """:func:`dnarod.loads.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode with
+    the loads, rad/ps, if known), naming the ``simulate`` options."""
+    from ..loads import check_load_stiffness as check
 
-    stiff = [ld for ld in spec.loads if isinstance(ld, (Trap, RotationClamp))]
-    if not stiff:
-        return
-    omega = default_omega_max(model, spec.loads) if omega is None else omega
-    free = default_omega_max(model, tuple(ld for ld in spec.loads if ld not in stiff))
-    ratio = omega / free
-    if not ratio > MAX_LOAD_OMEGA_RATIO:
-        return
-    from ..units import PN
-
-    parts = []
-    for ld in stiff:
-        if isinstance(ld, Trap):
-            k = float(ld.k) / PN
-            parts.append(f"--trap {ld.node}:{k:g} (pN/nm; use at most {k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
-        else:
-            k = float(ld.k)
-            parts.append(f"--rotation-clamp {k:g} (kJ/mol; use at most {k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
-    raise ParameterError(f"{', '.join(parts)}: so stiff that its vibration ({omega:.3g} rad/ps) is {ratio:.3g} times "
-                         f"the chain's fastest mode ({free:.3g} rad/ps) and sets the time step; a stiffer load holds "
-                         f"no better, the run only gets longer")
+    check(model, spec.loads, omega=omega)
 
 
 def make_engine(spec, model, dt, seed, omega):
@@ -259,6 +234,15 @@ def intervals(spec, dt):
     fi = max(1, int(round(spec.frame_interval_ps / dt)))
     ci = 10 * fi if spec.checkpoint_interval_ps is None else int(round(spec.checkpoint_interval_ps / dt))
     return n_steps, fi, ci
+
+
+def run_folder_markers():
+    """Names that mark a folder as a run's (any of them): the run files, and the record of an ensemble member
+    (:mod:`dnarod.ensemble.member`), whose folder is a run folder. A new run refuses any other non-empty folder
+    (:func:`dnarod.io_utils.check_output_folder`)."""
+    from ..ensemble.member import LOG, MEMBER, RESULT
+
+    return (*RUN_FILES.values(), MEMBER, LOG, RESULT)
 
 
 def run_files(outdir):
@@ -306,7 +290,8 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     Raises
     ------
     ParameterError
-        Bad settings, a folder holding a run (without ``overwrite``/``resume``), a refused resume,
+        Bad settings, a folder holding a run (without ``overwrite``/``resume``) or holding anything but a run
+        (:func:`run_folder_markers`), a refused resume,
         a corrupt or foreign checkpoint (nothing written is changed).
     SimulationError
         A blow-up, naming the step, node and term (everything written before stays on disk).
@@ -323,6 +308,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     paths = {k: outdir / v for k, v in RUN_FILES.items()}
     if resume:
         return _resume(spec, outdir, paths, progress)
+    check_output_folder(outdir, run_folder_markers(), "run")
     present = [p for p in paths.values() if p.exists()]
     if present and not overwrite:
         raise ParameterError(f"{outdir} already holds a run ({present[0].name}); continue it with --resume, "

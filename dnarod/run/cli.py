@@ -10,6 +10,16 @@ import click
 
 from ..errors import ParameterError
 
+#: ``--charge`` and ``--cutoff-debye``, shared by ``dnarod simulate`` and ``dnarod protocol`` (checked by
+#: :func:`dnarod.openmm.nonbonded.nonbonded_options`).
+CHARGE_OPTIONS = [
+    click.option("--charge", default=None,
+                 help="Non-bonded charge model: calibrated (Poisson-Boltzmann far-field charge, effective diameter "
+                      "5.0 nm at 0.15 M; the default) or manning (0.48 e/bp)."),
+    click.option("--cutoff-debye", "cutoff_debye", type=float, default=None,
+                 help="Debye-Hueckel cutoff, Debye lengths (default 12)."),
+]
+
 _OPTIONS = [
     click.argument("source"),
     click.option("-f", "--forcefield", default="dna-default", show_default=True,
@@ -42,6 +52,7 @@ _OPTIONS = [
     click.option("--electrostatics/--no-electrostatics", default=None,
                  help="Debye-Hueckel electrostatics [default: on with --engine openmm; the lax engine has none]."),
     click.option("--salt", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L (Debye length)."),
+    *CHARGE_OPTIONS,
     click.option("--pull", type=float, default=None, help="Pull the ends apart along their initial axis, pN."),
     click.option("--torque", type=float, default=None,
                  help="Torque on the last node about the end-to-end axis, pN nm."),
@@ -56,7 +67,9 @@ _OPTIONS = [
     click.option("--equilibrium", is_flag=True,
                  help="Start from an exact thermal-equilibrium sample of the free chain (open chains)."),
     click.option("-o", "--out", "outdir", default="dnarod_run", show_default=True,
-                 help="Output folder (run.json, trajectory, energies, checkpoint, final model)."),
+                 help="Output folder (run.json, trajectory, energies, checkpoint, final model): new, empty or a "
+                      "run's (any other non-empty folder is refused); locked (OUT/.dnarod.lock) while the run "
+                      "writes."),
     click.option("--frame-interval", type=float, default=1.0, show_default=True,
                  help="Time between trajectory frames and energy rows, ps."),
     click.option("--checkpoint-interval", type=float, default=None,
@@ -84,8 +97,9 @@ def _simulate_options(f):
 def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, duplex, intrinsic, time_ns, dt, temperature,
                       friction, integrator, platform, threads, elastic, excluded_volume, electrostatics, salt, pull,
                       torque, rotation_clamp, turns, clamp_first, trap, minimize, equilibrium, frame_interval,
-                      checkpoint_interval, seed, velocities, export, xtc):
+                      checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
+    from ..openmm.nonbonded import nonbonded_options
     from .api import source_model
     from .setup import tweezers_loads
     from .spec import RunSpec
@@ -100,7 +114,8 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
     elif friction is None:
         friction = 1.0
     nb_default = engine == "openmm"
-    spec = RunSpec(source=source, forcefield=forcefield, engine=engine, time_ns=time_ns, temperature=temperature,
+    charge_options = nonbonded_options(charge, cutoff_debye, salt, temperature)
+    spec = RunSpec(**charge_options, source=source, forcefield=forcefield, engine=engine, time_ns=time_ns, temperature=temperature,
                    friction=friction, dt=dt, seed=seed, salt=salt,
                    excluded_volume=nb_default if excluded_volume is None else excluded_volume,
                    electrostatics=nb_default if electrostatics is None else electrostatics, platform=platform,

@@ -169,6 +169,9 @@ class RunSpec:
                f"meaningless beyond)")
         if self.charge is not None or self.cutoff_debye is not None:
             given = "--charge" if self.charge is not None else "--cutoff-debye"
+            if self.engine == "lax":
+                raise ParameterError(f"{given} sets the Debye-Hueckel electrostatics; the lax engine has none (drop "
+                                     f"{given} or use --engine openmm)")
             if not self.electrostatics:
                 raise ParameterError(f"{given} sets the Debye-Hueckel electrostatics, which are off; drop it or turn "
                                      f"electrostatics on")
@@ -338,7 +341,7 @@ def compare_fingerprints(old, new, where):
              "temperature_K": "temperature (-T)", "friction_per_ps": "friction (--friction)",
              "seed": "seed (--seed)", "loads": "loads", "engine": "engine (--engine)",
              "frame_interval_ps": "frame interval (--frame-interval)", "velocities": "velocities (--velocities)",
-             "nonbonded": "non-bonded settings (--salt/--excluded-volume/--electrostatics/charge/cutoff)",
+             "nonbonded": "non-bonded settings (--salt/--excluded-volume/--electrostatics/--charge/--cutoff-debye)",
              "sequence": "sequence", "n_nodes": "number of nodes", "ensemble": "ensemble (--friction 0 = NVE)",
              "time_ns": "total time (--time), over which the rotation clamp spreads its --turns"}
     nb_old, nb_new = old.get("nonbonded"), new.get("nonbonded")
@@ -353,8 +356,12 @@ def compare_fingerprints(old, new, where):
         if not _same(a, b):
             what = names.get(key, key)
             show = lambda v: (str(v)[:60] + "...") if len(str(v)) > 60 else str(v)  # noqa: E731
+            change = f"was {show(a)}, now {show(b)}"
+            if isinstance(a, dict) and isinstance(b, dict):  # name the entry that differs (a charge model, a salt)
+                sub = next(k for k in list(a) + [k for k in b if k not in a] if not _same(a.get(k), b.get(k)))
+                change = f"{sub} was {show(a.get(sub))}, now {show(b.get(sub))}"
             raise ParameterError(f"cannot resume: the {what} changed since the run in {where} "
-                                 f"(was {show(a)}, now {show(b)}); resume with the same settings or start a new "
+                                 f"({change}); resume with the same settings or start a new "
                                  f"run (-o NEWDIR, or --overwrite)")
 
 

@@ -61,8 +61,16 @@ def check_function(name):
     return getattr(importlib.import_module(f"{__name__}.{mod}"), fn)
 
 
-def run_validation(out_dir, quick=False, checks=None, options=None, echo=None):
+def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, overwrite=False):
     """Run validation checks and write the report folder.
+
+    A folder that already holds a report is refused unless ``overwrite``, before any check runs; with it the
+    report (``report.md``, ``results.json``) is replaced when the new one is written and the plots the old
+    report listed but the new one does not are removed, while the members of check ``buckling``
+    (``buckling_members/``) are kept and reused. A folder that holds no report but the members of an
+    interrupted validation is run into without ``overwrite`` (the members are reused). Any other non-empty
+    folder is refused (:func:`dnarod.io_utils.check_output_folder`), and while the checks run the folder is
+    locked against a second writer (:func:`dnarod.io_utils.folder_lock`).
 
     Parameters
     ----------
@@ -77,20 +85,53 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None):
         or to feed deliberately wrong references).
     echo : callable, optional
         Called with a one-line progress message before and after each check.
+    overwrite : bool
+        Replace a report already in ``out_dir``.
 
     Returns
     -------
     dict
         ``{"checks": {name: {"passed": bool, ...}}}`` -- exactly what ``results.json`` holds. A check
         that raises is recorded as failed with its error message and traceback.
+
+    Raises
+    ------
+    DnarodError
+        An unknown check, a folder holding a report (without ``overwrite``) or anything else, a folder in use.
     """
-    from .report import write_report
+    from ..io_utils import check_output_folder, folder_lock
+    from .buckling import MEMBER_FOLDER
+    from .report import REPORT_FILES, old_report
 
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     names = list(checks) if checks else list(QUICK_CHECKS if quick else CHECKS)
     for n in names:
         check_function(n)  # validate names before running anything
+    check_output_folder(out_dir, (*REPORT_FILES, MEMBER_FOLDER), "validation report", what="report folder")
+    _refuse_old_report(out_dir, overwrite)
+    with folder_lock(out_dir, what="report folder"):
+        _refuse_old_report(out_dir, overwrite)  # again: another process may have finished a report here since
+        old_plots = old_report(out_dir)[1]
+        results = _run_checks(out_dir, names, quick, options, echo)
+        for p in set(old_plots) - {q for r in results["checks"].values() for q in (r.get("plots") or [])}:
+            if Path(p).name == p and p.endswith(".png"):  # the earlier report's own plots, by name, only
+                (out_dir / p).unlink(missing_ok=True)
+        return results
+
+
+def _refuse_old_report(out_dir, overwrite):
+    from .report import old_report
+
+    present = old_report(out_dir)[0]
+    if present and not overwrite:
+        raise DnarodError(f"{out_dir} already holds a validation report ({present}); pass --overwrite to replace it "
+                          f"(members of check buckling in it are reused), or choose another folder with -o")
+
+
+def _run_checks(out_dir, names, quick, options, echo):
+    """Run the checks ``names`` into ``out_dir`` and write the report (see :func:`run_validation`)."""
+    from .report import write_report
+
     options = options or {}
     results = {"checks": {}}
     t0 = time.perf_counter()

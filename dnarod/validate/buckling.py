@@ -86,9 +86,10 @@ for the grown start), 1200-bp ring 1012 CPU-s per 200 ns, 600-bp ring 168 CPU-s 
 Members: :func:`member_plan` lists the members the check runs with given options (folders, settings, seeds);
 members run in advance with exactly those settings (e.g. in two processes, ``benchmarks/buckling_r6/
 premembers.py``) into the member root are reused. Without ``member_root`` the members live in
-``<report folder>/buckling_members``, so running the check again into the same report folder (``dnarod
-validate --only buckling -o SAME``) reuses the finished members and resumes an interrupted one from its
-checkpoint. The pre-buckling member has no plectoneme and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending
+``<report folder>/buckling_members`` (:data:`MEMBER_FOLDER`), so running the check again into the same report
+folder (``dnarod validate --only buckling -o SAME``) reuses the finished members and resumes an interrupted one
+from its checkpoint; once the folder holds a finished report, the rerun needs ``--overwrite`` (which replaces
+the report and keeps the members; :func:`dnarod.validate.run_validation`). The pre-buckling member has no plectoneme and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending
 relaxation times) in the full form.
 
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
@@ -106,6 +107,9 @@ import time
 import numpy as np
 
 from ._common import new_figure, save_figure
+
+#: Folder of the members in the report folder when no ``member_root`` is given (reused by a rerun).
+MEMBER_FOLDER = "buckling_members"
 
 NAME = "buckling"
 TWO_PI_ = 2.0 * np.pi
@@ -340,7 +344,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     grown_ns = grown_ns or (2.0 if quick else 20.0)
     # the members' folder: given, or one per report folder (a rerun into the same report folder reuses the
     # finished members and resumes an interrupted one from its checkpoint)
-    root = Path(member_root) if member_root else Path(out_dir) / "buckling_members"
+    root = Path(member_root) if member_root else Path(out_dir) / MEMBER_FOLDER
     L = model.ds * model.n_steps
     kt_pn = kT(temperature) / PN
     A = persistence_length(model.params, model.ds, kT(temperature))

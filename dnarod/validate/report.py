@@ -15,6 +15,23 @@ from ..io_utils import write_text_atomic
 from ._common import jsonable
 
 
+#: The report's own files (the plots are the checks'; ``results.json`` lists them).
+REPORT_FILES = ("results.json", "report.md")
+
+
+def old_report(out_dir):
+    """``(name of a report file in out_dir or None, plots the earlier results.json lists)``."""
+    present = [f for f in REPORT_FILES if os.path.exists(os.path.join(out_dir, f))]
+    plots = []
+    try:
+        with open(os.path.join(out_dir, "results.json")) as fh:
+            old = json.load(fh)
+        plots = [str(p) for r in old["checks"].values() for p in (r.get("plots") or [])]
+    except (OSError, ValueError, KeyError, TypeError, AttributeError):
+        pass
+    return (present[0] if present else None), plots
+
+
 def _fmt(x, spec=".3g"):
     try:
         return format(float(x), spec)
