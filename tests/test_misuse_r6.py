@@ -199,8 +199,8 @@ def test_resume_refused_while_the_run_goes_on(tmp_path):
     out = tmp_path / "r"
     r = CliRunner().invoke(main, ["lax-run", SEQ, "-o", str(out), *LAX[2:]])
     assert r.exit_code == 0, r.output
-    before = _snapshot(out)
-    with folder_lock(out):
+    with folder_lock(out):  # (the lock file exists only while the lock is held)
+        before = _snapshot(out)
         r = CliRunner().invoke(main, ["lax-run", SEQ, "-o", str(out), "--resume", "--time", "0.002", *LAX[4:]])
         assert r.exit_code == 2 and "in use by another dnarod process" in r.stderr, r.output
         assert _snapshot(out) == before

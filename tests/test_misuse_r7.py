@@ -36,6 +36,7 @@ def work(tmp_path):
     (tmp_path / "tweezers.toml").write_text('[ensemble]\nprotocol = "magnetic-tweezers"\n[base]\nsource = "40"\n'
                                             'time_ns = 0.001\nforce_pN = 1\nrotation_clamp_kJ_mol = 1e7\n'
                                             '[axes]\nturns = [0, 0.5]\n')
+    (tmp_path / "hot.toml").write_text((tmp_path / "spec.toml").read_text() + "temperature_K = 1e9\n")
     return tmp_path
 
 
@@ -86,6 +87,13 @@ CASES = [
      ["--cutoff-debye nan", "positive, finite"], None),
     ("lax-run-charge", ["lax-run", SEQ, "-o", "{w}/n", *LAX[2:], "--charge", "manning"],
      ["--charge", "the lax engine has none"], None),
+    # found by the misuse probe: a temperature far above the solvent's range ran and blew up at the first step
+    ("simulate-temperature-1e9", ["lax-run", SEQ, "-o", "{w}/n", *LAX[2:], "-T", "1e9"],
+     ["--temperature 1e+09", "from 0 to 373.15 K"], None),
+    ("ensemble-temperature-1e9", ["ensemble", "{w}/hot.toml", "-o", "{w}/n", "--workers", "0"],
+     ["member 0", "1e+09", "373.15 K"], None),
+    ("protocol-temperature-400", [*HAT, "-o", "{w}/n", "--temperature", "400"],
+     ["--temperature (temperature_K)", "at most 373.15 K", "got 400"], None),
     ("simulate-charge-no-electrostatics", ["simulate", SEQ, "-o", "{w}/n", "--time", "0.001", "--charge", "manning",
                                            "--no-electrostatics"], ["--charge", "which are off"], None),
 ]

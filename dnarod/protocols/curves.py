@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DnarodError
-from ..run.spec import MAX_SALT
+from ..run.spec import MAX_SALT, MAX_TEMPERATURE
 
 #: x, y columns and labels of each protocol's curve.
 PLOTS = {
@@ -148,6 +148,9 @@ def _checked(value, table, key):
                           f"meaningless beyond), got {value:g}")
     if key == "temperature_K" and not value > 0:
         raise DnarodError(f"[{table}] temperature_K: must be > 0 K, got {value:g}")
+    if key == "temperature_K" and value > MAX_TEMPERATURE:
+        raise DnarodError(f"[{table}] temperature_K: must be at most {MAX_TEMPERATURE:g} K (the model's solvent is "
+                          f"liquid water), got {value:g}")
     return value
 
 

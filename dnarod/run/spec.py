@@ -18,6 +18,10 @@ STARTS = ("intrinsic", "equilibrium", "minimized")
 ELASTIC = ("auto", "plugin", "fast", "portable")
 #: Largest accepted monovalent salt, mol/L (saturated NaCl is ~6 M).
 MAX_SALT = 6.0
+#: Highest accepted temperature, K: the model's solvent (its Langevin friction, the dielectric constant 78.5 of the
+#: Debye-Hueckel screening) is liquid water, which boils at 373.15 K (100 degC) at 1 atm; far above it the runs blow
+#: up (a member at 1e9 K failed at its first step, the misuse probe of round 7), so more is a typo.
+MAX_TEMPERATURE = 373.15
 
 
 @dataclass(frozen=True)
@@ -154,7 +158,8 @@ class RunSpec:
         if self.start not in STARTS:
             raise ParameterError(f"start {self.start!r}: choose one of {', '.join(STARTS)}")
         finite("time_ns", self.time_ns, lambda x: x > 0, "a positive simulated time in ns", "--time")
-        finite("temperature", self.temperature, lambda x: x >= 0, ">= 0 K", "--temperature")
+        finite("temperature", self.temperature, lambda x: 0 <= x <= MAX_TEMPERATURE,
+               f"from 0 to {MAX_TEMPERATURE:g} K (the model's solvent is liquid water)", "--temperature")
         finite("friction", self.friction, lambda x: x >= 0,
                ">= 0 1/ps (0 runs NVE; a negative friction would pump energy in)")
         if self.dt is not None:
