@@ -85,6 +85,11 @@ CASES = [
      ["--cutoff-debye 1:", "inside the", "contact"], None),
     ("simulate-cutoff-nan", ["simulate", SEQ, "-o", "{w}/n", "--time", "0.001", "--cutoff-debye", "nan"],
      ["--cutoff-debye nan", "positive, finite"], None),
+    # found by the misuse probe: --cutoff-debye 1e300 overflowed OpenMM's neighbour grid (a traceback)
+    ("simulate-cutoff-1e300", ["simulate", SEQ, "-o", "{w}/n", "--time", "0.001", "--cutoff-debye", "1e300"],
+     ["--cutoff-debye 1e+300", "more than 50 Debye lengths"], None),
+    ("protocol-cutoff-51", [*HAT, "-o", "{w}/n", "--cutoff-debye", "51"], ["--cutoff-debye 51", "more than 50"],
+     None),
     ("lax-run-charge", ["lax-run", SEQ, "-o", "{w}/n", *LAX[2:], "--charge", "manning"],
      ["--charge", "the lax engine has none"], None),
     # found by the misuse probe: a temperature far above the solvent's range ran and blew up at the first step
@@ -312,3 +317,35 @@ def _dead_pid():
     p = subprocess.Popen([sys.executable, "-c", "pass"])
     p.wait()
     return p.pid
+
+
+def test_temperature_bound_is_liquid_water():
+    """373.15 K (100 degC) is accepted by a run and by a protocol's settings, just above it is refused by both."""
+    from dnarod.errors import DnarodError
+    from dnarod.protocols.curves import _checked_settings
+    from dnarod.run import RunSpec
+
+    spec = RunSpec(source=SEQ, engine="lax", excluded_volume=False, electrostatics=False)
+    for T in (0.0, 300.0, 373.15):
+        spec.replace(temperature=T).check()
+        _checked_settings({"temperature_K": T or 1.0}, [], [])
+    with pytest.raises(DnarodError, match="from 0 to 373.15 K"):
+        spec.replace(temperature=373.16).check()
+    with pytest.raises(DnarodError, match="at most 373.15 K"):
+        _checked_settings({"temperature_K": 373.16}, [], [])
+
+
+def test_cutoff_bound_in_the_api():
+    """The API (RunSpec, the protocols' member settings) refuses the cutoffs the options refuse; 50 is accepted."""
+    from dnarod.errors import DnarodError
+    from dnarod.openmm.nonbonded import member_nonbonded
+    from dnarod.run import RunSpec
+
+    RunSpec(source=SEQ, cutoff_debye=50.0).check()
+    settings = dict(excluded_volume=True, electrostatics=True, salt_M=0.15, temperature_K=300.0)
+    assert member_nonbonded(dict(settings, cutoff_debye=50.0)).cutoff_debye == 50.0
+    for bad in (50.5, 1e300, float("inf"), 0.0):
+        with pytest.raises(DnarodError, match="cutoff"):
+            RunSpec(source=SEQ, cutoff_debye=bad).check()
+        with pytest.raises(DnarodError, match="cutoff_debye"):
+            member_nonbonded(dict(settings, cutoff_debye=bad))

@@ -137,4 +137,10 @@ for n, t in specs.items():
 (W / "pairs_bad.txt").write_text("A:1 B:999\n")
 (W / "pairs_dup.txt").write_text("A:1 B:24\nA:1 B:24\n")
 (W / "pairs_self.txt").write_text("A:1 A:1\n")
+# round 7: a project folder (no dnarod output) and a finished validation report
+(W / "proj" / ".git").mkdir(parents=True, exist_ok=True)
+(W / "proj" / "notes.txt").write_text("notes\n")
+(W / "rep").mkdir(exist_ok=True)
+(W / "rep" / "results.json").write_text('{"checks": {}}\n')
+(W / "rep" / "report.md").write_text("# dnarod validation report\n")
 print("fixtures in", W)

@@ -1,4 +1,4 @@
-"""Misuse probe: every command and option fed bad values and held-out inputs (511 cases), each in a fresh click
+"""Misuse probe: every command and option fed bad values and held-out inputs (539 cases), each in a fresh click
 test runner; flags tracebacks, exit statuses other than 0/2, more than one stderr line, stdout before a refusal,
 files changed, and lists every accepted case for reading.
 
@@ -7,7 +7,7 @@ files changed, and lists every accepted case for reading.
 
 Cases that would start 10^5 dask workers, allocate 10^9-member axes or write a run into / are left out (they
 were read from the code; tests/test_misuse_r6.py holds their refusals). Needs the structures in
-/work/shared/data/structures. Results of round 6: docs/misuse.md.
+/work/shared/data/structures. Results of rounds 6 and 7: docs/misuse.md.
 """
 import json, os
 from click.testing import CliRunner
@@ -130,6 +130,23 @@ for o in ["{w}/adir", "{w}/adir.pdb", "{n}.cif", "{n}.PDB", "{n}"]:
 # validate
 q("validate-only-bad", "validate", "--only", "nope", "-o", "{n}")
 q("validate-out-file", "validate", "--only", "helix", "-o", "{w}/afile")
+# round 7: output folders of every writer, a report replaced, simulate --charge/--cutoff-debye, --clamp-k bound
+for o in ["{w}/proj", "{w}/rep"]:
+    q(f"sim-out-folder={o}", "simulate", SEQ, "-o", o, *Q, *L)
+    q(f"protocol-out-folder={o}", "protocol", "hat", "--turns", "0", *P, "-o", o)
+    q(f"ensemble-out-folder={o}", "ensemble", str(Path(__file__).resolve().parents[2] / "examples" / "force_extension.toml"), "-o", o, "--workers", "0")
+    q(f"analyze-out-folder={o}", "analyze", "{w}/run/trajectory.dtraj", "-o", o, "--no-plots")
+q("validate-out-project", "validate", "--only", "helix", "-o", "{w}/proj")
+q("validate-over-report", "validate", "--only", "helix", "-o", "{w}/rep")
+for v in ["nope", "", "MANNING", "0.48"]:
+    q(f"sim-charge={v!r}", *sim(SEQ, "--charge", v))
+for v in ["nan", "-1", "0", "1", "1e300"]:
+    q(f"sim-cutoff-debye={v}", *sim(SEQ, "--cutoff-debye", v))
+q("lax-charge", *sim(SEQ, "--charge", "manning", *L))
+for v in ["1e5", "1e7"]:
+    q(f"hat-clamp-k-stiff={v}", "protocol", "hat", *P, "-o", "{n}", "--turns", "0", "--clamp-k", v)
+for v in ["373", "400", "1e9"]:
+    q(f"sim-T-hot={v}", *sim(SEQ, "-T", v, *L))
 # ensemble
 for f in sorted(p for p in (W / "spec").iterdir() if p.name not in ("linspace_huge.toml", "cross_huge.toml", "replicas_huge.toml")):
     q(f"ensemble-{f.name}", "ensemble", str(f), "-o", "{n}", "--workers", "0", "--no-progress")

@@ -84,6 +84,9 @@ AVOGADRO_PER_NM3_PER_M = 0.602214076  # (1 mol/L) in 1/nm^3
 DEFAULT_SKIN = 1.0
 #: Default Debye-Hueckel cutoff, Debye lengths: truncates the calibrated effective diameter by ~1 % (module docstring).
 DEFAULT_CUTOFF_DEBYE = 12.0
+#: Longest accepted Debye-Hueckel cutoff, Debye lengths: the screened repulsion there is e^-50 = 2e-22 of its value
+#: at one Debye length, so a longer cutoff changes nothing but the cost (1e300 overflowed OpenMM's neighbour grid).
+MAX_CUTOFF_DEBYE = 50.0
 #: Calibrated effective line charge at the calibration salt, e/nm: with node charges ``CALIBRATED_LINE_CHARGE * ds``
 #: the model's second-virial effective diameter (:func:`effective_diameter`, WCA sigma 2 nm, cutoff
 #: ``DEFAULT_CUTOFF_DEBYE``) is ``CALIBRATION["diameter_nm"]`` at ``CALIBRATION["salt_M"]`` and
@@ -183,10 +186,22 @@ def member_nonbonded(settings):
     # refuses an unknown charge model or a bad number (the calibrated charge at the calibration point is cached)
     _node_charge(nb.charge, CALIBRATION["ds_nm"], 1.0, CALIBRATION["salt_M"], CALIBRATION["temperature_K"],
                  nb.dielectric)
-    if not (np.isfinite(nb.cutoff_debye) and nb.cutoff_debye > 0):
-        raise ParameterError(f"cutoff_debye must be a positive number of Debye lengths, got {nb.cutoff_debye}")
+    check_cutoff_debye(nb.cutoff_debye)
     check_cutoff_holds_contact(nb, float(settings.get("temperature_K", CALIBRATION["temperature_K"])))
     return nb
+
+
+def check_cutoff_debye(cutoff_debye):
+    """Refuse (:class:`ParameterError`, one line starting ``cutoff_debye X:``) a Debye-Hueckel cutoff that is not a
+    finite number of Debye lengths in ``(0, MAX_CUTOFF_DEBYE]``."""
+    x = float(cutoff_debye)
+    if not (math.isfinite(x) and x > 0):
+        raise ParameterError(f"cutoff_debye {cutoff_debye}: give a positive, finite number of Debye lengths "
+                             f"(default {DEFAULT_CUTOFF_DEBYE:g})")
+    if x > MAX_CUTOFF_DEBYE:
+        raise ParameterError(f"cutoff_debye {x:g}: more than {MAX_CUTOFF_DEBYE:g} Debye lengths, beyond which the "
+                             f"screened repulsion is below e^-{MAX_CUTOFF_DEBYE:g} of its value at one Debye length; a "
+                             f"longer cutoff changes nothing but the cost (default {DEFAULT_CUTOFF_DEBYE:g})")
 
 
 def nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
@@ -222,14 +237,12 @@ def nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
                               f"default) or manning (0.48 e/bp)")
         out["charge"] = name
     if cutoff_debye is not None:
-        if not (math.isfinite(cutoff_debye) and cutoff_debye > 0):
-            raise DnarodError(f"--cutoff-debye {cutoff_debye}: give a positive, finite number of Debye lengths "
-                              f"(default {DEFAULT_CUTOFF_DEBYE:g})")
-        if 0 < salt_M <= 6.0 and temperature_K > 0:  # other salts and temperatures are refused by their options
-            try:
+        try:
+            check_cutoff_debye(cutoff_debye)
+            if 0 < salt_M <= 6.0 and temperature_K > 0:  # other salts and temperatures are refused by their options
                 check_cutoff_holds_contact(NonbondedSettings(salt=salt_M, cutoff_debye=cutoff_debye), temperature_K)
-            except DnarodError as exc:
-                raise DnarodError(f"--{exc}".replace("cutoff_debye", "cutoff-debye", 1)) from None
+        except DnarodError as exc:
+            raise DnarodError(f"--{exc}".replace("cutoff_debye", "cutoff-debye", 1)) from None
         out["cutoff_debye"] = float(cutoff_debye)
     return out
 
