@@ -1,4 +1,4 @@
-"""Misuse probe: every command and option fed bad values and held-out inputs (539 cases), each in a fresh click
+"""Misuse probe: every command and option fed bad values and held-out inputs (535 cases), each in a fresh click
 test runner; flags tracebacks, exit statuses other than 0/2, more than one stderr line, stdout before a refusal,
 files changed, and lists every accepted case for reading.
 
