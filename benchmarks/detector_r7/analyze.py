@@ -38,20 +38,51 @@ def nearest_far(X, circular, sep_nm=25.0, rmax=25.0):
     return best
 
 
-def loop_share(X, centres, separation_nm, window=30):
-    """Share of a ring's nodes in its end loops, by geometry: from each loop's tip (``centres``) the nodes
-    ``c + k`` and the nearest of ``c - k +- window`` move apart and come together again; the loop ends at the first
-    ``k`` past their largest distance where they are within ``separation_nm`` (the two strands of the superhelix)."""
+def _mirror(X, c, kmax, circular, window=30):
+    """Distance from node ``c + k`` to the nearest of ``c - k +- window``, k = 1 .. kmax - 1 (``c``: a loop tip)."""
+    n = len(X)
+    k = np.arange(1, kmax)
+    w = np.arange(-window, window + 1)
+    a = (c + k[:, None]) % n if circular else np.minimum(c + k[:, None], n - 1)
+    b = c - k[:, None] + w[None, :]
+    b = b % n if circular else np.clip(b, 0, n - 1)
+    return k, np.linalg.norm(X[a] - X[b], axis=2).min(axis=1)
+
+
+def loop_share(X, centres, separation_nm):
+    """Share of a ring's nodes in its end loops, by geometry: from each loop's tip (``centres``) the nodes ``c + k``
+    and the nearest of ``c - k +- 30`` move apart and come together again; the loop ends at the first ``k`` past
+    their largest distance where they are within ``separation_nm`` (the two strands of the superhelix)."""
     n = len(X)
     tot = 0
     for c in np.rint(centres).astype(int):
-        k = np.arange(1, n // 2)
-        w = np.arange(-window, window + 1)
-        g = np.linalg.norm(X[(c + k[:, None]) % n] - X[(c - k[:, None] + w[None, :]) % n], axis=2).min(axis=1)
-        top = int(np.argmax(g[:n // 4]))
+        k, g = _mirror(X, c, n // 2, True)
+        top = int(np.argmax(g[:len(k) // 2]))
         closed = np.flatnonzero(g[top:] <= separation_nm)
         tot += 2 * (k[top + closed[0]] if len(closed) else n // 2)
     return min(tot / n, 1.0)
+
+
+def open_plectoneme_share(X, centres, separation_nm):
+    """``(whole, interwound)``: shares of an open chain's nodes in its plectoneme(s), by geometry. From each loop
+    tip the mirror nodes (as :func:`loop_share`) close to within ``separation_nm`` after the loop and stay close
+    along the superhelix; the last ``k`` where they are that close is the plectoneme's base (the tails then part).
+    Whole: 2 x base; interwound: 2 x (base - loop end)."""
+    n = len(X)
+    whole = inter = 0
+    for c in np.rint(centres).astype(int):
+        kmax = min(c, n - 1 - c)
+        if kmax < 3:
+            continue
+        k, g = _mirror(X, c, kmax, False)
+        top = int(np.argmax(g[:max(1, len(k) // 2)]))
+        close = np.flatnonzero(g[top:] <= separation_nm)
+        if not len(close):
+            continue
+        end, base = k[top + close[0]], k[top + close[-1]]
+        whole += 2 * base
+        inter += 2 * (base - end)
+    return min(whole / n, 1.0), min(inter / n, 1.0)
 
 
 rows = {}
@@ -83,12 +114,18 @@ for f in sorted(root.glob("*.poses.npz")):
     if not (fin < 12.0).any():
         row["strand_separation_peak_nm"] = None
     row["nearest_far_quantiles_nm"] = {q: float(np.percentile(fin, q)) for q in (5, 10, 25)} if len(fin) else None
-    if circ:  # all but the end loops (loop tips from the rule's end-loop counter), strands within 1.5 / 2 x the peak
-        peak = row["strand_separation_peak_nm"]
+    peak = row["strand_separation_peak_nm"]
+    if peak:  # by geometry, loop tips from the rule's end-loop counter, strands within 1.5 / 2 x the peak
         for f in (1.5, 2.0):
-            sh = [loop_share(p, plectoneme_end_loops(p, DS, circular=True, min_separation_nm=rule[0],
-                                                     contact_distance_nm=rule[1])[1], f * peak) for p in P[::4]]
-            row[f"all_but_end_loops_{f:g}_peak"] = 1.0 - float(np.mean(sh))
+            tips = [plectoneme_end_loops(p, DS, circular=circ, min_separation_nm=rule[0],
+                                         contact_distance_nm=rule[1])[1] for p in P[::4]]
+            if circ:
+                sh = [loop_share(p, t, f * peak) for p, t in zip(P[::4], tips)]
+                row[f"all_but_end_loops_{f:g}_peak"] = 1.0 - float(np.mean(sh))
+            else:
+                sh = np.array([open_plectoneme_share(p, t, f * peak) for p, t in zip(P[::4], tips)])
+                row[f"plectoneme_geometric_{f:g}_peak"] = float(sh[:, 0].mean())
+                row[f"interwound_geometric_{f:g}_peak"] = float(sh[:, 1].mean())
     if kind == "tweezers":
         x = P[:, -1, 2] - P[:, 0, 2]
         row["x_over_L"] = float(x.mean() / (len(P[0]) * DS))
@@ -97,7 +134,7 @@ for f in sorted(root.glob("*.poses.npz")):
     rows[name] = row
 for name, row in rows.items():
     if row["kind"] == "tweezers" and "pre" not in name:
-        pre = rows["tw400_pre" + ("_manning" if name.endswith("_manning") else "")]
+        pre = rows[name.split("_")[0] + "_pre" + ("_manning" if name.endswith("_manning") else "")]
         row["zeta"] = pre["x_over_L"]
         row["implied_by_extension"] = 1.0 - row["x_over_L"] / pre["x_over_L"]
 for name, row in rows.items():
@@ -107,7 +144,10 @@ for name, row in rows.items():
           + (f", x/L {row['x_over_L']:.3f}" if "x_over_L" in row else "")
           + (f", implied {row['implied_by_extension']:.3f}" if "implied_by_extension" in row else "")
           + (f", all but end loops {row['all_but_end_loops_1.5_peak']:.3f} / {row['all_but_end_loops_2_peak']:.3f}"
-             if "all_but_end_loops_2_peak" in row else ""))
+             if "all_but_end_loops_2_peak" in row else "")
+          + (f", geometric: plectoneme {row['plectoneme_geometric_1.5_peak']:.3f} / "
+             f"{row['plectoneme_geometric_2_peak']:.3f}, interwound {row['interwound_geometric_1.5_peak']:.3f} / "
+             f"{row['interwound_geometric_2_peak']:.3f}" if "plectoneme_geometric_2_peak" in row else ""))
     for label in ("fixed", "rule"):
         r = row[label]
         print(f"   {label:5s} fraction {r['fraction']:.3f} (halves {r['fraction_halves'][0]:.3f} "

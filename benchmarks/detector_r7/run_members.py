@@ -38,6 +38,9 @@ MEMBERS = {
     "tw400_+3.40_manning": ("tweezers", dict(n_bp=400, force_pN=1.0, turns=3.40, time_ns=3.0, equilibration_ns=0.5,
                                              seed=47, start_force_pN=0.3, start_ns=2.0, charge="manning",
                                              cutoff_debye=5.0)),
+    # the README's 300-bp hat at 0.5 pN: -1.6 turns (writhe -0.81, fraction 0 with the fixed 6 nm) and 0 turns (zeta)
+    "hat300_-1.60": ("tweezers", dict(n_bp=300, force_pN=0.5, turns=-1.6, time_ns=3.0, equilibration_ns=6.2, seed=3)),
+    "hat300_pre": ("tweezers", dict(n_bp=300, force_pN=0.5, turns=0.0, time_ns=3.0, equilibration_ns=3.0, seed=4)),
     "tw400_pre_manning": ("tweezers", dict(n_bp=400, force_pN=1.0, turns=0.381, time_ns=2.0, equilibration_ns=1.0,
                                            seed=31, charge="manning", cutoff_debye=5.0)),
 }
