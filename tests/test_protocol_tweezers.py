@@ -251,6 +251,9 @@ def test_ring_member_conserves_linking_number(tmp_path):
     assert r["Tw"] + r["Wr"] == pytest.approx(r["Lk"], abs=1e-6)
     res = json.loads((tmp_path / "ring" / "protocol_result.json").read_text())
     assert res["result"]["n_samples"] >= 4
+    # the detector ran with the member's own model's distances (the default terms: the calibrated charge at 0.15 M)
+    rule = detector_distances(CALIBRATED)
+    assert (r["plectoneme_min_separation_nm"], r["plectoneme_contact_nm"]) == pytest.approx(rule)
 
 
 def test_torsion_check_passes_and_fails_with_a_wrong_twist_stiffness(tmp_path):
@@ -315,6 +318,8 @@ def test_bracketing_starts_keep_the_linking_number(tmp_path):
     b = run_member(dict(base, start_force_pN=0.2, start_ns=0.05), tmp_path / "grown")
     assert a["lk_slips"] == 0 and b["lk_slips"] == 0
     assert b["Lk"] == pytest.approx(a["Lk"], abs=0.05) and "grown plectoneme" in b["start"]
+    rule = detector_distances(CALIBRATED)  # the detector's distances of the member's terms, recorded in the row
+    assert (a["plectoneme_min_separation_nm"], a["plectoneme_contact_nm"]) == pytest.approx(rule)
     ring = load_forcefield("dna-default").ring(n_nodes=200)
     soft = bend_softened_model(ring, 3.0)
     lp = persistence_length(ring.params, ring.ds, kT(300.0))
