@@ -30,7 +30,8 @@ clamp act on the last node, both along the lab z axis.
   contact distance). Measured (``benchmarks/detector_r7``: 400-bp tweezers members at 1 pN past buckling, 400- and
   600-bp rings at sigma -0.079 / -0.088): the distance from each node to its nearest node 25 nm or more along the
   chain peaks at the superhelix's strand separation, 2.4-3.1 nm with Manning's charge (d_eff 2.31 nm) and
-  5.1-5.9 nm with the calibrated charge (5.00 nm), 1.0-1.2 d_eff, with a spread that scales alike. The multiple
+  5.1-5.9 nm with the calibrated charge (5.00 nm): 1.0-1.35 and 1.0-1.2 d_eff, so it scales with d_eff (a little
+  tighter, in d_eff, at the calibrated charge: its 5-25 % quantiles are 0.9-1.7 d_eff, Manning's 1.0-2.9). The multiple
   2.6 is the one the earlier fixed 6 nm was for Manning's charge (6.01 nm with its 5-Debye-length cutoff: those
   runs read what they read, within 0.001), so the detector reaches as far into the superhelix at either charge:
   13.0 nm (separation 26 nm) for the calibrated charge at 0.15 M. The fraction then counts the plectoneme with
