@@ -126,3 +126,33 @@ def test_loop_corrected_ring_pair_recovers_the_bulk_P():
     w2_same = f * d2 + n1 * mu
     assert plectoneme_P_from_rings_with_loops(w1, d1, n1, w2_same, d2, n1, C)[0] == pytest.approx(
         plectoneme_P_from_ring_pair(w1, d1, w2_same, d2, C)[0], rel=1e-9)
+
+
+def test_above_twins_start_from_the_larger_plectoneme_of_their_source(tmp_path):
+    """bracket_start='above': one source member with more turns runs first; each post-buckling twin starts from its
+    final pose with the extra turns taken out (same Lk as the straight twin, the source's pose recorded); a twin
+    whose source has not run is refused with one line."""
+    import numpy as np
+
+    from dnarod.errors import DnarodError
+    from dnarod.protocols.sweep import FINAL_POSE, START_POSE, load_pose
+    from dnarod.validate.buckling import member_plan, run_planned
+
+    plan = member_plan(n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.02, pre_time_ns=0.02, P_nm=29.7,
+                       bracket=True, above_ns=0.02)
+    roles = [e["role"] for e in plan]
+    assert roles.index("above_source") < roles.index("post_above")
+    src = next(e for e in plan if e["role"] == "above_source")
+    assert src["settings"]["turns"] == pytest.approx(0.095 * 9.4286, abs=1e-3)  # 95 % of the largest sigma (Lk0 9.43 at 100 bp)
+    twin = next(e for e in plan if e["role"] == "post_above")
+    assert twin["start_from"] == src["folder"] and twin["settings"]["previous_turns"] == src["settings"]["turns"]
+    with pytest.raises(DnarodError, match="has not run"):
+        run_planned(twin, tmp_path)
+    rows = {e["folder"]: run_planned(e, tmp_path) for e in plan if e["kind"] == "tweezers"}
+    straight = next(e for e in plan if e["role"] == "post" and e["index"] == twin["index"])
+    assert rows[twin["folder"]]["Lk"] == pytest.approx(rows[straight["folder"]]["Lk"], abs=0.05)
+    assert rows[src["folder"]]["Lk"] > rows[twin["folder"]]["Lk"] + 0.15  # the source had the extra turns
+    # the twin's start: the source's final pose turned back by the extra turns (positions unchanged)
+    p_src, _ = load_pose(tmp_path / src["folder"] / FINAL_POSE)
+    p_twin, _ = load_pose(tmp_path / twin["folder"] / START_POSE)
+    assert np.allclose(p_src, p_twin)

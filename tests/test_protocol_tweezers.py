@@ -9,13 +9,16 @@ from click.testing import CliRunner
 from dnarod.cli import main
 from dnarod.errors import DnarodError
 from dnarod.forcefield import load_forcefield
-from dnarod.protocols.measure import (clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open,
-                                      twisting_moment)
+from dnarod.openmm.nonbonded import NonbondedSettings
+from dnarod.protocols.measure import (CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops,
+                                      plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment)
 from dnarod.protocols.tweezers import check_tweezers, intrinsic_turns, strained_helix
 from dnarod.rotations import rotation_about_axis
 from dnarod.strains import chain_from_strains
-from dnarod.thermal import kT, sample_open_chain_strains
+from dnarod.testsystems import plectoneme_centres
+from dnarod.thermal import equilibrium_sample, kT, sample_open_chain_strains
 from dnarod.units import PN
+from dnarod.validate.supercoil_theory import effective_diameter
 
 FF = load_forcefield("dna-default")
 
@@ -86,6 +89,84 @@ def test_plectoneme_detector():
     plec = np.vstack([up, down])
     frac, length, is_plec = plectoneme_state(plec, ds)
     assert is_plec and frac > 0.8 and length > 100
+
+
+CALIBRATED = NonbondedSettings()
+MANNING = NonbondedSettings(charge="manning", cutoff_debye=5.0)  # the default before the calibration
+
+
+def _d_eff(nb):
+    return effective_diameter(nb, 0.34, 300.0, n_h=80, n_gamma=8, n_offset=2)
+
+
+def test_detector_distances_follow_the_effective_diameter():
+    sep, con = detector_distances(CALIBRATED)
+    assert con == pytest.approx(CONTACT_PER_DIAMETER * 5.0, abs=0.05)  # d_eff 5.00 nm at 0.15 M (calibration)
+    assert sep == pytest.approx(2 * con)
+    # Manning's charge with its 5-Debye-length cutoff reads with the earlier fixed distances
+    sep, con = detector_distances(MANNING)
+    assert (sep, con) == (25.0, pytest.approx(6.0, abs=0.05))
+    # lower salt: wider, so the minimum separation grows with the contact distance; no non-bonded terms: WCA sigma
+    sep, con = detector_distances(NonbondedSettings(salt=0.05))
+    assert con == pytest.approx(CONTACT_PER_DIAMETER * _d_eff(NonbondedSettings(salt=0.05)), rel=1e-9)
+    assert con > 15.0 and sep == pytest.approx(2 * con)
+    off = NonbondedSettings(excluded_volume=False, electrostatics=False)
+    assert detector_distances(off) == (25.0, pytest.approx(CONTACT_PER_DIAMETER * off.diameter))
+    # an explicit contact distance is used as given (the minimum separation then follows it unless given too)
+    plec = plectoneme_centres(400, radius=3.5, pitch=4 * np.pi * 3.5)
+    assert plectoneme_state(plec, 0.34, 25.0, 6.0) == plectoneme_state(plec, 0.34, contact_distance_nm=6.0)
+
+
+@pytest.mark.parametrize("separation", [1.4, 1.8, 2.2])
+def test_detector_reads_a_superhelix_of_the_calibrated_charge(separation):
+    """Ideal plectonemes (two interwound helices and an end loop, 450 nodes) whose strands sit ``separation``
+    effective diameters apart, from just above the model's (strand separation peaking at 1.0-1.2 d_eff, its 25 %
+    quantile up to 1.7 d_eff; benchmarks/detector_r7) to wider: all but the end loop is read with the
+    calibrated charge's distances (the default); the earlier fixed 6 nm reads nothing; the same shape scaled to
+    Manning's d_eff reads as it did with 6 nm."""
+    ds, n = 0.34, 450
+    d = _d_eff(CALIBRATED)
+    r = 0.5 * separation * d
+    plec = plectoneme_centres(n, ds=ds, radius=r, pitch=4 * np.pi * r)  # pitch angle atan(2): strands 2 r apart
+    half = n // 2
+    gap = np.linalg.norm(plec[:half - 60, None] - plec[None, half + 60:], axis=2).min()
+    assert gap == pytest.approx(separation * d, rel=0.02)
+    geometric = 1.0 - np.pi * r / (n * ds)  # every node but the end loop's (a semicircle of radius r)
+    frac, length, is_plec = plectoneme_state(plec, ds)
+    assert is_plec and frac == pytest.approx(geometric, abs=0.03)
+    assert plectoneme_state(plec, ds, *detector_distances(CALIBRATED)) == (frac, length, is_plec)
+    assert plectoneme_end_loops(plec, ds)[0] == 1
+    # the earlier fixed 25 nm / 6 nm: no contact at all, not plectonemic, no end loop (the silent wrong answer)
+    assert plectoneme_state(plec, ds, 25.0, 6.0)[:2] == (0.0, 0.0)
+    assert plectoneme_end_loops(plec, ds, min_separation_nm=25.0, contact_distance_nm=6.0)[0] == 0
+    # Manning's d_eff: the same shape scaled down reads the same with the rule and with the fixed 6 nm
+    rm = r * _d_eff(MANNING) / d
+    small = plectoneme_centres(n, ds=ds, radius=rm, pitch=4 * np.pi * rm)
+    manning = plectoneme_state(small, ds, *detector_distances(MANNING))
+    assert manning[0] == pytest.approx(plectoneme_state(small, ds, 25.0, 6.0)[0], abs=1.0 / n)
+    assert manning[0] > 1.0 - 25.0 / (n * ds)  # at most the 25 nm about the loop's tip unread
+
+
+@pytest.mark.parametrize("n_bp", [400, 600])
+def test_detector_is_off_for_free_coils_and_stretched_chains(n_bp):
+    """Exact equilibrium samples of the free chain (no excluded volume: its random self-approaches are at least
+    those of the model): with the calibrated charge's distances (contact 13 nm, separation 26 nm) under 1 % of the
+    nodes read as plectoneme on average and under 5 % of the samples are flagged; a chain at a quarter of the
+    temperature (stiffer, straighter) reads nothing. With the contact distance of 0.05 M (20 nm) but the minimum
+    separation left at 25 nm the free coil would read plectonemes (the reason the separation follows)."""
+    m = FF.model_from_sequence(n_nodes=n_bp)
+    sep, con = detector_distances(CALIBRATED)
+    wide = (25.0, detector_distances(NonbondedSettings(salt=0.05))[1])
+    fr, fr_wide = [], []
+    for k in range(60):
+        P = equilibrium_sample(m, 300.0, seed=7000 + k).positions
+        fr.append(plectoneme_state(P, m.ds, sep, con)[0])
+        fr_wide.append(plectoneme_state(P, m.ds, *wide)[0])
+    fr, fr_wide = np.array(fr), np.array(fr_wide)
+    assert fr.mean() < 0.01 and (fr >= 0.05).mean() < 0.05
+    assert fr_wide.mean() > 3 * fr.mean() and fr_wide.mean() > 0.01
+    cold = equilibrium_sample(m, 75.0, seed=11).positions
+    assert plectoneme_state(cold, m.ds, sep, con)[:2] == (0.0, 0.0)
 
 
 def test_bad_tweezers_input_is_refused():
@@ -171,6 +252,9 @@ def test_ring_member_conserves_linking_number(tmp_path):
     assert r["Tw"] + r["Wr"] == pytest.approx(r["Lk"], abs=1e-6)
     res = json.loads((tmp_path / "ring" / "protocol_result.json").read_text())
     assert res["result"]["n_samples"] >= 4
+    # the detector ran with the member's own model's distances (the default terms: the calibrated charge at 0.15 M)
+    rule = detector_distances(CALIBRATED)
+    assert (r["plectoneme_min_separation_nm"], r["plectoneme_contact_nm"]) == pytest.approx(rule)
 
 
 def test_torsion_check_passes_and_fails_with_a_wrong_twist_stiffness(tmp_path):
@@ -235,6 +319,8 @@ def test_bracketing_starts_keep_the_linking_number(tmp_path):
     b = run_member(dict(base, start_force_pN=0.2, start_ns=0.05), tmp_path / "grown")
     assert a["lk_slips"] == 0 and b["lk_slips"] == 0
     assert b["Lk"] == pytest.approx(a["Lk"], abs=0.05) and "grown plectoneme" in b["start"]
+    rule = detector_distances(CALIBRATED)  # the detector's distances of the member's terms, recorded in the row
+    assert (a["plectoneme_min_separation_nm"], a["plectoneme_contact_nm"]) == pytest.approx(rule)
     ring = load_forcefield("dna-default").ring(n_nodes=200)
     soft = bend_softened_model(ring, 3.0)
     lp = persistence_length(ring.params, ring.ds, kT(300.0))

@@ -36,7 +36,7 @@ def tweezers(path, skip_ns=0.0, every=1):
     rows = []
     for P_, F_ in zip(pos, frm):
         m3, Om = m3_steps(model, P_, F_)
-        f, length, plec, mask = plectoneme_state(P_, ds, return_mask=True)
+        f, length, plec, mask = plectoneme_state(P_, ds, 25.0, 6.0, return_mask=True)  # round 5's fixed distances
         stepmask = mask[:-1] | mask[1:]
         d3z = F_[:-1, 2, 2]
         idx = np.flatnonzero(mask)

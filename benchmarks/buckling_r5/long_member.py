@@ -54,7 +54,7 @@ for i in range(n_samp):
     out["clamp_torque_pN_nm"][i] = clamp_torque_z(frm[-1], m["clamp_target"], k_clamp)
     tw, wr = twist_writhe_open(pos, frm)
     out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
-    f, length, plec, mask = plectoneme_state(pos, model.ds, return_mask=True)
+    f, length, plec, mask = plectoneme_state(pos, model.ds, 25.0, 6.0, return_mask=True)  # round 5's fixed distances
     out["twist_torque_pN_nm"][i] = twisting_moment(pos, frm, model.params, model.ds, mask)
     out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
     if time.perf_counter() - last_save > 120:

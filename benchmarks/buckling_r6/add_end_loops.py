@@ -5,7 +5,8 @@ Usage: python add_end_loops.py MEMBER_DIR POSES_NPZ
 
 Writes ``samples.csv`` with the extra column and adds ``end_loops`` (mean), ``end_loops_err`` (10 blocks, as
 the ring protocol) and the histogram to ``protocol_result.json`` (settings key unchanged), atomically. The
-count is :func:`dnarod.protocols.measure.plectoneme_end_loops`, exactly what ring members now record.
+count is :func:`dnarod.protocols.measure.plectoneme_end_loops`, what ring members recorded in round 6, with that
+round's fixed distances (25 nm, 6 nm; the numbers in its report; members now use their own model's, round 7).
 """
 import json
 import sys
@@ -25,7 +26,7 @@ if len(d) != len(pos):
     sys.exit(f"{len(d)} samples but {len(pos)} poses")
 done = json.loads((member / "protocol_result.json").read_text())
 ds = load_forcefield(done["settings"]["forcefield"]).ring(n_nodes=pos.shape[1]).ds
-loops = np.array([plectoneme_end_loops(p, ds, circular=True)[0] for p in pos], float)
+loops = np.array([plectoneme_end_loops(p, ds, True, 25.0, 6.0)[0] for p in pos], float)
 names = [n for n in d.dtype.names if n != "end_loops"]
 lines = [",".join(names + ["end_loops"])] + [",".join([f"{d[c][i]:.10g}" for c in names] + [f"{loops[i]:.10g}"])
                                               for i in range(len(d))]

@@ -41,8 +41,8 @@ root.mkdir(parents=True, exist_ok=True)
 claims.mkdir(exist_ok=True)
 plan = member_plan(quick=quick, **opts)
 # rings first (P, and the premise check), then the post-buckling twins, the pre-buckling member last
-_order = {"ring": 0, "ring_pair": 1, "post": 2, "post_grown": 2, "pre": 9}
-plan = sorted(plan, key=lambda e: (_order[e["role"]], e["index"], e["role"] == "post_grown"))
+_order = {"ring": 0, "ring_pair": 1, "above_source": 2, "post": 3, "post_grown": 3, "post_above": 3, "pre": 9}
+plan = sorted(plan, key=lambda e: (_order[e["role"]], e["index"], e["role"] in ("post_grown", "post_above")))
 log = root / f"worker_{worker}.log"
 
 _orig = measure.plectoneme_state
@@ -70,6 +70,9 @@ for e in plan:
         os.mkdir(claims / e["folder"])
     except FileExistsError:
         continue
+    if e.get("start_from"):  # an "above" twin: wait for its source member (another process may run it)
+        while not (root / e["start_from"] / "protocol_result.json").exists():
+            time.sleep(30)
     _poses.clear()
     _state.update(every=1 if e["kind"] == "ring" else 4, count=0)
     t0, c0 = time.perf_counter(), time.process_time()

@@ -23,10 +23,29 @@ clamp act on the last node, both along the lab z axis.
   self-contact of the interwound superhelix; a stretched or coiled chain has essentially none at these
   distances). The plectoneme fraction is the fraction of such nodes; the plectoneme length is the span of
   the largest cluster of them (gaps up to twice the minimum separation, the end loop, are bridged); a
-  frame is *plectonemic* when the fraction is at least ``min_fraction``.
-  Defaults (a documented choice, not a calibration): 25 nm separation (longer than a tight end loop,
-  ~2 pi x 3 nm), ``contact_distance_nm = 6`` (three WCA diameters: the two duplexes of a superhelix sit a few
-  nm apart at 0.15 M), ``min_fraction = 0.05``.
+  frame is *plectonemic* when the fraction is at least ``min_fraction`` (0.05).
+  **The distances follow the model's non-bonded terms** (:func:`detector_distances`): the contact distance is
+  ``CONTACT_PER_DIAMETER = 2.6`` effective diameters of the model's pair energy at its salt and temperature
+  (:func:`dnarod.validate.supercoil_theory.effective_diameter`), the minimum separation ``max(25 nm, 2 x``
+  contact distance). Measured (``benchmarks/detector_r7``: 400-bp tweezers members at 1 pN past buckling, 400- and
+  600-bp rings at sigma -0.079 / -0.088): the distance from each node to its nearest node 25 nm or more along the
+  chain peaks at the superhelix's strand separation, 2.4-3.1 nm with Manning's charge (d_eff 2.31 nm) and
+  5.1-5.9 nm with the calibrated charge (5.00 nm): 1.0-1.35 and 1.0-1.2 d_eff, so it scales with d_eff (a little
+  tighter, in d_eff, at the calibrated charge: its 5-25 % quantiles are 0.9-1.7 d_eff, Manning's 1.0-2.9). The multiple
+  2.6 is the one the earlier fixed 6 nm was for Manning's charge (6.01 nm with its 5-Debye-length cutoff: those
+  runs read what they read, within 0.001), so the detector reaches as far into the superhelix at either charge:
+  13.0 nm (separation 26 nm) for the calibrated charge at 0.15 M. The fraction then counts the plectoneme with
+  most of its end loop, as the extension does: on tweezers members 0.38 and 0.47 at 2.4 and 3.4 turns, against
+  ``1 - x/(zeta L)`` = 0.42 and 0.48 and a geometric plectoneme (loop included) of 0.39-0.41 and 0.44-0.45 (the
+  fixed 6 nm read 0.13 and 0.22, less than the interwound part alone, 0.22-0.30); on rings, whose end loops are
+  wide at this charge, it reads more than the part outside the loops (600-bp ring: 0.80, where that part is
+  0.35-0.40 and the fixed 6 nm read 0.36). Past ``min_separation_nm = 2 x`` the contact distance a chain comes
+  back within the contact distance only through a loop, so a stretched chain reads no contact and the free coil's
+  random self-approaches stay rare (exact equilibrium samples of the free chain, no excluded volume, 500 per
+  length: 0.1 % of the nodes of 300-600-bp chains at 13 / 26 nm, under 1 % of the samples flagged; more for long
+  coils, 0.4 % / 1.5 % of the nodes and 2.4 % / 13 % of the samples at 1 / 2 kbp, against 0.1 % / 0.4 % and
+  1.4 % / 1.6 % with the fixed 6 nm). Without non-bonded terms the WCA diameter stands for d_eff. An explicit
+  ``contact_distance_nm`` / ``min_separation_nm`` (the earlier fixed 6 nm / 25 nm) is used as given.
 
 Units: nm, turns, pN nm.
 """
@@ -129,6 +148,52 @@ def twist_writhe_open(positions, frames):
     return open_twist(P, np.asarray(frames)[:, :, 0]), float(writhe(closed_polygon(P)))
 
 
+#: Contact distance of the plectoneme detector in effective diameters of the model's pair energy (module docstring).
+CONTACT_PER_DIAMETER = 2.6
+#: Smallest chain separation of a self-contact, nm (raised to twice the contact distance where that is longer).
+MIN_SEPARATION_NM = 25.0
+
+
+def detector_distances(nonbonded=None, temperature=300.0, ds=0.34):
+    """``(min_separation_nm, contact_distance_nm)`` of the plectoneme detector for a model's non-bonded terms.
+
+    The contact distance is ``CONTACT_PER_DIAMETER`` times the effective diameter of the pair energy
+    (:func:`dnarod.validate.supercoil_theory.effective_diameter`, cached per settings; the WCA diameter when both
+    terms are off), the minimum separation ``max(MIN_SEPARATION_NM, 2 x contact)`` (module docstring).
+
+    Parameters
+    ----------
+    nonbonded : NonbondedSettings, optional
+        The model's non-local terms (default: ``NonbondedSettings()``, the calibrated charge at 0.15 M).
+    temperature : float
+        K.
+    ds : float
+        nm per base pair.
+
+    Returns
+    -------
+    tuple of float
+        nm, nm.
+    """
+    from ..openmm.nonbonded import NonbondedSettings
+    from ..validate.supercoil_theory import effective_diameter
+
+    nb = NonbondedSettings() if nonbonded is None else nonbonded
+    d = effective_diameter(nb, float(ds), float(temperature), n_h=80, n_gamma=8, n_offset=2) \
+        if (nb.excluded_volume or nb.electrostatics) else 0.0
+    contact = CONTACT_PER_DIAMETER * (d if d > 0 else float(nb.diameter))
+    return max(MIN_SEPARATION_NM, 2.0 * contact), contact
+
+
+def _distances(min_separation_nm, contact_distance_nm, ds):
+    """The detector's distances: the explicit ones, the rest from :func:`detector_distances` (default model)."""
+    if min_separation_nm is None or contact_distance_nm is None:
+        sep, con = detector_distances(ds=ds) if contact_distance_nm is None else \
+            (max(MIN_SEPARATION_NM, 2.0 * float(contact_distance_nm)), float(contact_distance_nm))
+        return (sep if min_separation_nm is None else float(min_separation_nm)), con
+    return float(min_separation_nm), float(contact_distance_nm)
+
+
 def _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circular):
     """Self-contacts of one pose: node pairs ``(i, j)``, ``i < j``, closer than ``contact_distance_nm`` in space
     and at least ``min_separation_nm`` apart along the chain (the shorter way round for a ring); two int arrays."""
@@ -145,7 +210,7 @@ def _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circula
     return i[keep], j[keep]
 
 
-def plectoneme_state(positions, ds, min_separation_nm=25.0, contact_distance_nm=6.0, min_fraction=0.05,
+def plectoneme_state(positions, ds, min_separation_nm=None, contact_distance_nm=None, min_fraction=0.05,
                      circular=False, return_mask=False):
     """Self-contact plectoneme detector for one pose (see the module docstring).
 
@@ -155,6 +220,10 @@ def plectoneme_state(positions, ds, min_separation_nm=25.0, contact_distance_nm=
         nm.
     ds : float
         nm per step.
+    min_separation_nm, contact_distance_nm : float, optional
+        nm; by default those of :func:`detector_distances` for the default model (calibrated charge, 0.15 M,
+        300 K); a member passes its own model's. Only ``contact_distance_nm`` given: the minimum separation is
+        ``max(25, 2 x contact)``.
     circular : bool
         Chain separations wrap around (rings).
 
@@ -168,6 +237,7 @@ def plectoneme_state(positions, ds, min_separation_nm=25.0, contact_distance_nm=
     mask : ndarray of bool, shape (n,)
         Only with ``return_mask``: nodes in a self-contact.
     """
+    min_separation_nm, contact_distance_nm = _distances(min_separation_nm, contact_distance_nm, ds)
     n = len(positions)
     sep_min = int(np.ceil(min_separation_nm / ds))
     i, j = _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circular)
@@ -269,7 +339,7 @@ def twisting_moment_offset(model, temperature, n_samples=400_000, seed=0):
     return float(np.mean(vals)), float(np.sqrt(np.mean(np.square(errs))))
 
 
-def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=25.0, contact_distance_nm=6.0,
+def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=None, contact_distance_nm=None,
                          merge_nm=20.0, min_share=0.1):
     """Number of plectoneme end loops (hairpin tips) in one pose, and where they are.
 
@@ -290,6 +360,8 @@ def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=25.0, 
         nm per step.
     circular : bool
         Closed ring (contact midpoints taken the shorter way round).
+    min_separation_nm, contact_distance_nm : float, optional
+        As in :func:`plectoneme_state` (default: the default model's, :func:`detector_distances`).
 
     Returns
     -------
@@ -297,6 +369,7 @@ def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=25.0, 
     centres : ndarray, shape (n_loops,)
         Node index (fractional) of each end loop.
     """
+    min_separation_nm, contact_distance_nm = _distances(min_separation_nm, contact_distance_nm, ds)
     n = len(positions)
     i, j = _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circular)
     d = j - i

@@ -177,7 +177,8 @@ def run_ring_member(settings, member_dir, progress=None):
     from ..forcefield import load_forcefield
     from ..io_utils import jsonable
     from ..thermal import kT, persistence_length
-    from .measure import plectoneme_end_loops, plectoneme_state
+    from ..openmm.nonbonded import member_nonbonded
+    from .measure import detector_distances, plectoneme_end_loops, plectoneme_state
 
     s = _settings(settings)
     # start options left unset are not part of the key (members recorded before they existed stay valid)
@@ -193,18 +194,23 @@ def run_ring_member(settings, member_dir, progress=None):
                     delta_linking_number=int(s["delta_lk"]))
     T = float(s["temperature_K"])
     lp = persistence_length(model.params, model.ds, kT(T))
+    # the plectoneme detector's distances follow the member's non-bonded terms and salt
+    sep_nm, contact_nm = detector_distances(member_nonbonded(s), T, model.ds)
 
     def record(out, i, pos, frm):
-        f, length, plec = plectoneme_state(pos, model.ds, circular=True)
+        f, length, plec = plectoneme_state(pos, model.ds, sep_nm, contact_nm, circular=True)
         out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
-        out["end_loops"][i] = plectoneme_end_loops(pos, model.ds, circular=True)[0]  # 2 unbranched, more branched
+        # 2 unbranched, more branched
+        out["end_loops"][i] = plectoneme_end_loops(pos, model.ds, circular=True, min_separation_nm=sep_nm,
+                                                   contact_distance_nm=contact_nm)[0]
 
     out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.1, samples_per_ns=200.0,
                            max_sample_ps=200.0, min_samples=4, progress=progress)
     stride, dt = run.pop("stride"), run["dt_ps"]
     run.pop("elastic_path")
     res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
-               seed=int(s["seed"]), relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0, **run)
+               seed=int(s["seed"]), relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0, plectoneme_contact_nm=contact_nm,
+               plectoneme_min_separation_nm=sep_nm, **run)
     for c in COLUMNS[1:]:
         x = out[c]
         res[c] = float(x.mean())

@@ -348,7 +348,9 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
         Where to write the last pose (``.npz``, :func:`dnarod.protocols.sweep.save_pose`): the next member of a
         turn sweep starts from it.
     """
-    from .measure import clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
+    from ..openmm.nonbonded import member_nonbonded
+    from .measure import (clamp_torque_z, detector_distances, plectoneme_state, rotation_about_z, twist_writhe_open,
+                          twisting_moment)
 
     s = m["settings"]
     t0, c0 = time.perf_counter(), time.process_time()
@@ -411,6 +413,8 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     if t_eq is None:
         t_eq = wall0 + time.perf_counter() - t0
     k_clamp = float(s["clamp_k_kJ_mol"])
+    # the plectoneme detector's distances follow the member's non-bonded terms and salt
+    sep_nm, contact_nm = detector_distances(member_nonbonded(s), float(s["temperature_K"]), model.ds)
     for i in range(first, n_samp):
         sim.advance(stride)
         pos, frm = sim.node_pose()
@@ -421,7 +425,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
                                         if m["clamp_target"] is not None else 0.0)
         tw, wr = twist_writhe_open(pos, frm)
         out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
-        f, length, plec, mask = plectoneme_state(pos, model.ds, return_mask=True)
+        f, length, plec, mask = plectoneme_state(pos, model.ds, sep_nm, contact_nm, return_mask=True)
         out["twist_torque_pN_nm"][i] = twisting_moment(pos, frm, model.params, model.ds, mask)
         out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
         if progress:
@@ -435,7 +439,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     wall, cpu = wall0 + time.perf_counter() - t0, cpu0 + time.process_time() - c0
     steps = n_eq + n_samp * stride
     cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
-                elastic_path=sim.rs.elastic,
+                elastic_path=sim.rs.elastic, plectoneme_contact_nm=contact_nm, plectoneme_min_separation_nm=sep_nm,
                 sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
     return out, cost
 

@@ -104,7 +104,7 @@ def headline(name, r):
                     f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm; drift z (extension, torque) of the "
                     f"post-buckling members " + ", ".join(f"({_fmt(d['extension_z'], '.1f')}, {_fmt(d['torque_z'], '.1f')})"
                                                           for d in r["drift"]["members"][1:])
-                    + ("; straight vs grown start: Δtau " + ", ".join(
+                    + ("; straight vs " + (r.get("bracket_start") or "grown") + " start: Δtau " + ", ".join(
                         f"{_fmt(b['differences']['twist_torque_pN_nm']['difference'], '.2f')}"
                         f"+-{_fmt(b['differences']['twist_torque_pN_nm']['standard_error'], '.2f')}"
                         for b in r.get("brackets") or []) if r.get("brackets") else "")
@@ -117,8 +117,11 @@ def headline(name, r):
                        + f", premise {'met' if r['ring_pair_premise']['passed'] else 'NOT met'}"
                        + (f" ({r['ring_pair_premise']['reason']})" if r['ring_pair_premise'].get('reason') else "")
                        if r.get("ring_pair_premise") else ""),
-                    f"drift |z| <= {r['z_tolerance']}; |tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
-                    f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE")
+                    (r["scope"] + "; " if r.get("scope") else "")
+                    + f"drift |z| <= {r['z_tolerance']}; |tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
+                    f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE"
+                    + ("; failed: " + ", ".join(k for k, v in r["gates"].items() if not v)
+                       if r.get("gates") and not r["passed"] else ""))
         if name == "plectonemes":
             return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
                     f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC {_fmt(r['reference_writhe_fraction'], '.3f')}"
