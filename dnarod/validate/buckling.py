@@ -192,11 +192,45 @@ def block_standard_error(x, min_blocks=MIN_BLOCKS):
     return best
 
 
-def drift_z(samples_csv, column, min_blocks=8):
+def equilibration_start(x, n_candidates=40, max_fraction=0.5):
+    """First sample of the equilibrated part of a series (Chodera's rule: the start that maximises the effective
+    number of independent samples left, ``(n - t0) / g(t0)``, with ``g = 2 tau_int`` the statistical
+    inefficiency of ``x[t0:]``; J. D. Chodera, J. Chem. Theory Comput. 12:1799, 2016).
+
+    Written here on :func:`dnarod.analysis.polymer.integrated_autocorrelation_time` (Sokal's window) rather than
+    taken from pymbar's ``timeseries.detect_equilibration``, which would add pymbar and numexpr as dependencies
+    and prints a banner on import, for ten lines. Candidates are ``n_candidates`` evenly spaced starts in the first
+    ``max_fraction`` of the series (at least half of it is kept).
+
+    Parameters
+    ----------
+    x : array_like, shape (n,)
+
+    Returns
+    -------
+    int
+        Index of the first kept sample (0 for fewer than 8 samples).
+    """
+    from ..analysis.polymer import integrated_autocorrelation_time
+
+    x = np.asarray(x, float)
+    n = len(x)
+    if n < 8:
+        return 0
+    best, t_best = -1.0, 0
+    for t0 in np.unique(np.linspace(0, int(max_fraction * n), n_candidates).astype(int)):
+        tau = integrated_autocorrelation_time(x[t0:])
+        g = 2.0 * tau if np.isfinite(tau) and tau > 0.5 else 1.0
+        if (n - t0) / g > best:
+            best, t_best = (n - t0) / g, int(t0)
+    return t_best
+
+
+def drift_z(samples_csv, column, min_blocks=8, start=0):
     """z-score of the difference between the means of the two halves of a member's samples (blocked errors,
     :func:`block_standard_error` with ``min_blocks`` per half)."""
     d = np.genfromtxt(samples_csv, delimiter=",", names=True)
-    halves = np.array_split(np.asarray(d[column], float), 2)
+    halves = np.array_split(np.asarray(d[column], float)[int(start):], 2)
     se = [block_standard_error(h, min_blocks) for h in halves]
     return float((halves[1].mean() - halves[0].mean()) / np.hypot(*se))
 
@@ -444,14 +478,23 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         r = dict(run_planned(entry, root))
         csv = root / entry["folder"] / "samples.csv"
         d = np.genfromtxt(csv, delimiter=",", names=True)
+        # the equilibrated part of the production: Chodera's start on the extension, the slow coordinate of the
+        # plectoneme (a straight start past buckling keeps a high torque and a long extension for tens of ns;
+        # the torque's fast noise hides that from its own autocorrelation time)
+        t0 = equilibration_start(np.asarray(d["extension_nm"], float))
+        r["equilibration_discarded_ns"] = float(d["time_ps"][t0] - d["time_ps"][0]) * 1e-3 if t0 else 0.0
         for q, col in (("twist_torque_pN_nm", "twist_torque_pN_nm"), ("relative_extension", "extension_nm"),
                        ("Wr", "Wr"), ("clamp_torque_pN_nm", "clamp_torque_pN_nm")):
+            x = np.asarray(d[col], float)[t0:]
             # blocked standard errors (the member's own 10-block errors miss the slow plectoneme mode)
-            se = block_standard_error(np.asarray(d[col], float))
-            r[q + "_err"] = se / (r["contour_length_nm"] if q == "relative_extension" else 1.0)
+            scale = r["contour_length_nm"] if q == "relative_extension" else 1.0
+            r[q], r[q + "_err"] = float(x.mean()) / scale, block_standard_error(x) / scale
+        for q in ("Tw", "Lk", "plectoneme_fraction", "plectonemic"):
+            r[q] = float(np.asarray(d[q], float)[t0:].mean())
         start = {"post_grown": "grown", "post_above": "above"}.get(entry["role"], "straight")
-        return r, dict(turns=r["turns"], start=start,
-                       extension_z=drift_z(csv, "extension_nm"), torque_z=drift_z(csv, "twist_torque_pN_nm"))
+        return r, dict(turns=r["turns"], start=start, discarded_ns=r["equilibration_discarded_ns"],
+                       extension_z=drift_z(csv, "extension_nm", start=t0),
+                       torque_z=drift_z(csv, "twist_torque_pN_nm", start=t0))
 
     source = None
     for entry in (e for e in plan if e["kind"] == "tweezers"):
