@@ -402,3 +402,4 @@ def test_buckling_full_check_passes_on_the_round7_members(tmp_path, monkeypatch)
     assert [b["agree"] for b in good["brackets"]] == [True, True]
     bad = check_buckling(tmp_path, c_override=0.5 * mk["twist_persistence_nm"], **opts)
     assert not bad["marko"]["passed"] and not bad["passed"]
+    assert not bad["pre_buckling"]["passed"]  # the quick form's gate: the pre-buckling law fails with C halved too

@@ -67,10 +67,25 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
 3. the extension falls between them by more than ``Z_TOL SE``;
 4. the pre-buckling torque follows ``kT C_eff 2 pi ΔLk/L`` (Moroz-Nelson C_eff) within ``Z_TOL SE`` +
    ``LINEAR_ALLOWANCE`` (as before: a finite chain with clamped ends against the long-chain expansion);
-5. the plateau torque (error-weighted mean of the two) equals Marko's ``tau*`` within ``Z_TOL`` times the
-   combined standard error (the plateau's and tau*'s from the error of P) plus the two-phase model's truncation,
+5. the plateau torque equals Marko's ``tau*`` for this finite chain within ``Z_TOL`` times the combined
+   standard error (the plateau's and tau*'s from the error of P) plus the two-phase model's truncation,
    estimated as the change of tau* between the first-order C_s that Marko uses and the third-order Moroz-Nelson
-   C_s (``theory_truncation_pN_nm``, reported).
+   C_s (``theory_truncation_pN_nm``, reported). "For this finite chain": the chain holds one plectoneme, free to
+   sit anywhere along the extended part, so each member's torque stands ``kT / (L_s (Omega_p - Omega_s))`` above
+   the bulk ``tau*`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_position_torque_shift`, L_s = x/zeta;
+   0.35 and 0.59 pN nm at 2.57 and 3.59 turns here); the error-weighted mean residual is compared. The plain
+   difference (plateau - tau*) is reported beside it (``plain_difference_pN_nm``, ``plain_passed``).
+
+**Round 7** (``benchmarks/buckling_r7``; the defaults are the form run there): the round-6 plateau (14.7-14.9 pN
+nm) was measured on a plectoneme still growing: a 1200-bp member from the grown start loses extension and gains
+writhe through 200 ns while its torque falls, and a larger plectoneme (a 7.19-turn pose turned back to 5.13
+turns) reads 10.5 pN nm against 14.0. With twins from the straight start and from a larger plectoneme (the
+"above" bracket), members analysed from Chodera's equilibration start on the extension (``equilibration_start``:
+73 / 0 / 35 / 23 ns of the 300 discarded), the 400/800-bp pair (seed 7: P_b 19.77 +- 0.72 nm, both rings 2.00
+end loops with the round-7 detector) and 300-ns production: **passed**; plateau 13.43 / 14.09 pN nm at 2.57 /
+3.59 turns (twins 13.16 / 13.79 and 13.98 / 14.20), Marko 12.53 +- 0.30 (+ the position shifts), mean residual
+0.84 against a tolerance of 1.09; the plain difference 1.36 would fail. Cost 4.8 k CPU-s (1.3 core-hours): each
+300-ns twin 850-1060 CPU-s, the source 308, the pre-buckling member 191, the rings 135 and 684.
 
 Turns: pre-buckling 0.01 Lk0 (below Marko's ΔLk_b ~ 0.018 Lk0), post-buckling 0.045 and 0.063 Lk0, about 40 %
 and 70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0 at 1 pN).
@@ -440,8 +455,8 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     kt_pn = kT(temperature) / PN
     A = persistence_length(model.params, model.ds, kT(temperature))
     C0 = bare_twist_persistence(model, temperature)
-    c_mn = float(moroz_nelson(C0, A, force_pN, kt_pn))
     C_th = C0 if c_override is None else float(c_override)
+    c_mn = float(moroz_nelson(C_th, A, force_pN, kt_pn))  # the pre-buckling law is theory too: the override applies
     # relaxed linking number of the chain at T (mean ribbon twist of its free steps; below the T = 0 lk0)
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
