@@ -94,7 +94,7 @@ def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, 
 
     root = tmp_path / "members"
     shutil.copytree(Path(__file__).parent / "data" / "supercoil" / "buckling_600bp", root)
-    opts = dict(time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907), ring_delta_lk=-3, ring_time_ns=10.0,
+    opts = dict(time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907), ring_n_bp=600, ring_delta_lk=-3, ring_time_ns=10.0,
                 bracket=False, ring_pair=False, nonbonded=dict(charge="manning", cutoff_debye=5.0))
     plan = member_plan(**opts)
     assert sorted(e["folder"] for e in plan) == sorted(p.name for p in root.iterdir() if p.is_dir())

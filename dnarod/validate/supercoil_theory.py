@@ -127,6 +127,36 @@ def marko_two_phase(A_nm, C_s_nm, P_nm, force_pN, kt, L_nm, exact_wlc=True):
                 g_pN=g, zeta=zeta)
 
 
+def plectoneme_position_torque_shift(kt, extended_length_nm, omega_p, omega_s):
+    """Torque above the two-phase plateau of a finite chain with one plectoneme (pN nm): ``kT / (L_s (Omega_p -
+    Omega_s))``.
+
+    The plectoneme can sit anywhere along the extended part, a positional entropy ``kT ln(L_s / b)`` that the
+    bulk two-phase model leaves out (the extension of the model by positional and length entropies: Segers,
+    Skoruppa, Schiessel & Carlon, arXiv:2410.23145, 2024). Minimising ``L_s phi_s(tau) + L_p phi_p(tau) - kT
+    ln(L_s / b)`` over ``L_s`` at fixed linking number gives ``phi_s - phi_p = kT / L_s``; near the plateau
+    ``phi_s - phi_p = (tau - tau*) (Omega_p - Omega_s)`` (``d phi / d tau = -Omega``), so the torque stands
+    ``kT / (L_s (Omega_p - Omega_s))`` above ``tau*``, more as the extended part shortens (``b`` drops out).
+
+    Parameters
+    ----------
+    kt : float
+        pN nm.
+    extended_length_nm : float or ndarray
+        Contour length of the extended phase, nm (e.g. extension / zeta).
+    omega_p, omega_s : float
+        Linking densities of the two phases at the plateau, rad/nm (:func:`marko_two_phase`).
+
+    Returns
+    -------
+    float or ndarray
+        pN nm.
+    """
+    if not omega_p > omega_s:
+        raise DnarodError("the plectonemic phase must hold the higher linking density")
+    return float(kt) / (np.asarray(extended_length_nm, float) * (float(omega_p) - float(omega_s)))
+
+
 def two_phase_from_plectoneme_eos(omega_p, tau_p, A_nm, C_s_nm, force_pN, kt, L_nm, exact_wlc=True):
     """Marko's two-phase coexistence with a measured plectoneme equation of state instead of a constant P.
 
