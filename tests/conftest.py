@@ -96,4 +96,15 @@ def assert_refused():
             assert after.get(p) == data, f"{p} changed"
         assert not (work / "n").exists() or not any((work / "n").iterdir())
 
+    def check_case(work, args, words, setup=None):
+        """One misuse-table case: ``setup(work)`` (a context held during the call, e.g. a folder lock, or None),
+        then :func:`check` with ``strict``."""
+        held = setup(work) if setup is not None else None
+        try:
+            check(work, args, words, strict=True)
+        finally:
+            if held is not None:
+                held.__exit__(None, None, None)
+
+    check.case = check_case
     return check

@@ -183,12 +183,7 @@ CASES = [
 @pytest.mark.parametrize("case", CASES, ids=[c[0] for c in CASES])
 def test_misuse_class_is_one_line_exit_2_and_changes_nothing(work, case, assert_refused):
     _, args, words, setup = case
-    held = setup(work) if setup is not None else None
-    try:
-        assert_refused(work, args, words, strict=True)
-    finally:
-        if held is not None:
-            held.__exit__(None, None, None)
+    assert_refused.case(work, args, words, setup)
 
 
 def test_resume_refused_while_the_run_goes_on(tmp_path):

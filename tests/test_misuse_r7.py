@@ -109,12 +109,7 @@ def test_misuse_class_is_one_line_exit_2_and_changes_nothing(work, case, assert_
     _, args, words, setup = case
     if "{w}/t.dtraj" in args:
         _write_dtraj(work / "t.dtraj")
-    held = setup(work) if setup is not None else None
-    try:
-        assert_refused(work, args, words, strict=True)
-    finally:
-        if held is not None:
-            held.__exit__(None, None, None)
+    assert_refused.case(work, args, words, setup)
 
 
 def _write_dtraj(path):
