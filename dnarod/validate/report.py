@@ -96,7 +96,12 @@ def headline(name, r):
             return (f"plateau {_fmt(pl['mean_torque_pN_nm'], '.1f')}+-{_fmt(pl['mean_torque_se'], '.1f')} pN nm vs Marko "
                     f"two-phase {_fmt(mk['torque_pN_nm'], '.1f')}+-{_fmt(mk['torque_se_from_P'], '.1f')} pN nm (A "
                     f"{_fmt(mk['persistence_length_nm'], '.1f')}, C_s {_fmt(mk['C_s_nm'], '.1f')}, {_p_label(mk)} "
-                    f"{_fmt(mk['P_nm'], '.1f')} nm); plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}"
+                    f"{_fmt(mk['P_nm'], '.1f')} nm)"
+                    + (f" + the single plectoneme's position shift "
+                       + "/".join(_fmt(x, '.2f') for x in mk['position_entropy_shift_pN_nm'])
+                       + f" pN nm: residual {_fmt(mk['residual_pN_nm'], '.2f')} (plain difference "
+                       f"{_fmt(mk['plain_difference_pN_nm'], '.2f')})" if mk.get("position_entropy_shift_pN_nm") else "")
+                    + f"; plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}"
                     f"+-{_fmt(pl['standard_error'], '.2f')}; buckling at ΔLk {_fmt(mk['buckling_delta_lk_measured'], '.2f')}"
                     f" (Marko {_fmt(mk['buckling_delta_lk'], '.2f')}); slope {_fmt(mk['extension_slope_measured_nm_per_turn'], '.0f')}"
                     f" nm/turn (Marko {_fmt(mk['extension_slope_nm_per_turn'], '.0f')}); pre-buckling torque "
@@ -118,7 +123,7 @@ def headline(name, r):
                        + (f" ({r['ring_pair_premise']['reason']})" if r['ring_pair_premise'].get('reason') else "")
                        if r.get("ring_pair_premise") else ""),
                     (r["scope"] + "; " if r.get("scope") else "")
-                    + f"drift |z| <= {r['z_tolerance']}; |tau - Marko| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
+                    + f"drift |z| <= {r['z_tolerance']}; |residual| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
                     f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE"
                     + ("; failed: " + ", ".join(k for k, v in r["gates"].items() if not v)
                        if r.get("gates") and not r["passed"] else ""))
