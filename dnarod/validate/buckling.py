@@ -84,8 +84,8 @@ turns) reads 10.5 pN nm against 14.0. With twins from the straight start and fro
 73 / 0 / 35 / 23 ns of the 300 discarded), the 400/800-bp pair (seed 7: P_b 19.77 +- 0.72 nm, both rings 2.00
 end loops with the round-7 detector) and 300-ns production: **passed**; plateau 13.43 / 14.09 pN nm at 2.57 /
 3.59 turns (twins 13.16 / 13.79 and 13.98 / 14.20), Marko 12.53 +- 0.30 (+ the position shifts), mean residual
-0.84 against a tolerance of 1.09; the plain difference 1.36 would fail. Cost 4.8 k CPU-s (1.3 core-hours): each
-300-ns twin 850-1060 CPU-s, the source 308, the pre-buckling member 191, the rings 135 and 684.
+0.84 against a tolerance of 1.09; the plain difference 1.36 would fail. Cost 5.1 k CPU-s (1.4 core-hours): each
+300-ns twin 787-1115 CPU-s, the source 308, the pre-buckling member 191, the rings 135 and 684.
 
 Turns: pre-buckling 0.01 Lk0 (below Marko's ΔLk_b ~ 0.018 Lk0), post-buckling 0.045 and 0.063 Lk0, about 40 %
 and 70 % of the way from buckling to the fully plectonemic chain (~0.09 Lk0 at 1 pN).
@@ -162,7 +162,7 @@ QUICK_SCOPE = ("quick form: gates on the pre-buckling torque law (Moroz-Nelson C
                "twins)")
 
 #: Production (ns) of each post-buckling member in the full form (round 7: the straight and "above" twins agree and
-#: pass the drift test at 300 ns after Chodera's equilibration start; 1.3 core-hours for the whole check).
+#: pass the drift test at 300 ns after Chodera's equilibration start; 1.4 core-hours for the whole check).
 FULL_TIME_NS = 300.0
 
 #: Production (ns) of the pre-buckling member in the full form (shorter than the post-buckling members': it has
