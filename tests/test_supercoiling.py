@@ -50,6 +50,60 @@ def test_two_phase_torque_is_the_common_tangent():
     assert abs(th.marko_two_phase(A, Cs / 2, P, f, KT, L)["torque_pN_nm"] - r["torque_pN_nm"]) > 5.0
 
 
+def test_two_phase_with_a_measured_equation_of_state():
+    """A linear plectoneme equation of state (one point, tau = kT P Omega) gives Marko's closed form exactly; a
+    phase stiffer at low linking density (a second point with larger P below) raises the plateau; points whose
+    torque falls as the density rises are refused."""
+    from dnarod.errors import DnarodError
+    from dnarod.validate.supercoil_theory import marko_two_phase, two_phase_from_plectoneme_eos
+
+    kt, A, Cs, P = 4.1419, 50.0, 84.24, 19.77
+    m = marko_two_phase(A, Cs, P, 1.0, kt, 203.7)
+    e = two_phase_from_plectoneme_eos([0.135], [kt * P * 0.135], A, Cs, 1.0, kt, 203.7)
+    assert e["torque_pN_nm"] == pytest.approx(m["torque_pN_nm"], rel=1e-9)
+    assert e["omega_p"] == pytest.approx(m["omega_p"], rel=1e-9) and e["extrapolated"]
+    stiff = two_phase_from_plectoneme_eos([0.03, 0.135], [kt * 40.0 * 0.03, kt * P * 0.135], A, Cs, 1.0, kt, 203.7)
+    assert stiff["torque_pN_nm"] > m["torque_pN_nm"] + 1.0
+    with pytest.raises(DnarodError, match="increase together"):
+        two_phase_from_plectoneme_eos([0.03, 0.135], [6.0, 5.0], A, Cs, 1.0, kt, 203.7)
+
+
+def test_ring_pair_bulk_torque_is_kT_P_b_Omega():
+    """The pair's bulk torque equals kT P_b Omega with P_b from plectoneme_P_from_ring_pair (the same rings)."""
+    from dnarod.validate.supercoil_theory import plectoneme_P_from_ring_pair, ring_pair_bulk_torque
+
+    kt, C = 4.1419, 98.25
+    om, tau, se = ring_pair_bulk_torque(-1.924, -2.923, 136.0, -4.267, -5.856, 272.0, C, kt, 0.013, 0.017)
+    P, P_se = plectoneme_P_from_ring_pair(-1.924, -2.923, -4.267, -5.856, C, 0.013, 0.017)
+    assert om == pytest.approx(2 * np.pi * 2.933 / 136.0)
+    assert tau == pytest.approx(kt * P * om, rel=1e-9) and se == pytest.approx(kt * P_se * om, rel=1e-9)
+
+
+def test_position_entropy_torque_shift_minimises_the_free_energy():
+    """kT / (L_s (Omega_p - Omega_s)) against a direct minimisation of L_s phi_s + L_p phi_p - kT ln L_s over the
+    extended length at fixed linking number (quadratic phases, Marko's constants): the torque of the minimum
+    exceeds tau* by the formula, to second order in the shift."""
+    from scipy.optimize import minimize_scalar
+
+    from dnarod.validate.supercoil_theory import marko_two_phase, plectoneme_position_torque_shift
+
+    kt, A, Cs, P, L = 4.1419, 50.0, 84.24, 19.77, 2000.0
+    m = marko_two_phase(A, Cs, P, 1.0, kt, L)
+    g = m["g_pN"]
+    theta = 0.5 * (m["omega_s"] + m["omega_p"]) * L  # total excess linking (rad): mid-coexistence
+
+    def free(Ls):  # both phases share the torque: tau = kT Cs w_s = kT P w_p, w_s Ls + w_p (L - Ls) = theta
+        tau = kt * theta / (Ls / Cs + (L - Ls) / P)
+        ws, wp = tau / (kt * Cs), tau / (kt * P)
+        return -g * Ls + 0.5 * kt * (Cs * ws ** 2 * Ls + P * wp ** 2 * (L - Ls)) - kt * np.log(Ls), tau
+
+    Ls = minimize_scalar(lambda x: free(x)[0], bounds=(10.0, L - 10.0), method="bounded",
+                         options=dict(xatol=1e-9)).x
+    shift = free(Ls)[1] - m["torque_pN_nm"]
+    assert shift == pytest.approx(float(plectoneme_position_torque_shift(kt, Ls, m["omega_p"], m["omega_s"])),
+                                  rel=0.05)
+
+
 def test_exact_worm_like_chain_free_energy():
     """g(f) from the Legendre ground state against the worm-like chain's low- and high-force limits, and its
     derivative against the extension (Marko-Siggia's exact high-force expansion)."""

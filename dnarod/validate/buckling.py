@@ -543,7 +543,8 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                 # scaled by the twins' scatter where it exceeds their errors (Birge ratio: the blocked errors of a
                 # few hundred ns can miss the plectoneme's slowest modes, and the twins are the only independent
                 # replicate)
-                birge = abs(a[q] - b[q]) / float(np.hypot(a[q + "_err"], b[q + "_err"]))
+                err = float(np.hypot(a[q + "_err"], b[q + "_err"]))
+                birge = abs(a[q] - b[q]) / err if err > 0 else 1.0
                 p[q + "_err"] = (wa + wb) ** -0.5 * max(1.0, birge)
             p["plectonemic"] = min(a["plectonemic"], b["plectonemic"])
             p["plectoneme_fraction"] = 0.5 * (a["plectoneme_fraction"] + b["plectoneme_fraction"])
