@@ -141,20 +141,21 @@ def _clamp_options(default_force):
                click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
                click.option("--clamp-k", type=float, default=250.0, show_default=True,
                             help="Rotation clamp stiffness, kJ/mol."),
-               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in"]),
+               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in", "bracket"]),
                             default="static", show_default=True,
                             help="static: every member from the static pose under its loads; sweep: members run "
                                  "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "
                                  "from the largest), each from the previous turn value's final pose turned by the "
                                  "increment, as magnets are turned in the lab; sweep-in: the same chains towards "
                                  "zero, each begun at its largest |turns| from a plectoneme grown for 20 ns at 0.3 "
-                                 "of the force."),
+                                 "of the force; bracket: both sweeps at once, each point the midpoint of its "
+                                 "outward and inward members with an error covering their gap."),
                click.option("--settle", "settle_ns", type=float, default=None,
-                            help="With --start sweep: equilibration of each chained member after its turn "
+                            help="With --start sweep/sweep-in/bracket: equilibration of each chained member after its turn "
                                  "increment, ns (default: 2 slowest bending relaxation times; the first member "
                                  "of each chain uses --equilibration)."),
                click.option("--settle-buckled", "settle_buckled_ns", type=float, default=None,
-                            help="With --start sweep/sweep-in: settle of the chained members at or past the buckling "
+                            help="With --start sweep/sweep-in/bracket: settle of the chained members at or past the buckling "
                                  "point, ns (|Delta Lk at T| >= 0.8 x Marko's two-phase buckling point with the "
                                  "model's A, C_s(F) and plectoneme P; default: --settle).")]
 
@@ -171,15 +172,17 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
     import math
 
+    from .curves import SWEEP_STARTS
+
     _check_run_options(workers, out)
-    if settle_ns is not None and start not in ("sweep", "sweep-in"):
+    if settle_ns is not None and start not in SWEEP_STARTS:
         raise DnarodError(f"--settle {settle_ns:g}: the settle time applies to a turn sweep only; add --start sweep "
-                          f"(or sweep-in)")
+                          f"(or sweep-in, bracket)")
     if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
         raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
-    if settle_buckled_ns is not None and start not in ("sweep", "sweep-in"):
+    if settle_buckled_ns is not None and start not in SWEEP_STARTS:
         raise DnarodError(f"--settle-buckled {settle_buckled_ns:g}: the settle time applies to a turn sweep only; add "
-                          f"--start sweep (or sweep-in)")
+                          f"--start sweep (or sweep-in, bracket)")
     if settle_buckled_ns is not None and not (math.isfinite(settle_buckled_ns) and settle_buckled_ns > 0):
         raise DnarodError(f"--settle-buckled {settle_buckled_ns}: give a time in ns > 0")
     from .curves import MAX_MEMBER_NS

@@ -16,6 +16,10 @@ import numpy as np
 from ..errors import DnarodError
 from ..run.spec import MAX_SALT, MAX_TEMPERATURE
 
+#: Start modes of the rotation-clamp protocols (see :func:`run_protocol`); the last three chain the members.
+STARTS = ("static", "sweep", "sweep-in", "bracket")
+SWEEP_STARTS = ("sweep", "sweep-in", "bracket")
+
 #: x, y columns and labels of each protocol's curve.
 PLOTS = {
     "force_extension": ("force_pN", ["relative_extension"], "force (pN)", "extension / contour length"),
@@ -169,13 +173,15 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     outdir : path
     workers : int
         Dask local workers; 0 runs the members serially in this process.
-    start : {"static", "sweep", "sweep-in"}
+    start : {"static", "sweep", "sweep-in", "bracket"}
         "static": every member starts from the static pose under its loads (independent members, one dask task
         each). "sweep" (hat and torque-turns): the members of each force run as chains along the turns axis
         away from zero, each from the previous turn value's final pose turned by the increment
         (:mod:`dnarod.protocols.sweep`; turns >= 0 and turns < 0 are two chains, two dask tasks); members in
         ``outdir/members/``. "sweep-in": the same chains run towards zero, each begun at its largest |turns|
-        from a plectoneme grown at a lower force.
+        from a plectoneme grown at a lower force. "bracket": both sweeps at once (four chains per force; members
+        in ``outdir/members/out_*`` and ``in_*``); each turn value's curve point is the midpoint of its outward
+        and inward members with an error that covers the gap between them (:func:`bracket_rows`).
     settle_ns : float, optional
         With ``start="sweep"``: equilibration of each chained member after its turn increment (default two
         slowest bending relaxation times); the first member of each chain equilibrates as a static start does.
@@ -211,17 +217,18 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise DnarodError(f"workers {workers!r}: give a number of dask workers >= 0 (0: one after another in this "
                           f"process)")
-    if start not in ("static", "sweep", "sweep-in"):
+    if start not in STARTS:
         raise DnarodError(f"start {start!r}: choose 'static' (every member from the static pose), 'sweep' "
-                          f"(members chained along the turns axis away from zero) or 'sweep-in' (towards zero)")
-    if start in ("sweep", "sweep-in"):
+                          f"(members chained along the turns axis away from zero), 'sweep-in' (towards zero) or "
+                          f"'bracket' (both sweeps, combined)")
+    if start in SWEEP_STARTS:
         from .sweep import check_sweep
 
         check_sweep(kind, settle_ns, settle_buckled_ns)
     elif settle_ns is not None or settle_buckled_ns is not None:
         which = "settle" if settle_ns is not None else "settle_buckled"
         raise DnarodError(f"{which} {settle_ns if settle_ns is not None else settle_buckled_ns} ns: the settle time "
-                          f"applies to a turn sweep only (start 'sweep' or 'sweep-in')")
+                          f"applies to a turn sweep only (start 'sweep', 'sweep-in' or 'bracket')")
     if not isinstance(outdir, (str, Path)) or not str(outdir).strip():
         raise DnarodError(f"output folder {outdir!r}: give a folder path (-o DIR)")
     # the settings every member shares, as given (protocol.json; the defaults below are the protocol's own)
@@ -246,7 +253,14 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
 def _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
                  settle_buckled_ns, proto):
     """The members of :func:`run_protocol` (run or reused) and the curve written from them."""
-    if start in ("sweep", "sweep-in"):
+    if start == "bracket":
+        both = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns,
+                          settle_buckled_ns=settle_buckled_ns, directions=(False, True))
+        rows = bracket_rows([r for r in both if r["sweep_direction"] == "out"],
+                            [r for r in both if r["sweep_direction"] == "in"], [k for k in axes if k != "turns"])
+        members_rows = sorted(both, key=lambda r: (r["sweep_direction"], r.get("turns") or 0.0))
+        _write_csv(members_rows, outdir / "members.csv")
+    elif start in ("sweep", "sweep-in"):
         rows = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, start == "sweep-in",
                           settle_buckled_ns)
     elif workers:
@@ -314,10 +328,12 @@ def _member_name(m, axes):
 
 
 def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, inward=False,
-               settle_buckled_ns=None):
+               settle_buckled_ns=None, directions=None):
     """Run the members as turn-sweep chains (one per force and side of zero turns; one dask task each); with
     ``settle_buckled_ns`` the chained members at or past the buckling point (per force and temperature) settle
-    that long instead of ``settle_ns``."""
+    that long instead of ``settle_ns``, and a chain head at or past it (an inward sweep's) equilibrates at least
+    that long. ``directions`` (a tuple of ``inward`` flags) runs several sweeps at once, their members in
+    ``members/out_*`` and ``members/in_*``; every row carries ``sweep_direction`` ("out" or "in")."""
     from .sweep import buckling_estimate, member_settles, run_chain, sweep_chains
 
     others = [k for k in axes if k != "turns"]
@@ -332,31 +348,104 @@ def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns
             m0 = group[0]
             est = buckling_estimate(m0.get("source"), m0.get("force_pN"), m0.get("temperature_K") or 300.0,
                                     m0.get("forcefield") or "dna-default")
-        for chain in sweep_chains(by_turns, inward):
-            ms = [by_turns[t] for t in chain]
-            settles = (member_settles(chain, settle_ns, settle_buckled_ns, (est["turns_lo"], est["turns_hi"]))
-                       if est else settle_ns)
-            chains.append((ms, [str(outdir / "members" / _member_name(m, axes)) for m in ms], settles, est))
+        for inw in (directions if directions is not None else (inward,)):
+            prefix = ("in_" if inw else "out_") if directions is not None else ""
+            for chain in sweep_chains(by_turns, inw):
+                ms = [by_turns[t] for t in chain]
+                settles = (member_settles(chain, settle_ns, settle_buckled_ns, (est["turns_lo"], est["turns_hi"]))
+                           if est else settle_ns)
+                head_past = est is not None and not (est["turns_lo"] < chain[0] < est["turns_hi"])
+                head_eq = settle_buckled_ns if head_past else None
+                chains.append((ms, [str(outdir / "members" / (prefix + _member_name(m, axes))) for m in ms],
+                               settles, est, inw, head_eq))
     out = []
     if not workers and client is None:
-        for ms, dirs, settles, est in chains:
-            out.append((ms, run_chain(kind, ms, dirs, settles, inward), est))
+        for ms, dirs, settles, est, inw, head_eq in chains:
+            out.append((ms, run_chain(kind, ms, dirs, settles, inw, head_eq), est, inw))
     else:
         from ..ensemble.cluster import client_for
 
         with client_for(client, None, workers) as c:
-            futs = [c.submit(run_chain, kind, ms, dirs, settles, inward, pure=False)
-                    for ms, dirs, settles, est in chains]
-            for (ms, _, _, est), f in zip(chains, futs):
-                out.append((ms, f.result(), est))
+            futs = [c.submit(run_chain, kind, ms, dirs, settles, inw, head_eq, pure=False)
+                    for ms, dirs, settles, est, inw, head_eq in chains]
+            for (ms, _, _, est, inw, _), f in zip(chains, futs):
+                out.append((ms, f.result(), est, inw))
     rows = []
-    for ms, results, est in out:
+    for ms, results, est, inw in out:
         for m, r in zip(ms, results):
-            row = dict(r, **{k: m[k] for k in axes})
+            row = dict(r, **{k: m[k] for k in axes}, sweep_direction="in" if inw else "out")
             if est:
                 row.update(buckling_delta_lk_marko=est["buckling_delta_lk"], buckled_settle_from_turns_lo=
                            est["turns_lo"], buckled_settle_from_turns_hi=est["turns_hi"])
             rows.append(row)
+    return rows
+
+
+#: Observables a bracketed curve point combines from its outward and inward members (each with its ``_err``).
+BRACKET_KEYS = ("relative_extension", "extension_nm", "Wr", "Tw", "Lk", "twist_torque_pN_nm", "clamp_torque_pN_nm",
+                "plectoneme_fraction", "plectoneme_length_nm", "plectonemic", "end_turns")
+#: Per-member cost columns a bracketed point sums over its two members.
+BRACKET_COSTS = ("wall_s", "cpu_s", "n_steps")
+
+
+def bracket_rows(out_rows, in_rows, group_keys=("force_pN",)):
+    """One curve point per turn value from an outward and an inward sweep member (``start="bracket"``).
+
+    An outward member starts from the previous, smaller turn value's pose (its plectoneme too small, or none
+    yet) and an inward one from the next larger turn value's (its plectoneme too large). If each relaxes
+    towards equilibrium without overshooting, the equilibrium lies between the two, so the point is their
+    midpoint ``m = (a + b)/2`` with an error that covers half the gap as well as the members' own standard
+    errors: ``err = sqrt(((a - b)/2)^2 + (err_a^2 + err_b^2)/4)``. Where the two directions agree the error is
+    the statistical one; where a member is still relaxing (or stuck straight past buckling) it is the gap.
+
+    Parameters
+    ----------
+    out_rows, in_rows : list of dict
+        Member results (:func:`dnarod.protocols.tweezers.summarize` plus the axes), one per (group, turns).
+    group_keys : sequence of str
+        The other axes (``force_pN``): members match on them and on ``turns``.
+
+    Returns
+    -------
+    list of dict
+        The outward row's settings with, for every key ``k`` of :data:`BRACKET_KEYS` both have: ``k`` (midpoint),
+        ``k_err``, ``k_out``, ``k_in``, ``k_out_err``, ``k_in_err`` and ``k_gap_z`` (gap / its standard error);
+        ``relative_extension_rel_err`` (err / midpoint) and ``relative_extension_half_gap_rel``; costs summed.
+        A turn value with only one direction is refused (run both).
+    """
+    import math
+
+    key = lambda r: tuple(float(r[k]) for k in group_keys) + (round(float(r["turns"]), 9),)
+    ins = {key(r): r for r in in_rows}
+    outs = {key(r): r for r in out_rows}
+    if set(ins) != set(outs):
+        odd = sorted(set(ins) ^ set(outs))
+        raise DnarodError(f"bracket: turn values {[k[-1] for k in odd]} have a member in one sweep direction only")
+    rows = []
+    for k in sorted(outs):
+        a, b = outs[k], ins[k]
+        row = {kk: v for kk, v in a.items() if kk not in ("sweep_direction", "start", "previous_turns", "seed")}
+        row.update(start="bracket: outward and inward turn sweeps", sweep_direction="both",
+                   start_out=a.get("start"), start_in=b.get("start"), seed_out=a.get("seed"), seed_in=b.get("seed"))
+        for c in BRACKET_KEYS:
+            if a.get(c) is None or b.get(c) is None:
+                continue
+            va, vb = float(a[c]), float(b[c])
+            ea, eb = float(a.get(c + "_err") or 0.0), float(b.get(c + "_err") or 0.0)
+            row.update({c: 0.5 * (va + vb), c + "_err": math.sqrt((0.5 * (va - vb)) ** 2 + 0.25 * (ea * ea + eb * eb)),
+                        c + "_out": va, c + "_in": vb, c + "_out_err": ea, c + "_in_err": eb,
+                        c + "_gap_z": (va - vb) / math.hypot(ea, eb) if (ea or eb) else None})
+            for t in ("_tau_ps", "_err_tau"):
+                row.pop(c + t, None)
+        if row.get("relative_extension"):
+            m = row["relative_extension"]
+            row["relative_extension_rel_err"] = row["relative_extension_err"] / abs(m)
+            row["relative_extension_half_gap_rel"] = 0.5 * abs(row["relative_extension_out"]
+                                                               - row["relative_extension_in"]) / abs(m)
+        for c in BRACKET_COSTS:
+            if a.get(c) is not None and b.get(c) is not None:
+                row[c] = a[c] + b[c]
+        rows.append(row)
     return rows
 
 

@@ -216,7 +216,7 @@ def member_settles(turns, settle_ns, settle_buckled_ns, bounds):
             for t in turns]
 
 
-def run_chain(kind, members, dirs, settle_ns=None, grow_head=False):
+def run_chain(kind, members, dirs, settle_ns=None, grow_head=False, head_equilibration_ns=None):
     """Run one chain of members in order (on a dask worker or in this process); returns their result rows.
 
     Parameters
@@ -232,6 +232,9 @@ def run_chain(kind, members, dirs, settle_ns=None, grow_head=False):
     grow_head : bool
         The first member starts from a plectoneme grown at :data:`GROW_FORCE_FRACTION` of its force for
         :data:`GROW_NS` (an inward sweep).
+    head_equilibration_ns : float, optional
+        The first member equilibrates at least this long (a head at or past buckling: an inward sweep's head
+        settles its plectoneme as long as the chained members past buckling do).
 
     Returns
     -------
@@ -253,6 +256,8 @@ def run_chain(kind, members, dirs, settle_ns=None, grow_head=False):
         if prev is None:
             if grow_head:
                 s = dict(s, start_force_pN=GROW_FORCE_FRACTION * float(s["force_pN"]), start_ns=GROW_NS)
+            if head_equilibration_ns is not None:
+                s["equilibration_ns"] = max(float(head_equilibration_ns), float(s.get("equilibration_ns") or 0.0))
             rows.append(run_member(s, d))
         else:
             pfile = Path(prev[1]) / FINAL_POSE
