@@ -95,7 +95,7 @@ def analyse_curve(outdir, target=0.03):
         else:  # a sweep's member (no ensemble log): its result's time less its wall time
             starts.append(rj.stat().st_mtime - float(res["wall_s"]))
         ends.append(rj.stat().st_mtime)
-        rows.append(dict(turns=res["turns"], previous_turns=res.get("previous_turns"), start=res.get("start"),
+        rows.append(dict(folder=mdir.name, turns=res["turns"], previous_turns=res.get("previous_turns"), start=res.get("start"),
                          force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
                          cpu_s=res["cpu_s"], simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0,
                          equilibration_ns=res["equilibration_ps"] / 1000.0, production_ns=res["production_ps"] / 1000.0,

@@ -575,3 +575,78 @@ def test_member_keys_carry_the_non_bonded_terms(tmp_path):
     for bad in (dict(charge="bogus"), dict(charge=-1.0), dict(cutoff_debye=0.0)):
         with pytest.raises(DnarodError):
             member_nonbonded(rings._settings(bad))
+
+
+def test_bracket_rows_midpoint_and_gap_error():
+    """A bracketed point is the midpoint of its outward and inward members; its error covers half their gap and
+    their own errors, sqrt(((a-b)/2)^2 + (ea^2 + eb^2)/4); the gap's z and the relative half-gap are reported;
+    costs add up; a turn value with one direction only is refused."""
+    import math
+
+    from dnarod.protocols.curves import bracket_rows
+
+    out = [dict(force_pN=1.0, turns=2.4, relative_extension=0.70, relative_extension_err=0.01, Wr=1.0, Wr_err=0.1,
+                cpu_s=100.0, wall_s=120.0, n_steps=10, start="s1", seed=1, sweep_direction="out"),
+           dict(force_pN=1.0, turns=0.0, relative_extension=0.87, relative_extension_err=0.004, cpu_s=50.0,
+                wall_s=60.0, n_steps=5, start="s0", seed=2, sweep_direction="out")]
+    inn = [dict(force_pN=1.0, turns=2.4, relative_extension=0.62, relative_extension_err=0.02, Wr=1.4, Wr_err=0.1,
+                cpu_s=200.0, wall_s=210.0, n_steps=20, start="s2", seed=3, sweep_direction="in"),
+           dict(force_pN=1.0, turns=0.0, relative_extension=0.87, relative_extension_err=0.003, cpu_s=40.0,
+                wall_s=45.0, n_steps=4, start="s3", seed=4, sweep_direction="in")]
+    rows = bracket_rows(out, inn)
+    assert [r["turns"] for r in rows] == [0.0, 2.4]
+    r0, r = rows
+    assert r["relative_extension"] == pytest.approx(0.66)
+    assert r["relative_extension_err"] == pytest.approx(math.sqrt(0.04 ** 2 + (0.01 ** 2 + 0.02 ** 2) / 4))
+    assert r["relative_extension_gap_z"] == pytest.approx(0.08 / math.hypot(0.01, 0.02))
+    assert r["relative_extension_half_gap_rel"] == pytest.approx(0.04 / 0.66)
+    assert r["relative_extension_rel_err"] == pytest.approx(r["relative_extension_err"] / 0.66)
+    assert (r["relative_extension_out"], r["relative_extension_in"]) == (0.70, 0.62)
+    assert r["Wr"] == pytest.approx(1.2) and r["Wr_err"] == pytest.approx(math.sqrt(0.2 ** 2 + 0.005))
+    assert (r["cpu_s"], r["wall_s"], r["n_steps"]) == (300.0, 330.0, 30)
+    assert (r["start_out"], r["start_in"], r["seed_out"], r["seed_in"]) == ("s1", "s2", 1, 3)
+    # two agreeing members: the error is the statistical one alone
+    assert r0["relative_extension_err"] == pytest.approx(math.hypot(0.004, 0.003) / 2)
+    with pytest.raises(DnarodError, match=r"one sweep direction only"):
+        bracket_rows(out, inn[:1])
+
+
+def test_bracket_start_runs_both_sweeps(tmp_path, monkeypatch):
+    """start='bracket': the outward and inward sweeps run in one call (members out_* and in_*, both in
+    members.csv); each curve point combines the two members at its turn value exactly as bracket_rows does; a
+    chain head past buckling (the inward heads here) equilibrates for --settle-buckled; bad input is refused."""
+    from dnarod.protocols import force_extension, hat_curve, sweep
+    from dnarod.protocols.curves import bracket_rows
+
+    monkeypatch.setattr(sweep, "GROW_NS", 0.01)
+    out = tmp_path / "b"
+    c = hat_curve([-0.5, 0.0, 0.5], out, force_pN=2.0, source="60", workers=0, start="bracket", settle_ns=0.005,
+                  settle_buckled_ns=0.016, base=dict(time_ns=0.02, equilibration_ns=0.01, seed=3, sample_ps=2.0))
+    names = sorted(p.name for p in (out / "members").iterdir())
+    assert names == sorted(f"{d}_force_pN+2_turns{t}" for d in ("in", "out") for t in ("+0", "+0.5", "-0.5"))
+    members = {}
+    for p in (out / "members").iterdir():
+        r = json.loads((p / "protocol_result.json").read_text())["result"]
+        members[(p.name[:p.name.index("_")], r["turns"])] = r
+    # the inward heads (+-0.5 turns: past this chain's buckling bounds) equilibrate 16 ps, the outward heads 10 ps
+    assert members[("in", 0.5)]["equilibration_ps"] == pytest.approx(16.0, rel=0.02)
+    assert members[("in", -0.5)]["equilibration_ps"] == pytest.approx(16.0, rel=0.02)
+    assert members[("out", 0.0)]["equilibration_ps"] == pytest.approx(10.0, rel=0.02)
+    assert "grown plectoneme" in members[("in", 0.5)]["start"]
+    rows = {r["turns"]: r for r in c.rows}
+    assert sorted(rows) == [-0.5, 0.0, 0.5]
+    for t, r in rows.items():
+        a, b = members[("out", t)], members[("in", t)]
+        assert r["relative_extension_out"] == pytest.approx(a["relative_extension"])
+        assert r["relative_extension_in"] == pytest.approx(b["relative_extension"])
+        assert r["relative_extension"] == pytest.approx(0.5 * (a["relative_extension"] + b["relative_extension"]))
+        assert r["cpu_s"] == pytest.approx(a["cpu_s"] + b["cpu_s"])
+    expect = bracket_rows([dict(m, force_pN=2.0) for (d, _), m in members.items() if d == "out"],
+                          [dict(m, force_pN=2.0) for (d, _), m in members.items() if d == "in"])
+    assert [e["relative_extension_err"] for e in expect] == pytest.approx(
+        [rows[t]["relative_extension_err"] for t in sorted(rows)])
+    assert (out / "members.csv").read_text().count("\n") == 7  # header + six members
+    with pytest.raises(DnarodError, match="rotation-clamp"):
+        force_extension([1.0], tmp_path / "fe", source="40", workers=0, start="bracket")
+    with pytest.raises(DnarodError, match="ns > 0"):
+        hat_curve([0.0], tmp_path / "neg", source="40", workers=0, start="bracket", settle_buckled_ns=0.0)
