@@ -641,6 +641,11 @@ def test_bracket_start_runs_both_sweeps(tmp_path, monkeypatch):
         assert r["relative_extension_in"] == pytest.approx(b["relative_extension"])
         assert r["relative_extension"] == pytest.approx(0.5 * (a["relative_extension"] + b["relative_extension"]))
         assert r["cpu_s"] == pytest.approx(a["cpu_s"] + b["cpu_s"])
+        # the twisting moment of the point and of both members on the model's zero-torque offset
+        off = r["twist_torque_offset_pN_nm"]
+        assert r["twist_torque_pN_nm_out"] == pytest.approx(a["twist_torque_pN_nm"] - off)
+        assert r["twist_torque_pN_nm_in"] == pytest.approx(b["twist_torque_pN_nm"] - off)
+        assert r["twist_torque_pN_nm"] == pytest.approx(0.5 * (a["twist_torque_pN_nm"] + b["twist_torque_pN_nm"]) - off)
     expect = bracket_rows([dict(m, force_pN=2.0) for (d, _), m in members.items() if d == "out"],
                           [dict(m, force_pN=2.0) for (d, _), m in members.items() if d == "in"])
     assert [e["relative_extension_err"] for e in expect] == pytest.approx(

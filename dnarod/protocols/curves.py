@@ -319,6 +319,9 @@ def _thermal_corrections(kind, base, rows):
             r["twist_torque_pN_nm_raw"] = r["twist_torque_pN_nm"]
             r["twist_torque_pN_nm"] = r["twist_torque_pN_nm"] - off
             r["twist_torque_offset_pN_nm"], r["twist_torque_offset_err_pN_nm"] = off, off_se
+            for side in ("_out", "_in"):  # a bracketed point's two members (start "bracket")
+                if r.get("twist_torque_pN_nm" + side) is not None:
+                    r["twist_torque_pN_nm" + side] -= off
             if r.get("twist_torque_pN_nm_err") is not None:
                 r["twist_torque_pN_nm_err"] = float(np.hypot(r["twist_torque_pN_nm_err"], off_se))
 
