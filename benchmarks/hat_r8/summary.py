@@ -123,13 +123,12 @@ def figure(points, path, target):
     b.plot(t, [100 * p["rel_err"] for p in points], "ko-", ms=4, label="error / x")
     b.plot(t, [100 * p["half_gap_rel"] for p in points], "s:", color="C3", ms=3, label="half gap / x")
     b.axhline(100 * target, color="0.5", lw=0.8, ls="--")
-    b.set_ylabel("% of x")
-    b.set_xlabel("turns")
+    b.set(ylabel="% of x", xlabel="turns")
     b.legend(fontsize=7)
-    fig.tight_layout()
+    from dnarod.validate._common import save_figure  # atomic PNG, 110 dpi
+
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    print(f"wrote {path}")
+    print(f"wrote {path.parent / save_figure(fig, path.parent, path.name)}")
 
 
 if __name__ == "__main__":
