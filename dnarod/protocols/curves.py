@@ -399,7 +399,10 @@ def bracket_rows(out_rows, in_rows, group_keys=("force_pN",)):
     towards equilibrium without overshooting, the equilibrium lies between the two, so the point is their
     midpoint ``m = (a + b)/2`` with an error that covers half the gap as well as the members' own standard
     errors: ``err = sqrt(((a - b)/2)^2 + (err_a^2 + err_b^2)/4)``. Where the two directions agree the error is
-    the statistical one; where a member is still relaxing (or stuck straight past buckling) it is the gap.
+    the statistical one; where a member is still relaxing (or stuck straight past buckling) it is the gap. Near
+    buckling the two may sit in different long-lived states (straight and plectonemic), in either order (the
+    1-kbp run of round 8, docs/protocols.md): then the midpoint is no better than a guess and the error, half the
+    gap, says so.
 
     Parameters
     ----------
