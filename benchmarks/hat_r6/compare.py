@@ -151,18 +151,25 @@ def main(argv=None):
     return res
 
 
-def figure(res, by, path):
+def marko_figure():
+    """A two-panel figure (curve above, differences below, shared turns axis) with Marko's two-phase x/L line
+    (:func:`marko_line`) drawn on the upper panel; returns ``(fig, axes, buckling_estimate)``."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
     fig, ax = plt.subplots(2, 1, figsize=(6.4, 7.0), sharex=True, gridspec_kw=dict(height_ratios=[3, 1.3]))
-    a = ax[0]
     tt = np.linspace(-5.2, 4.4, 200)
-    x, est, th = marko_line(tt)
-    a.plot(tt, x, "k--", lw=1, label=f"Marko two-phase, model A, C_s {est['C_s_nm']:.0f} nm, P {est['P_nm']:g} nm "
-                                    f"(long chain)")
+    x, est, _ = marko_line(tt)
+    ax[0].plot(tt, x, "k--", lw=1, label=f"Marko two-phase, model A, C_s {est['C_s_nm']:.0f} nm, P {est['P_nm']:g} "
+                                        f"nm (long chain)")
+    return fig, ax, est
+
+
+def figure(res, by, path):
+    fig, ax, est = marko_figure()
+    a = ax[0]
     for b in (est["turns_lo"], est["turns_hi"]):
         a.axvline(b, color="0.7", lw=0.8, ls=":")
     for d, mk, lab in (("sweep", "o-", "outward sweep (0 → ±)"), ("sweep-in", "s-", "inward sweep (± → 0)")):

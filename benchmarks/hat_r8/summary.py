@@ -93,21 +93,11 @@ def main(argv=None):
 def figure(points, path, target):
     """The bracketed points (midpoint, error covering the gap), the outward and inward members and Marko's
     two-phase line with the model's parameters; below, the relative error and half-gap against the target."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
     sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "hat_r6"))
-    from compare import marko_line
+    from compare import marko_figure
 
-    fig, ax = plt.subplots(2, 1, figsize=(6.4, 7.0), sharex=True, gridspec_kw=dict(height_ratios=[3, 1.3]))
+    fig, ax, _ = marko_figure()
     a = ax[0]
-    tt = np.linspace(-5.2, 4.4, 200)
-    x, est, _ = marko_line(tt)
-    a.plot(tt, x, "k--", lw=1, label=f"Marko two-phase, model A, C_s {est['C_s_nm']:.0f} nm, P {est['P_nm']:g} nm "
-                                    f"(long chain)")
     t = [p["turns"] for p in points]
     for key, mk, lab, dx in (("out", "^", "outward member (from the smaller turn value)", -0.06),
                              ("inn", "v", "inward member (from the larger turn value)", 0.06)):
