@@ -40,6 +40,16 @@ def _time_v(path):
     return out
 
 
+def run_costs(root):
+    """``(command, load)`` of a run.sh folder: the ``/usr/bin/time -v`` figures of ``time.txt`` (empty dict if
+    absent) and the min/max/mean of the 1-minute load averages in ``load.log`` (None if absent)."""
+    root = Path(root)
+    load = [float(line.split()[1]) for line in (root / "load.log").read_text().splitlines()] \
+        if (root / "load.log").exists() else []
+    cmd = _time_v(root / "time.txt") if (root / "time.txt").exists() else {}
+    return cmd, (dict(min=min(load), max=max(load), mean=sum(load) / len(load)) if load else None)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", help="the run folder of run.sh (curve/, time.txt, load.log)")
@@ -63,11 +73,8 @@ def main(argv=None):
                            meets_target=rel <= a.target, Wr=float(c["Wr"]),
                            plectoneme_fraction=float(c["plectoneme_fraction"]),
                            out=o, inn=i))
-    load = [float(line.split()[1]) for line in (root / "load.log").read_text().splitlines()] \
-        if (root / "load.log").exists() else []
-    cmd = _time_v(root / "time.txt") if (root / "time.txt").exists() else {}
-    res = dict(folder=str(root), target=a.target, command=cmd, load_average_1min=dict(
-        min=min(load), max=max(load), mean=sum(load) / len(load)) if load else None, members=total,
+    cmd, load = run_costs(root)
+    res = dict(folder=str(root), target=a.target, command=cmd, load_average_1min=load, members=total,
         points=points, points_meeting_target=sum(p["meets_target"] for p in points), n_points=len(points))
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=1) + "\n")

@@ -141,7 +141,7 @@ def _clamp_options(default_force):
                click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
                click.option("--clamp-k", type=float, default=250.0, show_default=True,
                             help="Rotation clamp stiffness, kJ/mol."),
-               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in", "bracket"]),
+               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in", "bracket", "exchange"]),
                             default="static", show_default=True,
                             help="static: every member from the static pose under its loads; sweep: members run "
                                  "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "
@@ -149,7 +149,11 @@ def _clamp_options(default_force):
                                  "increment, as magnets are turned in the lab; sweep-in: the same chains towards "
                                  "zero, each begun at its largest |turns| from a plectoneme grown for 20 ns at 0.3 "
                                  "of the force; bracket: both sweeps at once, each point the midpoint of its "
-                                 "outward and inward members with an error covering their gap."),
+                                 "outward and inward members with an error covering their gap; exchange: the "
+                                 "turn values of each force are the rungs of one replica-exchange ladder (swaps "
+                                 "between neighbouring rungs, the turn difference carried as twist)."),
+               click.option("--exchange-ps", "exchange_ps", type=float, default=None,
+                            help="With --start exchange: time between exchange attempts, ps (default 20)."),
                click.option("--settle", "settle_ns", type=float, default=None,
                             help="With --start sweep/sweep-in/bracket: equilibration of each chained member after its turn "
                                  "increment, ns (default: 2 slowest bending relaxation times; the first member "
@@ -168,7 +172,7 @@ def _clamp_options(default_force):
 
 
 def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None,
-                 settle_buckled_ns=None, overwrite=False):
+                 settle_buckled_ns=None, overwrite=False, exchange_ps=None):
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
     import math
 
@@ -193,27 +197,30 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
                               f"finish here; give a shorter time")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                       _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
-                      settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns, overwrite=overwrite)
+                      settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns, overwrite=overwrite,
+                      exchange_ps=exchange_ps)
     _report(c, "turns", columns)
 
 
 @protocol.command("hat")
 @_clamp_options("0.5")
 @_common
-def hat_cmd(forces, turns, clamp_k, start, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
+def hat_cmd(forces, turns, clamp_k, start, exchange_ps, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, settle_buckled_ns, overwrite)
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, settle_buckled_ns, overwrite,
+                 exchange_ps)
 
 
 @protocol.command("torque-turns")
 @_clamp_options("1.0")
 @_common
-def torque_turns_cmd(forces, turns, clamp_k, start, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
+def torque_turns_cmd(forces, turns, clamp_k, start, exchange_ps, settle_ns, settle_buckled_ns, workers, out, overwrite,
+                     **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
                  ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns,
-                 settle_buckled_ns, overwrite)
+                 settle_buckled_ns, overwrite, exchange_ps)
 
 
 @protocol.command("rings")

@@ -17,7 +17,7 @@ from ..errors import DnarodError
 from ..run.spec import MAX_SALT, MAX_TEMPERATURE
 
 #: Start modes of the rotation-clamp protocols (see :func:`run_protocol`); the last three chain the members.
-STARTS = ("static", "sweep", "sweep-in", "bracket")
+STARTS = ("static", "sweep", "sweep-in", "bracket", "exchange")
 SWEEP_STARTS = ("sweep", "sweep-in", "bracket")
 
 #: x, y columns and labels of each protocol's curve.
@@ -159,7 +159,7 @@ def _checked(value, table, key):
 
 
 def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True, start="static",
-                 settle_ns=None, settle_buckled_ns=None, overwrite=False):
+                 settle_ns=None, settle_buckled_ns=None, overwrite=False, exchange_ps=None):
     """Run a protocol over its axes and write its curve.
 
     Parameters
@@ -182,6 +182,10 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         from a plectoneme grown at a lower force. "bracket": both sweeps at once (four chains per force; members
         in ``outdir/members/out_*`` and ``in_*``); each turn value's curve point is the midpoint of its outward
         and inward members with an error that covers the gap between them (:func:`bracket_rows`).
+        "exchange" (hat and torque-turns): the turn values of each force are the rungs of one replica-exchange
+        ladder (:mod:`dnarod.protocols.exchange`: swaps between neighbouring rungs with the turn difference
+        carried as twist, Metropolis-accepted), run as ``workers`` dask actors; rungs in
+        ``members/exchange_*``, the ladder's acceptance and round trips in ``ladders/*/exchange.json``.
     settle_ns : float, optional
         With ``start="sweep"``: equilibration of each chained member after its turn increment (default two
         slowest bending relaxation times); the first member of each chain equilibrates as a static start does.
@@ -189,6 +193,9 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         With a sweep: the settle of the chained members at or past the buckling point
         (:func:`dnarod.protocols.sweep.buckling_turns`: Marko's two-phase model with the model's parameters and a
         margin); default ``settle_ns`` for every member.
+    exchange_ps : float, optional
+        With ``start="exchange"``: time between exchange attempts, ps (default
+        :data:`dnarod.protocols.exchange.EXCHANGE_PS`).
     overwrite : bool
         Run into ``outdir`` although it holds this protocol run made with other settings (or another protocol;
         :mod:`dnarod.protocols.folder`). Without it such a folder is refused, as is any other non-empty folder
@@ -221,6 +228,10 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         raise DnarodError(f"start {start!r}: choose 'static' (every member from the static pose), 'sweep' "
                           f"(members chained along the turns axis away from zero), 'sweep-in' (towards zero) or "
                           f"'bracket' (both sweeps, combined)")
+    if start == "exchange" or exchange_ps is not None:
+        from .exchange import check_exchange
+
+        check_exchange(kind, start, axes, exchange_ps)
     if start in SWEEP_STARTS:
         from .sweep import check_sweep
 
@@ -233,6 +244,8 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         raise DnarodError(f"output folder {outdir!r}: give a folder path (-o DIR)")
     # the settings every member shares, as given (protocol.json; the defaults below are the protocol's own)
     shared = jsonable(dict(base, start=start, settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns))
+    if exchange_ps is not None:  # (absent otherwise: the records of earlier runs stay valid)
+        shared["exchange_ps"] = float(exchange_ps)
     base = dict(base)
     if kind in ("magnetic_tweezers", "torque_turns"):
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
@@ -245,15 +258,19 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     with folder_lock(outdir):
         check_protocol_folder(outdir, kind, shared, overwrite)  # again: another process may have written it since
         curve = _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
-                             settle_buckled_ns, proto)
+                             settle_buckled_ns, proto, exchange_ps)
         write_protocol_record(outdir, kind, shared)
     return curve
 
 
 def _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
-                 settle_buckled_ns, proto):
+                 settle_buckled_ns, proto, exchange_ps=None):
     """The members of :func:`run_protocol` (run or reused) and the curve written from them."""
-    if start == "bracket":
+    if start == "exchange":
+        from .exchange import run_ladders
+
+        rows = run_ladders(kind, axes, members, outdir, workers, progress, client, exchange_ps)
+    elif start == "bracket":
         both = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns,
                           settle_buckled_ns=settle_buckled_ns, directions=(False, True))
         rows = bracket_rows([r for r in both if r["sweep_direction"] == "out"],

@@ -294,8 +294,9 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
     sim.invalidate()
 
 
-def _member_simulation(m, model):
-    """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``)."""
+def _member_simulation(m, model, dt=None):
+    """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``; ``dt`` ps, default
+    the model's own, :class:`~dnarod.openmm.simulation.RodSimulation`)."""
     from ..openmm.nonbonded import member_nonbonded
     from ..openmm.platforms import choose_platform
     from ..openmm.simulation import RodSimulation
@@ -307,7 +308,8 @@ def _member_simulation(m, model):
     platform = choose_platform(s["platform"], model.n_nodes, s["elastic"], s["threads"])[0].getName()
     return RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
                          nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
-                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"], platform=platform))
+                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"], platform=platform),
+                         dt=dt)
 
 
 #: Wall-clock seconds between a member's checkpoints (:func:`sample_member`).
@@ -322,6 +324,44 @@ def grown_start(m, force_pN, ns):
     psim = _member_simulation(pre, pre["model"])
     psim.advance(int(round(1000.0 * float(ns) / psim.dt)))
     return {**m, "model": m["model"].with_pose(*psim.node_pose())}
+
+
+def observe(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, contact_nm):
+    """The observables of one tweezers sample (:data:`COLUMNS` but ``time_ps``).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+        Node centres, nm (node 0 on the surface, the last node the bead's).
+    frames : ndarray, shape (n, 3, 3)
+        Directors as columns.
+    model : RodModel
+        The member's model (``params``, ``ds``).
+    end_turns : float
+        The bead's unwrapped rotation about z, turns (the caller follows it between samples).
+    clamp_target : ndarray, shape (3, 3) or None
+        The rotation clamp's target frame (None: no clamp, zero clamp torque).
+    clamp_k : float
+        Clamp stiffness, kJ/mol.
+    sep_nm, contact_nm : float
+        The plectoneme detector's distances (:func:`dnarod.protocols.measure.detector_distances`).
+
+    Returns
+    -------
+    dict
+        Column -> value (extension nm, torques pN nm, Tw, Wr, Lk in turns, plectoneme fraction, length nm, flag).
+    """
+    from .measure import clamp_torque_z, plectoneme_state, twist_writhe_open, twisting_moment
+
+    row = {"extension_nm": positions[-1, 2] - positions[0, 2], "end_turns": end_turns,
+           "clamp_torque_pN_nm": (clamp_torque_z(frames[-1], clamp_target, clamp_k)
+                                  if clamp_target is not None else 0.0)}
+    tw, wr = twist_writhe_open(positions, frames)
+    row["Tw"], row["Wr"], row["Lk"] = tw, wr, tw + wr
+    f, length, plec, mask = plectoneme_state(positions, model.ds, sep_nm, contact_nm, return_mask=True)
+    row["twist_torque_pN_nm"] = twisting_moment(positions, frames, model.params, model.ds, mask)
+    row["plectoneme_fraction"], row["plectoneme_length_nm"], row["plectonemic"] = f, length, plec
+    return row
 
 
 def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pose_out=None):
@@ -349,8 +389,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
         turn sweep starts from it.
     """
     from ..openmm.nonbonded import member_nonbonded
-    from .measure import (clamp_torque_z, detector_distances, plectoneme_state, rotation_about_z, twist_writhe_open,
-                          twisting_moment)
+    from .measure import detector_distances, rotation_about_z
 
     s = m["settings"]
     t0, c0 = time.perf_counter(), time.process_time()
@@ -419,15 +458,10 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
         sim.advance(stride)
         pos, frm = sim.node_pose()
         out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
-        out["extension_nm"][i] = pos[-1, 2] - pos[0, 2]
-        out["end_turns"][i] = m["turns"] + end_rotation(frm)  # the start frame already carries the turns
-        out["clamp_torque_pN_nm"][i] = (clamp_torque_z(frm[-1], m["clamp_target"], k_clamp)
-                                        if m["clamp_target"] is not None else 0.0)
-        tw, wr = twist_writhe_open(pos, frm)
-        out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
-        f, length, plec, mask = plectoneme_state(pos, model.ds, sep_nm, contact_nm, return_mask=True)
-        out["twist_torque_pN_nm"][i] = twisting_moment(pos, frm, model.params, model.ds, mask)
-        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
+        # the start frame already carries the turns
+        row = observe(pos, frm, model, m["turns"] + end_rotation(frm), m["clamp_target"], k_clamp, sep_nm, contact_nm)
+        for c in COLUMNS[1:]:
+            out[c][i] = row[c]
         if progress:
             progress(i + 1, n_samp)
         if i + 1 < n_samp and time.perf_counter() - last_ckpt >= every:

@@ -1,0 +1,119 @@
+"""Summary of a replica-exchange hat curve (``dnarod protocol hat --start exchange``; ``benchmarks/hat_r9/run.sh``).
+
+Per rung: x/L with its block and tau-based standard errors (the larger is the point's error), the integrated
+autocorrelation time of the rung's extension series (swaps included), the production's quarters, how many replicas
+visited the rung, the acceptance of its two exchange pairs, and the round-8 bracketed point at the same turns
+(``benchmarks/results/hat_1kbp_r8.json``) with the difference in combined errors; the ladder's round trips; the
+command's wall and CPU time from ``/usr/bin/time -v`` and the load average during the run. Prints a table, writes
+JSON and, with ``--figure``, the curve beside round 8's and Marko's line.
+
+    python benchmarks/hat_r9/summary.py runs/hat_r9 --out benchmarks/results/hat_1kbp_r9.json \
+        --figure docs/figures/hat_1kbp_1pN_exchange.png
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))
+sys.path.insert(0, str(HERE.parent / "hat_r8"))
+from bench_hat_1kbp import analyse_curve  # noqa: E402
+from summary import run_costs  # noqa: E402  (hat_r8's /usr/bin/time -v and load.log reader)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("root", help="the run folder of run.sh (curve/, time.txt, load.log)")
+    ap.add_argument("--target", type=float, default=0.03)
+    ap.add_argument("--out", default="benchmarks/results/hat_1kbp_r9.json")
+    ap.add_argument("--r8", default="benchmarks/results/hat_1kbp_r8.json")
+    ap.add_argument("--figure", default=None)
+    a = ap.parse_args(argv)
+    root = Path(a.root)
+    rows, total = analyse_curve(root / "curve", a.target)
+    ladder = json.loads(next((root / "curve" / "ladders").glob("*/exchange.json")).read_text())
+    ladder.pop("key", None)
+    r8 = {round(p["turns"], 6): p for p in json.loads(Path(a.r8).read_text())["points"]} if Path(a.r8).exists() \
+        else {}
+    curve = {round(float(c["turns"]), 6): c for c in csv.DictReader((root / "curve" / "curve.csv").open())}
+    points = []
+    for r in rows:
+        t = round(r["turns"], 6)
+        res = json.loads((root / "curve" / "members" / r["folder"] / "protocol_result.json").read_text())["result"]
+        err = max(r["se_block"], r["se_tau"])
+        p = dict(turns=t, x_over_L=r["x_over_L"], err=err, rel_err=err / r["x_over_L"],
+                 meets_target=err / r["x_over_L"] <= a.target, se_block=r["se_block"], se_tau=r["se_tau"],
+                 tau_int_extension_ns=r["tau_int_extension_ns"], quarters_x_over_L=r["quarters_x_over_L"],
+                 drift_z=r["drift_z"], Wr=r["Wr"], plectoneme_fraction=r["plectoneme_fraction"],
+                 twist_torque_pN_nm=float(curve[t]["twist_torque_pN_nm"]) if t in curve else None,
+                 replicas_visited=res.get("exchange_replicas_visited"),
+                 acceptance_down=res.get("exchange_acceptance_down"), acceptance_up=res.get("exchange_acceptance_up"),
+                 start=res.get("start"), lk_slips=r["lk_slips"])
+        if t in r8:
+            q = r8[t]
+            p.update(r8_x_over_L=q["x_over_L"], r8_err=q["err"],
+                     z_vs_r8=(r["x_over_L"] - q["x_over_L"]) / float(np.hypot(err, q["err"])),
+                     r8_out=(q.get("out") or {}).get("x_over_L"), r8_in=(q.get("inn") or {}).get("x_over_L"))
+        points.append(p)
+    cmd, load = run_costs(root)
+    res = dict(folder=str(root), target=a.target, command=cmd, load_average_1min=load, ladder=ladder,
+        simulated_ns=total["simulated_ns"], points=points,
+        points_meeting_target=sum(p["meets_target"] for p in points), n_points=len(points))
+    Path(a.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(a.out).write_text(json.dumps(res, indent=1) + "\n")
+    print(f"{'turns':>6} {'x/L':>7} {'err':>6} {'rel':>6} {'tau ns':>6} {'reps':>4} {'acc-':>5} {'acc+':>5} "
+          f"{'Wr':>6} {'r8 x/L':>7} {'r8 err':>6} {'z':>5}  quarters")
+    f = lambda v, w=5, d=2: f"{v:{w}.{d}f}" if v is not None else " " * (w - 1) + "-"
+    for p in points:
+        print(f"{p['turns']:6.1f} {p['x_over_L']:7.3f} {p['err']:6.3f} {p['rel_err']:6.3f} "
+              f"{p['tau_int_extension_ns']:6.1f} {p['replicas_visited'] or 0:4d} {f(p['acceptance_down'])} "
+              f"{f(p['acceptance_up'])} {p['Wr']:6.2f} {f(p.get('r8_x_over_L'), 7, 3)} {f(p.get('r8_err'), 6, 3)} "
+              f"{f(p.get('z_vs_r8'))}  {' '.join(f'{v:.3f}' for v in p['quarters_x_over_L'])}")
+    print(f"{res['points_meeting_target']} of {len(points)} points within {a.target:.0%}; command: "
+          f"{cmd.get('wall_s', float('nan')):.0f} s wall, {cmd.get('cpu_s', float('nan')):.0f} s CPU; "
+          f"{total['simulated_ns']:.0f} ns simulated; round trips {ladder['round_trips_total']}; load "
+          f"{res['load_average_1min']}")
+    if a.figure:
+        figure(points, Path(a.figure), a.target)
+    return res
+
+
+def figure(points, path, target):
+    """The exchange curve beside round 8's bracketed points and Marko's two-phase line; below, error / x and
+    each pair's acceptance."""
+    sys.path.insert(0, str(HERE.parent / "hat_r6"))
+    from compare import marko_figure
+
+    fig, ax, _ = marko_figure()
+    a = ax[0]
+    t = [p["turns"] for p in points]
+    r8 = [(p["turns"] + 0.06, p["r8_x_over_L"], p["r8_err"]) for p in points if p.get("r8_x_over_L") is not None]
+    if r8:
+        a.errorbar(*zip(*r8), fmt="s", color="C1", ms=3, capsize=2, alpha=0.7,
+                   label="round 8: bracketed point (error covers the out/in gap)")
+    a.errorbar(t, [p["x_over_L"] for p in points], yerr=[p["err"] for p in points], fmt="ko-", ms=4, capsize=3,
+               label="replica exchange along the turns (--start exchange)")
+    a.set_ylabel("extension / contour length")
+    a.set_title("1 kbp at 1 pN, dna-default, 0.15 M (calibrated charge), 300 K: --start exchange", fontsize=9)
+    a.legend(fontsize=7, loc="lower center")
+    b = ax[1]
+    b.plot(t, [100 * p["rel_err"] for p in points], "ko-", ms=4, label="error / x (%)")
+    b.axhline(100 * target, color="0.5", lw=0.8, ls="--")
+    mids = [(p["turns"] + 0.4, 100 * p["acceptance_up"]) for p in points if p.get("acceptance_up") is not None]
+    b.plot(*zip(*mids), "^:", color="C2", ms=4, label="swap acceptance of the pair (%)")
+    b.set(ylabel="%", xlabel="turns")
+    b.legend(fontsize=7)
+    from dnarod.validate._common import save_figure  # atomic PNG, 110 dpi
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    print(f"wrote {path.parent / save_figure(fig, path.parent, path.name)}")
+
+
+if __name__ == "__main__":
+    main()
