@@ -368,6 +368,7 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
     """
     from ..io_utils import ensure_dir, jsonable, write_text_atomic
     from .sweep import save_pose, FINAL_POSE
+    from ..thermal import kT
     from .tweezers import COLUMNS, build_member, summarize
 
     if not (isinstance(exchange_ps, (int, float)) and math.isfinite(exchange_ps) and exchange_ps > 0):
@@ -450,7 +451,6 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
         def group_cpu():
             return sum(g.cost().result()["cpu_s"] for g in groups)
 
-        cpu_start = group_cpu()
         for rnd in range(start_round, n_rounds):
             for f in [g.advance(steps_ex) for g in groups]:
                 f.result()
@@ -459,11 +459,11 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
             for f in [g.trials(pairs) for g in groups]:
                 trial.update({int(k): v for k, v in f.result().items()})
             holder = {lab: rid for rid, (lab, _, _) in trial.items()}
-            kT = 0.0083144626 * float(m0["settings"]["temperature_K"])
+            kt = kT(float(m0["settings"]["temperature_K"]))
             moves = {}
             for i, j in pairs:
                 a, b = holder[i], holder[j]
-                delta = (trial[a][2] + trial[b][2]) / kT
+                delta = (trial[a][2] + trial[b][2]) / kt
                 attempts[i] += 1
                 if _accept(delta, rng.random()):
                     accepts[i] += 1
@@ -495,7 +495,7 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
                 cpu_now = group_cpu()
                 state = dict(key=key, round=rnd + 1, rng=rng.bit_generator.state, samples=samples,
                              attempts=attempts.tolist(), accepts=accepts.tolist(), label_of=label_of,
-                             last_end=last_end, trips=trips.tolist(), cpu_s=cpu_before + cpu_now - cpu_start,
+                             last_end=last_end, trips=trips.tolist(), cpu_s=cpu_before + cpu_now,
                              wall_s=wall_before + time.perf_counter() - t0)
                 write_text_atomic(ck, json.dumps(jsonable(state)) + "\n")
                 for old in rep_dir.glob("replica*.r*.npz"):
@@ -504,7 +504,7 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
                 last_ck = time.perf_counter()
         if bar is not None:
             bar.close()
-        cpu = cpu_before + group_cpu() - cpu_start
+        cpu = cpu_before + group_cpu()  # the groups' processes, their set-up (grown starts) included
         wall = wall_before + time.perf_counter() - t0
         poses = {}
         for f in [g.poses() for g in groups]:
