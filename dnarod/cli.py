@@ -11,7 +11,7 @@ import warnings
 
 import click
 
-from .errors import DnarodError
+from .errors import DnarodError, RunWarning
 
 
 #: File-system errors that are the user's to fix (a path under a regular file, a folder where a
@@ -55,12 +55,22 @@ class DnarodGroup(click.Group):
 
     def invoke(self, ctx):
         # Python warnings (numpy's "Mean of empty slice", ...) are held back until the command ends: a refused
-        # input then prints its one line alone, a finished command prints them after its output.
-        with warnings.catch_warnings(record=True) as caught:
+        # input then prints its one line alone, a finished command prints them after its output. A RunWarning
+        # (about a long run that has just begun) is printed when raised, so it is read before the run ends.
+        held = []
+
+        def show(message, category, filename, lineno, file=None, line=None):
+            if issubclass(category, RunWarning):
+                click.echo(f"dnarod: warning: {message}", err=True)
+            else:
+                held.append(message)
+
+        with warnings.catch_warnings():
             warnings.simplefilter("default")
+            warnings.showwarning = show
             rv = self._invoke_one_line(ctx)
-        for w in caught:
-            click.echo(f"dnarod: warning: {w.message}", err=True)
+        for message in held:
+            click.echo(f"dnarod: warning: {message}", err=True)
         return rv
 
     def _invoke_one_line(self, ctx):

@@ -30,3 +30,10 @@ class SimulationError(DnarodError):
 
 class StructureError(DnarodError):
     """An input structure (PDB, mmCIF, trajectory) cannot be read or has no usable DNA."""
+
+
+class RunWarning(UserWarning):
+    """A warning about a long run that has just begun (it will be slow or inefficient, not wrong).
+
+    The command line prints it when it is raised; other warnings wait until the command ends.
+    """

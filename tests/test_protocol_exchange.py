@@ -210,6 +210,74 @@ def test_rungs_sample_the_members_equilibrium_long(tmp_path, monkeypatch):
     assert all(abs(z) < 4.0 for _, _, z in rows), rows
 
 
+def _model(s):
+    from dnarod.protocols.tweezers import build_member
+
+    return build_member(s)["model"]
+
+
+def test_twist_ramp_mismatch_is_zero_for_isotropic_steps_only():
+    """The exchange map's symmetry check: 0 for the isotropic, straight sets; not for olson1998's anisotropic,
+    coupled, intrinsically bent steps; and not for dna-default with one bending stiffness changed."""
+    import dataclasses
+
+    iso = _model(_settings([0.0])[0]).params
+    assert ex.twist_ramp_mismatch(iso) < 1e-12
+    assert ex.twist_ramp_mismatch(_model(_settings([0.0], forcefield="uniform-rod")[0]).params) < 1e-12
+    K = np.array(iso.stiffness)
+    K[3, 0, 0] *= 1.5
+    # entries are relative to each step's largest stiffness (its extension's, 674): 0.04 here
+    assert ex.twist_ramp_mismatch(dataclasses.replace(iso, stiffness=K)) > 0.01
+    x0 = np.array(iso.intrinsic)
+    x0[5, 1] = 0.05  # an intrinsic roll of one step
+    assert ex.twist_ramp_mismatch(dataclasses.replace(iso, intrinsic=x0)) > 0.01
+
+
+def _z(a, b, key):
+    ea = max(a[key + "_err"], a.get(key + "_err_tau") or 0.0)
+    eb = max(b[key + "_err"], b.get(key + "_err_tau") or 0.0)
+    return a[key] - b[key], float(np.hypot(ea, eb))
+
+
+def test_a_wrong_acceptance_rule_fails_where_the_twist_map_is_not_a_symmetry(tmp_path, monkeypatch):
+    """The acceptance rule itself. On ``dna-default`` in the straight regime the twist ramp is nearly a symmetry of
+    the rungs, so almost any rule would pass the tests above. On ``olson1998`` (bending stiffness 251 vs 130 kT,
+    roll-twist coupling, intrinsic roll and tilt) the ramp turns each step's bend about d3 by a different angle and
+    the rungs' distributions are not images of each other: a 40-bp ladder at 0 and 0.03 turns, swaps every 1 ps and
+    a sample right after each round, against independent 2-ns members. The Metropolis rule (35-40 % accepted)
+    keeps each rung's twisting moment within 4 SE of its member (measured |z| <= 1.8 over five seeds); accepting
+    every swap biases the two rungs apart (the difference between them off by 9 SE)."""
+    from dnarod.protocols.tweezers import run_member
+
+    base = dict(BASE, source="A" * 10 + "CG" * 5 + "A" * 10 + "CA" * 5, forcefield="olson1998", time_ns=1.0,
+                equilibration_ns=0.02, sample_ps=1.0, seed=5)
+    turns = [0.0, 0.03]
+    settings = [hooks.MAGNETIC_TWEEZERS.member_settings(dict(base, turns=t)) for t in turns]
+    ind = [run_member(dict(s, time_ns=2.0), tmp_path / f"ind{i}") for i, s in enumerate(settings)]
+
+    def ladder(name):
+        d = tmp_path / name
+        with pytest.warns(UserWarning, match="not a symmetry"):
+            res = ex.run_ladder(settings, d / "ladder", [str(d / f"m{i}") for i in range(2)], exchange_ps=1.0,
+                                progress=False)
+        summary = json.loads((d / "ladder" / ex.RESULT).read_text())
+        assert summary["twist_ramp_mismatch"] > 0.1  # reported beside the acceptance
+        return res, summary["acceptance"][0]
+
+    assert ex.twist_ramp_mismatch(_model(settings[0]).params) > 0.1
+    key = "twist_torque_pN_nm"
+    right, acc = ladder("metropolis")
+    assert 0.15 < acc < 0.7, acc  # swaps happen, and are not all accepted
+    for r, m in zip(right, ind):
+        d, e = _z(r, m, key)
+        assert abs(d) < 4.0 * e, (d, e)
+    monkeypatch.setattr(ex, "_accept", lambda delta_kT, u: True)
+    wrong, acc_w = ladder("always")
+    assert acc_w == 1.0
+    (d0, e0), (d1, e1) = _z(wrong[0], ind[0], key), _z(wrong[1], ind[1], key)
+    assert d1 - d0 > 4.0 * np.hypot(e0, e1), (d0, d1, e0, e1)
+
+
 @pytest.mark.parametrize("args,words", [
     (["--turns=0", "--start", "exchange"], ["at least two turn values"]),
     (["--turns=0,0", "--start", "exchange"], ["repeat"]),
@@ -220,3 +288,37 @@ def test_rungs_sample_the_members_equilibrium_long(tmp_path, monkeypatch):
 ])
 def test_exchange_bad_input_one_line(tmp_path, assert_refused, args, words):
     assert_refused(tmp_path, ["protocol", "hat", "--source", "40", "--time", "0.1", "-o", "{w}/n", *args], words)
+
+
+def test_cli_prints_a_run_warning_when_raised_and_holds_other_warnings(monkeypatch):
+    """The exchange's RunWarning reaches stderr while the command runs (it is printed even if the command then
+    stops with a refusal), other warnings only after a finished command (a refusal is its one line alone)."""
+    import warnings
+
+    import click
+    from click.testing import CliRunner
+
+    from dnarod.cli import main
+    from dnarod.errors import DnarodError, RunWarning
+
+    events = []
+
+    @click.command("_warn_probe")
+    @click.option("--fail", is_flag=True)
+    def probe(fail):
+        warnings.warn("a held warning", UserWarning)
+        warnings.warn("the ladder is inefficient", RunWarning)
+        events.append("after the warnings")
+        if fail:
+            raise DnarodError("refused input")
+        click.echo("done")
+
+    monkeypatch.setitem(main.commands, "_warn_probe", probe)
+    ok = CliRunner().invoke(main, ["_warn_probe"])
+    assert ok.exit_code == 0, ok.output
+    lines = ok.output.splitlines()
+    assert lines == ["dnarod: warning: the ladder is inefficient", "done", "dnarod: warning: a held warning"], lines
+    bad = CliRunner().invoke(main, ["_warn_probe", "--fail"])
+    assert bad.exit_code == 2
+    assert bad.output.splitlines() == ["dnarod: warning: the ladder is inefficient", "dnarod: error: refused input"]
+    assert events == ["after the warnings"] * 2

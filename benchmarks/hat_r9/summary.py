@@ -9,6 +9,14 @@ JSON and, with ``--figure``, the curve beside round 8's and Marko's line.
 
     python benchmarks/hat_r9/summary.py runs/hat_r9 --out benchmarks/results/hat_1kbp_r9.json \
         --figure docs/figures/hat_1kbp_1pN_exchange.png
+
+Other runs' points (a results JSON of this script or of ``hat_r8/summary.py``) are compared with
+``--compare LABEL=PATH`` (repeatable; default ``r8=benchmarks/results/hat_1kbp_r8.json``): each point then carries
+``LABEL_x_over_L``, ``LABEL_err`` and ``z_vs_LABEL``. Round 10:
+
+    python benchmarks/hat_r9/summary.py runs/hat_r10 --out benchmarks/results/hat_1kbp_r10.json \
+        --compare r8=benchmarks/results/hat_1kbp_r8.json --compare r9=benchmarks/results/hat_1kbp_r9.json \
+        --title "round 10, 0.4-turn rungs across the plateaus" --figure docs/figures/hat_1kbp_1pN_exchange_r10.png
 """
 from __future__ import annotations
 
@@ -32,15 +40,20 @@ def main(argv=None):
     ap.add_argument("root", help="the run folder of run.sh (curve/, time.txt, load.log)")
     ap.add_argument("--target", type=float, default=0.03)
     ap.add_argument("--out", default="benchmarks/results/hat_1kbp_r9.json")
-    ap.add_argument("--r8", default="benchmarks/results/hat_1kbp_r8.json")
+    ap.add_argument("--compare", action="append", default=None, metavar="LABEL=PATH",
+                    help="another run's results JSON (default r8=benchmarks/results/hat_1kbp_r8.json)")
+    ap.add_argument("--title", default="--start exchange", help="the figure's title after the system")
     ap.add_argument("--figure", default=None)
     a = ap.parse_args(argv)
     root = Path(a.root)
     rows, total = analyse_curve(root / "curve", a.target)
     ladder = json.loads(next((root / "curve" / "ladders").glob("*/exchange.json")).read_text())
     ladder.pop("key", None)
-    r8 = {round(p["turns"], 6): p for p in json.loads(Path(a.r8).read_text())["points"]} if Path(a.r8).exists() \
-        else {}
+    others = {}
+    for spec in a.compare or ["r8=benchmarks/results/hat_1kbp_r8.json"]:
+        label, _, path = spec.partition("=")
+        if Path(path).exists():
+            others[label] = {round(p["turns"], 6): p for p in json.loads(Path(path).read_text())["points"]}
     curve = {round(float(c["turns"]), 6): c for c in csv.DictReader((root / "curve" / "curve.csv").open())}
     points = []
     for r in rows:
@@ -55,11 +68,14 @@ def main(argv=None):
                  replicas_visited=res.get("exchange_replicas_visited"),
                  acceptance_down=res.get("exchange_acceptance_down"), acceptance_up=res.get("exchange_acceptance_up"),
                  start=res.get("start"), lk_slips=r["lk_slips"])
-        if t in r8:
-            q = r8[t]
-            p.update(r8_x_over_L=q["x_over_L"], r8_err=q["err"],
-                     z_vs_r8=(r["x_over_L"] - q["x_over_L"]) / float(np.hypot(err, q["err"])),
-                     r8_out=(q.get("out") or {}).get("x_over_L"), r8_in=(q.get("inn") or {}).get("x_over_L"))
+        for label, pts in others.items():
+            if t in pts:
+                q = pts[t]
+                p.update({f"{label}_x_over_L": q["x_over_L"], f"{label}_err": q["err"],
+                          f"z_vs_{label}": (r["x_over_L"] - q["x_over_L"]) / float(np.hypot(err, q["err"]))})
+                if "out" in q or "inn" in q:  # a bracketed point: its two members
+                    p.update({f"{label}_out": (q.get("out") or {}).get("x_over_L"),
+                              f"{label}_in": (q.get("inn") or {}).get("x_over_L")})
         points.append(p)
     cmd, load = run_costs(root)
     res = dict(folder=str(root), target=a.target, command=cmd, load_average_1min=load, ladder=ladder,
@@ -68,24 +84,30 @@ def main(argv=None):
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(res, indent=1) + "\n")
     print(f"{'turns':>6} {'x/L':>7} {'err':>6} {'rel':>6} {'tau ns':>6} {'reps':>4} {'acc-':>5} {'acc+':>5} "
-          f"{'Wr':>6} {'r8 x/L':>7} {'r8 err':>6} {'z':>5}  quarters")
+          f"{'Wr':>6}" + "".join(f" {lb + ' x/L':>8} {lb + ' err':>7} {'z':>5}" for lb in others) + "  quarters")
     f = lambda v, w=5, d=2: f"{v:{w}.{d}f}" if v is not None else " " * (w - 1) + "-"
     for p in points:
         print(f"{p['turns']:6.1f} {p['x_over_L']:7.3f} {p['err']:6.3f} {p['rel_err']:6.3f} "
               f"{p['tau_int_extension_ns']:6.1f} {p['replicas_visited'] or 0:4d} {f(p['acceptance_down'])} "
-              f"{f(p['acceptance_up'])} {p['Wr']:6.2f} {f(p.get('r8_x_over_L'), 7, 3)} {f(p.get('r8_err'), 6, 3)} "
-              f"{f(p.get('z_vs_r8'))}  {' '.join(f'{v:.3f}' for v in p['quarters_x_over_L'])}")
+              f"{f(p['acceptance_up'])} {p['Wr']:6.2f}"
+              + "".join(f" {f(p.get(lb + '_x_over_L'), 8, 3)} {f(p.get(lb + '_err'), 7, 3)} {f(p.get('z_vs_' + lb))}"
+                        for lb in others)
+              + f"  {' '.join(f'{v:.3f}' for v in p['quarters_x_over_L'])}")
     print(f"{res['points_meeting_target']} of {len(points)} points within {a.target:.0%}; command: "
           f"{cmd.get('wall_s', float('nan')):.0f} s wall, {cmd.get('cpu_s', float('nan')):.0f} s CPU; "
           f"{total['simulated_ns']:.0f} ns simulated; round trips {ladder['round_trips_total']}; load "
           f"{res['load_average_1min']}")
     if a.figure:
-        figure(points, Path(a.figure), a.target)
+        figure(points, Path(a.figure), a.target, list(others), a.title)
     return res
 
 
-def figure(points, path, target):
-    """The exchange curve beside round 8's bracketed points and Marko's two-phase line; below, error / x and
+LEGEND = {"r8": "round 8: bracketed point (error covers the out/in gap)",
+          "r9": "round 9: exchange, 0.8-turn pairs in the plateaus"}
+
+
+def figure(points, path, target, labels=("r8",), title="--start exchange"):
+    """The exchange curve beside the compared runs' points and Marko's two-phase line; below, error / x and
     each pair's acceptance."""
     sys.path.insert(0, str(HERE.parent / "hat_r6"))
     from compare import marko_figure
@@ -93,20 +115,23 @@ def figure(points, path, target):
     fig, ax, _ = marko_figure()
     a = ax[0]
     t = [p["turns"] for p in points]
-    r8 = [(p["turns"] + 0.06, p["r8_x_over_L"], p["r8_err"]) for p in points if p.get("r8_x_over_L") is not None]
-    if r8:
-        a.errorbar(*zip(*r8), fmt="s", color="C1", ms=3, capsize=2, alpha=0.7,
-                   label="round 8: bracketed point (error covers the out/in gap)")
+    for j, (lb, fmt) in enumerate(zip(labels, "sDv^")):
+        other = [(p["turns"] + 0.06 * (j + 1), p[lb + "_x_over_L"], p[lb + "_err"]) for p in points
+                 if p.get(lb + "_x_over_L") is not None]
+        if other:
+            a.errorbar(*zip(*other), fmt=fmt, color=f"C{j + 1}", ms=3, capsize=2, alpha=0.7,
+                       label=LEGEND.get(lb, lb))
     a.errorbar(t, [p["x_over_L"] for p in points], yerr=[p["err"] for p in points], fmt="ko-", ms=4, capsize=3,
                label="replica exchange along the turns (--start exchange)")
     a.set_ylabel("extension / contour length")
-    a.set_title("1 kbp at 1 pN, dna-default, 0.15 M (calibrated charge), 300 K: --start exchange", fontsize=9)
+    a.set_title(f"1 kbp at 1 pN, dna-default, 0.15 M (calibrated charge), 300 K: {title}", fontsize=9)
     a.legend(fontsize=7, loc="lower center")
     b = ax[1]
     b.plot(t, [100 * p["rel_err"] for p in points], "ko-", ms=4, label="error / x (%)")
     b.axhline(100 * target, color="0.5", lw=0.8, ls="--")
-    mids = [(p["turns"] + 0.4, 100 * p["acceptance_up"]) for p in points if p.get("acceptance_up") is not None]
-    b.plot(*zip(*mids), "^:", color="C2", ms=4, label="swap acceptance of the pair (%)")
+    mids = [(0.5 * (p["turns"] + q["turns"]), 100 * p["acceptance_up"]) for p, q in zip(points, points[1:])
+            if p.get("acceptance_up") is not None]
+    b.plot(*zip(*mids), "^:", color="C5", ms=4, label="swap acceptance of the pair (%)")
     b.set(ylabel="%", xlabel="turns")
     b.legend(fontsize=7)
     from dnarod.validate._common import save_figure  # atomic PNG, 110 dpi
