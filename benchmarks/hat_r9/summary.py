@@ -16,7 +16,7 @@ Other runs' points (a results JSON of this script or of ``hat_r8/summary.py``) a
 
     python benchmarks/hat_r9/summary.py runs/hat_r10 --out benchmarks/results/hat_1kbp_r10.json \
         --compare r8=benchmarks/results/hat_1kbp_r8.json --compare r9=benchmarks/results/hat_1kbp_r9.json \
-        --title "round 10, 0.4-turn rungs across the plateaus" --figure docs/figures/hat_1kbp_1pN_exchange_r10.png
+        --title "exchange, round 10" --figure docs/figures/hat_1kbp_1pN_exchange_r10.png
 """
 from __future__ import annotations
 
