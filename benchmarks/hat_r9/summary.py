@@ -52,8 +52,9 @@ def main(argv=None):
     others = {}
     for spec in a.compare or ["r8=benchmarks/results/hat_1kbp_r8.json"]:
         label, _, path = spec.partition("=")
-        if Path(path).exists():
-            others[label] = {round(p["turns"], 6): p for p in json.loads(Path(path).read_text())["points"]}
+        if not label or not Path(path).is_file():
+            ap.error(f"--compare {spec}: give LABEL=PATH of an existing results JSON")
+        others[label] = {round(p["turns"], 6): p for p in json.loads(Path(path).read_text())["points"]}
     curve = {round(float(c["turns"]), 6): c for c in csv.DictReader((root / "curve" / "curve.csv").open())}
     points = []
     for r in rows:

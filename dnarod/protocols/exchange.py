@@ -181,9 +181,10 @@ def twist_ramp_mismatch(params, angle=0.7):
     ``(Gamma1, Gamma2)`` rotate about d3 (the Cayley vector and the body shear of a step are vectors in node
     ``k``'s frame). Where the energy is not invariant under that turn (unequal bending or shear stiffnesses,
     in-plane strains coupled to twist or extension, an intrinsic bend or shear), the rungs are not images of each
-    other under the map and swaps cost energy in proportion to the turn squared: on ``olson1998`` (40 bp) 0.6 % of
-    swaps 0.1 turns apart were accepted, 35-40 % at 0.03 turns, against 70 % on ``dna-default`` at 0.1 turns
-    (round 10, ``tests/test_protocol_exchange.py``). The rule stays exact; only the acceptance falls.
+    other under the map and swaps cost energy in proportion to the turn squared: on ``olson1998`` (40 bp, two-rung
+    ladders measured in round 10) 0.6 % of swaps 0.1 turns apart were accepted, 35-40 % at 0.03 turns (the case
+    ``tests/test_protocol_exchange.py`` runs), against 70 % on ``dna-default`` at 0.1 turns. The rule stays exact;
+    only the acceptance falls.
 
     Parameters
     ----------
