@@ -37,6 +37,9 @@ def test_automatic_choice_never_picks_a_cpu_opencl():
     assert small.getName() == "Reference" and "no GPU" in why_small
     assert large.getName() == ("Reference" if REFERENCE_MAX_NODES is None or REFERENCE_MAX_NODES >= 10**6 else "CPU")
     assert choose_platform(None, 1000, threads=2)[0].getName() == "CPU"  # threads ask for the CPU platform
+    # ... but one thread (a Dask worker's OPENMM_CPU_THREADS=1) is the Reference platform: no worker-thread hand-off
+    assert choose_platform(None, 1000, threads=1)[0].getName() == "Reference"
+    assert choose_platform(None, 1000, threads=0)[0].getName() == "Reference"
     assert choose_platform(None, 1000, elastic="portable")[0].getName() == "CPU"
 
 

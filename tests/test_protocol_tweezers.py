@@ -655,3 +655,43 @@ def test_bracket_start_runs_both_sweeps(tmp_path, monkeypatch):
         force_extension([1.0], tmp_path / "fe", source="40", workers=0, start="bracket")
     with pytest.raises(DnarodError, match="ns > 0"):
         hat_curve([0.0], tmp_path / "neg", source="40", workers=0, start="bracket", settle_buckled_ns=0.0)
+
+
+def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host_platforms_agree(monkeypatch):
+    """Protocol members (tweezers, rings) name the platform they run on: the one asked for, else the automatic
+    choice with the worker's one thread, which without a GPU is the Reference platform (the CPU platform hands
+    every step to a worker thread even with one thread; ``benchmarks/bench_exchange_platform.py``). The CPU
+    platform stays available with its thread count, and the two give the same System: the same energy and forces
+    on a tweezers member's twisted start pose (forces to 1e-4 of their scale)."""
+    import openmm
+
+    from dnarod.openmm.platforms import choose_platform
+    from dnarod.protocols import tweezers as tw
+    from dnarod.protocols.ensemble_hooks import RINGS, TweezersProtocol
+
+    monkeypatch.setenv("OPENMM_CPU_THREADS", "1")
+    auto = choose_platform(None, threads=1)[0].getName()
+    assert auto != "CPU"  # one thread never picks the CPU platform's worker thread
+    proto = TweezersProtocol("magnetic_tweezers")
+    base = dict(source="300", force_pN=1.0, turns=2.0, time_ns=0.01)
+    for p in (proto, RINGS):
+        got = p.member_settings(base)
+        assert (got["platform"], got["threads"]) == (auto, None)
+        cpu = p.member_settings({**base, "platform": "CPU"})
+        assert (cpu["platform"], cpu["threads"]) == ("CPU", 1)
+    monkeypatch.setenv("OPENMM_CPU_THREADS", "2")
+    if auto == "Reference":  # no GPU: two threads ask for the multithreaded CPU platform
+        assert (proto.member_settings(base)["platform"], proto.member_settings(base)["threads"]) == ("CPU", 2)
+
+    m = tw.build_member(dict(n_bp=300, force_pN=1.0, turns=2.0, time_ns=0.01, seed=4, platform="Reference"))
+    ref = tw._member_simulation(m, m["model"])
+    assert ref.context.getPlatform().getName() == "Reference"
+    m_cpu = {**m, "settings": {**m["settings"], "platform": "CPU", "threads": 1}}
+    other = tw._member_simulation(m_cpu, m["model"])
+    assert other.context.getPlatform().getName() == "CPU"
+    unit_f = openmm.unit.kilojoule_per_mole / openmm.unit.nanometer
+    states = [s.context.getState(getEnergy=True, getForces=True) for s in (ref, other)]
+    e = [st.getPotentialEnergy().value_in_unit(openmm.unit.kilojoule_per_mole) for st in states]
+    f = [np.asarray(st.getForces(asNumpy=True).value_in_unit(unit_f)) for st in states]
+    assert abs(e[0]) > 1.0 and e[0] == pytest.approx(e[1], rel=1e-5, abs=1e-3)
+    assert np.max(np.abs(f[0] - f[1])) < 1e-4 * np.max(np.abs(f[0]))

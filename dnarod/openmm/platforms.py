@@ -10,14 +10,18 @@ Automatic choice (``requested=None``), in order:
    loader, without creating an OpenMM Context), with the same elastic choice. A CPU-only OpenCL
    implementation such as pocl is never chosen automatically: it runs several times slower than
    the CPU paths (``benchmarks/bench_platforms.py``, ``bench_gpu.py``);
-3. **the CPU fast path**: the numba/``PythonForce`` callbacks on the **Reference** platform (or
-   on the **CPU** platform when ``threads`` is given). The CPU platform runs its integrator on a
-   worker thread even with ``Threads=1``, so every step (and every Python callback) is handed
-   between the Python thread and the worker. Measured per CPU-second on one core
+3. **the CPU fast path**: the numba/``PythonForce`` callbacks (or the compiled plugin's kernel) on
+   the **Reference** platform, or on the **CPU** platform when more than one thread is asked for
+   (``threads`` > 1). The CPU platform runs its integrator on a worker thread even with
+   ``Threads=1``, so every step (and every Python callback) is handed between the Python thread
+   and the worker; one thread therefore means the Reference platform (a Dask worker's
+   ``OPENMM_CPU_THREADS=1`` included). Measured per CPU-second on one core
    (``benchmarks/bench_platforms.py``, two runs, README table), the Reference platform is
    1.1-3.2x faster at 10^2-10^4 nodes and tied within the runs' noise at 10^5-10^6, where the
    CPU platform's threaded integrator may still gain wall-clock time from idle cores
-   (``--threads``; not measurable on this loaded 2-core machine).
+   (``--threads``; not measurable on this loaded 2-core machine). A 1-kbp tweezers member with the
+   compiled plugin, stepped in 20-ps rounds, took 2.0-2.1x the CPU time and 2.4-2.5x the wall
+   time on the CPU platform with one thread (``benchmarks/bench_exchange_platform.py``).
 
 ``requested`` (``--platform``) overrides the choice; the reason of the choice is returned so
 the caller can print it.
@@ -127,7 +131,8 @@ def choose_platform(requested=None, n_nodes=None, elastic="auto", threads=None, 
     elastic : {"auto", "fast", "portable"}
         ``"fast"`` restricts the automatic choice to the CPU platforms.
     threads : int or None
-        CPU platform threads.
+        CPU platform threads. In the automatic choice, more than one thread asks for the CPU platform;
+        ``None``, 0 or 1 give the single-threaded Reference platform (no worker-thread hand-off).
     precision : {"single", "mixed", "double"} or None
         GPU platforms' precision (default ``"mixed"``).
 
@@ -155,10 +160,11 @@ def choose_platform(requested=None, n_nodes=None, elastic="auto", threads=None, 
         return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
                 "CPU (no GPU found; portable elastic path on the multithreaded CPU platform)")
     small = REFERENCE_MAX_NODES is None or (n_nodes is not None and n_nodes <= REFERENCE_MAX_NODES)
-    if small and not threads:
+    multi = threads is not None and int(threads) > 1
+    if small and not multi:
         return (openmm.Platform.getPlatformByName("Reference"), platform_properties("Reference", None, precision),
                 "Reference (no GPU found; CPU fast path on the single-threaded Reference platform: no worker-thread "
                 "hand-off per step)")
-    why = f"{threads} threads requested" if threads else f"more than {REFERENCE_MAX_NODES} nodes"
+    why = f"{threads} threads requested" if multi else f"more than {REFERENCE_MAX_NODES} nodes"
     return (openmm.Platform.getPlatformByName("CPU"), platform_properties("CPU", threads, precision),
             f"CPU (no GPU found; CPU fast path, {why})")

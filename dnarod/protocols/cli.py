@@ -10,6 +10,7 @@ import click
 
 from ..errors import DnarodError
 from ..run.cli import CHARGE_OPTIONS
+from .curves import STARTS
 
 
 def _floats(text, what):
@@ -141,7 +142,7 @@ def _clamp_options(default_force):
                click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
                click.option("--clamp-k", type=float, default=250.0, show_default=True,
                             help="Rotation clamp stiffness, kJ/mol."),
-               click.option("--start", "start", type=click.Choice(["static", "sweep", "sweep-in", "bracket", "exchange"]),
+               click.option("--start", "start", type=click.Choice(STARTS),
                             default="static", show_default=True,
                             help="static: every member from the static pose under its loads; sweep: members run "
                                  "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "

@@ -173,7 +173,7 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     outdir : path
     workers : int
         Dask local workers; 0 runs the members serially in this process.
-    start : {"static", "sweep", "sweep-in", "bracket"}
+    start : {"static", "sweep", "sweep-in", "bracket", "exchange"}
         "static": every member starts from the static pose under its loads (independent members, one dask task
         each). "sweep" (hat and torque-turns): the members of each force run as chains along the turns axis
         away from zero, each from the previous turn value's final pose turned by the increment

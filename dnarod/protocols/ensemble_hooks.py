@@ -31,6 +31,28 @@ def _threads():
     return int(t) if t else 1
 
 
+def member_platform(settings):
+    """``platform`` and ``threads`` of a protocol member (tweezers, rings): the one asked for, else the automatic
+    choice of :func:`dnarod.openmm.platforms.choose_platform` made now, so the member's settings (and its cache key)
+    name the platform it runs on.
+
+    Threads come from ``OPENMM_CPU_THREADS`` (a Dask worker sets 1) and apply to the CPU platform only. Without a
+    GPU the automatic choice with one thread is the Reference platform: OpenMM's CPU platform hands every step to a
+    worker thread even with ``Threads=1``; for a 1-kbp tweezers member in the exchange loop's pattern it took
+    2.0-2.1x the CPU time and 2.4-2.5x the wall time of the Reference platform, straight and plectonemic
+    (``benchmarks/bench_exchange_platform.py``, ``results/exchange_platform.json``).
+
+    Returns
+    -------
+    dict
+        ``platform`` (str) and ``threads`` (int, or None off the CPU platform).
+    """
+    from ..openmm.platforms import choose_platform
+
+    platform = settings.get("platform") or choose_platform(None, threads=_threads())[0].getName()
+    return dict(platform=platform, threads=_threads() if platform == "CPU" else None)
+
+
 def member_seed(seed, *key):
     """A distinct, reproducible seed for one member: from the curve's ``seed`` and the member's ``key``.
 
@@ -98,7 +120,7 @@ class TweezersProtocol:
                    excluded_volume=settings.get("excluded_volume", True),
                    electrostatics=settings.get("electrostatics", True),
                    charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
-                   platform=settings.get("platform") or "CPU", threads=_threads(), sample_ps=settings.get("sample_ps"))
+                   sample_ps=settings.get("sample_ps"), **member_platform(settings))
         if clamp and settings.get("rotation_clamp_kJ_mol"):
             out["clamp_k_kJ_mol"] = settings["rotation_clamp_kJ_mol"]
         if settings.get("friction_mode", "auto") == "fixed":
@@ -146,9 +168,9 @@ class RingProtocol:
                    equilibration_ns=settings.get("equilibration_ns"), temperature_K=settings.get("temperature_K"),
                    salt_M=settings.get("salt_M"), seed=settings.get("seed") if settings.get("seed") is not None else 1,
                    excluded_volume=settings.get("excluded_volume", True),
-                   electrostatics=settings.get("electrostatics", True), platform=settings.get("platform") or "CPU",
+                   electrostatics=settings.get("electrostatics", True),
                    charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
-                   threads=_threads(), sample_ps=settings.get("sample_ps"))
+                   sample_ps=settings.get("sample_ps"), **member_platform(settings))
         if settings.get("friction_mode", "auto") == "fixed":
             out["friction_per_ps"] = settings.get("friction_per_ps")
         return out

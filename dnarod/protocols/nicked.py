@@ -53,7 +53,7 @@ def _settings(s):
     from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
 
     out = dict(n_bp=300, forcefield="dna-default", time_ns=4.0, equilibration_ns=None, temperature_K=300.0,
-               salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform="CPU", threads=1,
+               salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None, threads=None,
                electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
                softening=DEFAULT_SOFTENING)
     unknown = set(s) - set(out)

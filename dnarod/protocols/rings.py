@@ -35,8 +35,8 @@ def _settings(s):
     from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
 
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
-               temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform="CPU",
-               threads=1, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
+               temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None,
+               threads=None, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
                start_bend_softening=None, start_ns=None)
     unknown = set(s) - set(out)
     if unknown:

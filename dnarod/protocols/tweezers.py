@@ -151,7 +151,7 @@ def _settings(s):
 
     out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
-               friction_per_ps=None, sample_ps=None, platform="CPU", threads=1, electrostatics=True,
+               friction_per_ps=None, sample_ps=None, platform=None, threads=None, electrostatics=True,
                excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE, elastic="auto",
                start_force_pN=None, start_ns=None, previous_turns=None, start_pose_sha256=None)
     unknown = set(s) - set(out)

@@ -44,7 +44,7 @@ _OPTIONS = [
                  help="verlet: NVE (the same as --friction 0)."),
     click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU platform "
                       "if a GPU is present, else the CPU fast path; the choice and its reason are printed]."),
-    click.option("--threads", type=int, default=None, help="OpenMM CPU platform threads."),
+    click.option("--threads", type=int, default=None, help="OpenMM CPU platform threads (without --platform: more than 1 selects the CPU platform, 1 the single-threaded Reference platform)."),
     click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto", show_default=True,
                  help="OpenMM elastic path."),
     click.option("--excluded-volume/--no-excluded-volume", default=None,
