@@ -95,7 +95,8 @@ def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, 
     root = tmp_path / "members"
     shutil.copytree(Path(__file__).parent / "data" / "supercoil" / "buckling_600bp", root)
     opts = dict(time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907), ring_n_bp=600, ring_delta_lk=-3, ring_time_ns=10.0,
-                bracket=False, ring_pair=False, nonbonded=dict(charge="manning", cutoff_debye=5.0))
+                bracket=False, ring_pair=False, nonbonded=dict(charge="manning", cutoff_debye=5.0),
+                platform="CPU")  # the recorded members ran on the CPU platform with one thread
     plan = member_plan(**opts)
     assert sorted(e["folder"] for e in plan) == sorted(p.name for p in root.iterdir() if p.is_dir())
 
@@ -109,6 +110,9 @@ def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, 
     # another production time is another member (a rerun, refused here)
     with pytest.raises(AssertionError, match="simulated instead of reused"):
         run_planned(member_plan(**dict(opts, time_ns=7.0))[-1], root)
+    # ... and so is another platform: the automatic choice (Reference without a GPU) is not the recorded CPU run
+    with pytest.raises(AssertionError, match="simulated instead of reused"):
+        run_planned(member_plan(**dict(opts, platform=None))[-1], root)
 
 
 def test_loop_corrected_ring_pair_recovers_the_bulk_P():

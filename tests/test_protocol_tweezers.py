@@ -679,6 +679,9 @@ def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host
         assert (got["platform"], got["threads"]) == (auto, None)
         cpu = p.member_settings({**base, "platform": "CPU"})
         assert (cpu["platform"], cpu["threads"]) == ("CPU", 1)
+    # a member run directly (validate checks, run_member) resolves the same way, so both share one cache key
+    direct = tw.build_member(dict(n_bp=300, force_pN=1.0, turns=2.0, time_ns=0.01))["settings"]
+    assert (direct["platform"], direct["threads"]) == (auto, None)
     monkeypatch.setenv("OPENMM_CPU_THREADS", "2")
     if auto == "Reference":  # no GPU: two threads ask for the multithreaded CPU platform
         assert (proto.member_settings(base)["platform"], proto.member_settings(base)["threads"]) == ("CPU", 2)

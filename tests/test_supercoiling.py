@@ -312,8 +312,8 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatc
     root = _recorded(tmp_path, "buckling_600bp")
     opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
                 ring_n_bp=600, ring_delta_lk=-3, ring_time_ns=10.0, bracket=False, ring_pair=False,
-                # the recorded members' settings (one ring: logic only)
-                nonbonded=dict(charge="manning", cutoff_debye=5.0))
+                # the recorded members' settings (one ring: logic only; run on the CPU platform, one thread)
+                nonbonded=dict(charge="manning", cutoff_debye=5.0), platform="CPU")
     good = check_buckling(tmp_path, **opts)
     assert good["marko"]["passed"] and not good["drift"]["settled"] and not good["passed"], good
     bad = check_buckling(tmp_path, **opts,
@@ -446,7 +446,7 @@ def test_buckling_full_check_passes_on_the_round7_members(tmp_path, monkeypatch)
     monkeypatch.setattr(tweezers, "sample_member", refuse)
     monkeypatch.setattr(rings, "sample_ring", refuse)
     root = _recorded(tmp_path, "buckling_r7")
-    opts = dict(plots=False, member_root=root, ring_seed=7)
+    opts = dict(plots=False, member_root=root, ring_seed=7, platform="CPU")  # recorded on the CPU platform
     good = check_buckling(tmp_path, **opts)
     assert good["passed"] and good["drift"]["settled"] and good["ring_pair_premise"]["passed"], good["gates"]
     mk = good["marko"]

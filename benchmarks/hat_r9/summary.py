@@ -17,6 +17,12 @@ Other runs' points (a results JSON of this script or of ``hat_r8/summary.py``) a
     python benchmarks/hat_r9/summary.py runs/hat_r10 --out benchmarks/results/hat_1kbp_r10.json \
         --compare r8=benchmarks/results/hat_1kbp_r8.json --compare r9=benchmarks/results/hat_1kbp_r9.json \
         --title "exchange, round 10" --figure docs/figures/hat_1kbp_1pN_exchange_r10.png
+
+Round 11 (``benchmarks/hat_r11/run.sh``):
+
+    python benchmarks/hat_r9/summary.py runs/hat_r11 --out benchmarks/results/hat_1kbp_r11.json \
+        --compare r8=benchmarks/results/hat_1kbp_r8.json --compare r10=benchmarks/results/hat_1kbp_r10.json \
+        --title "exchange, round 11" --figure docs/figures/hat_1kbp_1pN_exchange_r11.png
 """
 from __future__ import annotations
 
@@ -104,7 +110,8 @@ def main(argv=None):
 
 
 LEGEND = {"r8": "round 8: bracketed point (error covers the out/in gap)",
-          "r9": "round 9: exchange, 0.8-turn pairs in the plateaus"}
+          "r9": "round 9: exchange, 0.8-turn pairs in the plateaus",
+          "r10": "round 10: exchange, 0.4-turn rungs, CPU platform, 140 ns"}
 
 
 def figure(points, path, target, labels=("r8",), title="--start exchange"):

@@ -36,7 +36,9 @@ def member_platform(settings):
     choice of :func:`dnarod.openmm.platforms.choose_platform` made now, so the member's settings (and its cache key)
     name the platform it runs on.
 
-    Threads come from ``OPENMM_CPU_THREADS`` (a Dask worker sets 1) and apply to the CPU platform only. Without a
+    Threads (CPU platform only): ``settings["threads"]`` if given, else ``OPENMM_CPU_THREADS`` (a Dask worker sets 1),
+    else 1. The member functions' own settings (:func:`dnarod.protocols.tweezers.build_member`, the rings) resolve
+    ``platform=None`` here too, so a member run directly and one run by the ensemble share a key. Without a
     GPU the automatic choice with one thread is the Reference platform: OpenMM's CPU platform hands every step to a
     worker thread even with ``Threads=1``; for a 1-kbp tweezers member in the exchange loop's pattern it took
     2.0-2.1x the CPU time and 2.4-2.5x the wall time of the Reference platform, straight and plectonemic
@@ -49,8 +51,9 @@ def member_platform(settings):
     """
     from ..openmm.platforms import choose_platform
 
-    platform = settings.get("platform") or choose_platform(None, threads=_threads())[0].getName()
-    return dict(platform=platform, threads=_threads() if platform == "CPU" else None)
+    threads = settings.get("threads") or _threads()
+    platform = settings.get("platform") or choose_platform(None, threads=threads)[0].getName()
+    return dict(platform=platform, threads=int(threads) if platform == "CPU" else None)
 
 
 def member_seed(seed, *key):

@@ -314,7 +314,7 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
                 temperature=300.0, seed=31, P_nm=None, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None,
                 ring_seed=5, bracket=None, grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None,
                 nonbonded=None, pre_time_ns=None, ring_pair_equilibration_ns=None, bracket_start="above",
-                above_turns=None, above_ns=None):
+                above_turns=None, above_ns=None, platform=None):
     """The members :func:`check_buckling` runs with these options, in the order it runs them.
 
     Each entry is a dict: ``kind`` (``"tweezers"``: :func:`dnarod.protocols.tweezers.run_member`; ``"ring"``:
@@ -323,7 +323,9 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
     ``"post"``, ``"post_grown"``, ``"above_source"``, ``"post_above"``) with ``index`` (0 pre-buckling, 1 and 2
     post-buckling). A ``"post_above"`` member starts from the final pose of the ``"above_source"`` member named
     by its ``start_from`` (:func:`run_planned`). Members run in advance with exactly these settings into the
-    member root (e.g. in parallel processes) are reused by the check. Same keywords as :func:`check_buckling`.
+    member root (e.g. in parallel processes) are reused by the check. Same keywords as :func:`check_buckling`;
+    ``platform`` (an OpenMM platform name; default the automatic choice) goes into every member's settings, so
+    members recorded on one platform are reused only by a check asked to run on it.
     """
     from ..forcefield import load_forcefield
     from ..protocols.tweezers import intrinsic_turns
@@ -342,6 +344,8 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
     bracket = (not quick) if bracket is None else bool(bracket)
     grown_ns = grown_ns or (2.0 if quick else 20.0)
     nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
+    if platform:
+        nb["platform"] = platform
     plan = []
     if P_nm is None:  # the model's plectoneme twist stiffness, from plectonemic rings of the same model
         ring_n_bp = ring_n_bp or 400
@@ -415,14 +419,16 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                    P_err_nm=0.0, ring_n_bp=None, ring_delta_lk=None, ring_time_ns=None, ring_seed=5, bracket=None,
                    grown_force_pN=0.3, grown_ns=None, ring_pair=None, ring_pair_time_ns=None, nonbonded=None,
                    pre_time_ns=None, ring_pair_equilibration_ns=None, bracket_start="above", above_turns=None,
-                   above_ns=None):
+                   above_ns=None, platform=None):
     """Run the check (see the module docstring).
 
     ``bracket`` (default: the full form) runs each post-buckling member twice, from the straight start and from
     a plectoneme grown for ``grown_ns`` at ``grown_force_pN`` (longer than at the member's force), and requires
     the two to agree; ``time_ns`` is then each member's production after its equilibration. ``nonbonded``
     (dict with ``charge`` and/or ``cutoff_debye``) runs the members and rings with other non-bonded terms than
-    the defaults (the recorded test members were run with Manning's charge and 5 Debye lengths).
+    the defaults (the recorded test members were run with Manning's charge and 5 Debye lengths). ``platform``
+    runs the members on that OpenMM platform (default: the automatic choice; the recorded test members were run on
+    the CPU platform with one thread, ``platform="CPU"`` reuses them).
     """
     from pathlib import Path
 
@@ -445,7 +451,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
                        grown_force_pN=grown_force_pN, grown_ns=grown_ns, ring_pair=ring_pair,
                        ring_pair_time_ns=ring_pair_time_ns, nonbonded=nonbonded, pre_time_ns=pre_time_ns,
                        ring_pair_equilibration_ns=ring_pair_equilibration_ns, bracket_start=bracket_start,
-                       above_turns=above_turns, above_ns=above_ns)
+                       above_turns=above_turns, above_ns=above_ns, platform=platform)
     n_bp = n_bp or (400 if quick else 600)
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lk0 = intrinsic_turns(model)
