@@ -682,6 +682,10 @@ def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host
     # a member run directly (validate checks, run_member) resolves the same way, so both share one cache key
     direct = tw.build_member(dict(n_bp=300, force_pN=1.0, turns=2.0, time_ns=0.01))["settings"]
     assert (direct["platform"], direct["threads"]) == (auto, None)
+    for bad in ("two", "0", "-1"):  # OpenMM's own variable, misspelt: one line, not a traceback
+        monkeypatch.setenv("OPENMM_CPU_THREADS", bad)
+        with pytest.raises(DnarodError, match="OPENMM_CPU_THREADS"):
+            proto.member_settings(base)
     monkeypatch.setenv("OPENMM_CPU_THREADS", "2")
     if auto == "Reference":  # no GPU: two threads ask for the multithreaded CPU platform
         assert (proto.member_settings(base)["platform"], proto.member_settings(base)["threads"]) == ("CPU", 2)

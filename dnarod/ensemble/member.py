@@ -183,9 +183,11 @@ def _run(proto, settings, mdir, log):
     _, run = _run_api()
     build = getattr(proto, "build", None) or resolve_build()
     spec = build(settings)
-    threads = os.environ.get("OPENMM_CPU_THREADS")
+    from ..openmm.platforms import env_threads
+
+    threads = env_threads()
     if getattr(spec, "threads", "absent") is None and threads and spec.engine == "openmm":
-        spec = spec.replace(threads=int(threads))
+        spec = spec.replace(threads=threads)
     has_ckpt = (mdir / "checkpoint.npz").exists()
     started = (mdir / "run.json").exists()
     if has_ckpt:

@@ -96,6 +96,24 @@ def opencl_gpu_devices():
     return tuple(names)
 
 
+def env_threads():
+    """``OPENMM_CPU_THREADS`` (OpenMM's own variable; a Dask worker of dnarod sets 1) as an int, or None if unset.
+
+    Raises
+    ------
+    ParameterError
+        If it is set to anything but a whole number >= 1 (one line, not a traceback).
+    """
+    import os
+
+    t = os.environ.get("OPENMM_CPU_THREADS", "").strip()
+    if not t:
+        return None
+    if not t.isdigit() or int(t) < 1:
+        raise ParameterError(f"OPENMM_CPU_THREADS={t!r}: give a whole number of threads >= 1 (or unset it)")
+    return int(t)
+
+
 def platform_properties(name, threads=None, precision=None):
     """OpenMM platform properties for ``name``: ``Threads`` on CPU, ``Precision`` on GPU platforms."""
     props = {}

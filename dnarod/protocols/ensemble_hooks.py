@@ -10,7 +10,6 @@ damping of the slowest bending mode; "fixed": the spec's ``friction_per_ps``).
 """
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 from ..errors import DnarodError
@@ -27,8 +26,10 @@ def _source(settings):
 
 
 def _threads():
-    t = os.environ.get("OPENMM_CPU_THREADS")
-    return int(t) if t else 1
+    """Threads of a member on the CPU platform: ``OPENMM_CPU_THREADS`` (OpenMM's own variable), else 1."""
+    from ..openmm.platforms import env_threads
+
+    return env_threads() or 1
 
 
 def member_platform(settings):
