@@ -20,7 +20,7 @@ Automatic choice (``requested=None``), in order:
    1.1-3.2x faster at 10^2-10^4 nodes and tied within the runs' noise at 10^5-10^6, where the
    CPU platform's threaded integrator may still gain wall-clock time from idle cores
    (``--threads``; not measurable on this loaded 2-core machine). A 1-kbp tweezers member with the
-   compiled plugin, stepped in 20-ps rounds, took 2.0-2.1x the CPU time and 2.4-2.5x the wall
+   compiled plugin, stepped in 20-ps rounds, took 1.9-2.1x the CPU time and 2.3-2.5x the wall
    time on the CPU platform with one thread (``benchmarks/bench_exchange_platform.py``).
 
 ``requested`` (``--platform``) overrides the choice; the reason of the choice is returned so

@@ -42,7 +42,7 @@ def member_platform(settings):
     ``platform=None`` here too, so a member run directly and one run by the ensemble share a key. Without a
     GPU the automatic choice with one thread is the Reference platform: OpenMM's CPU platform hands every step to a
     worker thread even with ``Threads=1``; for a 1-kbp tweezers member in the exchange loop's pattern it took
-    2.0-2.1x the CPU time and 2.4-2.5x the wall time of the Reference platform, straight and plectonemic
+    1.9-2.1x the CPU time and 2.3-2.5x the wall time of the Reference platform, straight and plectonemic
     (``benchmarks/bench_exchange_platform.py``, ``results/exchange_platform.json``).
 
     Returns
