@@ -682,6 +682,9 @@ def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host
     # a member run directly (validate checks, run_member) resolves the same way, so both share one cache key
     direct = tw.build_member(dict(n_bp=300, force_pN=1.0, turns=2.0, time_ns=0.01))["settings"]
     assert (direct["platform"], direct["threads"]) == (auto, None)
+    # the automatic choice follows the member's elastic path (the portable path prefers the CPU platform)
+    portable = tw.build_member(dict(n_bp=300, force_pN=1.0, turns=2.0, time_ns=0.01, elastic="portable"))["settings"]
+    assert portable["platform"] == choose_platform(None, threads=1, elastic="portable")[0].getName()
     for bad in ("two", "0", "-1"):  # OpenMM's own variable, misspelt: one line, not a traceback
         monkeypatch.setenv("OPENMM_CPU_THREADS", bad)
         with pytest.raises(DnarodError, match="OPENMM_CPU_THREADS"):

@@ -114,6 +114,32 @@ def env_threads():
     return int(t)
 
 
+def member_platform(platform=None, threads=None, elastic="auto"):
+    """The platform a protocol member (tweezers, rings, nicked rings) runs on, resolved when its settings are made,
+    so the settings (and the member's cache key) name it.
+
+    Parameters
+    ----------
+    platform : str or None
+        Platform asked for; ``None`` for the automatic choice of :func:`choose_platform` (with ``threads`` and
+        ``elastic``): without a GPU and with one thread, the Reference platform. For a 1-kbp tweezers member in the
+        exchange loop's pattern the CPU platform with one thread took 1.9-2.1x the CPU time and 2.3-2.5x the wall
+        time of Reference (``benchmarks/bench_exchange_platform.py``).
+    threads : int or None
+        CPU platform threads; default :func:`env_threads` (a Dask worker sets 1), else 1.
+    elastic : str
+        The member's elastic path (``"portable"`` prefers the multithreaded CPU platform).
+
+    Returns
+    -------
+    dict
+        ``platform`` (str) and ``threads`` (int on the CPU platform, else None).
+    """
+    threads = int(threads or env_threads() or 1)
+    name = platform or choose_platform(None, threads=threads, elastic=elastic)[0].getName()
+    return dict(platform=name, threads=threads if name == "CPU" else None)
+
+
 def platform_properties(name, threads=None, precision=None):
     """OpenMM platform properties for ``name``: ``Threads`` on CPU, ``Precision`` on GPU platforms."""
     props = {}

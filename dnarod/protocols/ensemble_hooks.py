@@ -25,36 +25,11 @@ def _source(settings):
     return {"sequence": s}
 
 
-def _threads():
-    """Threads of a member on the CPU platform: ``OPENMM_CPU_THREADS`` (OpenMM's own variable), else 1."""
-    from ..openmm.platforms import env_threads
+def _member_platform(settings):
+    """``platform``/``threads`` of a member from the spec (:func:`dnarod.openmm.platforms.member_platform`)."""
+    from ..openmm.platforms import member_platform
 
-    return env_threads() or 1
-
-
-def member_platform(settings):
-    """``platform`` and ``threads`` of a protocol member (tweezers, rings): the one asked for, else the automatic
-    choice of :func:`dnarod.openmm.platforms.choose_platform` made now, so the member's settings (and its cache key)
-    name the platform it runs on.
-
-    Threads (CPU platform only): ``settings["threads"]`` if given, else ``OPENMM_CPU_THREADS`` (a Dask worker sets 1),
-    else 1. The member functions' own settings (:func:`dnarod.protocols.tweezers.build_member`, the rings) resolve
-    ``platform=None`` here too, so a member run directly and one run by the ensemble share a key. Without a
-    GPU the automatic choice with one thread is the Reference platform: OpenMM's CPU platform hands every step to a
-    worker thread even with ``Threads=1``; for a 1-kbp tweezers member in the exchange loop's pattern it took
-    1.9-2.1x the CPU time and 2.3-2.5x the wall time of the Reference platform, straight and plectonemic
-    (``benchmarks/bench_exchange_platform.py``, ``results/exchange_platform.json``).
-
-    Returns
-    -------
-    dict
-        ``platform`` (str) and ``threads`` (int, or None off the CPU platform).
-    """
-    from ..openmm.platforms import choose_platform
-
-    threads = settings.get("threads") or _threads()
-    platform = settings.get("platform") or choose_platform(None, threads=threads)[0].getName()
-    return dict(platform=platform, threads=int(threads) if platform == "CPU" else None)
+    return member_platform(settings.get("platform"), settings.get("threads"))
 
 
 def member_seed(seed, *key):
@@ -124,7 +99,7 @@ class TweezersProtocol:
                    excluded_volume=settings.get("excluded_volume", True),
                    electrostatics=settings.get("electrostatics", True),
                    charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
-                   sample_ps=settings.get("sample_ps"), **member_platform(settings))
+                   sample_ps=settings.get("sample_ps"), **_member_platform(settings))
         if clamp and settings.get("rotation_clamp_kJ_mol"):
             out["clamp_k_kJ_mol"] = settings["rotation_clamp_kJ_mol"]
         if settings.get("friction_mode", "auto") == "fixed":
@@ -174,7 +149,7 @@ class RingProtocol:
                    excluded_volume=settings.get("excluded_volume", True),
                    electrostatics=settings.get("electrostatics", True),
                    charge=settings.get("charge"), cutoff_debye=settings.get("cutoff_debye"),
-                   sample_ps=settings.get("sample_ps"), **member_platform(settings))
+                   sample_ps=settings.get("sample_ps"), **_member_platform(settings))
         if settings.get("friction_mode", "auto") == "fixed":
             out["friction_per_ps"] = settings.get("friction_per_ps")
         return out

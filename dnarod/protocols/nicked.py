@@ -51,7 +51,7 @@ DEFAULT_SOFTENING = 16.0
 
 def _settings(s):
     from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
-    from .ensemble_hooks import member_platform
+    from ..openmm.platforms import member_platform
 
     out = dict(n_bp=300, forcefield="dna-default", time_ns=4.0, equilibration_ns=None, temperature_K=300.0,
                salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None, threads=None,
@@ -63,7 +63,7 @@ def _settings(s):
     out.update({k: v for k, v in s.items() if v is not None})
     if not (float(out["softening"]) >= 1.0):
         raise DnarodError(f"softening {out['softening']}: give a factor >= 1 by which the twist stiffness is divided")
-    out.update(member_platform(out))  # the platform it runs on, named in its key
+    out.update(member_platform(out["platform"], out["threads"], "auto"))  # the platform it runs on, in its key
     return out
 
 

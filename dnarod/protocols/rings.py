@@ -33,7 +33,7 @@ COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_lengt
 
 def _settings(s):
     from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
-    from .ensemble_hooks import member_platform
+    from ..openmm.platforms import member_platform
 
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
                temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None,
@@ -43,7 +43,7 @@ def _settings(s):
     if unknown:
         raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
     out.update({k: v for k, v in s.items() if v is not None})
-    out.update(member_platform(out))  # the platform it runs on, named in its key
+    out.update(member_platform(out["platform"], out["threads"], "auto"))  # the platform it runs on, in its key
     return out
 
 

@@ -148,7 +148,7 @@ def auto_friction(model, force_pN, temperature, lp=None):
 
 def _settings(s):
     from ..openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
-    from .ensemble_hooks import member_platform
+    from ..openmm.platforms import member_platform
 
     out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
@@ -159,7 +159,7 @@ def _settings(s):
     if unknown:
         raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
     out.update({k: v for k, v in s.items() if v is not None or k == "turns"})
-    out.update(member_platform(out))  # the platform it runs on, named in its key
+    out.update(member_platform(out["platform"], out["threads"], out["elastic"]))  # the platform it runs on, in its key
     return out
 
 
