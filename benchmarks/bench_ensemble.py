@@ -1,10 +1,13 @@
 """Benchmark: ensembles on dask.distributed.
 
-1. Speed-up: 8 members of a 200-bp OpenMM run (CPU platform, one thread, clamped and pulled,
+1. Speed-up: 8 members of a 200-bp OpenMM run (the automatic platform, one thread: OpenMM's Reference
+   platform since round 11, ``--platform CPU`` for the CPU platform with one thread; clamped and pulled,
    forces 0.5-4 pN) on a 2-worker ``LocalCluster`` against the same 8 members one after another
    in this process (the worker function itself, same one-thread settings). Target >= 1.8x on 2
    cores. The cluster is started and every process (this one and each worker) is warmed up by one
-   tiny member (imports, numba compilation) before the clocks; both are reported separately.
+   tiny member (imports, numba compilation) before the clocks; both are reported separately. Each
+   member's own wall and CPU time (its ``result.json``) is kept for both sides, so a side that is
+   slower per member shows where.
 2. Scheduling overhead per member: ``--overhead-members`` members of the "null" protocol (no
    simulation: each writes its member.json, log and result.json) on the same cluster; wall time
    per member (target < 0.5 s).
@@ -60,15 +63,25 @@ def warm_up():
     return True
 
 
-def speedup(time_ns, workdir):
+def _member_times(outdir, members):
+    """Each member's (wall_s, cpu_s) from its result.json."""
+    from dnarod.ensemble.member import member_dir, read_result
+
+    return [[round(float(r["wall_s"]), 3), round(float(r["cpu_s"]), 3)]
+            for r in (read_result(member_dir(outdir, m.id)) for m in members)]
+
+
+def speedup(time_ns, workdir, platform_name=None):
     from distributed import Client
 
     from dnarod.ensemble import Ensemble, local_cluster, run_member
 
-    doc = {"base": {"source": SEQ200, "engine": "openmm", "platform": "CPU", "time_ns": time_ns, "clamp_first": True,
-                    "frame_interval_ps": 2.0},
-           "axes": {"force_pN": [0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0]}}
-    out = {"members": 8, "n_bp": 200, "time_ns_per_member": time_ns, "load_before": load()}
+    base = {"source": SEQ200, "engine": "openmm", "time_ns": time_ns, "clamp_first": True, "frame_interval_ps": 2.0}
+    if platform_name:
+        base["platform"] = platform_name
+    doc = {"base": base, "axes": {"force_pN": [0.5, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0]}}
+    out = {"members": 8, "n_bp": 200, "time_ns_per_member": time_ns, "platform": platform_name or "automatic",
+           "load_before": load()}
     ens = Ensemble.from_dict(doc, workdir / "seq")
     ens.prepare()
     warm_up()
@@ -78,6 +91,7 @@ def speedup(time_ns, workdir):
         assert rec["status"] == "ok", rec
     out["sequential_wall_s"] = time.perf_counter() - t
     out["sequential_cpu_s"] = time.process_time() - c
+    out["sequential_member_wall_cpu_s"] = _member_times(workdir / "seq", ens.members)
     t = time.perf_counter()
     cluster = local_cluster(2)
     client = Client(cluster, set_as_default=False)
@@ -91,6 +105,7 @@ def speedup(time_ns, workdir):
         par.run(client=client, progress=False)
         out["parallel_wall_s"] = time.perf_counter() - t
         out["parallel_member_cpu_s"] = par.summary["member_cpu_s_total"]
+        out["parallel_member_wall_cpu_s"] = _member_times(workdir / "par", par.members)
         assert par.summary["status"] == {"ok": 8}, par.summary
         out["tables_equal"] = bool(par.results().equals(ens.results()))
     finally:
@@ -171,6 +186,7 @@ def memory(ns, workdir):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--time-ns", type=float, default=2.0, help="simulated time per 200-bp member, ns")
+    ap.add_argument("--platform", default=None, help="OpenMM platform of the speed-up members (default: automatic)")
     ap.add_argument("--overhead-members", type=int, default=200)
     ap.add_argument("--memory-members", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--skip", nargs="*", default=[], choices=["speedup", "overhead", "memory"])
@@ -182,13 +198,17 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         if "speedup" not in args.skip:
-            s = res["speedup"] = speedup(args.time_ns, tmp)
-            print(f"8 x 200-bp members, {args.time_ns:g} ns each (load {s['load_before']} -> {s['load_after']})")
+            s = res["speedup"] = speedup(args.time_ns, tmp, args.platform)
+            print(f"8 x 200-bp members, {args.time_ns:g} ns each, platform {s['platform']} "
+                  f"(load {s['load_before']} -> {s['load_after']})")
             print(f"  sequential, one process   wall {s['sequential_wall_s']:8.1f} s   CPU {s['sequential_cpu_s']:8.1f} s")
             print(f"  2-worker LocalCluster     wall {s['parallel_wall_s']:8.1f} s   member CPU "
                   f"{s['parallel_member_cpu_s']:8.1f} s   (cluster start-up {s['cluster_startup_s']:.1f} s, "
                   f"worker warm-up {s['worker_warm_up_s']:.1f} s)")
             print(f"  speed-up {s['speedup']:.2f}x   tables equal: {s['tables_equal']}")
+            for side in ("sequential", "parallel"):
+                print(f"  {side:10s} per member (wall, CPU) s: "
+                      + "  ".join(f"{w:.1f}/{c:.1f}" for w, c in s[f"{side}_member_wall_cpu_s"]))
         if "overhead" not in args.skip:
             o = res["overhead"] = overhead(args.overhead_members, tmp)
             print(f"{o['members']} null members on 2 workers: wall {o['wall_s']:.2f} s -> {o['per_member_s'] * 1000:.1f} ms"
