@@ -112,7 +112,8 @@ def main(argv=None):
 LEGEND = {"r8": "round 8: bracketed point (error covers the out/in gap)",
           "r9": "round 9: exchange, 0.8-turn pairs in the plateaus",
           "r10": "round 10: exchange, 0.4-turn rungs, CPU platform, 140 ns",
-          "r11": "round 11: exchange, Reference platform, 0.4-turn rungs below buckling, 240 ns"}
+          "r11": "round 11: exchange, Reference platform, 0.4-turn rungs below buckling, 240 ns",
+          "r12": "round 12: exchange, 0.2-turn rungs on both plateaus, 210 ns"}
 
 
 def figure(points, path, target, labels=("r8",), title="--start exchange"):
