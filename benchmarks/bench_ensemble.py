@@ -7,7 +7,10 @@
    cores. The cluster is started and every process (this one and each worker) is warmed up by one
    tiny member (imports, numba compilation) before the clocks; both are reported separately. Each
    member's own wall and CPU time (its ``result.json``) is kept for both sides, so a side that is
-   slower per member shows where.
+   slower per member shows where. Members are 20 ns (~9 s each on Reference; at 2 ns, 0.8 s each, the
+   scheduling dominates). On the CPU platform with one thread a member took 3.1 s of wall (2.5 s CPU) one
+   after another on the otherwise idle machine and 1.2 s (1.2 s CPU) with both workers busy (2026-12-07):
+   its thread hand-offs cost more on an idle machine, which inflates the CPU platform's "speed-up" to 4x.
 2. Scheduling overhead per member: ``--overhead-members`` members of the "null" protocol (no
    simulation: each writes its member.json, log and result.json) on the same cluster; wall time
    per member (target < 0.5 s).
@@ -185,7 +188,7 @@ def memory(ns, workdir):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--time-ns", type=float, default=2.0, help="simulated time per 200-bp member, ns")
+    ap.add_argument("--time-ns", type=float, default=20.0, help="simulated time per 200-bp member, ns")
     ap.add_argument("--platform", default=None, help="OpenMM platform of the speed-up members (default: automatic)")
     ap.add_argument("--overhead-members", type=int, default=200)
     ap.add_argument("--memory-members", type=int, nargs="+", default=[10, 100, 1000])
