@@ -9,8 +9,8 @@
    member's own wall and CPU time (its ``result.json``) is kept for both sides, so a side that is
    slower per member shows where. Members are 20 ns (~9 s each on Reference; at 2 ns, 0.8 s each, the
    scheduling dominates). On the CPU platform with one thread a member took 3.1 s of wall (2.5 s CPU) one
-   after another on the otherwise idle machine and 1.2 s (1.2 s CPU) with both workers busy (2026-12-07):
-   its thread hand-offs cost more on an idle machine, which inflates the CPU platform's "speed-up" to 4x.
+   after another on the otherwise idle machine and 1.2 s (1.2 s CPU) with both workers busy (2026-12-07;
+   cause not proven), which inflates the CPU platform's "speed-up" to 4x; Reference shows no such effect.
 2. Scheduling overhead per member: ``--overhead-members`` members of the "null" protocol (no
    simulation: each writes its member.json, log and result.json) on the same cluster; wall time
    per member (target < 0.5 s).
@@ -32,6 +32,7 @@ os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
 import json  # noqa: E402
+import math  # noqa: E402
 import platform  # noqa: E402
 import resource  # noqa: E402
 import subprocess  # noqa: E402
@@ -186,10 +187,25 @@ def memory(ns, workdir):
     return rows
 
 
+def _positive(text):
+    v = float(text)
+    if not math.isfinite(v) or v <= 0:
+        raise argparse.ArgumentTypeError(f"{text!r}: give a finite time > 0 ns")
+    return v
+
+
+def _platform_names():
+    """The OpenMM platforms this installation has (so a misspelt one is refused before any member runs)."""
+    import openmm
+
+    return [openmm.Platform.getPlatform(i).getName() for i in range(openmm.Platform.getNumPlatforms())]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--time-ns", type=float, default=20.0, help="simulated time per 200-bp member, ns")
-    ap.add_argument("--platform", default=None, help="OpenMM platform of the speed-up members (default: automatic)")
+    ap.add_argument("--time-ns", type=_positive, default=20.0, help="simulated time per 200-bp member, ns")
+    ap.add_argument("--platform", default=None, choices=_platform_names(),
+                    help="OpenMM platform of the speed-up members (default: automatic)")
     ap.add_argument("--overhead-members", type=int, default=200)
     ap.add_argument("--memory-members", type=int, nargs="+", default=[10, 100, 1000])
     ap.add_argument("--skip", nargs="*", default=[], choices=["speedup", "overhead", "memory"])
