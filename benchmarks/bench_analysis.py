@@ -11,10 +11,10 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.analysis import LinkingNumber, StepAnalysis, StiffnessFit, TangentCorrelation
-from dnarod.analysis.sampling import sample_chains
-from dnarod.analysis.writhe import writhe
-from dnarod.forcefield import load_forcefield
-from dnarod.thermal import kT
+from dnarod.physics.sampling import sample_chains
+from dnarod.physics.writhe import writhe
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.thermal import kT
 
 
 def timed(fn, repeat=3):
@@ -44,7 +44,7 @@ def main():
         t = timed(lambda: writhe(P))
         rows.append(dict(analysis="writhe", frames=1, nodes=n, seconds=t, us_per_step=1e6 * t / n))
     s = np.linspace(0, 2 * np.pi, 200, endpoint=False)
-    from dnarod.trajectory import Trajectory
+    from dnarod.core.trajectory import Trajectory
     P = 10 * np.stack([np.cos(s), np.sin(s), 0 * s], 1)
     T = np.stack([-np.sin(s), np.cos(s), 0 * s], 1)
     N = -P / 10

@@ -58,7 +58,7 @@ def warm_up():
     """One tiny OpenMM member in this process (imports, numba compilation, OpenMM plugins)."""
     import tempfile
 
-    from dnarod.ensemble import parse_spec, run_member
+    from dnarod.workflows.ensemble import parse_spec, run_member
 
     m = next(parse_spec({"base": {"source": "ACGTACGTACGT", "time_ns": 0.002, "clamp_first": True,
                                   "force_pN": 1.0}}).members())
@@ -69,7 +69,7 @@ def warm_up():
 
 def _member_times(outdir, members):
     """Each member's (wall_s, cpu_s) from its result.json."""
-    from dnarod.ensemble.member import member_dir, read_result
+    from dnarod.workflows.ensemble.member import member_dir, read_result
 
     return [[round(float(r["wall_s"]), 3), round(float(r["cpu_s"]), 3)]
             for r in (read_result(member_dir(outdir, m.id)) for m in members)]
@@ -78,7 +78,7 @@ def _member_times(outdir, members):
 def speedup(time_ns, workdir, platform_name=None):
     from distributed import Client
 
-    from dnarod.ensemble import Ensemble, local_cluster, run_member
+    from dnarod.workflows.ensemble import Ensemble, local_cluster, run_member
 
     base = {"source": SEQ200, "engine": "openmm", "time_ns": time_ns, "clamp_first": True, "frame_interval_ps": 2.0}
     if platform_name:
@@ -123,11 +123,11 @@ def speedup(time_ns, workdir, platform_name=None):
 def overhead(n, workdir):
     from distributed import Client
 
-    from dnarod.ensemble import Ensemble, local_cluster
+    from dnarod.workflows.ensemble import Ensemble, local_cluster
 
     cluster = local_cluster(2)
     client = Client(cluster, set_as_default=False)
-    client.run(lambda: __import__("dnarod.ensemble.member"))
+    client.run(lambda: __import__("dnarod.workflows.ensemble.member"))
     try:
         doc = {"base": {"source": "ACGTACGTACGT"}, "axes": {"force_pN": {"linspace": [0.0, 1.0, n]}},
                "ensemble": {"protocol": "null"}}
@@ -150,13 +150,13 @@ MEMORY_CHILD = r"""
 import json, os, resource, sys, time, tracemalloc
 from distributed import Client
 from distributed.deploy.subprocess import SubprocessCluster
-from dnarod.ensemble import WORKER_ENV, Ensemble
+from dnarod.workflows.ensemble import WORKER_ENV, Ensemble
 n, out = int(sys.argv[1]), sys.argv[2]
 # scheduler and workers in their own processes: what is measured here is the client alone
 cluster = SubprocessCluster(n_workers=2, threads_per_worker=1, dashboard_address=None,
                             worker_kwargs={"env": dict(WORKER_ENV)})
 client = Client(cluster, set_as_default=False)
-client.run(lambda: __import__("dnarod.ensemble.member"))
+client.run(lambda: __import__("dnarod.workflows.ensemble.member"))
 def rss():
     with open("/proc/self/status") as fh:
         return next(int(l.split()[1]) for l in fh if l.startswith("VmRSS")) * 1024

@@ -28,7 +28,7 @@ def _usage():
 
 
 def _measure(member, platform, rounds, dt, exchange_ps):
-    from dnarod.protocols.exchange import _Replica, ladder_dt  # noqa: F401 - the loop's own replica
+    from dnarod.workflows.protocols.exchange import _Replica, ladder_dt  # noqa: F401 - the loop's own replica
 
     m = {**member, "settings": {**member["settings"], "platform": platform,
                                 "threads": 1 if platform == "CPU" else None}}
@@ -61,8 +61,8 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=2, help="alternating CPU/Reference measurements per member")
     ap.add_argument("--out", default="benchmarks/results/exchange_platform.json")
     a = ap.parse_args(argv)
-    from dnarod.protocols.exchange import ladder_dt
-    from dnarod.protocols.tweezers import build_member, grown_start
+    from dnarod.workflows.protocols.exchange import ladder_dt
+    from dnarod.workflows.protocols.tweezers import build_member, grown_start
 
     base = dict(n_bp=a.n_bp, force_pN=1.0, time_ns=1.0, equilibration_ns=0.0, seed=7)
     members = {"straight 0 turns": build_member({**base, "turns": 0.0})}

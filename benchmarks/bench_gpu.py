@@ -40,7 +40,7 @@ import _harness as H
 
 
 def _default_platform():
-    from dnarod.openmm.platforms import platform_names
+    from dnarod.engines.openmm.platforms import platform_names
 
     names = platform_names()
     for p in ("CUDA", "HIP", "OpenCL"):
@@ -71,8 +71,8 @@ def _rate(sim, budget):
 
 
 def single(n, plat, budget, precision):
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     rng = np.random.default_rng(0)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), n)))
@@ -101,11 +101,11 @@ def _plugin_settle(model, plat, precision):
 
     import openmm
 
-    from dnarod import modes
-    from dnarod.openmm.particles import particle_positions
-    from dnarod.openmm.platforms import platform_properties
-    from dnarod.modes import DEFAULT_OMEGA_DT
-    from dnarod.openmm.system import build_system
+    from dnarod.physics import modes
+    from dnarod.engines.openmm.particles import particle_positions
+    from dnarod.engines.openmm.platforms import platform_properties
+    from dnarod.physics.modes import DEFAULT_OMEGA_DT
+    from dnarod.engines.openmm.system import build_system
 
     rs = build_system(model, plat, "plugin", nonbonded=False)
     dt = DEFAULT_OMEGA_DT / modes.omega_max(model)
@@ -121,8 +121,8 @@ def _plugin_settle(model, plat, precision):
 
 def compare_single(n, plat, budget, precision, elastic):
     """Cold and warm Context creation and steps/s of one elastic path (bonded model) at n nodes."""
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     rng = np.random.default_rng(0)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), n)))
@@ -142,7 +142,7 @@ def compare_single(n, plat, budget, precision, elastic):
         if phase == "cold":
             del sim
     # The elastic force alone: energy evaluations of its force group (only the energy sum leaves the device).
-    from dnarod.openmm.forces import GROUPS
+    from dnarod.engines.openmm.forces import GROUPS
 
     groups = {GROUPS["elastic"]}
     sim.context.getState(getEnergy=True, groups=groups)
@@ -208,7 +208,7 @@ def compare(args, plat):
                   f"{a['warm_context_wall_s']:.2f} s vs {b['warm_context_wall_s']:.2f} s")
     device = ""
     if plat == "OpenCL":
-        from dnarod.openmm.platforms import opencl_gpu_devices
+        from dnarod.engines.openmm.platforms import opencl_gpu_devices
 
         device = "GPU: " + ", ".join(opencl_gpu_devices()) if opencl_gpu_devices() else "no OpenCL GPU (pocl on CPU)"
         print(device)
@@ -265,7 +265,7 @@ def main():
         print(f"1 kbp: {kbp['full_ns_per_day']:.4g} ns/day full model, {kbp['bonded_ns_per_day']:.4g} bonded "
               f"(dt {kbp['dt_ps'] * 1000:.1f} fs)")
     if plat == "OpenCL":
-        from dnarod.openmm.platforms import opencl_gpu_devices
+        from dnarod.engines.openmm.platforms import opencl_gpu_devices
 
         device = "GPU: " + ", ".join(opencl_gpu_devices()) if opencl_gpu_devices() else "no OpenCL GPU (pocl on CPU?)"
         print(device)

@@ -150,7 +150,7 @@ def main(argv=None):
         return main_curve(a)
     if a.extend:
         return main_extend(a)
-    from dnarod.protocols.tweezers import run_member
+    from dnarod.workflows.protocols.tweezers import run_member
 
     turns = [float(t) for t in a.turns.split(",")]
     cuts = [float(c) for c in a.cut.split(",")]
@@ -195,8 +195,8 @@ def main(argv=None):
 
 def main_extend(a):
     """Continue sweep members at their own turns and analyse the continuations (see the module docstring)."""
-    from dnarod.protocols.sweep import load_pose
-    from dnarod.protocols.tweezers import run_member
+    from dnarod.workflows.protocols.sweep import load_pose
+    from dnarod.workflows.protocols.tweezers import run_member
 
     rows = []
     for src in a.extend.split(","):
@@ -235,7 +235,7 @@ def main_curve(a):
     out_path.parent.mkdir(parents=True, exist_ok=True)
     out_path.write_text(json.dumps(out, indent=1) + "\n")
     if a.figure:
-        from dnarod.protocols.curves import _write_csv, plot_curve
+        from dnarod.workflows.protocols.curves import _write_csv, plot_curve
 
         obs = []
         for rj in Path(a.curve).glob("ensemble/members/*/result.json"):

@@ -1,6 +1,6 @@
 """Throughput of the Lax-engine splitting integrator: node-steps per CPU-second, 10^2 to 10^5 nodes.
 
-Compares, in one run, the numpy reference path (dnarod.energy.loads + vectorised updates), the
+Compares, in one run, the numpy reference path (dnarod.core.energy.loads + vectorised updates), the
 scalar numba kernel and the SIMD-blocked numba kernel (the default), NVE, dt = 0.05 ps, dna-default
 rod at 300 K. If PyElastica is importable (``--elastica-python`` may point to another interpreter
 that has it), its PositionVerlet on a Cosserat rod with the same number of elements is measured
@@ -20,8 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.forcefield import load_forcefield
-from dnarod.integrators.splitting import SplittingIntegrator, maxwell_state
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.lax.splitting import SplittingIntegrator, maxwell_state
 
 ELASTICA_SNIPPET = r"""
 import sys, time, numpy as np

@@ -1,4 +1,4 @@
-"""Timings of dnarod.modes (Hessian, omega_max), the Lax engine's start-up and the static solver.
+"""Timings of dnarod.physics.modes (Hessian, omega_max), the Lax engine's start-up and the static solver.
 
 Prints a table and writes benchmarks/results/bench_modes.json. Wall and CPU (process) time are given
 side by side (the machine may be shared); each figure is the best of ``repeat`` runs.
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod import modes
-from dnarod.forcefield import load_forcefield
+from dnarod.physics import modes
+from dnarod.core.forcefield import load_forcefield
 
 
 def timed(fn, repeat=3):
@@ -47,7 +47,7 @@ def main(quick=False):
                              hessian_wall_s=th, hessian_cpu_s=ch, omega_max_wall_s=tw, omega_max_cpu_s=cw,
                              omega_max_rad_per_ps=w))
     # Lax engine start-up (SplittingIntegrator with its stability check = one omega_max) at 20,000 nodes
-    from dnarod.integrators import SplittingIntegrator
+    from dnarod.engines.lax import SplittingIntegrator
 
     m = ff.model_from_sequence("".join(rng.choice(list("ACGT"), 20000)))
     dt, w = modes.default_time_step(m)
@@ -56,8 +56,8 @@ def main(quick=False):
     rows.append(dict(what="lax start (SplittingIntegrator init + first step)", nodes=20000, chain="open",
                      sequence="random", init_wall_s=ti, init_cpu_s=ci, first_step_wall_s=ts, first_step_cpu_s=cs))
     # static solver: cantilever
-    from dnarod.loads import Clamp, PullingForce
-    from dnarod.statics import solve_static
+    from dnarod.physics.loads import Clamp, PullingForce
+    from dnarod.physics.statics import solve_static
 
     for n in ((100,) if quick else (100, 1000)):
         m = ff.model_from_sequence(n_nodes=n)

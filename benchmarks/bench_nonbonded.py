@@ -1,6 +1,6 @@
 """Benchmark: the non-bonded terms' share of an OpenMM step on a coiled chain.
 
-For 10^3 .. 10^6 nodes of dna-default DNA in a thermal coil (:func:`dnarod.testsystems.gaussian_coil`,
+For 10^3 .. 10^6 nodes of dna-default DNA in a thermal coil (:func:`dnarod.physics.testsystems.gaussian_coil`,
 300 K), LangevinMiddle at the default time step on the platform the automatic choice picks for
 the size, each size in its own process (optionally pinned with ``taskset``):
 
@@ -52,9 +52,9 @@ class _Timed:
 
 
 def single(n, budget, repeats, elastic="fast"):
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.testsystems import gaussian_coil
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.physics.testsystems import gaussian_coil
 
     rng = np.random.default_rng(0)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), n)))
@@ -65,7 +65,7 @@ def single(n, budget, repeats, elastic="fast"):
                radius_of_gyration_nm=float(np.sqrt(((model.positions - model.positions.mean(0)) ** 2).sum(1).mean())))
     sims = {}
     timed = None
-    from dnarod.openmm.nonbonded import NonbondedSettings
+    from dnarod.engines.openmm.nonbonded import NonbondedSettings
 
     legacy = NonbondedSettings(charge="manning", cutoff_debye=5.0)
     for name, nb in (("bonded", False), ("full", True), ("manning5", legacy)):

@@ -2,7 +2,7 @@
 
 For 10^2 .. 10^6 nodes of dna-default DNA (LangevinMiddle, 300 K, the default time step),
 each size in its own process (clean peak memory; pinned to one core with ``--pin``), on the
-platform :func:`dnarod.openmm.platforms.choose_platform` picks (Reference on a machine
+platform :func:`dnarod.engines.openmm.platforms.choose_platform` picks (Reference on a machine
 without a GPU):
 
 * ``floor``    -- the same particles and constraints with no forces (bare integration);
@@ -51,10 +51,10 @@ def single(n, budget, repeats):
     """Measure one size; returns a dict (run in a fresh process)."""
     import openmm
 
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.particles import particle_positions
-    from dnarod.openmm.platforms import choose_platform
-    from dnarod.openmm.simulation import RodSimulation, omega_max
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.particles import particle_positions
+    from dnarod.engines.openmm.platforms import choose_platform
+    from dnarod.engines.openmm.simulation import RodSimulation, omega_max
 
     ff = load_forcefield("dna-default")
     rng = np.random.default_rng(0)
@@ -109,8 +109,8 @@ def single(n, budget, repeats):
 
 def kbp(budget, elastic="auto"):
     """1 kbp duplex, 300 K, default dt, full model, through the run loop with reporters (``elastic`` path)."""
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     rng = np.random.default_rng(1)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))

@@ -8,7 +8,7 @@ model: fast elastic path + excluded volume + Debye-Hueckel), each size in its ow
 * ``cpu_t1``   -- the CPU platform with ``Threads=1`` (still one worker thread: every step is
   handed from the Python thread to the worker and back);
 * ``reference``-- the Reference platform (single thread, no hand-off);
-* ``auto``     -- whatever :func:`dnarod.openmm.platforms.choose_platform` picks for this size.
+* ``auto``     -- whatever :func:`dnarod.engines.openmm.platforms.choose_platform` picks for this size.
 
 Figures: steps per CPU-second (all threads of the process, ``time.process_time``) and per
 wall-second, best of interleaved repeats (so machine load hits all alike; sizes >= 10^5 are run
@@ -41,7 +41,7 @@ def _rate(integrator, budget):
 
 
 def _make(model, config, elastic):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     kw = dict(temperature=300.0, seed=1, elastic=elastic)
     if config == "cpu":
@@ -58,7 +58,7 @@ def _make(model, config, elastic):
 
 
 def single(n, budget, repeats, elastic="fast"):
-    from dnarod.forcefield import load_forcefield
+    from dnarod.core.forcefield import load_forcefield
 
     rng = np.random.default_rng(0)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), n)))

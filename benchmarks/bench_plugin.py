@@ -54,8 +54,8 @@ def _rate(integrator, n_nodes, budget):
 
 
 def sizes(ns, budget, repeats):
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     ff = load_forcefield("dna-default")
     out = []
@@ -87,8 +87,8 @@ def kbp(budget):
     automatic platform choice without ``--threads`` (the single-threaded Reference platform), a frame and an
     energies row every 1 ps, a checkpoint every 10 frames (:func:`dnarod.run.loop.simulate_engine`, as
     :func:`dnarod.run.run` calls it)."""
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.run.loop import simulate_engine
 
     rng = np.random.default_rng(1)
@@ -123,11 +123,11 @@ def threads(ns, budget, repeats):
     nodes stay on one thread); ``forced``: chunks of 256 nodes (two threads at every size)."""
     import openmm
 
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm import particles as P
-    from dnarod.openmm import plugin
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.openmm.system import build_system
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm import particles as P
+    from dnarod.engines.openmm import plugin
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.system import build_system
 
     ff = load_forcefield("dna-default")
     out = []
@@ -198,7 +198,7 @@ def main():
                     "('' to skip)")
     ap.add_argument("--json", default=str(ROOT / "benchmarks" / "results" / "bench_plugin.json"))
     args = ap.parse_args()
-    from dnarod.openmm import plugin
+    from dnarod.engines.openmm import plugin
 
     st = plugin.status()
     if not st.available:

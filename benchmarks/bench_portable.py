@@ -11,7 +11,7 @@ plain planar ring, identity closure, supercoiled by Delta Lk = +2), on 100 and
 * OpenMM Context creation (CPU seconds of the whole process and wall seconds) on Reference, CPU
   and OpenCL (if present; pocl's kernel cache on disk makes repeated runs faster, so on OpenCL
   the first and second creation in the process are both reported);
-* the energy's relative deviation from :func:`dnarod.energy.energy` at a perturbed pose;
+* the energy's relative deviation from :func:`dnarod.core.energy.energy` at a perturbed pose;
 * Lepton operation counts (``benchmarks/lepton/lepton_ops.cpp``, built with g++ against the
   headers and library shipped in the openmm wheel, if both are found): nodes of the energy tree
   and of the 18 coordinate derivatives after Lepton's ``optimize()``, as OpenMM's Reference and
@@ -45,16 +45,16 @@ CASES = ("dna-default", "full", "circular", "full-circular", "olson1998", "olson
 
 
 def _forces_module(rev):
-    """dnarod.openmm.forces as of ``rev`` (None: the working tree)."""
+    """dnarod.engines.openmm.forces as of ``rev`` (None: the working tree)."""
     if rev is None:
-        from dnarod.openmm import forces
+        from dnarod.engines.openmm import forces
 
         return forces
     src = subprocess.run(["git", "-C", str(ROOT), "show", f"{rev}:dnarod/openmm/forces.py"], capture_output=True,
                          text=True, check=True).stdout
     d = tempfile.mkdtemp()
     path = Path(d) / "forces_baseline.py"
-    path.write_text(src.replace("from ..", "from dnarod.").replace("from .particles", "from dnarod.openmm.particles"))
+    path.write_text(src.replace("from ..", "from dnarod.").replace("from .particles", "from dnarod.engines.openmm.particles"))
     spec = importlib.util.spec_from_file_location("forces_baseline", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -66,11 +66,11 @@ def _model(case, n_nodes=100):
     ``circular`` (dna-default closed by its helical screw), ``full-circular`` (``full`` closed by a general
     screw), ``olson1998`` and ``olson1998-circular`` (sequence-dependent full K of the bundled set),
     ``olson1998-ring`` (a plain ring, identity closure, Delta Lk = +2)."""
-    from dnarod.forcefield import load_forcefield
-    from dnarod.model import RodModel
-    from dnarod.parameters import StepParameters
-    from dnarod.rotations import cayley, rotation_about_axis
-    from dnarod.strains import Closure
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.model import RodModel
+    from dnarod.core.parameters import StepParameters
+    from dnarod.core.rotations import cayley, rotation_about_axis
+    from dnarod.core.strains import Closure
 
     circular = case.endswith("circular")
     ff = load_forcefield("olson1998" if case.startswith("olson") else "dna-default")
@@ -100,7 +100,7 @@ def _context_time(system, plat, positions=None):
     the linker as a separate process)."""
     import openmm
 
-    from dnarod.openmm.platforms import platform_properties
+    from dnarod.engines.openmm.platforms import platform_properties
 
     c0, w0 = H.cpu_seconds(), time.perf_counter()
     ctx = openmm.Context(system, openmm.LangevinMiddleIntegrator(300.0, 1.0, 0.001),
@@ -136,8 +136,8 @@ def trivial(plat):
 def single(case, plat, rev, n_nodes=100):
     import openmm
 
-    from dnarod.energy import energy
-    from dnarod.openmm import particles as P
+    from dnarod.core.energy import energy
+    from dnarod.engines.openmm import particles as P
 
     if case == "trivial":
         return trivial(plat)
@@ -298,7 +298,7 @@ def main():
                                                                         "derivative_tree_nodes")}
         r.pop("expressions", None)
     print("portable force: Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
-          "filled), cold (empty cache); energy vs dnarod.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
+          "filled), cold (empty cache); energy vs dnarod.core.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
     for r in results:
         if "error" in r:
             print(f"{r['revision'][:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} error: {r['error']}")

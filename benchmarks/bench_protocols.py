@@ -26,7 +26,7 @@ def main():
     ap.add_argument("--time-ns", type=float, default=1.0)
     ap.add_argument("--force", type=float, default=1.0)
     a = ap.parse_args()
-    from dnarod.protocols.tweezers import run_member
+    from dnarod.workflows.protocols.tweezers import run_member
 
     rows = []
     root = Path(tempfile.mkdtemp(prefix="bench_protocols_"))

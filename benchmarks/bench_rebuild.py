@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.forcefield import load_forcefield
+from dnarod.core.forcefield import load_forcefield
 from dnarod.structure import model_from_structure
 from dnarod.structure import allatom
 from dnarod.structure.allatom import rebuild_allatom

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.errors import StructureError
-from dnarod.forcefield import load_forcefield
+from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import load_forcefield
 from dnarod.structure.allatom import rebuild_allatom
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +31,7 @@ SEQUENCES = ("GATCCGTAGCATGGCAATTCGCTA", "AAAATTTTCCCCGGGGATATGCGC", "CGCGAATTCG
 
 def thermal_snapshot(sequence, seed, steps=400):
     """Node frames (n,3,3) and positions (n,3) nm after ``steps`` steps at 300 K."""
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence(sequence)
     sim = RodSimulation(m, temperature=300, nonbonded=False, seed=seed)

@@ -3,10 +3,10 @@ calibration, in one process.
 
 Runs :func:`dnarod.validate.plectonemes.check_plectonemes` (quick form: 400 bp, ΔLk -2, 3 ns after five bending
 relaxation times, seed 5, 0.15 M, 300 K) twice, each ring in a fresh folder: ``calibrated`` with the default
-:class:`~dnarod.openmm.nonbonded.NonbondedSettings` (Poisson-Boltzmann far-field charge calibrated to the 5.0 nm
+:class:`~dnarod.engines.openmm.nonbonded.NonbondedSettings` (Poisson-Boltzmann far-field charge calibrated to the 5.0 nm
 effective diameter, cutoff 12 Debye lengths) and ``manning5`` with Manning's charge and a 5-Debye-length cutoff
 (the defaults before the calibration; a settings subclass with those defaults replaces the class in
-``dnarod.openmm.nonbonded`` for that run, so every part of the check -- ring member and effective diameter --
+``dnarod.engines.openmm.nonbonded`` for that run, so every part of the check -- ring member and effective diameter --
 sees them; the engine modules are imported first so that their own reference stays the real class, and a
 settings object of the real class reaches the engine unchanged). Prints the writhe fractions of the
 model and of its worm-like-ring reference, the plectoneme fraction and the ring member's CPU and wall time, and
@@ -31,10 +31,11 @@ KEYS = ("effective_diameter_nm", "model_writhe", "model_writhe_err", "model_writ
 
 
 def run(mode, root):
-    import dnarod.openmm.nonbonded as nbm
-    import dnarod.openmm.simulation  # noqa: F401  (bind the real class in modules that import it at load time)
-    import dnarod.openmm.system  # noqa: F401
-    from dnarod.validate import plectonemes, supercoil_theory
+    import dnarod.engines.openmm.nonbonded as nbm
+    import dnarod.engines.openmm.simulation  # noqa: F401  (bind the real class in modules that import it at load time)
+    import dnarod.engines.openmm.system  # noqa: F401
+    from dnarod.validate import plectonemes
+    from dnarod.physics.theory import supercoil as supercoil_theory
 
     real = nbm.NonbondedSettings
     if mode == "manning5":

@@ -54,14 +54,14 @@ def first_step(n_nodes, engine, workdir):
 
 def sizes(workdir):
     from dnarod.run import RunSpec, run
-    from dnarod.trajectory import HEADER_SIZE
+    from dnarod.core.trajectory import HEADER_SIZE
 
     out = {}
     for vel in (False, True):
         spec = RunSpec(source="ACGT" * 50, engine="lax", time_ns=0.02, excluded_volume=False, electrostatics=False,
                        seed=1, velocities=vel, export=False)
         res = run(spec, Path(workdir) / f"size_{vel}", progress=False)
-        from dnarod.trajectory import load_trajectory
+        from dnarod.core.trajectory import load_trajectory
 
         tr = load_trajectory(res.files["trajectory"])
         size = res.files["trajectory"].stat().st_size - HEADER_SIZE - 16 * tr.n_frames  # minus step and time

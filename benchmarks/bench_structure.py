@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.forcefield import load_forcefield
-from dnarod.rotations import rotation_about_axis
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.rotations import rotation_about_axis
 from dnarod.structure.analysis import analyze_structure, analyze_trajectory, step_parameters_over_frames
 from dnarod.structure.rebuild import rebuild_coordinates, write_pdb
 
@@ -93,7 +93,7 @@ def main():
         rows.append(dict(case=f"24-bp trajectory: frame-by-frame loop (scaled from {n_loop} frames)",
                          size=f"{args.frames} frames", best_s=tmin * args.frames / n_loop,
                          median_s=tmed * args.frames / n_loop, target_s=None))
-    from dnarod.stepparams import step_parameters
+    from dnarod.core.stepparams import step_parameters
 
     err = float(np.abs(sp - step_parameters(F[:, :-1], O[:, :-1], F[:, 1:], O[:, 1:])).max())
     err_dcd = float(np.abs(sp2 - sp).max())
@@ -108,7 +108,7 @@ def main():
     out = dict(benchmark="structure", python=platform.python_version(), machine=platform.machine(), rows=rows,
                speedup_vectorised=ratio, max_error_in_memory=err, max_error_dcd=err_dcd)
     Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    from dnarod.io_utils import write_text_atomic
+    from dnarod.core.io import write_text_atomic
 
     write_text_atomic(args.json, json.dumps(out, indent=2))
     print(f"wrote {args.json}")

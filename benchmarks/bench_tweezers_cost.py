@@ -6,8 +6,8 @@ One member's System as the protocol builds it (1000 bp, 1 pN, +3 turns, WCA + De
 compiled plugin where built, one thread): (1) every force in its own force group, ``Context.getState(getForces,
 groups=...)`` timed per force on a copy of the System with a plain Verlet integrator; (2) steps per CPU-second of
 the member's own integrator with no walls, the surface wall only and both walls as OpenMM Custom forces (the
-reference form, :func:`dnarod.openmm.walls.wall_forces_reference`: the protocol's form before the compiled one),
-and both walls as the compiled ``WallForce`` (:func:`dnarod.openmm.walls.wall_forces_compiled`, the protocol's form
+reference form, :func:`dnarod.engines.openmm.walls.wall_forces_reference`: the protocol's form before the compiled one),
+and both walls as the compiled ``WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the protocol's form
 on CPU/Reference now), with the two forms' energies and forces compared on a thermal configuration pushed through
 both walls; (3) why the Custom forces cost what they do: a ``CustomExternalForce`` and a
 ``CustomCentroidBondForce`` alone on the CPU platform with 0, 1 and 3 particles (bonds) per node, and the walls
@@ -92,7 +92,7 @@ def wall_form_costs(n_nodes, repeats):
     random positions (about half the surface particles under the plane)."""
     import openmm
 
-    from dnarod.openmm import walls as wl
+    from dnarod.engines.openmm import walls as wl
 
     n = 3 * n_nodes
     x = np.random.default_rng(0).normal(size=(n, 3))
@@ -140,7 +140,7 @@ def member_cost(a, form):
     """Wall and CPU seconds of one whole member (``sample_member``: equilibration, production, observables)."""
     import functools
 
-    from dnarod.protocols import tweezers as tw
+    from dnarod.workflows.protocols import tweezers as tw
 
     settings = dict(n_bp=a.n_bp, force_pN=a.force, turns=a.turns, time_ns=a.member_ns, equilibration_ns=0.1,
                     platform=a.platform, seed=1)
@@ -172,11 +172,11 @@ def main(argv=None):
     a = ap.parse_args(argv)
     import openmm
 
-    from dnarod.openmm import walls as wl
-    from dnarod.openmm.nonbonded import NonbondedSettings
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.protocols import tweezers as tw
-    from dnarod.protocols.measure import plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
+    from dnarod.engines.openmm import walls as wl
+    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.workflows.protocols import tweezers as tw
+    from dnarod.workflows.protocols.measure import plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
 
     load0 = os.getloadavg()
     m = tw.build_member(dict(n_bp=a.n_bp, force_pN=a.force, turns=a.turns, time_ns=a.time, equilibration_ns=0.1))

@@ -21,7 +21,7 @@ def main(argv=None):
     ap.add_argument("--time", type=float, default=0.5, help="ns of production (plus 0.1 ns equilibration)")
     ap.add_argument("--out", default="benchmarks/results/tweezers_paths.json")
     a = ap.parse_args(argv)
-    from dnarod.protocols.tweezers import run_member
+    from dnarod.workflows.protocols.tweezers import run_member
 
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -3,10 +3,10 @@
 Each base pair is a rigid node (position, frame); consecutive nodes interact through the
 SMK elastic energy of Shi, McClain & Hearst (2001) in exact Cayley strains. See README.
 """
-from .errors import DnarodError, GeometryError, ParameterError, SimulationError, StructureError
-from .model import RodModel
-from .parameters import StepParameters
-from .strains import Closure, chain_from_strains, strains
+from dnarod.core.errors import DnarodError, GeometryError, ParameterError, SimulationError, StructureError
+from dnarod.core.model import RodModel
+from dnarod.core.parameters import StepParameters
+from dnarod.core.strains import Closure, chain_from_strains, strains
 
 __version__ = "0.1.0"
 

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dnarod.parameters import StepParameters
-from dnarod.strains import chain_from_strains
+from dnarod.core.parameters import StepParameters
+from dnarod.core.strains import chain_from_strains
 
 
 def random_chain(seed, n=8, ds=0.34, twist=0.6, circular=False):
@@ -35,10 +35,10 @@ def chain(request):
 @pytest.fixture
 def plot_labels(monkeypatch):
     """``draw(kind, rows, path) -> (legend labels, axes texts)``: a protocol curve drawn by
-    :func:`dnarod.protocols.curves.plot_curve`, with what its legend and text calls received."""
+    :func:`dnarod.workflows.protocols.curves.plot_curve`, with what its legend and text calls received."""
     import matplotlib.axes
 
-    from dnarod.protocols.curves import plot_curve
+    from dnarod.workflows.protocols.curves import plot_curve
 
     labels, texts = [], []
     orig_legend, orig_text = matplotlib.axes.Axes.legend, matplotlib.axes.Axes.text
@@ -78,7 +78,7 @@ def assert_refused():
     under ``work`` (``strict``: adds none either) and leaves ``work/n`` empty or absent."""
     from click.testing import CliRunner
 
-    from dnarod.cli import main
+    from dnarod.cli.main import main
 
     def check(work, args, words, strict=False):
         before = folder_snapshot(work)

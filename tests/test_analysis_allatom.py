@@ -8,10 +8,10 @@ import pytest
 
 from dnarod.analysis import StepAnalysis, StiffnessFit, TangentCorrelation
 from dnarod.analysis.allatom import load_allatom
-from dnarod.analysis.sampling import sample_chains
-from dnarod.forcefield import load_forcefield
-from dnarod.stepparams import to_angstrom_degrees
-from dnarod.thermal import kT
+from dnarod.physics.sampling import sample_chains
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.stepparams import to_angstrom_degrees
+from dnarod.physics.thermal import kT
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "allatom"
 TOP = DATA / "355D_obc2_top.pdb"

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.analysis.sampling import sample_chains
-from dnarod.cli import main
-from dnarod.forcefield import load_forcefield
-from dnarod.thermal import kT, persistence_length
+from dnarod.physics.sampling import sample_chains
+from dnarod.cli.main import main
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.thermal import kT, persistence_length
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "allatom"
 

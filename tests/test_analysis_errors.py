@@ -7,12 +7,12 @@ from click.testing import CliRunner
 
 from dnarod.analysis import StepAnalysis, StiffnessFit, TangentCorrelation
 from dnarod.analysis.report import load_input
-from dnarod.analysis.sampling import sample_chains
-from dnarod.cli import main
-from dnarod.errors import DnarodError, GeometryError, StructureError
-from dnarod.forcefield import load_forcefield
-from dnarod.thermal import kT
-from dnarod.trajectory import Trajectory
+from dnarod.physics.sampling import sample_chains
+from dnarod.cli.main import main
+from dnarod.core.errors import DnarodError, GeometryError, StructureError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.thermal import kT
+from dnarod.core.trajectory import Trajectory
 
 FF = load_forcefield("dna-default")
 
@@ -115,9 +115,9 @@ def test_cli_reports_bad_input_in_one_line(tmp_path):
 
 def test_frame_strains_names_the_frame_with_a_rotation_beyond_pi():
     from dnarod.analysis.steps import frame_strains
-    from dnarod.errors import GeometryError
-    from dnarod.forcefield import load_forcefield
-    from dnarod.rotations import rotation_about_axis
+    from dnarod.core.errors import GeometryError
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.rotations import rotation_about_axis
 
     m = load_forcefield("dna-default").model_from_sequence(n_nodes=6)
     pos = np.repeat(m.positions[None], 4, 0)

@@ -7,9 +7,9 @@ from dnarod.analysis.base import block_estimates, standard_error
 from dnarod.analysis.polymer import EndToEnd, TangentCorrelation, tangent_correlation_frames
 from dnarod.analysis.steps import StepAnalysis, frame_step_parameters, frame_strains
 from dnarod.analysis.stiffness import haar_weight, weighted_moments
-from dnarod.stepparams import step_parameters
-from dnarod.strains import Closure, chain_from_strains, strains_dot_form
-from dnarod.trajectory import Trajectory
+from dnarod.core.stepparams import step_parameters
+from dnarod.core.strains import Closure, chain_from_strains, strains_dot_form
+from dnarod.core.trajectory import Trajectory
 
 
 def random_trajectory(seed, n_frames=7, n_nodes=9, ds=0.34):
@@ -133,9 +133,9 @@ def test_haar_weight_and_weighted_moments_match_loops():
 
 
 def test_exact_tangent_correlation_average_over_starts():
-    from dnarod.thermal import exact_tangent_correlation
-    from dnarod.forcefield import load_forcefield
-    from dnarod.thermal import kT, mean_rotation, tangent_correlation
+    from dnarod.physics.thermal import exact_tangent_correlation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.physics.thermal import kT, mean_rotation, tangent_correlation
 
     ff = load_forcefield("dna-default")
     p = ff.step_parameters(n_steps=12)

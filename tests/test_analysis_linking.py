@@ -4,10 +4,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from dnarod.analysis.polymer import LinkingNumber
-from dnarod.analysis.writhe import linking_number, twist, writhe
-from dnarod.errors import GeometryError
-from dnarod.forcefield import load_forcefield
-from dnarod.trajectory import Trajectory
+from dnarod.physics.writhe import linking_number, twist, writhe
+from dnarod.core.errors import GeometryError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.trajectory import Trajectory
 
 
 def trefoil(s):

@@ -4,11 +4,11 @@ import numpy as np
 import pytest
 
 from dnarod.analysis.polymer import TangentCorrelation
-from dnarod.analysis.sampling import sample_chains, sample_steps
+from dnarod.physics.sampling import sample_chains, sample_steps
 from dnarod.analysis.stiffness import StiffnessFit, stiffness_from_samples
-from dnarod.forcefield import load_forcefield
-from dnarod.parameters import StepParameters
-from dnarod.thermal import kT, persistence_length, reweighted_covariance_expected, tangent_correlation
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.parameters import StepParameters
+from dnarod.physics.thermal import kT, persistence_length, reweighted_covariance_expected, tangent_correlation
 
 KT = kT(300.0)
 
@@ -34,8 +34,8 @@ def test_sampler_density_is_exact():
     rng = np.random.default_rng(11)
     xi = sample_steps(K, xi0, 0.34, KT, 200_000, rng)
     # Independent check of the marginal: <R_33> of the samples equals the exact quadrature.
-    from dnarod.rotations import cayley
-    from dnarod.thermal import mean_rotation
+    from dnarod.core.rotations import cayley
+    from dnarod.physics.thermal import mean_rotation
 
     R = cayley(0.34 * xi[:, :3])
     exact = mean_rotation(StepParameters(K, xi0), 0.34, KT)[0]
@@ -120,8 +120,8 @@ def test_tangent_correlation_of_exact_samples_matches_transfer_formula():
 def _fit_lax_langevin(tmp_path, n_nodes, n_steps, seed, skip, n_blocks):
     """Run the Lax-form BAOAB engine on dna-default (dt 0.04 ps, friction 2/ps, a frame every 4 ps),
     fit the Haar-reweighted stiffness and check it against the force field's."""
-    from dnarod.integrators.run import simulate_langevin
-    from dnarod.trajectory import Trajectory
+    from dnarod.engines.lax.run import simulate_langevin
+    from dnarod.core.trajectory import Trajectory
 
     ff = load_forcefield("dna-default")
     simulate_langevin(ff.model_from_sequence(n_nodes=n_nodes), 0.04, n_steps, 300.0, friction=2.0, seed=seed,

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dnarod.protocols.measure import plectoneme_end_loops
+from dnarod.workflows.protocols.measure import plectoneme_end_loops
 
 DS = 0.34
 
@@ -88,8 +88,8 @@ def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, 
     import shutil
     from pathlib import Path
 
-    import dnarod.protocols.rings as rings
-    import dnarod.protocols.tweezers as tweezers
+    import dnarod.workflows.protocols.rings as rings
+    import dnarod.workflows.protocols.tweezers as tweezers
     from dnarod.validate.buckling import member_plan, run_planned
 
     root = tmp_path / "members"
@@ -118,7 +118,7 @@ def test_members_run_in_advance_from_the_plan_are_reused_by_the_check(tmp_path, 
 def test_loop_corrected_ring_pair_recovers_the_bulk_P():
     """Rings whose writhe is a bulk share of ΔLk less a fixed deficit per end loop: with different loop counts
     the pair formula is biased, the loop-counted one is exact, and with equal counts the two coincide."""
-    from dnarod.validate.supercoil_theory import plectoneme_P_from_ring_pair, plectoneme_P_from_rings_with_loops
+    from dnarod.physics.theory.supercoil import plectoneme_P_from_ring_pair, plectoneme_P_from_rings_with_loops
 
     C, P_b, mu = 98.3, 18.0, 0.3
     f = 1 - P_b / C
@@ -138,8 +138,8 @@ def test_above_twins_start_from_the_larger_plectoneme_of_their_source(tmp_path):
     whose source has not run is refused with one line."""
     import numpy as np
 
-    from dnarod.errors import DnarodError
-    from dnarod.protocols.sweep import FINAL_POSE, START_POSE, load_pose
+    from dnarod.core.errors import DnarodError
+    from dnarod.workflows.protocols.sweep import FINAL_POSE, START_POSE, load_pose
     from dnarod.validate.buckling import member_plan, run_planned
 
     plan = member_plan(n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.02, pre_time_ns=0.02, P_nm=29.7,

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
+from dnarod.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 PDB = ROOT / "data" / "structures" / "355D.pdb"
@@ -253,7 +253,7 @@ def test_misuse_is_one_line_exit_2_and_changes_nothing(work, case, assert_refuse
 @pytest.mark.parametrize("var", ["DNAROD_PLUGIN", "DNAROD_DEVICE_KERNELS"])
 def test_misspelt_switch_is_refused(work, monkeypatch, var):
     """An on/off environment switch with another value than 0/1 is one line, exit 2 (not silently "on")."""
-    from dnarod.openmm import plugin
+    from dnarod.engines.openmm import plugin
 
     monkeypatch.setenv(var, "banana")
     monkeypatch.setattr(plugin, "_STATUS", None)
@@ -276,7 +276,7 @@ def test_long_sequence_and_sequence_files_are_sequences(tmp_path):
     seq = "".join(rng.choice(list("ACGT"), 300))
     r = CliRunner().invoke(main, ["lax-run", seq, "-o", str(tmp_path / "a"), *QUICK, "--no-export"])
     assert r.exit_code == 0, r.output
-    from dnarod.model import RodModel
+    from dnarod.core.model import RodModel
 
     assert RodModel.load(tmp_path / "a" / "final_model.npz").sequence == seq
     (tmp_path / "s.fasta").write_text(">x test\n" + seq[:150] + "\n" + seq[150:].lower() + "\n>second\nACGT\n")
@@ -328,7 +328,7 @@ API_BAD = [
 @pytest.mark.parametrize("bad", API_BAD, ids=[next(iter(b)) + "=" + repr(next(iter(b.values()))) for b in API_BAD])
 def test_api_bad_run_arguments_raise_dnarod_errors(tmp_path, bad):
     """run(RunSpec(...)) with a bad argument raises a DnarodError naming it, and writes nothing."""
-    from dnarod.errors import DnarodError
+    from dnarod.core.errors import DnarodError
     from dnarod.run import RunSpec, run
 
     spec = RunSpec(**{**dict(source=SEQ, engine="lax", time_ns=0.001, excluded_volume=False, electrostatics=False,
@@ -342,9 +342,9 @@ def test_api_bad_run_arguments_raise_dnarod_errors(tmp_path, bad):
 
 def test_api_bad_outdir_model_and_protocol_values(work):
     from dnarod.analysis.report import analyze
-    from dnarod.errors import DnarodError
-    from dnarod.model import RodModel
-    from dnarod.protocols import hat_curve, ring_supercoiling
+    from dnarod.core.errors import DnarodError
+    from dnarod.core.model import RodModel
+    from dnarod.workflows.protocols import hat_curve, ring_supercoiling
     from dnarod.run import RunSpec, run
 
     tmp_path = work / "api"

@@ -3,10 +3,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dnarod.energy import energy, loads
-from dnarod.parameters import StepParameters
-from dnarod.rotations import cayley, rotation_about_axis
-from dnarod.strains import Closure, chain_from_strains, strains
+from dnarod.core.energy import energy, loads
+from dnarod.core.parameters import StepParameters
+from dnarod.core.rotations import cayley, rotation_about_axis
+from dnarod.core.strains import Closure, chain_from_strains, strains
 
 from conftest import random_chain
 

@@ -15,9 +15,9 @@ import pyarrow.parquet as pq
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.ensemble import Ensemble, local_cluster, run_member
-from dnarod.trajectory import load_trajectory
+from dnarod.cli.main import main
+from dnarod.workflows.ensemble import Ensemble, local_cluster, run_member
+from dnarod.core.trajectory import load_trajectory
 
 cloudpickle.register_pickle_by_value(sys.modules[__name__])   # workers get this module's protocols by value
 
@@ -174,7 +174,7 @@ def test_killed_command_rerun_finishes_without_redoing(client, tmp_path):
     args = ["ensemble", str(spec), "-o", str(out), "--no-progress"]
     env = dict(os.environ, PYTHONPATH=str(Path(__file__).parents[1]))
     # the command with its own local cluster, killed (with the cluster) once a member has finished
-    p = subprocess.Popen([sys.executable, "-c", "from dnarod.cli import main; main()", *args, "--workers", "2"],
+    p = subprocess.Popen([sys.executable, "-c", "from dnarod.cli.main import main; main()", *args, "--workers", "2"],
                          start_new_session=True, stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env)
     deadline = time.time() + 120
     done = []

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.ensemble import Ensemble, SpecError, load_spec, member_id, parse_spec, slurm_cluster
-from dnarod.ensemble.cluster import SchedulerError, connect
+from dnarod.cli.main import main
+from dnarod.workflows.ensemble import Ensemble, SpecError, load_spec, member_id, parse_spec, slurm_cluster
+from dnarod.workflows.ensemble.cluster import SchedulerError, connect
 
 SEQ = "ACGTACGTACGT"
 
@@ -68,7 +68,7 @@ def test_ids_are_stable_and_canonical():
     c = list(parse_spec(spec(axes={"force_pN": [1, 2.0000001]})).members())
     assert a[0].id == c[0].id and a[1].id != c[1].id
     # the same settings give the same id in a fresh interpreter (no per-process hash seed)
-    code = ("from dnarod.ensemble import member_id; "
+    code = ("from dnarod.workflows.ensemble import member_id; "
             f"print(member_id({a[1].settings!r}))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.strip()
     assert out == a[1].id and len(out) == 12 and int(out, 16) >= 0
@@ -191,14 +191,14 @@ def test_example_spec_expands():
 
 
 def test_protocol_hooks_and_keys(tmp_path):
-    from dnarod.ensemble import Key, run_member
-    from dnarod.ensemble.protocol import call_hook
+    from dnarod.workflows.ensemble import Key, run_member
+    from dnarod.workflows.ensemble.protocol import call_hook
 
     two = lambda settings, member_dir: ("two", settings, member_dir)                      # noqa: E731
     three = lambda settings, member_dir, analysis: ("three", analysis)                    # noqa: E731
     assert call_hook(two, {"a": 1}, "d", {"blocks": 3}) == ("two", {"a": 1}, "d")
     assert call_hook(three, {"a": 1}, "d", {"blocks": 3}) == ("three", {"blocks": 3})
-    from dnarod.ensemble.protocol import resolve_protocol
+    from dnarod.workflows.ensemble.protocol import resolve_protocol
     for name in ("force-extension", "magnetic-tweezers", "torque-turns", "rings", "null"):
         assert callable(resolve_protocol(name).execute)
     with pytest.raises(SpecError, match=r"protocol 'nope': not a registered name"):

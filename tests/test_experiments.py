@@ -5,8 +5,8 @@ import csv
 import numpy as np
 import pytest
 
-from dnarod.protocols import experiments as ex
-from dnarod.units import NM_PER_ANGSTROM, PN
+from dnarod.physics import experiments as ex
+from dnarod.core.units import NM_PER_ANGSTROM, PN
 
 
 def test_tables_carry_a_source_url_and_verification_for_every_row():
@@ -36,8 +36,8 @@ def test_persistence_length_band_brackets_the_salt():
 
 
 def test_wlc_band_orders_and_matches_the_formula():
-    from dnarod.thermal import kT
-    from dnarod.wlc import extensible_wlc_extension
+    from dnarod.physics.thermal import kT
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     lo, hi = ex.wlc_extension_band([0.1, 1.0, 10.0], 0.15, 1100.0, 300.0)
     assert np.all(lo < hi)
@@ -54,7 +54,7 @@ def test_torsional_values_in_md_units():
     ms = ex.effective_torsional_persistence(temperature=300.0)
     mtt = [m for m in ms if m.force_pN == pytest.approx(6.5)][0]
     assert (mtt.value, mtt.uncertainty, mtt.unit) == (103.0, 4.0, "nm")
-    from dnarod.thermal import kT
+    from dnarod.physics.thermal import kT
 
     rb = [m for m in ms if m.force_pN == pytest.approx(15.0)][0]
     assert rb.value == pytest.approx(440.0 * PN / kT(300.0)) and "300 K" in rb.conditions
@@ -122,7 +122,7 @@ def test_short_citations():
 
 
 def _rows(kind):
-    from dnarod.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     if kind == "force_extension":
         return [dict(force_pN=f, relative_extension=float(extensible_wlc_extension(f, 50.0, 1100.0, 4.14)),
@@ -181,9 +181,9 @@ def test_effective_diameter_gate_fails_with_manning_or_a_wrong_charge(tmp_path):
     """The diameter comparison is a check: Manning's charge (the old default) and the calibrated charge halved or
     doubled all fail it; the calibrated charge passes (coarse grid: agrees with the default grid to 1e-4 nm at
     0.15 M)."""
-    from dnarod.openmm.nonbonded import CALIBRATED_LINE_CHARGE, NonbondedSettings
+    from dnarod.engines.openmm.nonbonded import CALIBRATED_LINE_CHARGE, NonbondedSettings
     from dnarod.validate.experiment import check_experiment, compare_effective_diameter
-    from dnarod.validate.supercoil_theory import effective_diameter
+    from dnarod.physics.theory.supercoil import effective_diameter
 
     grid = dict(n_h=120, n_gamma=10, n_offset=2)
     q = CALIBRATED_LINE_CHARGE * 0.34

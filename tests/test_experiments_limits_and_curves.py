@@ -4,8 +4,8 @@ that stays empty until a source stating buckling torques is read. Loader units, 
 comparisons of check ``experiment``."""
 import pytest
 
-from dnarod.protocols import experiments as ex
-from dnarod.units import AVOGADRO, PN
+from dnarod.physics import experiments as ex
+from dnarod.core.units import AVOGADRO, PN
 
 
 def test_structural_transition_torques_in_md_units():
@@ -60,7 +60,7 @@ def test_buckling_torque_reference_is_empty_and_parses_rows_when_present(monkeyp
 
 
 def _rows(kind):
-    from dnarod.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     if kind == "force_extension":
         return [dict(force_pN=f, relative_extension=float(extensible_wlc_extension(f, 50.0, 1100.0, 4.14)),
@@ -120,7 +120,7 @@ def test_experiment_check_reports_the_comparisons_without_stated_uncertainty(tmp
     assert fe["stretch_modulus_ratio"] == pytest.approx(1.1, rel=1e-6) and fe["max_abs_difference"] < 1.5e-3
     assert "reported" in fe["kind"] and "S 1100 pN vs 1000 pN" in " ".join(r["notes"])
     topo = r["topoisomer_fit"]
-    from dnarod.thermal import kT
+    from dnarod.physics.thermal import kT
 
     assert topo["reference_nm"] == pytest.approx(300.0 * PN / kT(300.0), rel=1e-9)  # 72.4 nm at 300 K
     assert topo["ratio"] == pytest.approx(98.25 / 72.43, rel=2e-3)

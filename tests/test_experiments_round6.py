@@ -4,8 +4,8 @@ Table 1. The loader returns exactly the numbers read (in MD units), and check ``
 them (no gating: the sources state no uncertainty)."""
 import pytest
 
-from dnarod.protocols import experiments as ex
-from dnarod.units import AVOGADRO, PN
+from dnarod.physics import experiments as ex
+from dnarod.core.units import AVOGADRO, PN
 
 
 def test_cyclization_fit_read_as_stated():
@@ -35,7 +35,7 @@ def test_secondary_elastic_ranges_read_as_stated():
 
 
 def test_model_helix_constants_are_the_dna_default_targets():
-    from dnarod.dna_default import TARGETS
+    from dnarod.physics.dna_default import TARGETS
     from dnarod.validate.experiment import model_helix_constants
 
     repeat, g, ds = model_helix_constants()
@@ -45,7 +45,7 @@ def test_model_helix_constants_are_the_dna_default_targets():
 
 
 def test_reported_comparisons_use_the_numbers_read_and_follow_the_model():
-    from dnarod.thermal import kT
+    from dnarod.physics.thermal import kT
     from dnarod.validate.experiment import compare_cyclization_fit, compare_elastic_ranges
 
     kt = kT(300.0)
@@ -105,7 +105,7 @@ def test_horowitz_wang_abstract_read_as_stated():
 
 
 def test_horowitz_wang_comparison_reports_the_model_beside_the_abstract():
-    from dnarod.thermal import kT
+    from dnarod.physics.thermal import kT
     from dnarod.validate.experiment import compare_horowitz_wang
 
     r = compare_horowitz_wang(98.25, 0.34, 10.5, 300.0)

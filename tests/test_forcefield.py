@@ -4,14 +4,14 @@ import textwrap
 import numpy as np
 import pytest
 
-from dnarod.conversion import (jacobian_strains_to_step_parameters, step_parameters_to_strains,
+from dnarod.core.conversion import (jacobian_strains_to_step_parameters, step_parameters_to_strains,
                                stiffness_from_step_coordinates, stiffness_to_step_coordinates,
                                strains_to_step_parameters)
-from dnarod.errors import ParameterError
-from dnarod.forcefield import available_forcefields, load_forcefield, normalise_sequence
-from dnarod.parameters import StepParameters
-from dnarod.rotations import cayley
-from dnarod.thermal import kT, mean_rotation, persistence_length
+from dnarod.core.errors import ParameterError
+from dnarod.core.forcefield import available_forcefields, load_forcefield, normalise_sequence
+from dnarod.core.parameters import StepParameters
+from dnarod.core.rotations import cayley
+from dnarod.physics.thermal import kT, mean_rotation, persistence_length
 
 
 def test_bundled_sets_load():
@@ -22,7 +22,7 @@ def test_bundled_sets_load():
 
 
 def test_dna_default_file_equals_its_derivation():
-    from dnarod.dna_default import derive
+    from dnarod.physics.dna_default import derive
 
     d = derive()
     K, xi0 = load_forcefield("dna-default").table["*"]
@@ -72,7 +72,7 @@ def test_olson_round_trip_to_3dna_coordinates():
     """Intrinsic strains map back to the published mean step; K maps back to the published F."""
     import csv
 
-    from dnarod.forcefield import data_dir
+    from dnarod.core.forcefield import data_dir
 
     ff = load_forcefield("olson1998")
     kt = kT(ff.temperature)
@@ -192,7 +192,7 @@ def test_unknown_step_type_and_name(tmp_path):
 
 
 def test_sequence_cayley_write_and_load_round_trip(tmp_path):
-    from dnarod.forcefield import write_forcefield
+    from dnarod.core.forcefield import write_forcefield
 
     ff = load_forcefield("olson1998")
     write_forcefield(tmp_path / "s.toml", "s", ff.table, ff.ds, 650.0, [117.0, 117.0, 234.0], sources=["test"])

@@ -3,14 +3,14 @@ import numpy as np
 import pytest
 from scipy.linalg import expm
 
-from dnarod.energy import loads
-from dnarod.errors import DnarodError
-from dnarod.forcefield import load_forcefield
-from dnarod.integrators import BoundaryConditions, integrate_exact
-from dnarod.integrators.exact import body_loads, lax_matrices, strain_rates
-from dnarod.rotations import hat, rotation_about_axis
-from dnarod.strains import strains
-from dnarod.testsystems import dna_like_rod
+from dnarod.core.energy import loads
+from dnarod.core.errors import DnarodError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.lax import BoundaryConditions, integrate_exact
+from dnarod.engines.lax.exact import body_loads, lax_matrices, strain_rates
+from dnarod.core.rotations import hat, rotation_about_axis
+from dnarod.core.strains import strains
+from dnarod.physics.testsystems import dna_like_rod
 
 
 def _perturbed_model(circular, seed=0, n=12):
@@ -95,7 +95,7 @@ def test_body_loads_equal_lab_loads(circular):
 
 
 def _thermal(model, seed=1):
-    from dnarod.integrators.splitting import maxwell_state
+    from dnarod.engines.lax.splitting import maxwell_state
 
     st = maxwell_state(model, 300.0, seed)
     return st.velocities(model.mass, model.inertia)
@@ -125,8 +125,8 @@ def test_dop853_energy_error_100ps():
 
 def test_exact_reproduces_node_dynamics_of_splitting_at_small_dt():
     """Strain space (exact) and particle space (splitting, dt -> 0) give the same motion."""
-    from dnarod.integrators import SplittingIntegrator
-    from dnarod.integrators.splitting import RigidState
+    from dnarod.engines.lax import SplittingIntegrator
+    from dnarod.engines.lax.splitting import RigidState
 
     model = dna_like_rod(10, seed=2)
     v, w = _thermal(model, 4)
@@ -159,7 +159,7 @@ def test_clamped_end_and_end_force():
 
 
 def test_exact_and_splitting_agree_with_clamp_and_end_loads():
-    from dnarod.integrators import SplittingIntegrator
+    from dnarod.engines.lax import SplittingIntegrator
 
     model = dna_like_rod(8, seed=7)
     bc = BoundaryConditions(clamped=(0,), forces={7: [0.0, 3.0, 10.0]}, torques={7: [0.0, 0.0, 4.0]})

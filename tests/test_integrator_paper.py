@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from dnarod.errors import DnarodError
-from dnarod.integrators.paper_scheme import distance_to_exact, growth_rate, integrate_paper
-from dnarod.testsystems import TwistedRod
+from dnarod.core.errors import DnarodError
+from dnarod.engines.lax.paper_scheme import distance_to_exact, growth_rate, integrate_paper
+from dnarod.physics.testsystems import TwistedRod
 
 TAU0 = 1.81446558193  # dna-default intrinsic twist, 1/nm
 
@@ -43,7 +43,7 @@ def test_integrating_paper_scheme_blows_up(dna_ring):
 
 
 def test_needs_periodic_chain():
-    from dnarod.testsystems import dna_like_rod
+    from dnarod.physics.testsystems import dna_like_rod
 
     with pytest.raises(DnarodError, match="circular"):
         growth_rate(dna_like_rod(6))

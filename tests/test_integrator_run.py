@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.errors import SimulationError
-from dnarod.forcefield import load_forcefield
-from dnarod.integrators.run import simulate_exact, simulate_langevin, simulate_nve
-from dnarod.trajectory import Trajectory
-from dnarod.testsystems import dna_like_rod
+from dnarod.core.errors import SimulationError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.lax.run import simulate_exact, simulate_langevin, simulate_nve
+from dnarod.core.trajectory import Trajectory
+from dnarod.physics.testsystems import dna_like_rod
 
 
 @pytest.fixture(scope="module")
@@ -84,7 +84,7 @@ def test_exact_run_writes_same_format(tmp_path):
 
 def test_cli_lax_run(tmp_path):
     """``lax-run`` is ``simulate --engine lax``: same options, a run folder, one line and exit 2 on misuse."""
-    from dnarod.cli import main
+    from dnarod.cli.main import main
 
     runner = CliRunner()
     out = tmp_path / "c"

@@ -4,11 +4,11 @@ import warnings
 import numpy as np
 import pytest
 
-from dnarod.errors import DnarodError, SimulationError
-from dnarod.integrators import BoundaryConditions, SplittingIntegrator, integrate_exact, omega_max
-from dnarod.integrators.modes import normal_modes
-from dnarod.integrators.splitting import RigidState, maxwell_state
-from dnarod.testsystems import TwistedRod, dna_like_rod
+from dnarod.core.errors import DnarodError, SimulationError
+from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator, integrate_exact, omega_max
+from dnarod.engines.lax.modes import normal_modes
+from dnarod.engines.lax.splitting import RigidState, maxwell_state
+from dnarod.physics.testsystems import TwistedRod, dna_like_rod
 
 
 @pytest.fixture(scope="module")
@@ -126,7 +126,7 @@ def test_single_mode_frequency_is_leapfrog_frequency(branch):
         st = RigidState(pos, model.frames.copy(), np.zeros((16, 3)), np.zeros((16, 3)))
         coord = lambda state: (state.positions[:, 2] - model.positions[:, 2] - (state.positions[:, 2] - model.positions[:, 2]).mean()) @ shape
     else:
-        from dnarod.rotations import rotation_about_axis
+        from dnarod.core.rotations import rotation_about_axis
         R = rotation_about_axis(np.tile([0, 0, 1.0], (16, 1)), amp * shape)
         st = RigidState(model.positions.copy(), R @ model.frames, v, om)
         ref = model.frames
@@ -154,8 +154,8 @@ CASES = ["open", "open_2blocks_plus1", "circular", "langevin", "clamped_loads", 
 @pytest.mark.parametrize("kernel", ["blocked", "scalar"])
 @pytest.mark.parametrize("case", CASES)
 def test_numba_equals_numpy_reference(case, kernel):
-    from dnarod.forcefield import load_forcefield
-    from dnarod.integrators.fast_blocked import BLOCK
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.lax.fast_blocked import BLOCK
 
     # chains that cross block boundaries: 1.5 blocks, and 2 blocks + 1 node
     n = 2 * BLOCK + 1 if case == "open_2blocks_plus1" else BLOCK + BLOCK // 2
@@ -240,8 +240,8 @@ def test_bad_parameters():
 def test_langevin_tangent_correlation_matches_exact_thermal_answer():
     """BAOAB samples the Haar-measure equilibrium: <d3(k).d3(k+n)> equals the exact A5 iii quadrature
     (fast version: 8-node chain, 500 ps; tolerance ~5 standard errors)."""
-    from dnarod.forcefield import load_forcefield
-    from dnarod.testsystems import thermal_tangent_correlation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.physics.testsystems import thermal_tangent_correlation
 
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=8)
     integ = SplittingIntegrator(model, 0.05, maxwell_state(model, 300.0, seed=1), temperature=300.0, friction=1.0,
@@ -261,8 +261,8 @@ def test_langevin_tangent_correlation_matches_exact_thermal_answer():
 
 def test_kernel_sine_cosine_polynomials_match_libm():
     """The rotor's polynomial sin/cos equal numpy's to a few ulp over their whole ranges."""
-    from dnarod.integrators.fast import _sincos
-    from dnarod.integrators.fast_blocked import ROTOR_ANGLE_MAX, _sincos_poly, _sincos_short
+    from dnarod.engines.lax.fast import _sincos
+    from dnarod.engines.lax.fast_blocked import ROTOR_ANGLE_MAX, _sincos_poly, _sincos_short
 
     for fn, lim in ((_sincos_short, 0.25), (_sincos_poly, ROTOR_ANGLE_MAX), (_sincos, 5.0)):
         x = np.linspace(-lim, lim, 20001)

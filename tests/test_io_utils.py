@@ -3,7 +3,7 @@ import os
 
 import pytest
 
-from dnarod.io_utils import atomic_path, write_text_atomic
+from dnarod.core.io import atomic_path, write_text_atomic
 
 
 def test_atomic_write_mode_and_failure_leaves_old_file(tmp_path):

@@ -1,11 +1,11 @@
-"""The compiled A2 loads (dnarod.kernels) against the numpy reference dnarod.energy.loads."""
+"""The compiled A2 loads (dnarod.core.kernels) against the numpy reference dnarod.core.energy.loads."""
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from dnarod.energy import loads
-from dnarod.kernels import loads_kernel
-from dnarod.rotations import rotation_about_axis
-from dnarod.strains import Closure
+from dnarod.core.energy import loads
+from dnarod.core.kernels import loads_kernel
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.strains import Closure
 
 from conftest import random_chain
 

@@ -3,13 +3,13 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from dnarod.errors import DnarodError
-from dnarod.lax import U_matrix, component_rhs, smk_rhs
-from dnarod.lax.cases import (HeavyTop, arclength, KirchhoffBody, KirchhoffRod, StaticRod, curvature_torsion,
+from dnarod.core.errors import DnarodError
+from dnarod.physics.lax import U_matrix, component_rhs, smk_rhs
+from dnarod.physics.lax.cases import (HeavyTop, arclength, KirchhoffBody, KirchhoffRod, StaticRod, curvature_torsion,
                               frenet_step_matrix, planar_embed, planar_rhs, printed_tetrad_step_matrix,
                               tetrad_step_matrix)
-from dnarod.rotations import check_frames
-from dnarod.strains import chain_from_strains, strains
+from dnarod.core.rotations import check_frames
+from dnarod.core.strains import chain_from_strains, strains
 
 RNG = np.random.default_rng(2024)
 
@@ -319,7 +319,7 @@ def test_curve_bad_input():
         frenet_step_matrix([1.0], [0.0], 0.5, -1.0)
     with pytest.raises(DnarodError, match="v"):
         planar_rhs(np.zeros((3, 6)), np.zeros((3, 5)), 0.1)
-    from dnarod.lax.cases import static_stress_step
+    from dnarod.physics.lax.cases import static_stress_step
     with pytest.raises(DnarodError, match="singular"):
         static_stress_step([-2.0, 1.0, 4.0], [0, 0, 1.0], np.ones(3), np.ones(3), 0.5)   # 1 + ds^3 O1O2O3 = 0
     static_stress_step([-2.0, 1.0, 4.0], [0, 0, 1.0], np.ones(3), np.ones(3), 0.5, reading="midpoint")

@@ -6,10 +6,10 @@ The reference is always the projection of dU~/dt - (V~^1 U~ - U~ V~) built from 
 import numpy as np
 import pytest
 
-from dnarod.errors import DnarodError
-from dnarod.lax import appendix_rhs, component_rhs, lax_residual, smk_rhs, so4_to_fields, symmetric_obstruction
-from dnarod.lax.generators import LEVI_CIVITA, antisymmetric_part, symmetric_part
-from dnarod.rotations import rotation_about_axis
+from dnarod.core.errors import DnarodError
+from dnarod.physics.lax import appendix_rhs, component_rhs, lax_residual, smk_rhs, so4_to_fields, symmetric_obstruction
+from dnarod.physics.lax.generators import LEVI_CIVITA, antisymmetric_part, symmetric_part
+from dnarod.core.rotations import rotation_about_axis
 
 # entries (a+1, a+2), 0-based, for a = 0, 1, 2
 JROWS, JCOLS = [1, 2, 0], [2, 0, 1]
@@ -203,7 +203,7 @@ def test_component_bad_input_names_argument():
 def test_symbolic_projection_vanishes_identically():
     """sympy: with the package's own formulas fed symbols, the projected residual is identically zero."""
     import sympy as sp  # a test dependency: a missing install must fail, not skip
-    from dnarod.lax.components import _midpoint, _r1
+    from dnarod.physics.lax.components import _midpoint, _r1
 
     lam, ds = sp.symbols("lam ds", positive=True)
     names = ["G", "O", "p", "m", "g", "w", "P", "M"]

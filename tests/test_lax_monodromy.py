@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from dnarod.errors import DnarodError
-from dnarod.lax import (V_matrix, component_rhs, lax_pair, monodromy, monodromy_from_matrices,
+from dnarod.core.errors import DnarodError
+from dnarod.physics.lax import (V_matrix, component_rhs, lax_pair, monodromy, monodromy_from_matrices,
                         spectral_invariants)
 
 LAM = 0.8

@@ -4,13 +4,13 @@ import itertools
 import numpy as np
 import pytest
 
-from dnarod.errors import DnarodError
-from dnarod.lax import (D_FLIP, XMINUS, XPLUS, J, K, U_matrix, V_matrix, appendix_pair, appendix_residual,
+from dnarod.core.errors import DnarodError
+from dnarod.physics.lax import (D_FLIP, XMINUS, XPLUS, J, K, U_matrix, V_matrix, appendix_pair, appendix_residual,
                         appendix_to_paper, commutator, complexify, component_rhs, lax_pair, lax_residual, realify,
                         so4_coefficients, so4_matrix, so4_to_fields, symmetric_obstruction,
                         xpm_coefficients)
-from dnarod.lax.generators import LEVI_CIVITA, antisymmetric_part, symmetric_part
-from dnarod.rotations import hat
+from dnarod.physics.lax.generators import LEVI_CIVITA, antisymmetric_part, symmetric_part
+from dnarod.core.rotations import hat
 
 # The paper's printed matrices (3.1a,b), typed in independently of the closed forms in the package.
 J_PRINTED = np.array([

@@ -1,12 +1,12 @@
-"""One load vocabulary: both engines translate dnarod.loads and give the same answer on one loaded system."""
+"""One load vocabulary: both engines translate dnarod.physics.loads and give the same answer on one loaded system."""
 import numpy as np
 import pytest
 
-from dnarod.errors import DnarodError, ParameterError
-from dnarod.forcefield import load_forcefield
-from dnarod.loads import (Clamp, PullingForce, RotationClamp, Torque, Trap, clamp_angle, resolve_loads,
+from dnarod.core.errors import DnarodError, ParameterError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.loads import (Clamp, PullingForce, RotationClamp, Torque, Trap, clamp_angle, resolve_loads,
                           rotation_clamp_load)
-from dnarod.rotations import rotation_about_axis
+from dnarod.core.rotations import rotation_about_axis
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +30,7 @@ def loaded_set(model):
 
 
 def test_old_import_path_is_the_same_class():
-    from dnarod.openmm import loads as old
+    from dnarod.engines.openmm import loads as old
 
     assert old.PullingForce is PullingForce and old.RotationClamp is RotationClamp and old.Trap is Trap
 
@@ -52,8 +52,8 @@ def test_rotation_clamp_load_matches_finite_differences():
 
 def test_both_engines_give_identical_loads_at_a_configuration(model):
     """OpenMM forces (Reference, double) summed to node loads == elastic + ResolvedLoads at a random pose."""
-    from dnarod.openmm.particles import particle_forces_to_loads, particle_positions
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.particles import particle_forces_to_loads, particle_positions
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     loads = loaded_set(model)[:4]  # the torque callback's energy is path dependent; forces compared below
     pos, frm = perturbed(model)
@@ -74,7 +74,7 @@ def test_both_engines_give_identical_loads_at_a_configuration(model):
 
 
 def _lax_run(model, loads, dt, n_steps, v, w):
-    from dnarod.integrators import BoundaryConditions, RigidState, SplittingIntegrator
+    from dnarod.engines.lax import BoundaryConditions, RigidState, SplittingIntegrator
 
     bc = BoundaryConditions.from_loads(loads, duration_ps=dt * n_steps)
     integ = SplittingIntegrator(model, dt, state=RigidState.from_model(model, v, w), boundary=bc,
@@ -85,7 +85,7 @@ def _lax_run(model, loads, dt, n_steps, v, w):
 
 
 def _openmm_run(model, loads, dt, n_steps, v, w):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
                         elastic="fast", nonbonded=False, loads=loads, initial_velocities=(v, w),
@@ -123,7 +123,7 @@ def test_both_engines_agree_on_a_loaded_nve_run(model):
 
 def test_turning_rotation_clamp_turns_the_node_in_the_lax_engine(model):
     """A stiff clamp turned by 0.05 turns over the run leaves the node turned by about that much."""
-    from dnarod.integrators import BoundaryConditions, SplittingIntegrator
+    from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
 
     n = model.n_nodes
     rc = RotationClamp(-1, 2000.0, turns=0.05)
@@ -146,8 +146,8 @@ def test_turning_rotation_clamp_turns_the_node_in_the_lax_engine(model):
     (("pull",), "unknown load"),
 ])
 def test_bad_loads_are_refused_the_same_way_by_both_engines(model, loads, match):
-    from dnarod.integrators import BoundaryConditions, SplittingIntegrator
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     with pytest.raises(DnarodError, match=match):
         SplittingIntegrator(model, 0.01, boundary=BoundaryConditions.from_loads(loads), check_stability=False)
@@ -177,7 +177,7 @@ def test_lax_position_dependent_loads_are_velocity_verlet(model):
     v[n // 2] = w[n // 2] = 0.0
     errs = []
     for dt in (0.008, 0.004):
-        from dnarod.integrators import BoundaryConditions, RigidState, SplittingIntegrator
+        from dnarod.engines.lax import BoundaryConditions, RigidState, SplittingIntegrator
 
         integ = SplittingIntegrator(model, dt, state=RigidState.from_model(model, v, w),
                                     boundary=BoundaryConditions.from_loads(loads), check_stability=False)

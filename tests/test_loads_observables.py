@@ -4,11 +4,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from dnarod.forcefield import load_forcefield
-from dnarod.loads import Clamp, PullingForce, RotationClamp, Trap
-from dnarod.observables import LK_MAX_NODES, csv_observables, open_twist
-from dnarod.rotations import rotation_about_axis
-from dnarod.units import PN
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Trap
+from dnarod.physics.observables import LK_MAX_NODES, csv_observables, open_twist
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.units import PN
 
 
 @pytest.fixture(scope="module")

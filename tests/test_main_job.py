@@ -5,10 +5,10 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.forcefield import data_dir
+from dnarod.cli.main import main
+from dnarod.core.forcefield import data_dir
 from dnarod.structure import analyze_structure
-from dnarod.trajectory import load_trajectory
+from dnarod.core.trajectory import load_trajectory
 
 PDB = data_dir() / "structures" / "355D.pdb"
 
@@ -48,7 +48,7 @@ def test_simulate_rejects_missing_file_and_circular_structure(tmp_path):
 def test_supercoiled_minicircle_keeps_its_linking_number(tmp_path):
     """A 105 bp ring with Lk = 10 - 2: the dynamics conserve the (topological) linking number."""
     from dnarod.analysis import LinkingNumber
-    from dnarod.model import RodModel
+    from dnarod.core.model import RodModel
 
     seq = "ACGTTGCA" * 13 + "A"
     r = CliRunner().invoke(main, ["simulate", seq, "--ring", "--delta-lk", "-2", "--time", "0.05", "-o",

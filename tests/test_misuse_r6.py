@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
+from dnarod.cli.main import main
 
 ROOT = Path(__file__).resolve().parent.parent
 PDB = ROOT / "data" / "structures" / "355D.pdb"
@@ -46,8 +46,8 @@ def work(tmp_path):
     for name, t in specs.items():
         (tmp_path / f"{name}.toml").write_text(t)
     (tmp_path / "rna.pdb").write_text(_rna_text(text))
-    from dnarod.inputs import load_model
-    from dnarod.trajectory import HEADER_SIZE, Trajectory
+    from dnarod.structure.inputs import load_model
+    from dnarod.core.trajectory import HEADER_SIZE, Trajectory
 
     m = load_model("ACGTACGTAC")
     Trajectory([0.0, 1.0], np.repeat(m.positions[None], 2, 0), np.repeat(m.frames[None], 2, 0),
@@ -81,7 +81,7 @@ def _snapshot(folder):
 
 def _hold_lock(w):
     """A second process writing into W/busy: the lock is held (as a running `dnarod simulate` holds it)."""
-    from dnarod.io_utils import folder_lock
+    from dnarod.core.io import folder_lock
 
     cm = folder_lock(w / "busy")
     cm.__enter__()
@@ -189,7 +189,7 @@ def test_misuse_class_is_one_line_exit_2_and_changes_nothing(work, case, assert_
 def test_resume_refused_while_the_run_goes_on(tmp_path):
     """A resume (or a second run) while another process writes the folder is refused; once it is free the
     same resume runs."""
-    from dnarod.io_utils import folder_lock
+    from dnarod.core.io import folder_lock
 
     out = tmp_path / "r"
     r = CliRunner().invoke(main, ["lax-run", SEQ, "-o", str(out), *LAX[2:]])
@@ -244,9 +244,9 @@ def test_interrupt_keeps_files_and_says_how_to_continue(tmp_path, monkeypatch):
 
 def test_api_repeated_axis_values_and_non_protocols(tmp_path):
     """The Python API refuses what the command line refuses."""
-    from dnarod.ensemble import Ensemble
-    from dnarod.errors import DnarodError
-    from dnarod.protocols import hat_curve
+    from dnarod.workflows.ensemble import Ensemble
+    from dnarod.core.errors import DnarodError
+    from dnarod.workflows.protocols import hat_curve
 
     with pytest.raises(DnarodError, match="repeated values"):
         hat_curve([0, 1, 0], tmp_path / "h", source="40", base=dict(time_ns=0.001), workers=0)
@@ -259,7 +259,7 @@ def test_legitimate_stiff_loads_and_default_clamp_still_run(tmp_path):
     """The stiffness bound leaves ordinary traps and the protocols' clamp (250 kJ/mol) alone."""
     from dnarod.run.api import check_load_stiffness
     from dnarod.run import RunSpec
-    from dnarod.inputs import load_model
+    from dnarod.structure.inputs import load_model
     from dnarod.run.setup import tweezers_loads
 
     model = load_model("40")
@@ -293,7 +293,7 @@ def test_protocol_folder_of_other_settings_is_refused(tmp_path):
     assert r.exit_code == 0, r.output
     assert (out / "members").exists() and _snapshot(out / "members") == {
         p: d for p, d in before.items() if "members" in p.parts}
-    from dnarod.protocols.folder import check_protocol_folder
+    from dnarod.workflows.protocols.folder import check_protocol_folder
 
     check_protocol_folder(out, "torque_turns", {}, overwrite=True)     # --overwrite lets the run go on
 

@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.io_utils import LOCK_NAME, folder_lock
+from dnarod.cli.main import main
+from dnarod.core.io import LOCK_NAME, folder_lock
 
 SEQ = "ACGTTGCAAC"
 LAX = ["--engine", "lax", "--time", "0.001", "--no-progress", "--seed", "3", "--frame-interval", "0.2"]
@@ -115,8 +115,8 @@ def test_misuse_class_is_one_line_exit_2_and_changes_nothing(work, case, assert_
 def _write_dtraj(path):
     import numpy as np
 
-    from dnarod.inputs import load_model
-    from dnarod.trajectory import Trajectory
+    from dnarod.structure.inputs import load_model
+    from dnarod.core.trajectory import Trajectory
 
     m = load_model("ACGTACGTAC")
     Trajectory([0.0, 1.0], np.repeat(m.positions[None], 2, 0), np.repeat(m.frames[None], 2, 0), [0, 10]).save(path)
@@ -173,9 +173,9 @@ def test_validate_report_is_replaced_only_with_overwrite_and_members_are_kept(tm
 def test_protocol_api_refuses_a_folder_of_other_settings(tmp_path):
     """hat_curve into a folder recorded with another time is refused before anything runs, as on the command
     line; another protocol's folder too; a non-protocol folder too."""
-    from dnarod.errors import DnarodError
-    from dnarod.protocols import hat_curve, torque_turns
-    from dnarod.protocols.folder import write_protocol_record
+    from dnarod.core.errors import DnarodError
+    from dnarod.workflows.protocols import hat_curve, torque_turns
+    from dnarod.workflows.protocols.folder import write_protocol_record
 
     out = tmp_path / "hat"
     base = dict(time_ns=0.001)
@@ -196,7 +196,7 @@ def test_protocol_api_refuses_a_folder_of_other_settings(tmp_path):
 def test_protocol_run_records_its_settings_and_leaves_no_lock(tmp_path):
     """A tiny protocol through the API writes protocol.json (the settings the refusal compares) and removes its
     lock; the same call again reuses the member."""
-    from dnarod.protocols import hat_curve
+    from dnarod.workflows.protocols import hat_curve
 
     out = tmp_path / "hat"
     kw = dict(source="40", base=dict(time_ns=0.001, equilibration_ns=0.001), workers=0, progress=False, plots=False)
@@ -224,7 +224,7 @@ def test_clamp_bound_is_the_same_for_simulate_and_protocol(work):
         assert r.exit_code == 2, r.output
         most.append(float(re.search(r"use at most ([0-9.e+]+)", r.stderr).group(1)))
     assert most[0] == most[1] and 1e4 < most[0] < 1e7, most
-    from dnarod.protocols.tweezers import DEFAULT_CLAMP_K
+    from dnarod.workflows.protocols.tweezers import DEFAULT_CLAMP_K
 
     assert DEFAULT_CLAMP_K < most[0]            # the protocols' default clamp is well inside the bound
 
@@ -282,9 +282,9 @@ def test_lock_is_exclusive_across_processes_and_freed_when_the_holder_dies(tmp_p
     import sys
     import warnings
 
-    from dnarod.errors import DnarodError
+    from dnarod.core.errors import DnarodError
 
-    code = ("import sys, time\nfrom dnarod.io_utils import folder_lock\n"
+    code = ("import sys, time\nfrom dnarod.core.io import folder_lock\n"
             "with folder_lock(sys.argv[1]):\n    print('held', flush=True)\n    time.sleep(60)\n")
     p = subprocess.Popen([sys.executable, "-c", code, str(tmp_path)], stdout=subprocess.PIPE, text=True)
     try:
@@ -316,8 +316,8 @@ def _dead_pid():
 
 def test_temperature_bound_is_liquid_water():
     """373.15 K (100 degC) is accepted by a run and by a protocol's settings, just above it is refused by both."""
-    from dnarod.errors import DnarodError
-    from dnarod.protocols.curves import _checked_settings
+    from dnarod.core.errors import DnarodError
+    from dnarod.workflows.protocols.curves import _checked_settings
     from dnarod.run import RunSpec
 
     spec = RunSpec(source=SEQ, engine="lax", excluded_volume=False, electrostatics=False)
@@ -332,8 +332,8 @@ def test_temperature_bound_is_liquid_water():
 
 def test_cutoff_bound_in_the_api():
     """The API (RunSpec, the protocols' member settings) refuses the cutoffs the options refuse; 50 is accepted."""
-    from dnarod.errors import DnarodError
-    from dnarod.openmm.nonbonded import member_nonbonded
+    from dnarod.core.errors import DnarodError
+    from dnarod.engines.openmm.nonbonded import member_nonbonded
     from dnarod.run import RunSpec
 
     RunSpec(source=SEQ, cutoff_debye=50.0).check()

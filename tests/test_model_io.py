@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from dnarod.errors import DnarodError, GeometryError, ParameterError
-from dnarod.forcefield import load_forcefield
-from dnarod.model import RodModel
-from dnarod.trajectory import Trajectory, TrajectoryWriter, load_trajectory
+from dnarod.core.errors import DnarodError, GeometryError, ParameterError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.core.trajectory import Trajectory, TrajectoryWriter, load_trajectory
 
 
 @pytest.fixture
@@ -79,7 +79,7 @@ def test_partial_record_ignored_and_resume_truncates(tmp_path, model):
 
 
 def test_ring_has_the_requested_linking_number_and_no_shear():
-    from dnarod.analysis.writhe import linking_number, twist, writhe
+    from dnarod.physics.writhe import linking_number, twist, writhe
 
     ff = load_forcefield("dna-default")
     for n, dlk in ((105, 0), (105, -2), (60, 3)):

@@ -1,15 +1,15 @@
-"""dnarod.modes: the banded Hessian and omega_max against dense, independent references."""
+"""dnarod.physics.modes: the banded Hessian and omega_max against dense, independent references."""
 import numpy as np
 import pytest
 import scipy.linalg
 
-from dnarod import modes
-from dnarod.energy import energy as elastic_energy
-from dnarod.energy import loads as numpy_loads
-from dnarod.forcefield import load_forcefield
-from dnarod.loads import Clamp, PullingForce, RotationClamp, Torque, Trap, resolve_loads
-from dnarod.rotations import rotation_about_axis
-from dnarod.testsystems import TwistedRod
+from dnarod.physics import modes
+from dnarod.core.energy import energy as elastic_energy
+from dnarod.core.energy import loads as numpy_loads
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Torque, Trap, resolve_loads
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.physics.testsystems import TwistedRod
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +27,7 @@ def _perturb(pos, frm, k, a, h):
 
 
 def dense_reference(model, loads=(), pos=None, frm=None, h=1e-5):
-    """Dense lab-chart Hessian from the numpy loads (dnarod.energy) + ResolvedLoads, one dof at a time,
+    """Dense lab-chart Hessian from the numpy loads (dnarod.core.energy) + ResolvedLoads, one dof at a time,
     and the generalised eigenvalues with the mass matrix over the free dofs."""
     pos = model.positions if pos is None else pos
     frm = model.frames if frm is None else frm
@@ -120,7 +120,7 @@ def test_hessian_is_the_chart_second_derivative_of_the_energy(ff):
 
 
 def test_default_time_step_and_splitting_use_modes(ff):
-    from dnarod.integrators import SplittingIntegrator, omega_max
+    from dnarod.engines.lax import SplittingIntegrator, omega_max
 
     m = ff.model_from_sequence(n_nodes=30)
     dt, w = modes.default_time_step(m)

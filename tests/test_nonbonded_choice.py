@@ -5,9 +5,9 @@ import json
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.errors import ParameterError
-from dnarod.openmm.nonbonded import NonbondedSettings, member_nonbonded, nonbonded_record
+from dnarod.cli.main import main
+from dnarod.core.errors import ParameterError
+from dnarod.engines.openmm.nonbonded import NonbondedSettings, member_nonbonded, nonbonded_record
 from dnarod.run import RunSpec, run
 from dnarod.run.spec import compare_fingerprints, fingerprint
 
@@ -138,8 +138,8 @@ def test_report_says_which_P_the_buckling_check_used():
 def test_protocol_rows_through_the_ensemble_carry_the_nonbonded_record_as_scalars(tmp_path):
     """The ensemble keeps scalars per member: the members' nested non-bonded record becomes
     ``nonbonded_<key>`` columns (a nested dict failed every member of a tweezers or ring curve run on dask)."""
-    from dnarod.ensemble.member import _scalars
-    from dnarod.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, RINGS, flat_row
+    from dnarod.workflows.ensemble.member import _scalars
+    from dnarod.workflows.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, RINGS, flat_row
 
     assert flat_row({"a": 1.0, "nonbonded": {"charge_model": "calibrated", "cutoff_debye": 12.0}}) == \
         {"a": 1.0, "nonbonded_charge_model": "calibrated", "nonbonded_cutoff_debye": 12.0}

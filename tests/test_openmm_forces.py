@@ -1,22 +1,22 @@
 """OpenMM engine: rigid three-particle nodes and the step energy (portable and fast paths).
 
-References: dnarod.energy.energy / loads (analytic A2, verified against finite differences in
+References: dnarod.core.energy.energy / loads (analytic A2, verified against finite differences in
 the core tests), the particle geometry's exact inertia, and finite differences here.
 """
 import numpy as np
 import openmm
 import pytest
 
-from dnarod.energy import energy, loads
-from dnarod.errors import ParameterError
-from dnarod.forcefield import load_forcefield
-from dnarod.model import RodModel
-from dnarod.openmm import particles as P
-from dnarod.openmm.forces import (add_closure_image, elastic_compound_forces, elastic_particle_kernel,
+from dnarod.core.energy import energy, loads
+from dnarod.core.errors import ParameterError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.engines.openmm import particles as P
+from dnarod.engines.openmm.forces import (add_closure_image, elastic_compound_forces, elastic_particle_kernel,
                                   elastic_python_force)
-from dnarod.parameters import StepParameters
-from dnarod.rotations import cayley, rotation_about_axis
-from dnarod.strains import Closure
+from dnarod.core.parameters import StepParameters
+from dnarod.core.rotations import cayley, rotation_about_axis
+from dnarod.core.strains import Closure
 
 
 def random_spd(rng, n):
@@ -302,7 +302,7 @@ def test_cpu_fast_path_within_precision(open_full):
 @pytest.mark.parametrize("which", ["open_full", "circular_full"])
 def test_portable_single_force_and_row_split_give_the_same_energy_and_loads(which, request):
     """One force per Cholesky row (the default for a full K; faster to compile) and one force for all rows both
-    equal dnarod.energy, also for a circular chain closed by a general screw (closing bond to the image sites)."""
+    equal dnarod.core.energy, also for a circular chain closed by a general screw (closing bond to the image sites)."""
     m = request.getfixturevalue(which)
     r = P.triangle_radius(m.mass, m.inertia)
     assert len(elastic_compound_forces(m, r)) == 6

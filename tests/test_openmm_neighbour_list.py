@@ -3,9 +3,9 @@ and plectonemic configurations, across moves that do and do not trigger a rebuil
 import numpy as np
 import pytest
 
-from dnarod.forcefield import load_forcefield
-from dnarod.openmm.nonbonded import (NonbondedCallback, NonbondedSettings, VerletList, nonbonded_reference)
-from dnarod.testsystems import gaussian_coil, plectoneme_centres
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.openmm.nonbonded import (NonbondedCallback, NonbondedSettings, VerletList, nonbonded_reference)
+from dnarod.physics.testsystems import gaussian_coil, plectoneme_centres
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +66,7 @@ def test_a_skin_would_miss_pairs_without_the_rebuild_rule(coil):
     cutoff that the stale list does not hold, so the energies would differ. (A 5-Debye-length cutoff: with the
     default 12 the missed pairs sit where the shifted energy is ~e^-12 of its contact value, below the test's
     resolution.)"""
-    from dnarod.openmm.nonbonded import pair_kernel
+    from dnarod.engines.openmm.nonbonded import pair_kernel
 
     v = NonbondedSettings(skin=1.0, cutoff_debye=5.0).resolve(0.34, 300.0)
     vl = VerletList(len(coil), v["cutoff"], 1.0, False, v["n_exclude"])
@@ -94,8 +94,8 @@ def test_list_grows_past_its_initial_capacity():
 def test_engine_energies_and_forces_equal_all_pairs_on_a_coil():
     """Through OpenMM (Reference platform, fast path): after Langevin steps that move the coil,
     the non-bonded energy and node forces of the engine's callback equal the all-pairs reference."""
-    from dnarod.openmm.particles import node_poses, particle_forces_to_loads
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.particles import node_poses, particle_forces_to_loads
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence("ACGT" * 60)
     m = gaussian_coil(m, seed=5)
@@ -113,7 +113,7 @@ def test_engine_energies_and_forces_equal_all_pairs_on_a_coil():
     assert ed0 > 0
     assert sum(sim.rs.nonbonded_callback.last) == pytest.approx(ew0 + ed0, rel=1e-9)
     # the forces of the fused callback minus those of the elastic term alone are the non-local ones
-    from dnarod.openmm.forces import elastic_particle_kernel
+    from dnarod.engines.openmm.forces import elastic_particle_kernel
 
     el = sim.rs.elastic_callback
     out = np.zeros_like(p)
@@ -127,7 +127,7 @@ def test_engine_energies_and_forces_equal_all_pairs_on_a_coil():
 def test_gaussian_coil_samples_the_step_covariance_without_close_pairs():
     from scipy.spatial import cKDTree
 
-    from dnarod.thermal import kT
+    from dnarod.physics.thermal import kT
 
     m = load_forcefield("dna-default").model_from_sequence("ACGT" * 750)
     c = gaussian_coil(m, seed=11, min_distance=2.3, n_exclude=12)
@@ -141,7 +141,7 @@ def test_gaussian_coil_samples_the_step_covariance_without_close_pairs():
 
 
 def test_plectoneme_is_a_chain_of_rise_ds_and_bad_skin_is_rejected():
-    from dnarod.errors import ParameterError
+    from dnarod.core.errors import ParameterError
 
     c = plectoneme_centres(500, ds=0.34)
     d = np.linalg.norm(np.diff(c, axis=0), axis=1)

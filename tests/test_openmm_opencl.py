@@ -17,17 +17,17 @@ import os
 import numpy as np
 import pytest
 
-from dnarod.energy import loads
-from dnarod.forcefield import load_forcefield
-from dnarod.openmm.particles import node_poses, particle_forces_to_loads
-from dnarod.rotations import cayley
-from dnarod.thermal import kT
+from dnarod.core.energy import loads
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.openmm.particles import node_poses, particle_forces_to_loads
+from dnarod.core.rotations import cayley
+from dnarod.physics.thermal import kT
 
 TOL = {"mixed": 2e-5, "single": 1e-4}
 
 
 def _require_opencl():
-    from dnarod.openmm.platforms import platform_names
+    from dnarod.engines.openmm.platforms import platform_names
 
     if "OpenCL" in platform_names():
         return
@@ -49,7 +49,7 @@ def model():
 
 
 def _sim(model, precision, elastic="portable"):
-    from dnarod.openmm.simulation import RodSimulation, omega_max
+    from dnarod.engines.openmm.simulation import RodSimulation, omega_max
 
     _require_opencl()
     return RodSimulation(model, platform="OpenCL", precision=precision, temperature=300, friction=1.0,
@@ -70,7 +70,7 @@ def single(model):
 def test_energy_and_loads_equal_reference(precision, model, request):
     sim = request.getfixturevalue(precision)
     assert sim.platform_name == "OpenCL" and sim.rs.elastic == "portable"
-    from dnarod.openmm.particles import particle_positions
+    from dnarod.engines.openmm.particles import particle_positions
 
     sim.context.setPositions(particle_positions(model.positions, model.frames, sim.rs.radius))
     sim.invalidate()
@@ -91,9 +91,9 @@ def test_circular_full_stiffness_equals_reference_in_mixed_precision():
     node 0's screw image (three SymmetrySite particles)."""
     import openmm
 
-    from dnarod.openmm.forces import add_closure_image, elastic_compound_forces
-    from dnarod.openmm.particles import closure_image_positions, particle_positions, triangle_radius
-    from dnarod.openmm.platforms import platform_properties
+    from dnarod.engines.openmm.forces import add_closure_image, elastic_compound_forces
+    from dnarod.engines.openmm.particles import closure_image_positions, particle_positions, triangle_radius
+    from dnarod.engines.openmm.platforms import platform_properties
 
     _require_opencl()
     m = load_forcefield("olson1998").model_from_sequence("ACGTTGCAAC" * 2, circular=True)
@@ -145,7 +145,7 @@ def test_checkpoint_round_trip_is_exact(mixed, tmp_path):
 def device(model):
     """The compiled plugin's SMK force on the device (skipped here when its OpenCL kernel is not usable; its
     own tests in test_plugin_opencl.py fail under CI then)."""
-    from dnarod.openmm import plugin
+    from dnarod.engines.openmm import plugin
 
     _require_opencl()
     ok, why = plugin.device_kernel("OpenCL")

@@ -1,8 +1,8 @@
-"""Automatic choice of the OpenMM platform (dnarod.openmm.platforms)."""
+"""Automatic choice of the OpenMM platform (dnarod.engines.openmm.platforms)."""
 import pytest
 
-from dnarod.errors import ParameterError
-from dnarod.openmm.platforms import (REFERENCE_MAX_NODES, choose_platform, opencl_gpu_devices, platform_names,
+from dnarod.core.errors import ParameterError
+from dnarod.engines.openmm.platforms import (REFERENCE_MAX_NODES, choose_platform, opencl_gpu_devices, platform_names,
                                      platform_properties)
 
 
@@ -60,8 +60,8 @@ def test_opencl_device_query_is_cheap_and_safe():
 
 
 def test_simulation_records_the_choice():
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence("ACGTACGTAC")
     sim = RodSimulation(m, temperature=300, seed=1, nonbonded=False)

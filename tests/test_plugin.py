@@ -1,6 +1,6 @@
-"""The compiled OpenMM plugin (dnarod.openmm.plugin): SMKForce against dnarod.energy, and the fallback.
+"""The compiled OpenMM plugin (dnarod.engines.openmm.plugin): SMKForce against dnarod.core.energy, and the fallback.
 
-References: dnarod.energy.loads (the numpy analytic loads, checked against finite differences in the core
+References: dnarod.core.energy.loads (the numpy analytic loads, checked against finite differences in the core
 tests). When the plugin is not built these tests are skipped with the build's reason, except under CI
 (``CI=true``), where a missing plugin is a failure.
 """
@@ -14,15 +14,15 @@ import numpy as np
 import openmm
 import pytest
 
-from dnarod.energy import loads
-from dnarod.errors import ParameterError
-from dnarod.forcefield import load_forcefield
-from dnarod.model import RodModel
-from dnarod.openmm import particles as P
-from dnarod.openmm import plugin
-from dnarod.parameters import StepParameters
-from dnarod.rotations import cayley, rotation_about_axis
-from dnarod.strains import Closure
+from dnarod.core.energy import loads
+from dnarod.core.errors import ParameterError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.engines.openmm import particles as P
+from dnarod.engines.openmm import plugin
+from dnarod.core.parameters import StepParameters
+from dnarod.core.rotations import cayley, rotation_about_axis
+from dnarod.core.strains import Closure
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -132,7 +132,7 @@ def test_cayley_limit_gives_nan_energy(mod):
 
 
 def test_simulation_on_plugin_path_has_the_callback_paths_energies(mod):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     model = random_model(8, sequence="ACGTACGTACGTACGTACGTACGTACGTACGTACGTACGT", scale=0.03, rot=0.05)
     still = (np.zeros((model.n_nodes, 3)), np.zeros((model.n_nodes, 3)))
@@ -156,7 +156,7 @@ def fresh_status(monkeypatch):
 
 
 def test_switched_off_falls_back_and_says_so_once(fresh_status, capsys):
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.system import build_system
 
     fresh_status.setenv("DNAROD_PLUGIN", "0")
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGT")
@@ -171,7 +171,7 @@ def test_switched_off_falls_back_and_says_so_once(fresh_status, capsys):
 
 def test_abi_mismatch_names_both_versions_and_falls_back(fresh_status, capsys):
     from dnarod._plugin import _build_info
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.system import build_system
 
     if _build_info.STATUS != "built":
         pytest.skip(f"plugin not built: {_build_info.REASON}")
@@ -212,7 +212,7 @@ def test_build_without_compiler_still_installs_and_records_why(tmp_path):
 def test_node_pair_force_equals_nonbonded_reference_as_nodes_move(mod):
     """The compiled WCA + Debye-Hueckel (Verlet list) against the all-pairs numpy reference, on a squashed ring
     with many contacts, after small moves (list kept) and large ones (list rebuilt)."""
-    from dnarod.openmm.nonbonded import NonbondedSettings, nonbonded_reference
+    from dnarod.engines.openmm.nonbonded import NonbondedSettings, nonbonded_reference
 
     model = load_forcefield("dna-default").ring(n_nodes=120)
     numbers = NonbondedSettings(salt=0.05).resolve(model.ds, 300.0)
@@ -243,7 +243,7 @@ def _opencl_available():
 @pytest.mark.skipif(not _opencl_available(), reason="no OpenCL platform (install pocl-opencl-icd for CPU OpenCL)")
 def test_plugin_force_and_integrator_on_opencl(mod):
     """On OpenCL the SMK force (device kernel where built, host code otherwise; the device kernels have their own
-    tests in test_plugin_opencl.py) equals dnarod.energy to 1e-11 in double precision, 1e-5 in single; the plugin
+    tests in test_plugin_opencl.py) equals dnarod.core.energy to 1e-11 in double precision, 1e-5 in single; the plugin
     path follows the same NVE trajectory as on the CPU platform."""
     model = random_model(11, circular=True)
     want = loads(model.positions, model.frames, model.params, model.ds, model.closure)
@@ -257,7 +257,7 @@ def test_plugin_force_and_integrator_on_opencl(mod):
                              {"Precision": precision})
         ctx.setPositions(P.particle_positions(model.positions, model.frames, r))
         assert_equal_loads(plugin_loads(ctx), want, rtol)
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     plain = load_forcefield("dna-default").model_from_sequence("ACGTACGTACGT")
     ends = []
@@ -275,9 +275,9 @@ def test_host_code_on_opencl_without_device_kernels(mod):
     CustomCPPForceImpl, rigid-body steps on host copies), said once, and follows the CPU platform's trajectory."""
     code = """
 import numpy as np
-from dnarod.forcefield import load_forcefield
-from dnarod.openmm import plugin
-from dnarod.openmm.simulation import RodSimulation
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.openmm import plugin
+from dnarod.engines.openmm.simulation import RodSimulation
 plain = load_forcefield("dna-default").model_from_sequence("ACGTACGTACGT")
 ends = []
 for platform in ("CPU", "OpenCL"):
@@ -303,7 +303,7 @@ def test_system_with_plugin_forces_pickles_and_copies(mod):
     import copy
     import pickle
 
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.system import build_system
 
     model = random_model(3, circular=True)
     rs = build_system(model, "Reference", "plugin", nonbonded=True)

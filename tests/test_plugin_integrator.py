@@ -1,4 +1,4 @@
-"""The compiled rigid-body integrator (dnarod.openmm.plugin.rigid_body_integrator).
+"""The compiled rigid-body integrator (dnarod.engines.openmm.plugin.rigid_body_integrator).
 
 References: the Lax-form engine's splitting integrator (the same scheme, numpy/numba) and the exact
 strain-space solution (DOP853) for NVE; the Maxwell-Boltzmann distribution for the thermostat; OpenMM's own
@@ -11,10 +11,10 @@ import numpy as np
 import openmm
 import pytest
 
-from dnarod.forcefield import load_forcefield
-from dnarod.openmm import particles as P
-from dnarod.openmm import plugin
-from dnarod.thermal import kT as kT_of
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.openmm import particles as P
+from dnarod.engines.openmm import plugin
+from dnarod.physics.thermal import kT as kT_of
 
 
 @pytest.fixture(scope="module")
@@ -35,7 +35,7 @@ def dodecamer():
 
 
 def nve_run(model, v, w, dt, t_report):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference", elastic="plugin",
                         nonbonded=False, initial_velocities=(v, w), seed=0)
@@ -50,8 +50,8 @@ def nve_run(model, v, w, dt, t_report):
 
 
 def test_nve_equals_lax_splitting_and_converges_at_second_order(mod, dodecamer):
-    from dnarod.integrators import RigidState, SplittingIntegrator, integrate_exact
-    from dnarod.integrators.splitting import maxwell_state
+    from dnarod.engines.lax import RigidState, SplittingIntegrator, integrate_exact
+    from dnarod.engines.lax.splitting import maxwell_state
 
     model = dodecamer
     v, w = maxwell_state(model, 300.0, seed=1).velocities(model.mass, model.inertia)
@@ -116,7 +116,7 @@ def test_thermostat_samples_maxwell_boltzmann(mod):
 
 
 def test_checkpoint_resume_is_bit_for_bit(mod):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     sim = RodSimulation(model, temperature=300.0, elastic="plugin", nonbonded=True, seed=11, platform="CPU")
@@ -141,8 +141,8 @@ def test_checkpoint_resume_is_bit_for_bit(mod):
 
 
 def test_triangles_stay_rigid_and_clamped_nodes_stay_put(mod):
-    from dnarod.openmm.loads import Clamp, PullingForce
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.loads import Clamp, PullingForce
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     sim = RodSimulation(model, temperature=300.0, elastic="plugin", seed=4, platform="CPU",
@@ -161,8 +161,8 @@ def test_triangles_stay_rigid_and_clamped_nodes_stay_put(mod):
 def test_nve_with_loads_and_nonbonded_conserves_energy(mod):
     """Forces OpenMM evaluates (non-bonded PythonForce, an external pull) enter the rigid update correctly: the
     shadow energy is conserved at small dt (drift far below the energy's fluctuation)."""
-    from dnarod.openmm.loads import PullingForce
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.loads import PullingForce
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").ring(n_nodes=60)
     energies = []
@@ -184,7 +184,7 @@ def test_node_state_kept_between_calls_matches_particles_and_is_dropped_when_the
     """NVE: one call of 40 steps equals 40 calls of one step bit for bit (the node state is kept between calls);
     after positions and velocities are set from outside, the integrator starts from them, not from its kept
     state."""
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     runs = []
@@ -222,11 +222,11 @@ def test_langevin_temperature_and_strain_fluctuations_on_plugin(mod, tmp_path):
 
 def test_context_reinitialize_keeps_state_and_continues(mod):
     """Context.reinitialize(preserveState=True) re-binds the integrator: positions and velocities are kept, the
-    elastic energy equals dnarod.energy at them, and the run continues exactly as without the re-initialisation
+    elastic energy equals dnarod.core.energy at them, and the run continues exactly as without the re-initialisation
     (the checkpoint carries the random-number and node state); a force added before reinitialize is applied."""
-    from dnarod.energy import energy
-    from dnarod.openmm.forces import GROUPS
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.core.energy import energy
+    from dnarod.engines.openmm.forces import GROUPS
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     ends = []
@@ -273,11 +273,11 @@ def test_node_report_equals_the_openmm_state_path(mod, integrator):
     the OpenMM State and the numpy particle code give at the same state, before the first step (read from the
     particles), after steps (the kept node state) and with a force OpenMM evaluates; asking for reports does not
     change the trajectory."""
-    from dnarod.openmm.forces import GROUPS
-    from dnarod.openmm.loads import PullingForce
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.forces import GROUPS
+    from dnarod.engines.openmm.loads import PullingForce
+    from dnarod.engines.openmm.simulation import RodSimulation
 
-    from dnarod.openmm.nonbonded import NonbondedSettings
+    from dnarod.engines.openmm.nonbonded import NonbondedSettings
 
     # small enough for Debye-Hueckel across the ring: a 5-Debye-length cutoff excludes 12 neighbours each side
     # (the default 12 Debye lengths would exclude all 29)
@@ -313,7 +313,7 @@ def test_node_report_equals_the_openmm_state_path(mod, integrator):
 
 def threaded_context(mod, model, threads, friction, seed, chunk=16):
     """A CPU Context of the full model (SMK + node pairs) on the compiled integrator with `threads` threads."""
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.system import build_system
 
     rs = build_system(model, "CPU", "plugin", True, (), 300.0)
     integ = plugin.rigid_body_integrator(rs.radius, 0.05, 300.0, friction, seed)

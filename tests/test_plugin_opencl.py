@@ -1,7 +1,7 @@
 """The compiled plugin's device (Common-compute) kernels on OpenMM's OpenCL platform (pocl on a CPU in CI; any
 OpenCL device elsewhere): SMKForce and the rigid-body integrator's step.
 
-References: dnarod.energy.loads (numpy analytic loads) and the plugin's host code on the Reference platform;
+References: dnarod.core.energy.loads (numpy analytic loads) and the plugin's host code on the Reference platform;
 for trajectories, the Python-callback path on the Reference platform with the same VerletIntegrator + SETTLE,
 and the rigid-body integrator's host steps on Reference for its device steps; the Maxwell-Boltzmann variances
 for its thermostat.
@@ -21,12 +21,12 @@ import numpy as np
 import openmm
 import pytest
 
-from dnarod.energy import loads
-from dnarod.forcefield import load_forcefield
-from dnarod.model import RodModel
-from dnarod.openmm import particles as P
-from dnarod.openmm import plugin
-from dnarod.parameters import StepParameters
+from dnarod.core.energy import loads
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.engines.openmm import particles as P
+from dnarod.engines.openmm import plugin
+from dnarod.core.parameters import StepParameters
 
 from test_plugin import assert_equal_loads, plugin_loads, random_model
 
@@ -72,7 +72,7 @@ def opencl_context(model, precision, integrator=None):
 @pytest.mark.parametrize("precision", ["double", "mixed", "single"])
 def test_device_kernel_equals_dnarod_energy(mod, precision, circular):
     """Random full 6x6 K and intrinsic strains per step, far from the intrinsic shape, open and circular (screw
-    closure): energy, node forces and torques equal dnarod.energy; the host code never ran."""
+    closure): energy, node forces and torques equal dnarod.core.energy; the host code never ran."""
     model = random_model(21 + circular, circular=circular)
     want = loads(model.positions, model.frames, model.params, model.ds, model.closure)
     assert want[0] > 1.0
@@ -126,8 +126,8 @@ def test_sequence_model_and_parameter_update_on_device(mod):
 def test_auto_takes_the_device_kernels_on_opencl(mod, capsys):
     """elastic='auto' on OpenCL: the plugin's SMKForce and rigid-body integrator both on the device, said once;
     without the kernels it falls back to the portable expression."""
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.openmm.system import choose_elastic
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.system import choose_elastic
 
     plugin._DEVICE_ANNOUNCED.discard("OpenCL")
     assert choose_elastic("auto", "OpenCL") == "plugin"
@@ -164,8 +164,8 @@ def test_nve_settle_trajectory_equals_callback_path(mod):
     trajectory as the Python-callback path on the Reference platform (same integrator, same forces). Measured after
     100 steps: 5e-9 nm / 3e-8 in the frames; OpenMM's own CustomCompoundBondForce on OpenCL differs from Reference
     by 4e-9 nm / 6e-9 in the same run (the platforms' SETTLE and summation differ; the rounding grows with time)."""
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
     ref = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="fast", platform="Reference", seed=4,
@@ -191,8 +191,8 @@ def test_rigid_body_steps_on_device_equal_host(mod, precision, tol):
     """NVE: the rigid-body integrator's device steps on OpenCL follow its host steps on Reference (the same
     splitting; measured after 100 steps: 3e-13 nm / 5e-13 in the frames in double, 2e-8 / 4e-8 mixed, 2e-6 / 3e-6
     single), and keep every triangle rigid."""
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
     ref = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", platform="Reference", seed=4,
@@ -221,8 +221,8 @@ def test_rigid_body_langevin_on_device(mod):
     """Langevin on the device: a checkpoint repeats bit for bit (random numbers from OpenMM's generator, saved
     with the Context), and node velocities and angular velocities have the Maxwell-Boltzmann variances kT/m,
     kT/J_a (400 samples of 30 nodes 10 steps apart at friction 5/ps: within 10%; measured 0.97-1.02)."""
-    from dnarod.openmm.system import build_system
-    from dnarod.thermal import kT as kT_of
+    from dnarod.engines.openmm.system import build_system
+    from dnarod.physics.thermal import kT as kT_of
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 3)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
@@ -255,7 +255,7 @@ def test_rigid_body_langevin_on_device(mod):
 def test_checkpoint_round_trip_on_device(mod):
     """A Langevin + SETTLE run on the device from a checkpoint repeats bit for bit (device forces are summed in
     fixed point, so they do not depend on the order of the atomic additions)."""
-    from dnarod.openmm.system import build_system
+    from dnarod.engines.openmm.system import build_system
 
     model = random_model(6, scale=0.02, rot=0.05)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
@@ -299,7 +299,7 @@ def test_build_record_names_device_kernels(mod):
 @pytest.mark.parametrize("precision", ["double", "single"])
 def test_cayley_limit_gives_nan_energy_on_device(mod, precision):
     """A step rotated by 180 degrees (the Cayley limit): NaN energy and no loads from that step, as the host code."""
-    from dnarod.rotations import rotation_about_axis
+    from dnarod.core.rotations import rotation_about_axis
 
     model = random_model(4, scale=0.0, rot=0.0)
     frames = model.frames.copy()
@@ -315,7 +315,7 @@ def test_cayley_limit_gives_nan_energy_on_device(mod, precision):
 def test_full_model_on_the_device_path(mod):
     """Non-local terms on (NodePairForce, host code on this path): at the same state the per-term energies on
     OpenCL equal the plugin on Reference, and a short Langevin run on the device stays finite."""
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     # 30 bp bent on three quarters of a circle of radius 2.16 nm: non-excluded node pairs 3.3-4.3 nm apart,
     # some inside the Debye-Hueckel cutoff, so the non-local energy is not zero

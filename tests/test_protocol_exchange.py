@@ -1,4 +1,4 @@
-"""Replica exchange along the turns (``dnarod.protocols.exchange``, ``protocol hat --start exchange``).
+"""Replica exchange along the turns (``dnarod.workflows.protocols.exchange``, ``protocol hat --start exchange``).
 
 References: the exchange map's algebra (involution, lab angular velocity kept, the sweep's twist ramp), the
 swap energy against a fresh simulation of the target rung, the untouched trajectory after a trial, resume from a
@@ -10,8 +10,8 @@ import json
 import numpy as np
 import pytest
 
-from dnarod.protocols import ensemble_hooks as hooks
-from dnarod.protocols import exchange as ex
+from dnarod.workflows.protocols import ensemble_hooks as hooks
+from dnarod.workflows.protocols import exchange as ex
 
 BASE = dict(source="40", force_pN=1.0, time_ns=0.2, equilibration_ns=0.05, temperature_K=300.0, salt_M=0.15,
             seed=3, rotation_clamp_kJ_mol=250.0)
@@ -28,7 +28,7 @@ def _random_frames(rng, n):
 
 
 def test_twist_move_is_an_involution_that_keeps_lab_angular_velocity():
-    from dnarod.protocols.sweep import add_turns
+    from dnarod.workflows.protocols.sweep import add_turns
 
     rng = np.random.default_rng(1)
     F = _random_frames(rng, 9)
@@ -49,7 +49,7 @@ def test_twist_move_is_an_involution_that_keeps_lab_angular_velocity():
 
 
 def test_swap_energy_equals_a_fresh_simulation_of_the_target_rung():
-    from dnarod.protocols.tweezers import _member_simulation
+    from dnarod.workflows.protocols.tweezers import _member_simulation
 
     g = ex.ReplicaGroup(_settings([0.0, 0.3]), [0, 1])
     g.advance(200)
@@ -154,7 +154,7 @@ def test_ladder_writes_rungs_and_resumes_exactly(tmp_path, monkeypatch):
 
 
 def test_checkpoint_of_other_settings_refused(tmp_path, monkeypatch):
-    from dnarod.errors import DnarodError
+    from dnarod.core.errors import DnarodError
 
     real = ex.ReplicaGroup.sample
     monkeypatch.setattr(ex.ReplicaGroup, "sample", lambda self: (_ for _ in ()).throw(RuntimeError("stop")))
@@ -176,7 +176,7 @@ def test_two_groups_give_the_one_group_result(tmp_path):
 
 def _agreement(tmp_path, time_ns, turns):
     """Each rung of a ladder against an independent static member at its turn value (same settings)."""
-    from dnarod.protocols.tweezers import run_member
+    from dnarod.workflows.protocols.tweezers import run_member
 
     _, rungs = _ladder(tmp_path, "lad", turns=turns, exchange_ps=10.0)
     rows = []
@@ -211,7 +211,7 @@ def test_rungs_sample_the_members_equilibrium_long(tmp_path, monkeypatch):
 
 
 def _model(s):
-    from dnarod.protocols.tweezers import build_member
+    from dnarod.workflows.protocols.tweezers import build_member
 
     return build_member(s)["model"]
 
@@ -247,7 +247,7 @@ def test_a_wrong_acceptance_rule_fails_where_the_twist_map_is_not_a_symmetry(tmp
     a sample right after each round, against independent 2-ns members. The Metropolis rule (35-40 % accepted)
     keeps each rung's twisting moment within 4 SE of its member (measured |z| <= 1.8 over five seeds); accepting
     every swap biases the two rungs apart (the difference between them off by 9 SE)."""
-    from dnarod.protocols.tweezers import run_member
+    from dnarod.workflows.protocols.tweezers import run_member
 
     base = dict(BASE, source="A" * 10 + "CG" * 5 + "A" * 10 + "CA" * 5, forcefield="olson1998", time_ns=1.0,
                 equilibration_ns=0.02, sample_ps=1.0, seed=5)
@@ -298,8 +298,8 @@ def test_cli_prints_a_run_warning_when_raised_and_holds_other_warnings(monkeypat
     import click
     from click.testing import CliRunner
 
-    from dnarod.cli import main
-    from dnarod.errors import DnarodError, RunWarning
+    from dnarod.cli.main import main
+    from dnarod.core.errors import DnarodError, RunWarning
 
     events = []
 

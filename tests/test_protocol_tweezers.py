@@ -6,19 +6,19 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.errors import DnarodError
-from dnarod.forcefield import load_forcefield
-from dnarod.openmm.nonbonded import NonbondedSettings
-from dnarod.protocols.measure import (CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops,
+from dnarod.cli.main import main
+from dnarod.core.errors import DnarodError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.openmm.nonbonded import NonbondedSettings
+from dnarod.workflows.protocols.measure import (CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops,
                                       plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment)
-from dnarod.protocols.tweezers import check_tweezers, intrinsic_turns, strained_helix
-from dnarod.rotations import rotation_about_axis
-from dnarod.strains import chain_from_strains
-from dnarod.testsystems import plectoneme_centres
-from dnarod.thermal import equilibrium_sample, kT, sample_open_chain_strains
-from dnarod.units import PN
-from dnarod.validate.supercoil_theory import effective_diameter
+from dnarod.workflows.protocols.tweezers import check_tweezers, intrinsic_turns, strained_helix
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.strains import chain_from_strains
+from dnarod.physics.testsystems import plectoneme_centres
+from dnarod.physics.thermal import equilibrium_sample, kT, sample_open_chain_strains
+from dnarod.core.units import PN
+from dnarod.physics.theory.supercoil import effective_diameter
 
 FF = load_forcefield("dna-default")
 
@@ -201,7 +201,7 @@ def test_protocol_cli_misuse_exits_2(tmp_path, args, words):
 
 def test_torque_turns_curve_short_chain(tmp_path):
     """100 bp at 3 pN, +-0.5 turns: the slope gives C_eff near Moroz-Nelson; Lk tracks the clamp; files written."""
-    from dnarod.protocols import torque_turns
+    from dnarod.workflows.protocols import torque_turns
     from dnarod.validate.torsion import bare_twist_persistence, moroz_nelson
 
     c = torque_turns([-0.5, 0.5], tmp_path / "tt", force_pN=3.0, source="100", workers=0,
@@ -224,8 +224,8 @@ def test_torque_turns_curve_short_chain(tmp_path):
     assert len(rows) == 3 and "twist_torque_pN_nm" in rows[0] and "twist_torque_pN_nm_raw" in rows[0]
     # the curve's torque is on the model's zero at T: the raw twisting moment less its free-chain reading, and its
     # linking difference is counted from the relaxed twist at T (both computed independently here)
-    from dnarod.protocols.measure import twisting_moment_offset
-    from dnarod.thermal import relaxed_ribbon_twist
+    from dnarod.workflows.protocols.measure import twisting_moment_offset
+    from dnarod.physics.thermal import relaxed_ribbon_twist
 
     off, _ = twisting_moment_offset(m, 300.0)
     lk_T, _ = relaxed_ribbon_twist(m, 300.0)
@@ -244,7 +244,7 @@ def test_torque_turns_curve_short_chain(tmp_path):
 
 
 def test_ring_member_conserves_linking_number(tmp_path):
-    from dnarod.protocols.rings import run_ring_member
+    from dnarod.workflows.protocols.rings import run_ring_member
 
     r = run_ring_member(dict(n_bp=150, delta_lk=-1, time_ns=0.1, equilibration_ns=0.05, seed=2), tmp_path / "ring")
     assert r["lk_integer"] is not None
@@ -295,8 +295,8 @@ def test_buckling_check_runs_and_fails_before_buckling(tmp_path):
 @pytest.mark.slow
 @pytest.mark.parametrize("kind, axes", [("magnetic_tweezers", {"turns": [-0.3, 0.3]}), ("rings", {"delta_lk": [-1, 0]})])
 def test_protocols_through_the_ensemble_layer(tmp_path, kind, axes):
-    """The same members through dnarod.ensemble (dask LocalCluster, one worker)."""
-    from dnarod.protocols import run_protocol
+    """The same members through dnarod.workflows.ensemble (dask LocalCluster, one worker)."""
+    from dnarod.workflows.protocols import run_protocol
 
     base = dict(source="100" if kind != "rings" else "150", time_ns=0.1, equilibration_ns=0.05, seed=4)
     if kind != "rings":
@@ -309,10 +309,10 @@ def test_protocols_through_the_ensemble_layer(tmp_path, kind, axes):
 def test_bracketing_starts_keep_the_linking_number(tmp_path):
     """A tweezers member begun from a plectoneme grown at a lower force has the straight start's Lk (same turns
     and clamp); a bend-softened ring start has the ring's Lk and the softened model bends more easily."""
-    from dnarod.forcefield import load_forcefield
-    from dnarod.protocols.rings import bend_softened_model, run_ring_member
-    from dnarod.protocols.tweezers import run_member
-    from dnarod.thermal import kT, persistence_length
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.workflows.protocols.rings import bend_softened_model, run_ring_member
+    from dnarod.workflows.protocols.tweezers import run_member
+    from dnarod.physics.thermal import kT, persistence_length
 
     base = dict(n_bp=100, force_pN=1.0, turns=0.8, time_ns=0.02, equilibration_ns=0.01, seed=3)
     a = run_member(base, tmp_path / "straight")
@@ -333,7 +333,7 @@ def test_bracketing_starts_keep_the_linking_number(tmp_path):
 def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
     """A member interrupted mid-production resumes from its checkpoint: the samples before the interruption
     are kept, the run continues from the saved state, and the finished member matches an uninterrupted one."""
-    from dnarod.protocols import tweezers as tw
+    from dnarod.workflows.protocols import tweezers as tw
 
     settings = dict(n_bp=40, force_pN=2.0, turns=0.3, time_ns=0.05, equilibration_ns=0.02, sample_ps=2.0, seed=3,
                     platform="Reference")
@@ -368,7 +368,7 @@ def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
 def test_add_turns_adds_twist_only():
     """Turning a pose by dt adds dt to the twist (so to Lk), keeps positions, writhe and node 0's frame, and
     turns the last node by 2 pi dt about its own d3."""
-    from dnarod.protocols.sweep import add_turns
+    from dnarod.workflows.protocols.sweep import add_turns
 
     m = strained_helix(FF.model_from_sequence(n_nodes=60), 1.0, 0.3)
     rng = np.random.default_rng(5)
@@ -388,9 +388,9 @@ def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
     """start='sweep': turns >= 0 run up from 0 and turns < 0 down from the largest; each chained member starts
     from the previous member's final pose turned by the increment (its Lk follows the clamp); a second call
     reuses every finished member, and after one member's result is lost only that member runs again."""
-    from dnarod.protocols import hat_curve
-    from dnarod.protocols import tweezers as tw
-    from dnarod.protocols.sweep import add_turns, load_pose, sweep_chains
+    from dnarod.workflows.protocols import hat_curve
+    from dnarod.workflows.protocols import tweezers as tw
+    from dnarod.workflows.protocols.sweep import add_turns, load_pose, sweep_chains
 
     assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4]) == [[0.0, 0.4, 0.8], [-0.4, -1.2]]
     kw = dict(force_pN=2.0, source="60", workers=0, start="sweep", settle_ns=0.005,
@@ -414,7 +414,7 @@ def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
         assert r["lk_slips"] == 0 and r["delta_lk"] == pytest.approx(r["end_turns"], abs=0.02)
         assert abs(r["end_turns"] - t) < 0.05
     # every member its own noise stream, derived reproducibly from the curve's seed, force, turns and direction
-    from dnarod.protocols.ensemble_hooks import member_seed
+    from dnarod.workflows.protocols.ensemble_hooks import member_seed
 
     seeds = {t: r["seed"] for t, r in rows.items()}
     assert len(set(seeds.values())) == len(seeds)
@@ -431,7 +431,7 @@ def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
 
 
 def test_turn_sweep_bad_input(tmp_path):
-    from dnarod.protocols import force_extension, hat_curve
+    from dnarod.workflows.protocols import force_extension, hat_curve
 
     with pytest.raises(DnarodError, match="rotation-clamp"):
         force_extension([1.0], tmp_path / "a", source="40", workers=0, start="sweep")
@@ -447,8 +447,8 @@ def test_turn_sweep_bad_input(tmp_path):
 def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch):
     """start='sweep-in': chains run towards zero turns; each head starts from a plectoneme grown at a lower force
     (same Lk) and the next member from the head's final pose with the turns taken out."""
-    from dnarod.protocols import hat_curve, sweep
-    from dnarod.protocols.sweep import add_turns, load_pose, sweep_chains
+    from dnarod.workflows.protocols import hat_curve, sweep
+    from dnarod.workflows.protocols.sweep import add_turns, load_pose, sweep_chains
 
     assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4], inward=True) == [[0.8, 0.4, 0.0], [-1.2, -0.4]]
     monkeypatch.setattr(sweep, "GROW_NS", 0.01)
@@ -462,7 +462,7 @@ def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch)
     np.testing.assert_array_equal(load_pose(mem / "force_pN+2_turns+0.25" / "start_pose.npz")[1], F)
     for t, r in rows.items():
         assert r["lk_slips"] == 0 and abs(r["end_turns"] - t) < 0.05
-    from dnarod.protocols.ensemble_hooks import member_seed
+    from dnarod.workflows.protocols.ensemble_hooks import member_seed
 
     for t, r in rows.items():  # not the outward sweep's stream at the same turns
         base = member_seed(3, "magnetic_tweezers", 2.0, t)
@@ -472,7 +472,7 @@ def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch)
 def test_member_seed_is_distinct_and_reproducible():
     """The same base seed and key give the same seed; another key, base seed or direction another one; all in
     [1, 2^31); static members of a curve get distinct seeds too (each one from its force and turns)."""
-    from dnarod.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, member_seed
+    from dnarod.workflows.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, member_seed
 
     a = member_seed(1, "magnetic_tweezers", 1.0, 0.8)
     assert a == member_seed(1, "magnetic_tweezers", 1.0, 0.8) == member_seed(1, "magnetic_tweezers", 1, 0.8)
@@ -492,8 +492,8 @@ def test_buckling_turns_place_marko_buckling_point():
     check's theory, docs/protocols.md), and the hat's centre is at -0.42 turns (0.42 milliturn per step)."""
     import math
 
-    from dnarod.protocols.sweep import buckling_estimate, buckling_turns, member_settles
-    from dnarod.validate.supercoil_theory import wlc_free_energy_exact
+    from dnarod.workflows.protocols.sweep import buckling_estimate, buckling_turns, member_settles
+    from dnarod.physics.theory.supercoil import wlc_free_energy_exact
 
     e = buckling_estimate("1000", 1.0, 300.0)
     kt = kT(300.0) / PN
@@ -521,8 +521,8 @@ def test_buckling_turns_place_marko_buckling_point():
 def test_turn_sweep_settles_long_only_past_buckling(tmp_path):
     """settle_buckled_ns: chained members at or beyond the buckling bounds settle that long, the others settle_ns,
     the chain heads their equilibration; the rows carry the bounds."""
-    from dnarod.protocols import hat_curve
-    from dnarod.protocols.sweep import buckling_turns
+    from dnarod.workflows.protocols import hat_curve
+    from dnarod.workflows.protocols.sweep import buckling_turns
 
     lo, hi = buckling_turns("60", 2.0)
     assert -0.25 < lo < -0.1 and 0.05 < hi < 0.15
@@ -537,7 +537,7 @@ def test_turn_sweep_settles_long_only_past_buckling(tmp_path):
 
 def test_settle_buckled_bad_input(tmp_path):
     """--settle-buckled without a sweep, <= 0 or not finite: one line, exit 2, nothing written."""
-    from dnarod.protocols import hat_curve
+    from dnarod.workflows.protocols import hat_curve
 
     with pytest.raises(DnarodError, match="settle_buckled 0.0: give a time in ns > 0"):
         hat_curve([0.0], tmp_path / "a", source="40", workers=0, start="sweep", settle_buckled_ns=0.0)
@@ -558,10 +558,10 @@ def test_member_keys_carry_the_non_bonded_terms(tmp_path):
     the defaults: the terms are member settings, so they are part of each protocol's cache key."""
     import json
 
-    from dnarod.errors import DnarodError
-    from dnarod.io_utils import jsonable
-    from dnarod.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE, member_nonbonded
-    from dnarod.protocols import nicked, rings, tweezers
+    from dnarod.core.errors import DnarodError
+    from dnarod.core.io import jsonable
+    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE, member_nonbonded
+    from dnarod.workflows.protocols import nicked, rings, tweezers
 
     for mod in (rings, nicked, tweezers):
         s = mod._settings({})
@@ -583,7 +583,7 @@ def test_bracket_rows_midpoint_and_gap_error():
     costs add up; a turn value with one direction only is refused."""
     import math
 
-    from dnarod.protocols.curves import bracket_rows
+    from dnarod.workflows.protocols.curves import bracket_rows
 
     out = [dict(force_pN=1.0, turns=2.4, relative_extension=0.70, relative_extension_err=0.01, Wr=1.0, Wr_err=0.1,
                 cpu_s=100.0, wall_s=120.0, n_steps=10, start="s1", seed=1, sweep_direction="out"),
@@ -615,8 +615,8 @@ def test_bracket_start_runs_both_sweeps(tmp_path, monkeypatch):
     """start='bracket': the outward and inward sweeps run in one call (members out_* and in_*, both in
     members.csv); each curve point combines the two members at its turn value exactly as bracket_rows does; a
     chain head past buckling (the inward heads here) equilibrates for --settle-buckled; bad input is refused."""
-    from dnarod.protocols import force_extension, hat_curve, sweep
-    from dnarod.protocols.curves import bracket_rows
+    from dnarod.workflows.protocols import force_extension, hat_curve, sweep
+    from dnarod.workflows.protocols.curves import bracket_rows
 
     monkeypatch.setattr(sweep, "GROW_NS", 0.01)
     out = tmp_path / "b"
@@ -665,9 +665,9 @@ def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host
     on a tweezers member's twisted start pose (forces to 1e-4 of their scale)."""
     import openmm
 
-    from dnarod.openmm.platforms import choose_platform
-    from dnarod.protocols import tweezers as tw
-    from dnarod.protocols.ensemble_hooks import RINGS, TweezersProtocol
+    from dnarod.engines.openmm.platforms import choose_platform
+    from dnarod.workflows.protocols import tweezers as tw
+    from dnarod.workflows.protocols.ensemble_hooks import RINGS, TweezersProtocol
 
     monkeypatch.setenv("OPENMM_CPU_THREADS", "1")
     auto = choose_platform(None, threads=1)[0].getName()

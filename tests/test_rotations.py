@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from dnarod.errors import GeometryError
-from dnarod.rotations import axial, cayley, cayley_inverse, cayley_T, check_frames, hat, rotation_about_axis
-from dnarod.strains import strains, strains_dot_form
+from dnarod.core.errors import GeometryError
+from dnarod.core.rotations import axial, cayley, cayley_inverse, cayley_T, check_frames, hat, rotation_about_axis
+from dnarod.core.strains import strains, strains_dot_form
 
 from conftest import random_chain
 

@@ -5,11 +5,11 @@ import warnings
 import numpy as np
 import pytest
 
-from dnarod.errors import ParameterError
-from dnarod.forcefield import load_forcefield
-from dnarod.loads import PullingForce
+from dnarod.core.errors import ParameterError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.loads import PullingForce
 from dnarod.run import ENERGY_COLUMNS, RunSpec, load_energies, run
-from dnarod.trajectory import HEADER_SIZE, MAGIC, bytes_per_node_frame, load_trajectory
+from dnarod.core.trajectory import HEADER_SIZE, MAGIC, bytes_per_node_frame, load_trajectory
 
 SEQ = "ACGTTGCAACGTTGCA"
 BASE = dict(source=SEQ, excluded_volume=False, electrostatics=False, platform="Reference", dt=0.02,
@@ -105,7 +105,7 @@ def test_trajectory_size_and_old_float64_files(tmp_path):
 
 
 def test_zero_temperature_and_checks_through_the_api(tmp_path):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence(SEQ)
     sim = RodSimulation(m, temperature=0)  # at rest; non-bonded scales from the reference temperature
@@ -146,7 +146,7 @@ def test_run_killed_after_its_last_checkpoint_gets_its_final_model_on_resume(tmp
     """A process killed between the run's last checkpoint and ``final_model.npz`` (an ensemble member whose
     worker died there): the resume finds the run complete and writes the end state from the checkpoint, so the
     member can be reduced."""
-    from dnarod.model import RodModel
+    from dnarod.core.model import RodModel
 
     base = dict(BASE, platform=None) if engine == "lax" else BASE
     spec = RunSpec(engine=engine, time_ns=0.002, temperature=300.0, friction=1.0, export=False, **base)

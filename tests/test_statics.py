@@ -3,12 +3,12 @@ small-load linear response, traps and rotation clamps, misuse."""
 import numpy as np
 import pytest
 
-from dnarod.energy import energy as elastic_energy
-from dnarod.errors import DnarodError
-from dnarod.forcefield import load_forcefield
-from dnarod.loads import Clamp, PullingForce, RotationClamp, Torque, Trap, resolve_loads
-from dnarod.rotations import rotation_about_axis
-from dnarod.statics import solve_static
+from dnarod.core.energy import energy as elastic_energy
+from dnarod.core.errors import DnarodError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Torque, Trap, resolve_loads
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.physics.statics import solve_static
 
 
 @pytest.fixture(scope="module")

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.conversion import strains_to_step_parameters
-from dnarod.stepparams import to_angstrom_degrees
-from dnarod.strains import strains
+from dnarod.cli.main import main
+from dnarod.core.conversion import strains_to_step_parameters
+from dnarod.core.stepparams import to_angstrom_degrees
+from dnarod.core.strains import strains
 from dnarod.structure.analysis import analyze_structure
 
 DATA = Path(__file__).resolve().parents[1] / "data"

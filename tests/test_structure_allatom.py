@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.errors import StructureError
-from dnarod.forcefield import load_forcefield
+from dnarod.cli.main import main
+from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import load_forcefield
 from dnarod.structure import model_from_structure
 from dnarod.structure.allatom import rebuild_allatom
 from dnarod.structure.analysis import analyze_structure
@@ -106,7 +106,7 @@ def test_rebuild_ideal_and_thermal_snapshot(kind):
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("GATCCGTAGC")
     if kind == "thermal":
-        from dnarod.openmm.simulation import RodSimulation
+        from dnarod.engines.openmm.simulation import RodSimulation
 
         sim = RodSimulation(m, temperature=300, nonbonded=False, seed=11)
         sim.advance(400)
@@ -117,7 +117,7 @@ def test_rebuild_ideal_and_thermal_snapshot(kind):
 
 
 def _thermal(sequence, seed, steps=400):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence(sequence)
     sim = RodSimulation(m, temperature=300, nonbonded=False, seed=seed)

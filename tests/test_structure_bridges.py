@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.forcefield import load_forcefield
-from dnarod.rotations import cayley
-from dnarod.stepparams import step_parameters
+from dnarod.cli.main import main
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.rotations import cayley
+from dnarod.core.stepparams import step_parameters
 from dnarod.structure import model_from_structure
 from dnarod.structure.cg_topology import cg_pdb_text, chain_and_number, hy36
 from dnarod.structure.oxdna import read_oxdna, write_oxdna
-from dnarod.trajectory import Trajectory
+from dnarod.core.trajectory import Trajectory
 
 DATA = Path(__file__).resolve().parents[1] / "data" / "structures"
 
@@ -23,7 +23,7 @@ def _roll(m):
 
 @pytest.mark.parametrize("intrinsic, kept", [("structure", True), ("sequence", False)])
 def test_1cgp_cap_kinks_kept_with_intrinsic_structure(intrinsic, kept):
-    from dnarod.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     ff = load_forcefield("dna-default")
     m = ff.model_from_structure(DATA / "1CGP.pdb", intrinsic=intrinsic)
@@ -44,7 +44,7 @@ def test_cli_build_intrinsic_structure(tmp_path):
     out = tmp_path / "cap.npz"
     r = CliRunner().invoke(main, ["build", str(DATA / "1CGP.pdb"), "--intrinsic", "structure", "-o", str(out)])
     assert r.exit_code == 0, r.output
-    from dnarod.model import RodModel
+    from dnarod.core.model import RodModel
 
     m = RodModel.load(out)
     assert abs(m.energy()) < 1e-9  # the structure is its own zero-energy shape
@@ -56,7 +56,7 @@ def test_cg_export_names_and_tools(tmp_path):
     import MDAnalysis as mda
     import mdtraj as md
 
-    from dnarod.openmm.export import export_trajectory
+    from dnarod.structure.export import export_trajectory
 
     ff = load_forcefield("dna-default")
     m = ff.model_from_sequence("ACGTTGCA")
@@ -123,7 +123,7 @@ def test_oxdna_round_trip(tmp_path, new_format):
 
 def test_cli_simulate_intrinsic_structure_keeps_the_kinks(tmp_path):
     """`simulate --intrinsic structure --minimize` says which duplex it took and what it dropped, and keeps CAP's kinks."""
-    from dnarod.model import RodModel
+    from dnarod.core.model import RodModel
 
     out = tmp_path / "cap"
     r = CliRunner().invoke(main, ["simulate", str(DATA / "1CGP.pdb"), "--intrinsic", "structure", "--minimize",

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.errors import StructureError
-from dnarod.forcefield import load_forcefield
-from dnarod.model import RodModel
-from dnarod.rotations import rotation_about_axis
-from dnarod.stepparams import step_parameters
-from dnarod.strains import strains
+from dnarod.cli.main import main
+from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.stepparams import step_parameters
+from dnarod.core.strains import strains
 from dnarod.structure.analysis import analyze_structure, analyze_trajectory, step_parameters_over_frames
 from dnarod.structure.builders import model_from_sequence, model_from_structure
 from dnarod.structure.rebuild import rebuild_coordinates, rebuild_model, write_pdb

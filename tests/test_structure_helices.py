@@ -14,9 +14,9 @@ import pytest
 from click.testing import CliRunner
 from scipy.optimize import minimize
 
-from dnarod.cli import main
-from dnarod.errors import StructureError
-from dnarod.forcefield import load_forcefield
+from dnarod.cli.main import main
+from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import load_forcefield
 from dnarod.structure.analysis import analyze_structure
 from dnarod.structure.frames import standard_bases
 from dnarod.structure.pairing import HELIX_BREAK

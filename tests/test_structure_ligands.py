@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from dnarod.cli import main
+from dnarod.cli.main import main
 from dnarod.structure import model_from_structure
 from dnarod.structure.analysis import analyze_structure
 from dnarod.structure.reader import read_structure

@@ -4,8 +4,8 @@ from pathlib import Path
 import numpy as np
 from click.testing import CliRunner
 
-from dnarod.cli import main
-from dnarod.forcefield import load_forcefield
+from dnarod.cli.main import main
+from dnarod.core.forcefield import load_forcefield
 from dnarod.structure.analysis import analyze_structure
 from dnarod.structure.rebuild import rebuild_coordinates, write_pdb
 

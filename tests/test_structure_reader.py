@@ -7,8 +7,8 @@ from click.testing import CliRunner
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from dnarod.cli import main
-from dnarod.errors import DnarodError, StructureError
+from dnarod.cli.main import main
+from dnarod.core.errors import DnarodError, StructureError
 from dnarod.structure.analysis import analyze_structure
 from dnarod.structure.reader import normalise_residue_name, read_structure
 

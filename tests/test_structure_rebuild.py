@@ -4,10 +4,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dnarod.errors import StructureError
-from dnarod.forcefield import load_forcefield
-from dnarod.rotations import rotation_about_axis
-from dnarod.stepparams import from_angstrom_degrees, step_transform
+from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.stepparams import from_angstrom_degrees, step_transform
 from dnarod.structure.analysis import analyze_structure
 from dnarod.structure.bpparams import base_frames_from_pair, pair_parameters
 from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates, write_pdb

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from dnarod.forcefield import load_forcefield
-from dnarod.validate import supercoil_theory as th
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.theory import supercoil as th
 
 DATA = Path(__file__).parent / "data" / "supercoil"
 FF = load_forcefield("dna-default")
@@ -54,8 +54,8 @@ def test_two_phase_with_a_measured_equation_of_state():
     """A linear plectoneme equation of state (one point, tau = kT P Omega) gives Marko's closed form exactly; a
     phase stiffer at low linking density (a second point with larger P below) raises the plateau; points whose
     torque falls as the density rises are refused."""
-    from dnarod.errors import DnarodError
-    from dnarod.validate.supercoil_theory import marko_two_phase, two_phase_from_plectoneme_eos
+    from dnarod.core.errors import DnarodError
+    from dnarod.physics.theory.supercoil import marko_two_phase, two_phase_from_plectoneme_eos
 
     kt, A, Cs, P = 4.1419, 50.0, 84.24, 19.77
     m = marko_two_phase(A, Cs, P, 1.0, kt, 203.7)
@@ -70,7 +70,7 @@ def test_two_phase_with_a_measured_equation_of_state():
 
 def test_ring_pair_bulk_torque_is_kT_P_b_Omega():
     """The pair's bulk torque equals kT P_b Omega with P_b from plectoneme_P_from_ring_pair (the same rings)."""
-    from dnarod.validate.supercoil_theory import plectoneme_P_from_ring_pair, ring_pair_bulk_torque
+    from dnarod.physics.theory.supercoil import plectoneme_P_from_ring_pair, ring_pair_bulk_torque
 
     kt, C = 4.1419, 98.25
     om, tau, se = ring_pair_bulk_torque(-1.924, -2.923, 136.0, -4.267, -5.856, 272.0, C, kt, 0.013, 0.017)
@@ -85,7 +85,7 @@ def test_position_entropy_torque_shift_minimises_the_free_energy():
     exceeds tau* by the formula, to second order in the shift."""
     from scipy.optimize import minimize_scalar
 
-    from dnarod.validate.supercoil_theory import marko_two_phase, plectoneme_position_torque_shift
+    from dnarod.physics.theory.supercoil import marko_two_phase, plectoneme_position_torque_shift
 
     kt, A, Cs, P, L = 4.1419, 50.0, 84.24, 19.77, 2000.0
     m = marko_two_phase(A, Cs, P, 1.0, kt, L)
@@ -180,8 +180,8 @@ def test_twist_variance_exact_matches_the_continuum_formula():
 def test_relaxed_twist_at_temperature():
     """The ring's relaxed linking number at T: the T = 0 intrinsic sum in the cold limit; at 300 K the mean step
     twist angle of the exact step distribution (no geometry), whether or not bending and shear fluctuate."""
-    from dnarod.protocols.rings import relaxed_twist
-    from dnarod.thermal import kT, relaxed_ribbon_twist, sample_step_strains
+    from dnarod.workflows.protocols.rings import relaxed_twist
+    from dnarod.physics.thermal import kT, relaxed_ribbon_twist, sample_step_strains
 
     ring = FF.ring(n_nodes=200)
     cold, se_cold = relaxed_ribbon_twist(ring, 1.0)
@@ -201,7 +201,7 @@ def test_relaxed_twist_at_temperature():
 
 
 def test_effective_diameter_of_the_model():
-    from dnarod.openmm.nonbonded import NonbondedSettings
+    from dnarod.engines.openmm.nonbonded import NonbondedSettings
 
     d15 = th.effective_diameter(NonbondedSettings(salt=0.15), FF.ds, 300.0)
     coarse = dict(n_h=100, n_gamma=8, n_offset=2)  # converged to < 0.01 nm (finer grids agree to 1e-4 nm at 0.15 M)
@@ -215,7 +215,7 @@ def test_effective_diameter_of_the_model():
 
 def test_gaussian_constraint_is_undone_by_reweighting():
     """X ~ N(0, v) sampled under a Gaussian factor p_Y(c - X): the reweighted moments are X's own."""
-    from dnarod.protocols.nicked import free_writhe_moments
+    from dnarod.workflows.protocols.nicked import free_writhe_moments
 
     rng = np.random.default_rng(1)
     v, vo, c, mu = 0.3, 0.9, 0.4, 0.1
@@ -231,7 +231,7 @@ def test_gaussian_constraint_is_undone_by_reweighting():
 
 def test_soft_twist_model_keeps_the_shape_distribution():
     """Covariance of the five non-twist strains unchanged; twist decoupled and softer; relaxed twist kept."""
-    from dnarod.protocols.nicked import soft_twist_model, twist_sum_moments
+    from dnarod.workflows.protocols.nicked import soft_twist_model, twist_sum_moments
 
     ring = FF.ring(n_nodes=60)
     soft = soft_twist_model(ring, 16.0)
@@ -273,7 +273,7 @@ def test_wlc_ring_monte_carlo():
 
 
 def test_nicked_member_runs_and_keeps_its_linking_number(tmp_path):
-    from dnarod.protocols.nicked import run_nicked_member
+    from dnarod.workflows.protocols.nicked import run_nicked_member
 
     r = run_nicked_member(dict(n_bp=100, time_ns=0.05, equilibration_ns=0.02, seed=3), tmp_path / "nick")
     assert r["linking_number"] == round(r["linking_number"])
@@ -301,8 +301,8 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatc
     """
     from dnarod.validate.buckling import check_buckling
 
-    import dnarod.protocols.rings as rings
-    import dnarod.protocols.tweezers as tweezers
+    import dnarod.workflows.protocols.rings as rings
+    import dnarod.workflows.protocols.tweezers as tweezers
 
     def refuse(*a, **k):
         raise AssertionError("a recorded member was simulated again instead of reused")
@@ -323,9 +323,9 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatc
 
 def test_soft_pair_energy_of_the_ring_reference():
     """The MC's soft pair energy between moved and unmoved segments equals the model's pair energy summed over
-    the same site pairs (numpy, :func:`dnarod.openmm.nonbonded.pair_energy`), exclusions included."""
-    from dnarod.openmm.nonbonded import member_nonbonded, pair_energy
-    from dnarod.thermal import kT
+    the same site pairs (numpy, :func:`dnarod.engines.openmm.nonbonded.pair_energy`), exclusions included."""
+    from dnarod.engines.openmm.nonbonded import member_nonbonded, pair_energy
+    from dnarod.physics.thermal import kT
     from dnarod.validate import wlc_ring_mc as mc
 
     mc.sample_ring_writhe(68.0, 50.0, 2.0, n_samples=2, equilibration_sweeps=1, seed=0)  # compiles the kernels
@@ -436,8 +436,8 @@ def test_buckling_full_check_passes_on_the_round7_members(tmp_path, monkeypatch)
     2.57 and 3.59 turns, a 400/800-bp ring pair; benchmarks/buckling_r7): recorded members, reused (nothing is
     simulated). The check passes; it fails with C halved, and the plain two-phase plateau (without the
     single-plectoneme position entropy) misses by 1.36 pN nm against a tolerance of 1.09."""
-    import dnarod.protocols.rings as rings
-    import dnarod.protocols.tweezers as tweezers
+    import dnarod.workflows.protocols.rings as rings
+    import dnarod.workflows.protocols.tweezers as tweezers
     from dnarod.validate.buckling import check_buckling
 
     def refuse(*a, **k):

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from dnarod.errors import ParameterError
-from dnarod.integrators import omega_max
-from dnarod.integrators.modes import normal_modes
-from dnarod.testsystems import TwistedRod, UniformHelix
+from dnarod.core.errors import ParameterError
+from dnarod.engines.lax import omega_max
+from dnarod.engines.lax.modes import normal_modes
+from dnarod.physics.testsystems import TwistedRod, UniformHelix
 
 
 @pytest.mark.parametrize("Om, Ga", [([0.3, -0.5, 1.8], [0.1, 0.05, 1.0]), ([0.0, 0.9, 0.4], [0.2, -0.1, 0.9])])

@@ -1,4 +1,4 @@
-"""Exact equilibrium starts (dnarod.thermal.equilibrium_sample) and the trustworthy statistics of ``analyze``:
+"""Exact equilibrium starts (dnarod.physics.thermal.equilibrium_sample) and the trustworthy statistics of ``analyze``:
 lag-1 persistence length headline, slowest bending relaxation time and the short-run warning."""
 import json
 
@@ -8,11 +8,11 @@ from click.testing import CliRunner
 
 from dnarod.analysis.polymer import (TangentCorrelation, bending_relaxation_time, integrated_autocorrelation_time,
                                      relaxation_warning)
-from dnarod.cli import main
-from dnarod.errors import DnarodError
-from dnarod.forcefield import load_forcefield
-from dnarod.thermal import equilibrium_sample, kT, persistence_length
-from dnarod.trajectory import Trajectory
+from dnarod.cli.main import main
+from dnarod.core.errors import DnarodError
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.thermal import equilibrium_sample, kT, persistence_length
+from dnarod.core.trajectory import Trajectory
 
 FF = load_forcefield("dna-default")
 

@@ -3,8 +3,8 @@ import numpy as np
 import pytest
 from openmm import unit
 
-from dnarod import units
-from dnarod.thermal import kinetic_temperature, node_kinetic_energy
+from dnarod.core import units
+from dnarod.physics.thermal import kinetic_temperature, node_kinetic_energy
 
 
 def test_constants_match_openmm_units():

@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from dnarod import validate as V
-from dnarod.parameters import StepParameters
-from dnarod.testsystems import TwistedRod
+from dnarod.core.parameters import StepParameters
+from dnarod.physics.testsystems import TwistedRod
 
 # Small, fast settings of every check (the real physics, smaller systems / shorter runs).
 FAST = {
@@ -142,7 +142,7 @@ def test_force_extension_high_force_matches_wlc_and_fails_with_a_wrong_lp(tmp_pa
 
 
 def test_cli_exit_status_and_summary(tmp_path, monkeypatch):
-    from dnarod.cli import main
+    from dnarod.cli.main import main
 
     runner = CliRunner()
     out = tmp_path / "rep"
@@ -170,7 +170,7 @@ def test_a_crashing_check_is_reported_as_failed(tmp_path, monkeypatch):
 
 
 def test_unknown_check_name_is_a_clear_error(tmp_path):
-    from dnarod.errors import DnarodError
+    from dnarod.core.errors import DnarodError
 
     with pytest.raises(DnarodError, match="unknown validation check 'bogus'"):
         V.run_validation(tmp_path, checks=["bogus"])

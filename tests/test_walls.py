@@ -1,4 +1,4 @@
-"""Tweezers walls (dnarod.openmm.walls): the compiled WallForce and the numba PythonForce against the OpenMM
+"""Tweezers walls (dnarod.engines.openmm.walls): the compiled WallForce and the numba PythonForce against the OpenMM
 Custom-force reference and a numpy transcription of the energy, finite differences, the skipped end nodes,
 serialization, a reinitialised Context, the same dynamics, and the energy group that reports them."""
 import copy
@@ -7,8 +7,8 @@ import numpy as np
 import openmm
 import pytest
 
-from dnarod.openmm import walls
-from dnarod.openmm.forces import GROUPS
+from dnarod.engines.openmm import walls
+from dnarod.engines.openmm.forces import GROUPS
 
 needs_plugin = pytest.mark.skipif(not walls.compiled_walls_available(),
                                   reason="compiled plugin with WallForce not built")
@@ -124,7 +124,7 @@ def test_wall_force_serializes_and_reports_its_group(form):
 
 @needs_plugin
 def test_wall_form_choice_and_bad_input():
-    from dnarod.errors import ParameterError
+    from dnarod.core.errors import ParameterError
 
     assert type(walls.wall_forces(N, Z0, K, SKIP, platform="CPU")[0]).__name__ == "WallForce"
     assert type(walls.wall_forces(N, Z0, K, SKIP, platform="Reference")[0]).__name__ == "WallForce"
@@ -147,18 +147,18 @@ def test_without_the_plugin_the_walls_fall_back_to_numba(monkeypatch):
         assert [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform=plat)] == ["PythonForce"]
     names = [type(f).__name__ for f in walls.wall_forces(N, Z0, K, SKIP, platform="OpenCL")]
     assert names == ["CustomExternalForce", "CustomCentroidBondForce"]
-    from dnarod.errors import ParameterError
+    from dnarod.core.errors import ParameterError
 
     with pytest.raises(ParameterError, match="compiled OpenMM plugin"):
         walls.wall_forces(N, Z0, K, SKIP, form="compiled")
 
 
 def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
-    from dnarod.forcefield import load_forcefield
-    from dnarod.openmm.loads import Clamp, PullingForce
-    from dnarod.openmm.simulation import RodSimulation
-    from dnarod.protocols import tweezers as tw
-    from dnarod.units import PN
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.loads import Clamp, PullingForce
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.workflows.protocols import tweezers as tw
+    from dnarod.core.units import PN
 
     model = tw.strained_helix(load_forcefield("dna-default").model_from_sequence(n_nodes=N), 2.0, 0.0)
     loads = [Clamp(0), PullingForce(-1, [0.0, 0.0, 2.0 * PN])]
@@ -173,7 +173,7 @@ def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
 def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
     """With every elastic path, the walls' energy is in the "external" term: pushing nodes through both walls
     raises it by exactly the numpy wall energy (pulling-force energy removed), with either wall form."""
-    from dnarod.openmm.particles import particle_positions
+    from dnarod.engines.openmm.particles import particle_positions
 
     got = {}
     for form in FORMS:
@@ -200,8 +200,8 @@ def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
 def test_walls_after_a_reinitialised_context():
     """add_tweezers_walls on a running fast-path simulation: after the reinitialisation the compiled walls act
     (pushing nodes through both walls raises the "external" energy by the numpy wall energy) and it runs on."""
-    from dnarod.openmm.particles import particle_positions
-    from dnarod.protocols import tweezers as tw
+    from dnarod.engines.openmm.particles import particle_positions
+    from dnarod.workflows.protocols import tweezers as tw
 
     sim, model = _member_sim("fast", walls_now=False)
     sim.advance(20)
@@ -228,7 +228,7 @@ def test_walls_after_a_reinitialised_context():
 @needs_plugin
 @pytest.mark.parametrize("platform", ["Reference", "CPU"])
 def test_a_tweezers_member_uses_the_compiled_walls(platform):
-    from dnarod.protocols import tweezers as tw
+    from dnarod.workflows.protocols import tweezers as tw
 
     m = tw.build_member(dict(n_bp=30, force_pN=2.0, turns=0.2, time_ns=0.01, equilibration_ns=0.005,
                              platform=platform))
@@ -244,7 +244,7 @@ def test_a_tweezers_member_uses_the_compiled_walls(platform):
 def test_every_form_gives_the_same_dynamics(elastic):
     """From a pose pushed through both walls, 200 Langevin steps (same seed) with the compiled, the numba and the
     Custom-force walls end in the same state (the forces agree to rounding)."""
-    from dnarod.openmm.particles import particle_positions
+    from dnarod.engines.openmm.particles import particle_positions
 
     ends = {}
     for form in FORMS:

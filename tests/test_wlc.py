@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from dnarod.wlc import bouchiat_force, extensible_wlc_extension, marko_siggia_force, odijk_extension
+from dnarod.physics.theory.wlc import bouchiat_force, extensible_wlc_extension, marko_siggia_force, odijk_extension
 
 
 def test_odijk_reference_numbers():

@@ -1,12 +1,12 @@
 """Analysis of long tweezers members / rings with poses."""
 import sys, json
 import numpy as np
-from dnarod.forcefield import load_forcefield
-from dnarod.strains import strains
-from dnarod.units import PN
-from dnarod.thermal import kT, relaxed_ribbon_twist
-from dnarod.protocols.measure import plectoneme_state, twisting_moment_offset
-from dnarod.analysis.writhe import writhe
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.strains import strains
+from dnarod.core.units import PN
+from dnarod.physics.thermal import kT, relaxed_ribbon_twist
+from dnarod.workflows.protocols.measure import plectoneme_state, twisting_moment_offset
+from dnarod.physics.writhe import writhe
 from dnarod.analysis.polymer import integrated_autocorrelation_time
 KT = kT(300.0) / PN
 C = 98.3
@@ -103,7 +103,7 @@ def ring(path, n_bp, every=1):
                 tau_from_Tw=KT * C * 2 * np.pi * (Tw[0] - tw0T) / L, cpu=float(d["cpu"]), n=len(m3s), offset=(off, off_se))
 
 def model_lk0(model):
-    from dnarod.protocols.rings import relaxed_twist
+    from dnarod.workflows.protocols.rings import relaxed_twist
     return relaxed_twist(model)
 
 if __name__ == "__main__":

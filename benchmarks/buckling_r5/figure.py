@@ -4,7 +4,7 @@ import numpy as np
 import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
-from dnarod.validate.supercoil_theory import marko_two_phase
+from dnarod.physics.theory.supercoil import marko_two_phase
 kt, cs, L = 4.1419464, 84.27, 203.66
 off = -1.2156
 fig, ax = plt.subplots(1, 2, figsize=(9, 3.6))

@@ -5,7 +5,7 @@ Usage: python add_end_loops.py MEMBER_DIR POSES_NPZ
 
 Writes ``samples.csv`` with the extra column and adds ``end_loops`` (mean), ``end_loops_err`` (10 blocks, as
 the ring protocol) and the histogram to ``protocol_result.json`` (settings key unchanged), atomically. The
-count is :func:`dnarod.protocols.measure.plectoneme_end_loops`, what ring members recorded in round 6, with that
+count is :func:`dnarod.workflows.protocols.measure.plectoneme_end_loops`, what ring members recorded in round 6, with that
 round's fixed distances (25 nm, 6 nm; the numbers in its report; members now use their own model's, round 7).
 """
 import json
@@ -14,9 +14,9 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.forcefield import load_forcefield
-from dnarod.io_utils import jsonable, write_text_atomic
-from dnarod.protocols.measure import plectoneme_end_loops
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.io import jsonable, write_text_atomic
+from dnarod.workflows.protocols.measure import plectoneme_end_loops
 
 member, poses = Path(sys.argv[1]), np.load(sys.argv[2])
 pos = poses["pos"]

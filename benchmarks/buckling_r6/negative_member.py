@@ -6,7 +6,7 @@ Usage: python negative_member.py OUT_DIR TURNS TIME_NS   (e.g. runs/neg_r6 2.567
 import sys
 import time
 
-from dnarod.protocols.tweezers import run_member
+from dnarod.workflows.protocols.tweezers import run_member
 from dnarod.validate.buckling import member_plan
 
 out, turns, time_ns = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])

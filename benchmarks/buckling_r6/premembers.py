@@ -9,7 +9,7 @@ finished members. Options ``key=value`` go to ``member_plan`` (numbers parsed as
 
 For the ring-pair premise (how many end loops each ring has), the poses seen by the plectoneme detector are
 also kept (float32 positions, every sample of rings, every 4th of tweezers members) in
-``ROOT/<folder>.poses.npz``: ``dnarod.protocols.measure.plectoneme_state`` is wrapped in this process only, so the
+``ROOT/<folder>.poses.npz``: ``dnarod.workflows.protocols.measure.plectoneme_state`` is wrapped in this process only, so the
 members' settings, samples and results are those of the check.
 """
 import ast
@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-import dnarod.protocols.measure as measure
+import dnarod.workflows.protocols.measure as measure
 from dnarod.validate.buckling import member_plan, run_planned
 
 root, worker = Path(sys.argv[1]), sys.argv[2]

@@ -1,4 +1,4 @@
-"""End loops (:func:`dnarod.protocols.measure.plectoneme_end_loops`) of a tweezers member's poses kept by
+"""End loops (:func:`dnarod.workflows.protocols.measure.plectoneme_end_loops`) of a tweezers member's poses kept by
 premembers.py (every 4th sample). Usage: python tweezers_loops.py POSES_NPZ [...]
 (round 6's fixed detector distances, 25 nm and 6 nm, as in its report.)
 """
@@ -6,7 +6,7 @@ import sys
 
 import numpy as np
 
-from dnarod.protocols.measure import plectoneme_end_loops
+from dnarod.workflows.protocols.measure import plectoneme_end_loops
 
 for f in sys.argv[1:]:
     pos = np.load(f)["pos"]

@@ -3,8 +3,8 @@ its zero-torque offset). Usage: python an.py MEMBER_FOLDER... (reads samples.csv
 import sys, numpy as np
 sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[2]))
 from dnarod.validate.buckling import block_standard_error as bse
-from dnarod.forcefield import load_forcefield
-from dnarod.protocols.measure import twisting_moment_offset
+from dnarod.core.forcefield import load_forcefield
+from dnarod.workflows.protocols.measure import twisting_moment_offset
 
 OFF = twisting_moment_offset(load_forcefield('dna-default').model_from_sequence(n_nodes=8), 300.0)[0]  # pN nm
 for d in sys.argv[1:]:

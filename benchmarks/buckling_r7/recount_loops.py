@@ -4,7 +4,7 @@ Usage: python recount_loops.py MEMBER_FOLDER POSES_NPZ [MEMBER_FOLDER POSES_NPZ 
 
 The poses are those the detector saw while the member ran (every sample; ``ring_poses.py`` or
 ``benchmarks/buckling_r6/premembers.py``). Ring members run before the detector's distances followed the model's
-non-bonded terms (round 7, :func:`dnarod.protocols.measure.detector_distances`) counted with the fixed 6-nm contact,
+non-bonded terms (round 7, :func:`dnarod.workflows.protocols.measure.detector_distances`) counted with the fixed 6-nm contact,
 which misses one end loop of a short calibrated-charge plectoneme in a fifth of the samples; the recount uses the
 member's own distances. The old column is kept as ``end_loops_6nm``; samples.csv is replaced atomically.
 """
@@ -14,11 +14,11 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.forcefield import load_forcefield
-from dnarod.io_utils import write_text_atomic
-from dnarod.openmm.nonbonded import member_nonbonded
-from dnarod.protocols.measure import detector_distances, plectoneme_end_loops
-from dnarod.protocols.rings import _settings
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.io import write_text_atomic
+from dnarod.engines.openmm.nonbonded import member_nonbonded
+from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops
+from dnarod.workflows.protocols.rings import _settings
 
 args = sys.argv[1:]
 for member, poses in zip(args[::2], args[1::2]):

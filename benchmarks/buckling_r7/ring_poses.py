@@ -3,8 +3,8 @@
 import json, sys, time
 from pathlib import Path
 import numpy as np
-import dnarod.protocols.measure as measure
-from dnarod.protocols.rings import run_ring_member
+import dnarod.workflows.protocols.measure as measure
+from dnarod.workflows.protocols.rings import run_ring_member
 folder, n_bp, dlk, tns, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 poses, orig = [], measure.plectoneme_state
 def wrapped(positions, ds, *a, **k):

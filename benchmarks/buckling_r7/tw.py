@@ -1,7 +1,7 @@
 """Run one tweezers member: python tw.py FOLDER n_bp turns time_ns seed [grown]"""
 import json, os, sys, time
 from pathlib import Path
-from dnarod.protocols.tweezers import run_member
+from dnarod.workflows.protocols.tweezers import run_member
 folder, n_bp, turns, time_ns, seed = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 s = dict(n_bp=n_bp, force_pN=1.0, turns=round(turns, 4), time_ns=time_ns, temperature_K=300.0, seed=seed)
 if "grown" in sys.argv[6:]:

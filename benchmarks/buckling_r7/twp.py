@@ -2,7 +2,7 @@
 import json, sys, time
 from pathlib import Path
 import numpy as np
-from dnarod.protocols.tweezers import run_member
+from dnarod.workflows.protocols.tweezers import run_member
 folder, n_bp, turns, tns, seed, src, src_turns = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5]), sys.argv[6], float(sys.argv[7])
 z = np.load(Path(src) / "final_pose.npz")
 s = dict(n_bp=n_bp, force_pN=1.0, turns=round(turns, 4), time_ns=tns, temperature_K=300.0, seed=seed, previous_turns=src_turns)

@@ -3,7 +3,7 @@
 Usage: python analyze.py ROOT
 
 For every ``ROOT/<name>.poses.npz``: the mean plectoneme fraction, length / L and end-loop count with the earlier
-fixed distances (25 nm, 6 nm) and with :func:`dnarod.protocols.measure.detector_distances` of the member's own
+fixed distances (25 nm, 6 nm) and with :func:`dnarod.workflows.protocols.measure.detector_distances` of the member's own
 non-bonded terms; for tweezers members the fraction implied by the extension, ``1 - x / (zeta L)`` (zeta: the
 mean relative extension of the pre-buckling member of the same charge); and the distribution of each node's
 distance to its nearest node 25 nm or more along the chain (its peak: the superhelix's strand separation).
@@ -15,9 +15,9 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from dnarod.openmm.nonbonded import member_nonbonded
-from dnarod.protocols.measure import detector_distances, plectoneme_end_loops, plectoneme_state
-from dnarod.validate.supercoil_theory import effective_diameter
+from dnarod.engines.openmm.nonbonded import member_nonbonded
+from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops, plectoneme_state
+from dnarod.physics.theory.supercoil import effective_diameter
 
 root = Path(sys.argv[1])
 DS = 0.34

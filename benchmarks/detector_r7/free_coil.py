@@ -2,7 +2,7 @@
 
 Usage: python free_coil.py [n_samples]
 
-Each sample is :func:`dnarod.thermal.equilibrium_sample` of a ``dna-default`` open chain (the force-free chain's
+Each sample is :func:`dnarod.physics.thermal.equilibrium_sample` of a ``dna-default`` open chain (the force-free chain's
 exact equilibrium; no excluded volume, so its self-approaches are an upper bound on those of the model with its
 non-bonded terms). For each chain length and detector setting (minimum separation, contact distance): the mean
 fraction of nodes in a self-contact and the share of samples flagged plectonemic (fraction >= 0.05). Settings: the
@@ -14,10 +14,10 @@ import sys
 
 import numpy as np
 
-from dnarod.forcefield import load_forcefield
-from dnarod.openmm.nonbonded import NonbondedSettings
-from dnarod.protocols.measure import detector_distances, plectoneme_state
-from dnarod.thermal import equilibrium_sample
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.openmm.nonbonded import NonbondedSettings
+from dnarod.workflows.protocols.measure import detector_distances, plectoneme_state
+from dnarod.physics.thermal import equilibrium_sample
 
 n_samp = int(sys.argv[1]) if len(sys.argv) > 1 else 200
 ff = load_forcefield("dna-default")

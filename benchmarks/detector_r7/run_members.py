@@ -2,8 +2,8 @@
 
 Usage: python run_members.py ROOT NAME
 
-``NAME`` picks one member of ``MEMBERS`` below; it runs through :func:`dnarod.protocols.rings.run_ring_member` or
-:func:`dnarod.protocols.tweezers.run_member` with exactly those settings into ``ROOT/NAME``, and every pose the
+``NAME`` picks one member of ``MEMBERS`` below; it runs through :func:`dnarod.workflows.protocols.rings.run_ring_member` or
+:func:`dnarod.workflows.protocols.tweezers.run_member` with exactly those settings into ``ROOT/NAME``, and every pose the
 plectoneme detector sees is kept (float32 positions) in ``ROOT/NAME.poses.npz`` (``plectoneme_state`` is wrapped
 in this process only, as in ``benchmarks/buckling_r6/premembers.py``). ``analyze.py`` reads them.
 """
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-import dnarod.protocols.measure as measure
+import dnarod.workflows.protocols.measure as measure
 
 # 400 bp: Lk0 = 38.0 turns (quick buckling plan: pre-buckling 0.01 Lk0 = 0.38, post-buckling 0.045 Lk0 = 1.71 and
 # 0.063 Lk0 = 2.39 turns)
@@ -59,9 +59,9 @@ def _wrapped(positions, ds, *a, **k):
 measure.plectoneme_state = _wrapped
 t0, c0 = time.time(), time.process_time()
 if kind == "ring":
-    from dnarod.protocols.rings import run_ring_member as run
+    from dnarod.workflows.protocols.rings import run_ring_member as run
 else:
-    from dnarod.protocols.tweezers import run_member as run
+    from dnarod.workflows.protocols.tweezers import run_member as run
 row = run(settings, root / name)
 np.savez_compressed(root / f"{name}.poses.npz", positions=np.array(_poses), ds=0.34, kind=kind,
                     settings=json.dumps(settings))

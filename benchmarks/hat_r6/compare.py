@@ -67,13 +67,13 @@ def times(root):
 
 def marko_line(turns, force_pN=1.0, n_bp=1000):
     """Marko's two-phase x/L against turns (the model's A, C_s(F), P; long-chain extension; see sweep.py)."""
-    from dnarod.protocols.sweep import buckling_estimate
-    from dnarod.thermal import kT
-    from dnarod.units import PN
-    from dnarod.validate.supercoil_theory import marko_two_phase
+    from dnarod.workflows.protocols.sweep import buckling_estimate
+    from dnarod.physics.thermal import kT
+    from dnarod.core.units import PN
+    from dnarod.physics.theory.supercoil import marko_two_phase
 
     e = buckling_estimate(str(n_bp), force_pN, 300.0)
-    from dnarod.forcefield import load_forcefield
+    from dnarod.core.forcefield import load_forcefield
 
     L = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp).ds * (n_bp - 1)
     th = marko_two_phase(e["A_nm"], e["C_s_nm"], e["P_nm"], force_pN, kT(300.0) / PN, L)

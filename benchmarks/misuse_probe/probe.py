@@ -11,7 +11,7 @@ were read from the code; tests/test_misuse_r6.py holds their refusals). Needs th
 """
 import json, os
 from click.testing import CliRunner
-from dnarod.cli import main
+from dnarod.cli.main import main
 import os, subprocess, sys, time, hashlib
 from pathlib import Path
 W = Path(sys.argv[1]); D = sys.argv[2]; only = sys.argv[3] if len(sys.argv) > 3 else None

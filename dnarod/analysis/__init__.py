@@ -5,14 +5,14 @@
   stiffness estimate (:class:`StiffnessFit`), written as a force field dnarod loads.
 * :mod:`~dnarod.analysis.polymer`: tangent correlation and persistence length
   (:class:`TangentCorrelation`), :class:`EndToEnd`, and for rings :class:`LinkingNumber`.
-* :mod:`~dnarod.analysis.writhe`: writhe, twist and linking number of closed polygons.
+* :mod:`~dnarod.physics.writhe`: writhe, twist and linking number of closed polygons.
 * :mod:`~dnarod.analysis.allatom`: all-atom trajectories to node trajectories.
-* :mod:`~dnarod.analysis.plots`: figures; :mod:`~dnarod.analysis.cli`: ``dnarod analyze``.
+* :mod:`~dnarod.analysis.plots`: figures; :mod:`~dnarod.cli.analyze`: ``dnarod analyze``.
 """
-from .base import AnalysisBase, Results
-from .polymer import EndToEnd, LinkingNumber, TangentCorrelation
-from .steps import StepAnalysis
-from .stiffness import StiffnessFit
+from dnarod.analysis.base import AnalysisBase, Results
+from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
+from dnarod.analysis.steps import StepAnalysis
+from dnarod.analysis.stiffness import StiffnessFit
 
 __all__ = ["AnalysisBase", "Results", "StepAnalysis", "StiffnessFit", "TangentCorrelation", "EndToEnd",
            "LinkingNumber"]

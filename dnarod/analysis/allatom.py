@@ -1,13 +1,13 @@
 """All-atom DNA trajectories (any format MDAnalysis reads) to node trajectories.
 
 Reading, pairing and base-pair frames are :func:`dnarod.structure.trajectory.read_duplex_trajectory`;
-this wraps the result as a :class:`~dnarod.trajectory.Trajectory` (base-pair origins as node
+this wraps the result as a :class:`~dnarod.core.trajectory.Trajectory` (base-pair origins as node
 positions, nm; pair frames as node frames) that every analysis of :mod:`dnarod.analysis` reads.
 """
 from __future__ import annotations
 
-from ..structure.trajectory import read_duplex_trajectory
-from ..trajectory import Trajectory
+from dnarod.structure.trajectory import read_duplex_trajectory
+from dnarod.core.trajectory import Trajectory
 
 
 def load_allatom(topology, trajectory=None, duplex=0, start=None, stop=None, step=None):

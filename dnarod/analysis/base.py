@@ -1,6 +1,6 @@
 """Base class of the trajectory analyses (the MDAnalysis ``AnalysisBase`` pattern).
 
-An analysis is built on a :class:`~dnarod.trajectory.Trajectory` of node poses, ``run()``
+An analysis is built on a :class:`~dnarod.core.trajectory.Trajectory` of node poses, ``run()``
 selects frames (``start``, ``stop``, ``step``), computes, and returns ``self``; results are
 attributes of ``.results``. Unlike MDAnalysis, which calls ``_single_frame`` per frame, the
 kernels here see all selected frames at once (arrays ``(n_frames, n_nodes, ...)``) so they
@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DnarodError, GeometryError
-from ..strains import Closure
-from ..trajectory import Trajectory
+from dnarod.core.errors import DnarodError, GeometryError
+from dnarod.core.strains import Closure
+from dnarod.core.trajectory import Trajectory
 
 
 class Results(dict):

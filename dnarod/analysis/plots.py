@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ..io_utils import atomic_path  # noqa: E402
+from dnarod.core.io import atomic_path  # noqa: E402
 
 LABELS = (r"$\Omega_1$ (1/nm)", r"$\Omega_2$ (1/nm)", r"$\Omega_3$ (1/nm)", r"$\Gamma_1$", r"$\Gamma_2$",
           r"$\Gamma_3$")
@@ -68,7 +68,7 @@ def plot_tangent_correlation(lags, correlation, error, ds, path, persistence_len
     persistence_length : float, optional
         Fitted, nm: draws ``exp(-s / l_p)``.
     exact : ndarray (m,), optional
-        Exact prediction (e.g. :func:`dnarod.thermal.tangent_correlation`).
+        Exact prediction (e.g. :func:`dnarod.physics.thermal.tangent_correlation`).
     """
     s = np.asarray(lags) * ds
     fig, ax = plt.subplots(figsize=(6.5, 4.5))

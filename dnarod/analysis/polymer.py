@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DnarodError, GeometryError
-from .base import AnalysisBase, block_estimates, check_closed, closure_of, standard_error
-from .writhe import linking_number, twist, writhe
+from dnarod.core.errors import DnarodError, GeometryError
+from dnarod.analysis.base import AnalysisBase, block_estimates, check_closed, closure_of, standard_error
+from dnarod.physics.writhe import linking_number, twist, writhe
 
 
 def tangent_correlation_frames(d3, n_max, circular=False):
@@ -290,7 +290,7 @@ def bending_relaxation_time(contour_length, persistence_length, temperature, mas
     float
         ps (``inf`` without friction: nothing relaxes the mode but the dynamics itself).
     """
-    from ..thermal import kT
+    from dnarod.physics.thermal import kT
 
     if ends not in ("free", "hinged"):
         raise DnarodError(f"ends must be 'free' or 'hinged', got {ends!r}")

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DnarodError, StructureError
-from ..io_utils import jsonable
+from dnarod.core.errors import DnarodError, StructureError
+from dnarod.core.io import jsonable
 
 #: Files ``analyze`` may write in its report folder (``overwrite`` removes exactly these).
 REPORT_FILES = ("summary.json", "step_parameters.csv", "step_parameters_mean.csv", "stiffness_table.csv",
@@ -32,9 +32,9 @@ def prepare_report_folder(out, overwrite=False):
     ------
     DnarodError
         ``out`` (or a parent) is a regular file, it holds a report and ``overwrite`` is false, or it is not empty
-        and holds no report (``-o ~``, a run folder; :func:`dnarod.io_utils.check_output_folder`).
+        and holds no report (``-o ~``, a run folder; :func:`dnarod.core.io.check_output_folder`).
     """
-    from ..io_utils import check_dir_path, check_output_folder, ensure_dir
+    from dnarod.core.io import check_dir_path, check_output_folder, ensure_dir
 
     out = check_dir_path(Path(out), what="report folder")
     check_output_folder(out, REPORT_FILES, "analysis report", what="report folder")
@@ -47,7 +47,7 @@ def prepare_report_folder(out, overwrite=False):
 
 
 def _write_rows(path, rows):
-    from ..io_utils import atomic_path
+    from dnarod.core.io import atomic_path
 
     if not rows:
         return
@@ -68,8 +68,8 @@ def load_input(path, topology=None, duplex=1, start=None, stop=None, step=None):
     kind : str
         ``"dnarod"`` or ``"all-atom"``.
     """
-    from ..model import RodModel
-    from ..trajectory import Trajectory
+    from dnarod.core.model import RodModel
+    from dnarod.core.trajectory import Trajectory
 
     path = Path(path)
     if not path.exists():
@@ -87,8 +87,8 @@ def load_input(path, topology=None, duplex=1, start=None, stop=None, step=None):
                                   f"{model.n_nodes}: the trajectory does not match its topology")
         traj = traj[slice(start, stop, step)]
         return traj, model, "dnarod"
-    from ..structure.trajectory import is_structure_file, read_node_trajectory
-    from .allatom import load_allatom
+    from dnarod.structure.trajectory import is_structure_file, read_node_trajectory
+    from dnarod.analysis.allatom import load_allatom
 
     _check_magic(path)
     try:
@@ -224,12 +224,12 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     dict
         The summary written to ``OUT/summary.json``.
     """
-    from ..forcefield import load_forcefield
-    from ..stepparams import to_angstrom_degrees
-    from ..thermal import exact_tangent_correlation, kT as thermal_kT
-    from .polymer import EndToEnd, LinkingNumber, TangentCorrelation
-    from .steps import StepAnalysis
-    from .stiffness import StiffnessFit
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.stepparams import to_angstrom_degrees
+    from dnarod.physics.thermal import exact_tangent_correlation, kT as thermal_kT
+    from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
+    from dnarod.analysis.steps import StepAnalysis
+    from dnarod.analysis.stiffness import StiffnessFit
 
     _check_arguments(input_path, temperature, start, stop, step, exclude_ends, n_blocks, duplex)
     out = Path(out) if out else Path(input_path).with_name(Path(input_path).stem + "_analysis")
@@ -253,7 +253,7 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     closure = model.closure if model is not None else None
     circular = circular or bool(traj.metadata.get("circular"))
     if circular and closure is None:
-        from ..strains import Closure
+        from dnarod.core.strains import Closure
         closure = Closure.identity()
     is_ring = closure is not None
     ds = model.ds if model is not None else ff.ds
@@ -265,7 +265,7 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
         raise DnarodError(f"{input_path}: strand I {seq[:40]}{'...' if len(seq) > 40 else ''} has bases other than "
                           f"A, C, G, T ({', '.join(bad)}: RNA or unmapped modified bases); the step analysis and its "
                           f"force-field comparison are for DNA duplexes")
-    from .stiffness import MIN_SAMPLES
+    from dnarod.analysis.stiffness import MIN_SAMPLES
 
     n_used = n_steps + (1 if closed else 0) - (0 if closed else 2 * ends_asked)
     if traj.n_frames * n_used < MIN_SAMPLES:  # refused before any file of the report is written
@@ -373,7 +373,7 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
         summary["linking"] = "not defined: the chain has a screw closure (a periodic chain, not a ring in space)"
 
     if plots:
-        from .plots import plot_step_parameters, plot_strain_distributions, plot_tangent_correlation
+        from dnarod.analysis.plots import plot_step_parameters, plot_strain_distributions, plot_tangent_correlation
 
         xi = fit.results.xi[:, fit.keep].reshape(-1, 6)
         plot_strain_distributions(xi, out / "strain_distributions.png", pooled["mean"], pooled["cov"],
@@ -386,7 +386,7 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
                              out / "step_parameters.png", title=f"step parameters, {Path(input_path).name}")
         summary["files"].update(plot_strains="strain_distributions.png", plot_tangent="tangent_correlation.png",
                                 plot_steps="step_parameters.png")
-    from ..io_utils import write_text_atomic
+    from dnarod.core.io import write_text_atomic
 
     write_text_atomic(out / "summary.json", json.dumps(jsonable(summary), indent=2) + "\n")
     lp = summary["persistence_length_nm"]
@@ -409,7 +409,7 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
 
 def _relaxation(traj, model, temperature, lp):
     """Slowest bending relaxation time of the analysed chain and the run-length warning (summary entry)."""
-    from .polymer import RELAXATION_TIMES_REQUIRED, bending_relaxation_time, relaxation_warning
+    from dnarod.analysis.polymer import RELAXATION_TIMES_REQUIRED, bending_relaxation_time, relaxation_warning
 
     friction = traj.metadata.get("friction_per_ps")
     run_time = float(traj.time[-1] - traj.time[0]) if traj.n_frames > 1 else 0.0

@@ -1,7 +1,7 @@
 """Per-frame step parameters (3DNA) and Cayley strains of every step of a trajectory.
 
-Strains come from :func:`dnarod.strains.strains` (the one strain computation of dnarod) and
-step parameters from :func:`dnarod.stepparams.step_parameters`, vectorised over frames and
+Strains come from :func:`dnarod.core.strains.strains` (the one strain computation of dnarod) and
+step parameters from :func:`dnarod.core.stepparams.step_parameters`, vectorised over frames and
 steps at once.
 
 Units: strains Omega in 1/nm, Gamma dimensionless; step parameters nm and rad inside, the
@@ -11,12 +11,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DnarodError, GeometryError
-from ..forcefield import sequence_steps
-from ..io_utils import atomic_path
-from ..stepparams import STEP_PARAMETER_NAMES, step_parameters, to_angstrom_degrees
-from ..strains import step_ends, strains
-from .base import AnalysisBase, check_closed, closure_of
+from dnarod.core.errors import DnarodError, GeometryError
+from dnarod.core.forcefield import sequence_steps
+from dnarod.core.io import atomic_path
+from dnarod.core.stepparams import STEP_PARAMETER_NAMES, step_parameters, to_angstrom_degrees
+from dnarod.core.strains import step_ends, strains
+from dnarod.analysis.base import AnalysisBase, check_closed, closure_of
 
 STRAIN_COLUMNS = ("Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2", "Gamma3")
 STEP_COLUMNS = ("shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg")

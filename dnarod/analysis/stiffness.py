@@ -29,12 +29,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DnarodError, ParameterError
-from ..forcefield import write_forcefield
-from ..parameters import STRAIN_NAMES, StepParameters
-from ..thermal import kT as thermal_kT
-from .base import AnalysisBase, closure_of
-from .steps import frame_strains, step_names
+from dnarod.core.errors import DnarodError, ParameterError
+from dnarod.core.forcefield import write_forcefield
+from dnarod.core.parameters import STRAIN_NAMES, StepParameters
+from dnarod.physics.thermal import kT as thermal_kT
+from dnarod.analysis.base import AnalysisBase, closure_of
+from dnarod.analysis.steps import frame_strains, step_names
 
 MIN_SAMPLES = 30
 
@@ -203,7 +203,7 @@ class StiffnessFit(AnalysisBase):
 
     # --- outputs ---------------------------------------------------------------------
     def step_parameters(self, name="*"):
-        """The fit of one step type as :class:`~dnarod.parameters.StepParameters` (one step)."""
+        """The fit of one step type as :class:`~dnarod.core.parameters.StepParameters` (one step)."""
         t = self._type(name)
         return StepParameters(t["stiffness"], t["mean"], [name])
 
@@ -217,7 +217,7 @@ class StiffnessFit(AnalysisBase):
     def write_forcefield(self, path, name="*", ff_name="fitted", node_mass=650.0,
                          node_inertia=(117.0, 117.0, 234.0), description=None, sources=()):
         """Write one step type as a ``kind = "uniform"`` force field that
-        :func:`dnarod.forcefield.load_forcefield` reads.
+        :func:`dnarod.core.forcefield.load_forcefield` reads.
 
         Parameters
         ----------

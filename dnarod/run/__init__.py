@@ -11,11 +11,11 @@ Modules: :mod:`.spec` (:class:`RunSpec`, fingerprint), :mod:`.engine` (engine pr
 adapter, checkpoint files), :mod:`.reporters` (``.dtraj``, energies CSV, progress), :mod:`.loop`
 (:func:`run_engine`, the one run loop), :mod:`.api` (:func:`run`, :class:`RunResult`).
 """
-from .api import RUN_FILES, RunResult, run
-from .engine import LaxEngine
-from .loop import run_engine, simulate_engine
-from .reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter, load_energies
-from .spec import RunSpec
+from dnarod.run.api import RUN_FILES, RunResult, run
+from dnarod.run.engine import LaxEngine
+from dnarod.run.loop import run_engine, simulate_engine
+from dnarod.run.reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter, load_energies
+from dnarod.run.spec import RunSpec
 
 __all__ = ["RunSpec", "run", "RunResult", "RUN_FILES", "run_engine", "simulate_engine", "LaxEngine", "DtrajReporter",
            "EnergyReporter", "ProgressReporter", "ENERGY_COLUMNS", "load_energies"]

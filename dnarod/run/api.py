@@ -9,7 +9,7 @@ Nothing is lost or silently changed: a new run refuses a folder holding a run un
 ``overwrite`` (which removes only this layer's own files) and any other non-empty folder (``-o /``, a
 project folder; :func:`run_folder_markers`); ``resume`` refuses any change of what defines the run
 (:func:`dnarod.run.spec.fingerprint`), reads the checkpoint before touching any file, and a time already
-reached changes nothing. While a run writes, its folder is locked (:func:`dnarod.io_utils.folder_lock`,
+reached changes nothing. While a run writes, its folder is locked (:func:`dnarod.core.io.folder_lock`,
 ``.dnarod.lock``, removed when the run ends).
 """
 from __future__ import annotations
@@ -22,16 +22,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ParameterError
-from ..io_utils import check_dir_path, check_output_folder, folder_lock, jsonable, write_text_atomic
-from .spec import RunSpec, compare_fingerprints, fingerprint
+from dnarod.core.errors import ParameterError
+from dnarod.core.io import check_dir_path, check_output_folder, folder_lock, jsonable, write_text_atomic
+from dnarod.run.spec import RunSpec, compare_fingerprints, fingerprint
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
 RUN_FILES = {"run_json": "run.json", "trajectory": "trajectory.dtraj", "energies": "energies.csv",
              "checkpoint": "checkpoint.npz", "final_model": "final_model.npz", "pdb": "trajectory.pdb",
              "dcd": "trajectory.dcd", "xtc": "trajectory.xtc"}
 CHECKPOINT_FORMATS = {"openmm": "dnarod-openmm-checkpoint", "lax": "dnarod-lax-checkpoint"}
-#: Largest accepted omega_max * dt (90% of the leapfrog limit 2); the default is dnarod.modes.DEFAULT_OMEGA_DT.
+#: Largest accepted omega_max * dt (90% of the leapfrog limit 2); the default is dnarod.physics.modes.DEFAULT_OMEGA_DT.
 MAX_OMEGA_DT = 1.8
 #: Mean elastic energy per step of the start pose (kT) above which a run warns / is refused.
 WARN_KT_PER_STEP = 20.0
@@ -64,7 +64,7 @@ class RunResult:
 # ----------------------------------------------------------------------------------------------
 def source_model(spec):
     """The model named by ``spec.source`` (structure, model file, sequence, sequence file, node count)."""
-    from ..inputs import load_model
+    from dnarod.structure.inputs import load_model
 
     return load_model(spec.source, spec.forcefield, spec.circular, spec.ring, spec.delta_lk, spec.duplex,
                       spec.intrinsic)
@@ -76,17 +76,17 @@ def start_model(spec, model, seed):
         return model
     if spec.start == "equilibrium":
         try:
-            from ..thermal import equilibrium_sample
+            from dnarod.physics.thermal import equilibrium_sample
         except ImportError:
-            raise ParameterError("start='equilibrium' needs dnarod.thermal.equilibrium_sample, not in this "
+            raise ParameterError("start='equilibrium' needs dnarod.physics.thermal.equilibrium_sample, not in this "
                                  "version") from None
         return equilibrium_sample(model, spec.temperature if spec.temperature > 0 else 300.0, seed=seed,
                                   align=_pull_direction(spec.loads, model.n_nodes))
     try:
-        from ..statics import solve_static
+        from dnarod.physics.statics import solve_static
     except ImportError:
         if spec.engine != "openmm":
-            raise ParameterError("--minimize needs dnarod.statics.solve_static (not in this version) for the lax "
+            raise ParameterError("--minimize needs dnarod.physics.statics.solve_static (not in this version) for the lax "
                                  "engine") from None
         return None  # the OpenMM engine minimises its context
     solved, _ = solve_static(model, tuple(spec.loads))
@@ -97,7 +97,7 @@ def _pull_direction(loads, n_nodes):
     """Net pulling force on the last node (kJ/mol/nm, (3,)) or None: an equilibrium start of a pulled
     chain is turned so that its end-to-end vector points along it (else a long chain may start
     pointing away from the force)."""
-    from ..loads import PullingForce
+    from dnarod.physics.loads import PullingForce
 
     f = sum((np.asarray(ld.force, float) for ld in loads
              if isinstance(ld, PullingForce) and int(ld.node) % n_nodes == n_nodes - 1), np.zeros(3))
@@ -105,15 +105,15 @@ def _pull_direction(loads, n_nodes):
 
 
 def default_omega_max(model, loads=()):
-    """Fastest normal-mode frequency of a pose under its loads, rad/ps (:func:`dnarod.modes.omega_max`)."""
-    from ..modes import omega_max
+    """Fastest normal-mode frequency of a pose under its loads, rad/ps (:func:`dnarod.physics.modes.omega_max`)."""
+    from dnarod.physics.modes import omega_max
 
     return float(omega_max(model, loads=tuple(loads)))
 
 
 def choose_dt(spec, model, omega):
     """Time step, ps: ``spec.dt`` (checked against the stability limit) or ``0.4 / omega_max``."""
-    from ..modes import DEFAULT_OMEGA_DT
+    from dnarod.physics.modes import DEFAULT_OMEGA_DT
 
     limit = MAX_OMEGA_DT / omega
     if spec.dt is None:
@@ -128,9 +128,9 @@ def choose_dt(spec, model, omega):
 def check_start_pose(model, temperature):
     """Refuse (or warn about) a start pose the rod model cannot run: steps near the Cayley limit or
     storing far more elastic energy than equipartition (a tiny ring), which heats the run up."""
-    from ..energy import loads as elastic_loads
-    from ..rotations import MAX_CAYLEY_ANGLE
-    from ..thermal import kT
+    from dnarod.core.energy import loads as elastic_loads
+    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
+    from dnarod.physics.thermal import kT
 
     if model.n_steps == 0:
         raise ParameterError("the model has a single node: a chain needs at least 2")
@@ -190,15 +190,15 @@ def preflight(spec, model=None):
 
 
 def _default_dt(omega):
-    from ..modes import DEFAULT_OMEGA_DT
+    from dnarod.physics.modes import DEFAULT_OMEGA_DT
 
     return DEFAULT_OMEGA_DT / omega
 
 
 def check_load_stiffness(spec, model, omega=None):
-    """:func:`dnarod.loads.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode with
+    """:func:`dnarod.physics.loads.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode with
     the loads, rad/ps, if known), naming the ``simulate`` options."""
-    from ..loads import check_load_stiffness as check
+    from dnarod.physics.loads import check_load_stiffness as check
 
     check(model, spec.loads, omega=omega)
 
@@ -207,10 +207,10 @@ def make_engine(spec, model, dt, seed, omega):
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
     if spec.engine == "lax":
-        from .engine import LaxEngine
+        from dnarod.run.engine import LaxEngine
 
         return LaxEngine(model, dt, spec.temperature, spec.friction, seed, spec.loads, duration_ps, omega)
-    from ..openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     nb = spec.nonbonded_settings()
     return RodSimulation(model, integrator="langevin" if spec.friction > 0 else "verlet",
@@ -238,9 +238,9 @@ def intervals(spec, dt):
 
 def run_folder_markers():
     """Names that mark a folder as a run's (any of them): the run files, and the record of an ensemble member
-    (:mod:`dnarod.ensemble.member`), whose folder is a run folder. A new run refuses any other non-empty folder
-    (:func:`dnarod.io_utils.check_output_folder`)."""
-    from ..ensemble.member import LOG, MEMBER, RESULT
+    (:mod:`dnarod.workflows.ensemble.member`), whose folder is a run folder. A new run refuses any other non-empty folder
+    (:func:`dnarod.core.io.check_output_folder`)."""
+    from dnarod.workflows.ensemble.member import LOG, MEMBER, RESULT
 
     return (*RUN_FILES.values(), MEMBER, LOG, RESULT)
 
@@ -252,9 +252,9 @@ def run_files(outdir):
 
 
 def _observables(spec, model):
-    """Per-frame observables of the loads for the energies CSV (:mod:`dnarod.observables`), or None."""
+    """Per-frame observables of the loads for the energies CSV (:mod:`dnarod.physics.observables`), or None."""
     try:
-        from ..observables import csv_observables
+        from dnarod.physics.observables import csv_observables
     except ImportError:
         return None
     return csv_observables(model, tuple(spec.loads), duration_ps=spec.time_ns * 1000.0)
@@ -340,7 +340,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
 
 
 def _resume(spec, outdir, paths, progress):
-    from .engine import read_checkpoint
+    from dnarod.run.engine import read_checkpoint
 
     if not paths["run_json"].exists():
         raise ParameterError(f"cannot resume: {paths['run_json']} does not exist (no run was started in {outdir}); "
@@ -389,7 +389,7 @@ def _resume(spec, outdir, paths, progress):
 
 
 def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
-    from .loop import simulate_engine
+    from dnarod.run.loop import simulate_engine
 
     dt = engine.dt
     n_steps, fi, ci = intervals(spec, dt)
@@ -409,7 +409,7 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                           progress=progress, duration_ps=spec.time_ns * 1000.0,
                           checkpoint_extra=dict(run=meta["run_id"]), restored=True)
     if spec.export:
-        from ..openmm.export import export_trajectory
+        from dnarod.structure.export import export_trajectory
 
         export_trajectory(paths["trajectory"], paths["pdb"], paths["dcd"], sequence=model.sequence,
                           xtc_path=paths["xtc"] if spec.xtc else None)

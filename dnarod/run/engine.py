@@ -16,8 +16,8 @@ An *engine* is anything with (duck-typed, like OpenMM's reporters)::
     current_model() -> RodModel         the model at the current pose
     update_loads(time_ps, duration_ps)  turn rotation clamps to their angle at time_ps (optional)
 
-:class:`dnarod.openmm.simulation.RodSimulation` is the OpenMM engine; :class:`LaxEngine` wraps
-:class:`dnarod.integrators.splitting.SplittingIntegrator`.
+:class:`dnarod.engines.openmm.simulation.RodSimulation` is the OpenMM engine; :class:`LaxEngine` wraps
+:class:`dnarod.engines.lax.splitting.SplittingIntegrator`.
 """
 from __future__ import annotations
 
@@ -25,8 +25,8 @@ import json
 
 import numpy as np
 
-from ..errors import ParameterError, SimulationError
-from ..io_utils import atomic_path
+from dnarod.core.errors import ParameterError, SimulationError
+from dnarod.core.io import atomic_path
 
 
 def read_checkpoint(path, fmt, keys):
@@ -57,7 +57,7 @@ def read_checkpoint(path, fmt, keys):
 
 
 class LaxEngine:
-    """The Lax-form splitting integrator (:mod:`dnarod.integrators.splitting`) as a run-layer engine.
+    """The Lax-form splitting integrator (:mod:`dnarod.engines.lax.splitting`) as a run-layer engine.
 
     Parameters
     ----------
@@ -72,7 +72,7 @@ class LaxEngine:
     seed : int
         Initial velocities and Langevin noise.
     loads : sequence
-        :mod:`dnarod.loads` dataclasses.
+        :mod:`dnarod.physics.loads` dataclasses.
     duration_ps : float, optional
         Run length over which rotation clamps' ``turns`` are spread.
     omega_max : float, optional
@@ -85,8 +85,8 @@ class LaxEngine:
 
     def __init__(self, model, dt, temperature=300.0, friction=1.0, seed=None, loads=(), duration_ps=None,
                  omega_max=None, fast=True):
-        from ..integrators.boundary import BoundaryConditions
-        from ..integrators.splitting import SplittingIntegrator, maxwell_state
+        from dnarod.engines.lax.boundary import BoundaryConditions
+        from dnarod.engines.lax.splitting import SplittingIntegrator, maxwell_state
 
         self.model = model
         self.temperature = float(temperature)
@@ -151,7 +151,7 @@ class LaxEngine:
 
     def energies(self):
         """kJ/mol per term (elastic, nonbonded = 0, external) plus potential, kinetic; temperature K."""
-        from ..thermal import kinetic_temperature
+        from dnarod.physics.thermal import kinetic_temperature
 
         s = self.integ.state
         elastic = float(self.integ.potential_energy)
@@ -173,7 +173,7 @@ class LaxEngine:
 
     def save_checkpoint(self, path, extra=None):
         """State, step, time step and the random-number state, atomically (npz)."""
-        from .spec import model_fingerprint
+        from dnarod.run.spec import model_fingerprint
 
         s = self.integ.state
         meta = dict(format="dnarod-lax-checkpoint", version=2, step=self.step, dt=self.dt,
@@ -187,7 +187,7 @@ class LaxEngine:
 
     def load_checkpoint(self, path):
         """Restore a checkpoint of :meth:`save_checkpoint` for this model and time step; returns its metadata."""
-        from .spec import model_fingerprint
+        from dnarod.run.spec import model_fingerprint
 
         meta, a = read_checkpoint(path, "dnarod-lax-checkpoint",
                                   ("positions", "frames", "momenta", "angular_momenta"))

@@ -4,8 +4,8 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-from ..errors import ParameterError
-from .reporters import Snapshot
+from dnarod.core.errors import ParameterError
+from dnarod.run.reporters import Snapshot
 
 
 def _next_multiple(step, interval):
@@ -119,8 +119,8 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
         The loop's summary (:func:`run_engine`) plus ``temperatures`` (K, one per energy row) and
         ``resumed_from``.
     """
-    from ..io_utils import ensure_dir
-    from .reporters import DtrajReporter, EnergyReporter, ProgressReporter
+    from dnarod.core.io import ensure_dir
+    from dnarod.run.reporters import DtrajReporter, EnergyReporter, ProgressReporter
 
     outdir = ensure_dir(outdir)
     fi = int(frame_interval)

@@ -21,8 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import DnarodError
-from ..io_utils import atomic_path
+from dnarod.core.errors import DnarodError
+from dnarod.core.io import atomic_path
 
 #: Columns of ``energies.csv`` (both engines); observables follow when the loads define them.
 ENERGY_COLUMNS = ["step", "time_ps", "potential_kJ_mol", "kinetic_kJ_mol", "total_kJ_mol", "temperature_K",
@@ -89,7 +89,7 @@ class DtrajReporter(_Interval):
 
     def __init__(self, path, n_nodes, interval, velocities=False, metadata=None, resume_step=None,
                  precision="float32"):
-        from ..trajectory import TrajectoryWriter
+        from dnarod.core.trajectory import TrajectoryWriter
 
         self.path = Path(path)
         self.interval = int(interval)
@@ -120,7 +120,7 @@ class EnergyReporter(_Interval):
     interval : int
     observables : callable or None
         ``observables(snapshot) -> dict`` of extra columns (names with units), e.g. the tweezers
-        observables of :mod:`dnarod.observables`; ``observables.columns`` lists their names.
+        observables of :mod:`dnarod.physics.observables`; ``observables.columns`` lists their names.
     resume_step : int or None
         Continue an existing file, dropping rows after this step.
     """

@@ -1,13 +1,13 @@
-"""Standard load set-ups of the command line as :mod:`dnarod.loads` dataclasses (tweezers, traps).
+"""Standard load set-ups of the command line as :mod:`dnarod.physics.loads` dataclasses (tweezers, traps).
 
 Units: the arguments are in the experimentalist's units (pN, pN nm, pN/nm) and converted here
-through :mod:`dnarod.units`; the returned loads are in MD units.
+through :mod:`dnarod.core.units`; the returned loads are in MD units.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ParameterError
+from dnarod.core.errors import ParameterError
 
 
 def pull_axis(model):
@@ -53,10 +53,10 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
 
     Returns
     -------
-    tuple of dnarod.loads dataclasses
+    tuple of dnarod.physics.loads dataclasses
     """
-    from ..loads import Clamp, PullingForce, RotationClamp, Torque, Trap
-    from ..units import PN
+    from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Torque, Trap
+    from dnarod.core.units import PN
 
     n = model.n_nodes
     if model.closure is not None and (pull is not None or torque is not None or rotation_clamp is not None
@@ -73,7 +73,7 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
     if turns is not None and not np.isfinite(turns):
         raise ParameterError(f"--turns {turns}: must be a finite number")
     if turns:
-        from ..protocols.tweezers import intrinsic_turns
+        from dnarod.workflows.protocols.tweezers import intrinsic_turns
 
         lk0 = float(intrinsic_turns(model))
         # an untwisted rod (uniform force fields): the limit is a quarter turn per step
@@ -81,7 +81,7 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
             raise ParameterError(f"--turns {turns:g} is more than the {lk0:.1f} helical turns of this {n}-node chain "
                                  f"(sigma = {turns / lk0:+.3g}): the rod model cannot hold it (real DNA denatures "
                                  f"beyond |sigma| ~ 0.1); use |turns| <= {0.1 * abs(lk0):.2g} for real DNA")
-    from ..protocols.tweezers import MAX_FORCE_PN  # below overstretching (~65 pN), which the rod model lacks
+    from dnarod.workflows.protocols.tweezers import MAX_FORCE_PN  # below overstretching (~65 pN), which the rod model lacks
 
     if pull is not None and abs(pull) > MAX_FORCE_PN:
         raise ParameterError(f"--pull {pull:g} pN is above {MAX_FORCE_PN:g} pN: DNA overstretches near 65 pN, a "

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 
-from ..errors import ParameterError
+from dnarod.core.errors import ParameterError
 
 ENGINES = ("openmm", "lax")
 STARTS = ("intrinsic", "equilibrium", "minimized")
@@ -47,12 +47,12 @@ class RunSpec:
     seed : int or None
         Seed of the initial velocities and the noise; None draws one (recorded in ``run.json``).
     loads : tuple
-        External loads (:mod:`dnarod.loads` dataclasses), MD units.
+        External loads (:mod:`dnarod.physics.loads` dataclasses), MD units.
     salt, excluded_volume, electrostatics
         Non-bonded interactions (OpenMM engine; the Lax engine has none and refuses them on).
     charge, cutoff_debye : str or float, float, optional
         Non-bonded charge model (``"calibrated"``, ``"manning"`` or e per base pair) and Debye-Hueckel cutoff
-        (Debye lengths) of :class:`dnarod.openmm.nonbonded.NonbondedSettings`; ``None``: its defaults. What they
+        (Debye lengths) of :class:`dnarod.engines.openmm.nonbonded.NonbondedSettings`; ``None``: its defaults. What they
         resolve to (model, e per node, cutoff in nm and Debye lengths) is recorded in the run's fingerprint.
     platform : str or None
         OpenMM platform (default CPU).
@@ -65,8 +65,8 @@ class RunSpec:
         structure's own step parameters (stiffness still from ``forcefield``).
     start : {"intrinsic", "equilibrium", "minimized"}
         Initial pose: the source's, an exact equilibrium sample of the free chain at ``temperature``
-        (:func:`dnarod.thermal.equilibrium_sample`), or the static minimum of the elastic energy under
-        the loads (:func:`dnarod.statics.solve_static`; non-bonded terms are not included).
+        (:func:`dnarod.physics.thermal.equilibrium_sample`), or the static minimum of the elastic energy under
+        the loads (:func:`dnarod.physics.statics.solve_static`; non-bonded terms are not included).
     frame_interval_ps : float
         Time between trajectory frames (and energy rows), ps; rounded to whole steps.
     checkpoint_interval_ps : float or None
@@ -219,7 +219,7 @@ class RunSpec:
             raise ParameterError(f"--platform {self.platform!r}: give an OpenMM platform name (CPU, Reference, "
                                  f"CUDA, HIP, OpenCL)")
         if self.engine == "openmm" and self.platform is not None:
-            from ..openmm.platforms import platform_names
+            from dnarod.engines.openmm.platforms import platform_names
 
             names = platform_names()
             if self.platform not in names:
@@ -231,21 +231,21 @@ class RunSpec:
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} {getattr(self, name)!r}: must be True or False")
         if not isinstance(self.loads, (tuple, list)):
-            raise ParameterError(f"loads {self.loads!r}: give a tuple of dnarod.loads objects")
+            raise ParameterError(f"loads {self.loads!r}: give a tuple of dnarod.physics.loads objects")
         for ld in self.loads:
             if not is_dataclass(ld) or isinstance(ld, type):
-                raise ParameterError(f"loads: {ld!r} is not a dnarod.loads object (PullingForce, Torque, Clamp, "
+                raise ParameterError(f"loads: {ld!r} is not a dnarod.physics.loads object (PullingForce, Torque, Clamp, "
                                      f"RotationClamp, Trap, ...)")
         if not isinstance(self.extra, dict):
             raise ParameterError(f"extra {self.extra!r}: must be a dict")
         return self
 
     def nonbonded_settings(self, check=False):
-        """The :class:`dnarod.openmm.nonbonded.NonbondedSettings` of the run, or ``False`` when both terms are off
+        """The :class:`dnarod.engines.openmm.nonbonded.NonbondedSettings` of the run, or ``False`` when both terms are off
         (``check``: refuse a bad charge or cutoff with one line, :class:`ParameterError`)."""
         if not self.nonbonded:
             return False
-        from ..openmm.nonbonded import NonbondedSettings, member_nonbonded
+        from dnarod.engines.openmm.nonbonded import NonbondedSettings, member_nonbonded
 
         extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
         if check:
@@ -256,7 +256,7 @@ class RunSpec:
 
     def to_json(self):
         """JSON-safe dict of the spec (loads as ``{"type": ..., fields...}``; a model source as its name)."""
-        from ..io_utils import jsonable
+        from dnarod.core.io import jsonable
 
         d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("loads", "extra", "source")}
         d["source"] = _source_text(self.source)
@@ -266,7 +266,7 @@ class RunSpec:
 
 
 def _source_text(source):
-    from ..model import RodModel
+    from dnarod.core.model import RodModel
 
     if isinstance(source, RodModel):
         return f"<RodModel {source.n_nodes} nodes>"
@@ -275,7 +275,7 @@ def _source_text(source):
 
 def load_json(load):
     """A load dataclass as a JSON-safe dict ``{"type": class name, field: value}``."""
-    from ..io_utils import jsonable
+    from dnarod.core.io import jsonable
 
     try:
         d = asdict(load)
@@ -333,7 +333,7 @@ def _nonbonded_fingerprint(spec, model):
     fp = dict(excluded_volume=bool(spec.excluded_volume), electrostatics=bool(spec.electrostatics),
               salt_mol_L=float(spec.salt) if spec.nonbonded else None)
     if spec.engine == "openmm" and spec.electrostatics:
-        from ..openmm.nonbonded import nonbonded_record
+        from dnarod.engines.openmm.nonbonded import nonbonded_record
 
         rec = nonbonded_record(spec.nonbonded_settings(), model.ds, spec.temperature or 300.0)
         fp.update({k: rec[k] for k in CHARGE_ENTRIES})

@@ -1,7 +1,7 @@
 """Locate the bundled reference data (standard bases, residue names, fibre templates)."""
 from __future__ import annotations
 
-from ..errors import StructureError
+from dnarod.core.errors import StructureError
 
 
 def data_file(*parts):
@@ -12,7 +12,7 @@ def data_file(*parts):
     StructureError
         If the file is missing (a broken installation).
     """
-    from ..forcefield import data_dir
+    from dnarod.core.forcefield import data_dir
 
     p = data_dir().joinpath(*parts)
     if not p.is_file():

@@ -38,7 +38,7 @@ Amber14 equilibrium length, the shortest distance between heavy atoms that are n
 nor share a bonded neighbour, the base-pair frames refitted from the atoms against the input
 (origin distance and rotation angle), and sugar chirality (C1', C3', C4' as in the template).
 A backbone that does not close (a bond still more than ``bond_tolerance`` off, e.g. when two
-frames are too far apart) raises :class:`~dnarod.errors.StructureError` naming the step and
+frames are too far apart) raises :class:`~dnarod.core.errors.StructureError` naming the step and
 the length; a base pair moved by more than 0.05 A or 1 degree raises one naming the pair.
 
 Units: nm, kJ/mol inside; files in Angstrom (PDB) through OpenMM's writers.
@@ -52,9 +52,9 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..errors import StructureError
-from .frames import standard_bases
-from .rebuild import fibre_pair_parameters, rebuild_coordinates
+from dnarod.core.errors import StructureError
+from dnarod.structure.frames import standard_bases
+from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates
 
 _log = logging.getLogger(__name__)
 
@@ -342,7 +342,7 @@ def _retarget(force, context, groups, pos, placed):
     while their internal geometry is the force field's, so firm restraints hold the frame without
     straining the ring bonds toward the standard base's lengths.
     """
-    from .frames import kabsch
+    from dnarod.structure.frames import kabsch
 
     k = 0
     for ids, ref in groups:
@@ -476,7 +476,7 @@ def _placed_gap(xyz, atoms, O, n, bond_tolerance):
     sum of those lengths apart. If the frames put them further apart even after both moves, no closure
     can pass the checks: raise before minimising, naming the step, the distance and the shortfall.
     """
-    from .rebuild import nucleotide_template
+    from dnarod.structure.rebuild import nucleotide_template
 
     def path_length(letter, names):
         tn, tx = nucleotide_template(letter)
@@ -621,8 +621,8 @@ def _links(topology):
 
 def _pair_frames_of(topology, xyz, n, sequence, sequence2):
     """Base-pair frames refitted from the rebuilt atoms (nm, as the analysis computes them)."""
-    from .bpparams import pair_parameters
-    from .frames import kabsch
+    from dnarod.structure.bpparams import pair_parameters
+    from dnarod.structure.frames import kabsch
 
     std, ring = standard_bases()
     res = list(topology.residues())
@@ -654,7 +654,7 @@ def _homotopy(F, O, fractions):
     """
     from scipy.spatial.transform import Rotation
 
-    from .frames import kabsch
+    from dnarod.structure.frames import kabsch
 
     n = len(F)
     c, s_ = np.cos(FIBRE_TWIST), np.sin(FIBRE_TWIST)
@@ -1034,7 +1034,7 @@ def write_allatom(path, topology, positions, hydrogens=True, remarks=()):
     import openmm.app as app
     import openmm.unit as u
 
-    from ..io_utils import atomic_path
+    from dnarod.core.io import atomic_path
 
     path = Path(path)
     top, pos = topology, np.asarray(positions, float)

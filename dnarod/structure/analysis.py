@@ -3,10 +3,10 @@
 :func:`analyze_structure` returns, per duplex, the base-pair frames (dnarod's node frames:
 d1 = x toward the major groove, d2 = y toward strand I, d3 = z along the helix), their
 origins, the six base-pair parameters and the six step parameters (3DNA convention, from
-:mod:`dnarod.stepparams`). :func:`step_parameters_over_frames` repeats the frame and
+:mod:`dnarod.core.stepparams`). :func:`step_parameters_over_frames` repeats the frame and
 parameter computation for many coordinate frames of the same system, vectorised over frames.
 
-Units: nm and rad (convert with :func:`dnarod.stepparams.to_angstrom_degrees`).
+Units: nm and rad (convert with :func:`dnarod.core.stepparams.to_angstrom_degrees`).
 """
 from __future__ import annotations
 
@@ -14,12 +14,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import StructureError
-from ..stepparams import step_parameters
-from .bpparams import pair_parameters
-from .frames import base_frames, has_base_atoms, kabsch, ring_atoms_present, standard_bases
-from .pairing import classify_pair, explicit_pairs, fill_helix_gaps, find_pairs, is_mismatch, multiplets, order_duplexes
-from .reader import read_structure
+from dnarod.core.errors import StructureError
+from dnarod.core.stepparams import step_parameters
+from dnarod.structure.bpparams import pair_parameters
+from dnarod.structure.frames import base_frames, has_base_atoms, kabsch, ring_atoms_present, standard_bases
+from dnarod.structure.pairing import classify_pair, explicit_pairs, fill_helix_gaps, find_pairs, is_mismatch, multiplets, order_duplexes
+from dnarod.structure.reader import read_structure
 
 
 @dataclass
@@ -251,7 +251,7 @@ def analyze_trajectory(topology, trajectory=None, duplex=0, model=1):
     (DuplexAnalysis, step_params (n_frames, n_bp - 1, 6), bp_params (n_frames, n_bp, 6))
         nm and rad.
     """
-    from .trajectory import read_duplex_trajectory  # the one all-atom trajectory reader
+    from dnarod.structure.trajectory import read_duplex_trajectory  # the one all-atom trajectory reader
 
     r = read_duplex_trajectory(topology, trajectory, duplex=duplex, model=model)
     return r.duplex, r.step_params, r.pair_params

@@ -3,7 +3,7 @@
 3DNA (Lu & Olson 2003) treats a base pair like a step from the strand II base to the
 strand I base: the strand II base frame has its y and z axes reversed (when the two base
 normals are antiparallel, as in any Watson-Crick-like pair), and the step construction of
-:func:`dnarod.stepparams.step_parameters_with_midframe` applied to (strand II, strand I)
+:func:`dnarod.core.stepparams.step_parameters_with_midframe` applied to (strand II, strand I)
 gives shear, stretch, stagger (its shift, slide, rise), buckle, propeller, opening (its
 tilt, roll, twist) and the base-pair frame (its mid-step frame). The step kernel is
 imported, not repeated. :func:`base_frames_from_pair` is the exact inverse (used by the
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..stepparams import step_parameters_with_midframe, step_transform
+from dnarod.core.stepparams import step_parameters_with_midframe, step_transform
 
 BP_PARAMETER_NAMES = ("shear", "stretch", "stagger", "buckle", "propeller", "opening")
 FLIP = np.array([1.0, -1.0, -1.0])

@@ -8,9 +8,9 @@ pose is the structure's; the intrinsic shape is the force field's (``intrinsic="
 the default) or the structure's own (``intrinsic="structure"``).
 
 :func:`model_from_sequence`: the force field's intrinsic shape
-(:meth:`dnarod.forcefield.ForceField.model_from_sequence`).
+(:meth:`dnarod.core.forcefield.ForceField.model_from_sequence`).
 
-Both return a :class:`~dnarod.model.RodModel`, saved and loaded with ``RodModel.save`` /
+Both return a :class:`~dnarod.core.model.RodModel`, saved and loaded with ``RodModel.save`` /
 ``RodModel.load`` (``.npz``, format "dnarod-model"). The structure builder records in
 ``metadata``: the source file, model, duplex, residue ids of both strands, strand II
 letters (``sequence2``) and the base-pair parameters (``bp_params``, nm and rad) so that
@@ -20,16 +20,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import StructureError
-from ..model import RodModel
-from .analysis import analyze_structure
-from .selection import choose_duplex
+from dnarod.core.errors import StructureError
+from dnarod.core.model import RodModel
+from dnarod.structure.analysis import analyze_structure
+from dnarod.structure.selection import choose_duplex
 
 INTRINSIC = ("sequence", "structure")
 
 
 def _forcefield(forcefield):
-    from ..forcefield import ForceField, load_forcefield
+    from dnarod.core.forcefield import ForceField, load_forcefield
 
     return forcefield if isinstance(forcefield, ForceField) else load_forcefield(forcefield)
 
@@ -59,7 +59,7 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
         A ready analysis instead of reading ``path``.
     intrinsic : {"sequence", "structure"}
         ``"sequence"`` (default): the force field's intrinsic strains for the sequence.
-        ``"structure"``: the structure's own step strains (:func:`dnarod.strains.strains` of the
+        ``"structure"``: the structure's own step strains (:func:`dnarod.core.strains.strains` of the
         base-pair frames with the force field's ds) become the intrinsic shape, so the model's
         zero-energy shape is the input's (a protein-bent DNA keeps its bend); the stiffness is
         still the force field's.
@@ -71,8 +71,8 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
         ``metadata["selection"]`` is the one-line report of the duplex taken and what was
         dropped (:meth:`DuplexSelection.report`).
     """
-    from ..parameters import StepParameters
-    from ..strains import strains
+    from dnarod.core.parameters import StepParameters
+    from dnarod.core.strains import strains
 
     if intrinsic not in INTRINSIC:
         raise StructureError(f"intrinsic={intrinsic!r}: use 'sequence' (the force field's shape for the sequence) "

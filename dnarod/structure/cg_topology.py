@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import DnarodError
+from dnarod.core.errors import DnarodError
 
 BEADS = ("BPC", "BPX", "BPZ")
 ELEMENT = "VS"
@@ -167,13 +167,13 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
 
     Returns
     -------
-    dnarod.trajectory.Trajectory
+    dnarod.core.trajectory.Trajectory
         Frames re-orthonormalised from the beads (``d2 = d3 x d1``).
     """
     import mdtraj as md
 
-    from ..openmm.export import frames_from_beads
-    from ..trajectory import Trajectory
+    from dnarod.structure.export import frames_from_beads
+    from dnarod.core.trajectory import Trajectory
 
     t = md.load(str(trajectory_path), top=str(pdb_path)) if trajectory_path else md.load(str(pdb_path))
     if t.n_atoms % 3:

@@ -15,8 +15,8 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..errors import StructureError
-from ._data import data_file
+from dnarod.core.errors import StructureError
+from dnarod.structure._data import data_file
 
 RING_ATOMS = {
     "purine": ("C4", "N3", "C2", "N1", "C6", "C5", "N7", "C8", "N9"),

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import StructureError
+from dnarod.core.errors import StructureError
 
 LENGTH_NM = 0.8518      # oxDNA length unit, nm
 TIME_PS = 3.03          # oxDNA time unit, ps
@@ -207,7 +207,7 @@ def duplex_nodes(bases, next3, strand, r, a1, a3):
 
 
 def read_oxdna(topology, configuration):
-    """An oxDNA topology + configuration/trajectory as a dnarod :class:`~dnarod.trajectory.Trajectory`.
+    """An oxDNA topology + configuration/trajectory as a dnarod :class:`~dnarod.core.trajectory.Trajectory`.
 
     Parameters
     ----------
@@ -222,7 +222,7 @@ def read_oxdna(topology, configuration):
         Node centres (nm) and base-pair frames per frame; time in ps; metadata ``sequence``,
         ``source`` and the oxDNA indices of the pairs.
     """
-    from ..trajectory import Trajectory
+    from dnarod.core.trajectory import Trajectory
 
     bases, next3, strand = read_topology(topology)
     t, r, a1, a3 = read_configurations(configuration, len(bases))

@@ -24,8 +24,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ..errors import StructureError
-from .reader import BACKBONE
+from dnarod.core.errors import StructureError
+from dnarod.structure.reader import BACKBONE
 
 MAX_ORIGIN = 1.5        # nm
 MAX_VERTICAL = 0.25     # nm

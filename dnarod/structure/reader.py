@@ -20,7 +20,7 @@ What the reader does (and reports):
   asked for with ``altloc``); conflicting altlocs and duplicate atoms are errors.
 
 Coordinates are returned in nm (converted from the files' Angstrom at this edge).
-Every problem raises :class:`~dnarod.errors.StructureError` naming the file, chain and residue.
+Every problem raises :class:`~dnarod.core.errors.StructureError` naming the file, chain and residue.
 """
 from __future__ import annotations
 
@@ -31,8 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import StructureError
-from ._data import data_file
+from dnarod.core.errors import StructureError
+from dnarod.structure._data import data_file
 
 WATER = {"HOH", "WAT", "H2O", "DOD", "TIP", "TIP3", "TIP4", "SOL", "SPC", "T3P", "T4P"}
 BACKBONE = {"P", "OP1", "OP2", "OP3", "O5'", "C5'", "C4'", "O4'", "C3'", "O3'", "C2'", "O2'", "C1'",

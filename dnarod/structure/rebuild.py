@@ -19,12 +19,12 @@ from functools import lru_cache
 
 import numpy as np
 
-from ..errors import StructureError
-from ..io_utils import atomic_path
-from ._data import data_file
-from .bpparams import base_frames_from_pair
-from .frames import kabsch, standard_bases
-from .reader import read_structure
+from dnarod.core.errors import StructureError
+from dnarod.core.io import atomic_path
+from dnarod.structure._data import data_file
+from dnarod.structure.bpparams import base_frames_from_pair
+from dnarod.structure.frames import kabsch, standard_bases
+from dnarod.structure.reader import read_structure
 
 BACKBONE_ORDER = ("P", "OP1", "OP2", "O5'", "C5'", "C4'", "O4'", "C3'", "O3'", "C2'", "C1'")
 COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G"}
@@ -69,8 +69,8 @@ def fibre_pair_parameters():
     -------
     ndarray, shape (6,)
     """
-    from .bpparams import pair_parameters
-    from .frames import base_frames
+    from dnarod.structure.bpparams import pair_parameters
+    from dnarod.structure.frames import base_frames
 
     nts = [read_structure(data_file("structures", "fiber_models", TEMPLATE, f"{b}.pdb")).nucleotides[0]
            for b in ("A", "T")]
@@ -190,7 +190,7 @@ def write_pdb(path, xyz, atoms, remark=None):
 
 
 def rebuild_model(model, path=None, bp_params=None):
-    """All-atom PDB of a :class:`~dnarod.model.RodModel` (its nodes are base-pair frames).
+    """All-atom PDB of a :class:`~dnarod.core.model.RodModel` (its nodes are base-pair frames).
 
     Parameters
     ----------

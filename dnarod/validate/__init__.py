@@ -33,7 +33,7 @@ import time
 import traceback
 from pathlib import Path
 
-from ..errors import DnarodError
+from dnarod.core.errors import DnarodError
 
 #: name -> (module, function)
 CHECKS = {
@@ -69,8 +69,8 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     report listed but the new one does not are removed, while the members of check ``buckling``
     (``buckling_members/``) are kept and reused. A folder that holds no report but the members of an
     interrupted validation is run into without ``overwrite`` (the members are reused). Any other non-empty
-    folder is refused (:func:`dnarod.io_utils.check_output_folder`), and while the checks run the folder is
-    locked against a second writer (:func:`dnarod.io_utils.folder_lock`).
+    folder is refused (:func:`dnarod.core.io.check_output_folder`), and while the checks run the folder is
+    locked against a second writer (:func:`dnarod.core.io.folder_lock`).
 
     Parameters
     ----------
@@ -99,9 +99,9 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     DnarodError
         An unknown check, a folder holding a report (without ``overwrite``) or anything else, a folder in use.
     """
-    from ..io_utils import check_output_folder, folder_lock
-    from .buckling import MEMBER_FOLDER
-    from .report import REPORT_FILES, old_report
+    from dnarod.core.io import check_output_folder, folder_lock
+    from dnarod.validate.buckling import MEMBER_FOLDER
+    from dnarod.validate.report import REPORT_FILES, old_report
 
     out_dir = Path(out_dir)
     names = list(checks) if checks else list(QUICK_CHECKS if quick else CHECKS)
@@ -120,7 +120,7 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
 
 
 def _refuse_old_report(out_dir, overwrite):
-    from .report import old_report
+    from dnarod.validate.report import old_report
 
     present = old_report(out_dir)[0]
     if present and not overwrite:
@@ -130,7 +130,7 @@ def _refuse_old_report(out_dir, overwrite):
 
 def _run_checks(out_dir, names, quick, options, echo):
     """Run the checks ``names`` into ``out_dir`` and write the report (see :func:`run_validation`)."""
-    from .report import write_report
+    from dnarod.validate.report import write_report
 
     options = options or {}
     results = {"checks": {}}

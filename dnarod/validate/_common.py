@@ -11,12 +11,12 @@ import math
 
 import numpy as np
 
-from ..io_utils import atomic_path
-from ..io_utils import jsonable as _jsonable
+from dnarod.core.io import atomic_path
+from dnarod.core.io import jsonable as _jsonable
 
 
 def jsonable(obj):
-    """JSON-safe results (:func:`dnarod.io_utils.jsonable`; NaN/inf as strings)."""
+    """JSON-safe results (:func:`dnarod.core.io.jsonable`; NaN/inf as strings)."""
     return _jsonable(obj, nonfinite="repr")
 
 

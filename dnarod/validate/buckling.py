@@ -2,26 +2,26 @@
 two-phase model with the model's own A, C and plectoneme twist stiffness P.
 
 System: an open ``dna-default`` chain in magnetic tweezers at constant force (node 0 clamped, rotation clamp and
-force on the last node, surface and bead walls; :mod:`dnarod.protocols.tweezers`), OpenMM engine, WCA +
+force on the last node, surface and bead walls; :mod:`dnarod.workflows.protocols.tweezers`), OpenMM engine, WCA +
 Debye-Hueckel at 0.15 M. Members at one pre-buckling number of turns and at two numbers of turns past
-buckling; and one closed ring (:mod:`dnarod.protocols.rings`) that measures the model's P.
+buckling; and one closed ring (:mod:`dnarod.workflows.protocols.rings`) that measures the model's P.
 
 Linking differences are relative to the relaxed chain at the run's temperature
-(:func:`dnarod.thermal.relaxed_ribbon_twist`: the mean ribbon twist of the free steps, 0.27 turns below the T = 0
+(:func:`dnarod.physics.thermal.relaxed_ribbon_twist`: the mean ribbon twist of the free steps, 0.27 turns below the T = 0
 sum of intrinsic twist angles for 600 bp), both for the tweezers chain (``delta_lk_thermal``) and for the ring
 that gives P.
 
-Theory (:func:`dnarod.validate.supercoil_theory.marko_two_phase`; J. F. Marko, Phys. Rev. E 76:021926, 2007):
+Theory (:func:`dnarod.physics.theory.supercoil.marko_two_phase`; J. F. Marko, Phys. Rev. E 76:021926, 2007):
 plateau torque ``tau* = sqrt(2 kT g / (1/P - 1/C_s))`` (also the torque at buckling), buckling point
 ``ΔLk_b = tau* L / (2 pi kT C_s)`` and extension slope past buckling, with A the model's exact persistence
 length, ``g`` the exact worm-like-chain free energy per length at this force and A
-(:func:`~dnarod.validate.supercoil_theory.wlc_free_energy_exact`; Marko's leading ``f - sqrt(kT f/A)`` is 2.9 %
+(:func:`~dnarod.physics.theory.supercoil.wlc_free_energy_exact`; Marko's leading ``f - sqrt(kT f/A)`` is 2.9 %
 low at 1 pN and puts tau* 1.5 % low), C_s the Moroz-Nelson effective twist stiffness of the model's bare C at
 this force (as in check ``torsion``; the exact extended phase under torque, the Moroz-Nelson eigenvalue problem
 solved numerically, differs from it by 0.15 % in tau*) and P the plectoneme twist stiffness, which the
 two-phase model takes as a parameter: it is set by the plectoneme's bending, twist and self-repulsion, i.e. by
 the model's A, C and effective diameter at this salt
-(:func:`~dnarod.validate.supercoil_theory.effective_diameter`, reported). It is measured from the same model in
+(:func:`~dnarod.physics.theory.supercoil.effective_diameter`, reported). It is measured from the same model in
 the other plectonemic geometry, closed rings, where the twist carries the torque (``tau = kT C Ω_tw``; checked
 against the twisting moment of the steps: 600-bp rings at ΔLk -4.885 / +5.115 give P 17.24 +- 0.28 /
 16.99 +- 0.31 nm from the moment and 17.22 / 17.43 from the writhe, so neither the estimator nor the handedness
@@ -30,7 +30,7 @@ take a linking difference of their own (little writhe for their length): it read
 -0.051, -0.068, -0.086 (600 bp) and 14.35 nm for 1200 bp at sigma -0.086 (twisting moment), and the single
 600-bp ring puts tau* at 11.47 pN nm against a measured plateau of 10.33 +- 0.27. The check therefore runs two
 rings at the same sigma, of n and 2n bp (600 and 1200 in the full form, ΔLk -5 and -10), and takes
-``P_b = C (1 - ΔWr / ΔΔLk)`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_ring_pair`): the loops
+``P_b = C (1 - ΔWr / ΔΔLk)`` (:func:`~dnarod.physics.theory.supercoil.plectoneme_P_from_ring_pair`): the loops
 cancel if both rings have the same loops (measured with Manning's charge: P_b 12.09 +- 0.70 nm, tau* 9.26 +-
 0.31). A long ring that branches has more end loops: the check counts them per sample (``end_loops`` of the ring
 members) and fails when the two rings' means differ (premise below). With the calibrated charge (d_eff 5.00 nm,
@@ -38,7 +38,7 @@ round 6) it does: at sigma -0.0875 the 600-bp ring (40 ns after 36 ns) has 1.96 
 of samples) and writhe fraction 0.695 (single-ring P 29.9 +- 0.5 nm), the 1200-bp ring (100 ns after 100 ns)
 2.64 (3 in 56 %, 4 in 4 %; the loops are hairpin tips: nodes 20 nm either side are 7.6 nm apart against
 30.6 at random nodes) and 0.735, so the pair's P_b = 22.2 +- 0.6 nm is biased upwards; counting the loops
-(:func:`~dnarod.validate.supercoil_theory.plectoneme_P_from_rings_with_loops`, reported, not gating) gives
+(:func:`~dnarod.physics.theory.supercoil.plectoneme_P_from_rings_with_loops`, reported, not gating) gives
 18.2 +- 1.1 nm and tau* 11.9 pN nm (pair 13.6, single ring 16.8). A shorter pair, 400/800 bp at sigma -0.0787
 (40 ns after 16 ns / 100 ns after 65 ns), does not branch (1.84 / 1.94 end loops, at most 2 in any sample; the
 difference 0.104 is just over ``LOOP_TOL``): P_b 19.3 +- 0.8 nm, loops counted 18.5 +- 0.9 (agreeing with the
@@ -60,9 +60,9 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    straight start);
    with the ring pair, both rings are settled (no drift of Wr between the halves of their production, ``Z_TOL``
    SE) and have the same mean number of plectoneme end loops within ``LOOP_TOL`` (0.1;
-   :func:`dnarod.protocols.measure.plectoneme_end_loops`, recorded per sample by the ring members): a ring that
+   :func:`dnarod.workflows.protocols.measure.plectoneme_end_loops`, recorded per sample by the ring members): a ring that
    branches has more end loops than the pair formula cancels (:func:`ring_pair_premise`);
-1. both post-buckling members are plectonemic (detector of :mod:`dnarod.protocols.measure`);
+1. both post-buckling members are plectonemic (detector of :mod:`dnarod.workflows.protocols.measure`);
 2. their torques agree (the plateau is flat): ``|Δtau| <= Z_TOL SE``;
 3. the extension falls between them by more than ``Z_TOL SE``;
 4. the pre-buckling torque follows ``kT C_eff 2 pi ΔLk/L`` (Moroz-Nelson C_eff) within ``Z_TOL SE`` +
@@ -72,7 +72,7 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    estimated as the change of tau* between the first-order C_s that Marko uses and the third-order Moroz-Nelson
    C_s (``theory_truncation_pN_nm``, reported). "For this finite chain": the chain holds one plectoneme, free to
    sit anywhere along the extended part, so each member's torque stands ``kT / (L_s (Omega_p - Omega_s))`` above
-   the bulk ``tau*`` (:func:`~dnarod.validate.supercoil_theory.plectoneme_position_torque_shift`, L_s = x/zeta;
+   the bulk ``tau*`` (:func:`~dnarod.physics.theory.supercoil.plectoneme_position_torque_shift`, L_s = x/zeta;
    0.35 and 0.59 pN nm at 2.57 and 3.59 turns here); the error-weighted mean residual is compared. The plain
    difference (plateau - tau*) is reported beside it (``plain_difference_pN_nm``, ``plain_passed``).
 
@@ -126,8 +126,8 @@ import time
 
 import numpy as np
 
-from ..errors import DnarodError
-from ._common import new_figure, save_figure
+from dnarod.core.errors import DnarodError
+from dnarod.validate._common import new_figure, save_figure
 
 #: Folder of the members in the report folder when no ``member_root`` is given (reused by a rerun).
 MEMBER_FOLDER = "buckling_members"
@@ -194,7 +194,7 @@ def block_standard_error(x, min_blocks=MIN_BLOCKS):
     float
         Same unit as ``x``; NaN with fewer than 4 samples.
     """
-    from ..analysis.polymer import integrated_autocorrelation_time
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     x = np.asarray(x, float)
     best, b = float("nan"), 1
@@ -230,7 +230,7 @@ def equilibration_start(x, n_candidates=40, max_fraction=0.5):
     int
         Index of the first kept sample (0 for fewer than 8 samples).
     """
-    from ..analysis.polymer import integrated_autocorrelation_time
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     x = np.asarray(x, float)
     n = len(x)
@@ -258,7 +258,7 @@ def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=
     """P (nm) and its standard error from a plectonemic ring member's writhe fraction, ``P = C (1 - Wr/ΔLk)``.
 
     ``ΔLk = Lk - relaxed_twist``, the relaxed ring's mean twist at the run's temperature
-    (:func:`dnarod.thermal.relaxed_ribbon_twist`; turns).
+    (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`; turns).
     """
     d = ring_row["Lk"] - relaxed_twist
     f = ring_row["Wr"] / d
@@ -284,7 +284,7 @@ def ring_pair_premise(short_dir, long_dir, loop_tol=None, z_tol=Z_TOL):
     """Whether two ring members can give the bulk P (:func:`plectoneme_P_from_ring_pair`): both settled (the
     means of Wr over the halves of each production agree within ``z_tol`` blocked SE) and with the same
     number of plectoneme end loops on average (``|<n_long> - <n_short>| <= loop_tol``, :data:`LOOP_TOL`; the
-    per-sample count :func:`dnarod.protocols.measure.plectoneme_end_loops`, column ``end_loops``). A ring
+    per-sample count :func:`dnarod.workflows.protocols.measure.plectoneme_end_loops`, column ``end_loops``). A ring
     that branches has more end loops than the pair formula cancels.
 
     Returns
@@ -317,8 +317,8 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
                 above_turns=None, above_ns=None, platform=None):
     """The members :func:`check_buckling` runs with these options, in the order it runs them.
 
-    Each entry is a dict: ``kind`` (``"tweezers"``: :func:`dnarod.protocols.tweezers.run_member`; ``"ring"``:
-    :func:`dnarod.protocols.rings.run_ring_member`), ``folder`` (the member's folder name under the check's member
+    Each entry is a dict: ``kind`` (``"tweezers"``: :func:`dnarod.workflows.protocols.tweezers.run_member`; ``"ring"``:
+    :func:`dnarod.workflows.protocols.rings.run_ring_member`), ``folder`` (the member's folder name under the check's member
     root), ``settings`` (the member's settings dict) and ``role`` (``"ring"``, ``"ring_pair"``, ``"pre"``,
     ``"post"``, ``"post_grown"``, ``"above_source"``, ``"post_above"``) with ``index`` (0 pre-buckling, 1 and 2
     post-buckling). A ``"post_above"`` member starts from the final pose of the ``"above_source"`` member named
@@ -327,8 +327,8 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
     ``platform`` (an OpenMM platform name; default the automatic choice) goes into every member's settings, so
     members recorded on one platform are reused only by a check asked to run on it.
     """
-    from ..forcefield import load_forcefield
-    from ..protocols.tweezers import intrinsic_turns
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.workflows.protocols.tweezers import intrinsic_turns
 
     n_bp = n_bp or (400 if quick else 600)
     lk0 = intrinsic_turns(load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp))
@@ -368,7 +368,7 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
                           f"plectoneme grown at a lower force)")
     above = bracket and bracket_start == "above"
     if above:  # one source member with more turns than either post-buckling member: its plectoneme is larger
-        from ..protocols.tweezers import MAX_SIGMA
+        from dnarod.workflows.protocols.tweezers import MAX_SIGMA
 
         t_src = round(float(above_turns if above_turns is not None
                             else min(max(ABOVE_SIGMA * lk0, ABOVE_MIN_FACTOR * max(post_turns)), 0.95 * MAX_SIGMA * lk0)), 4)
@@ -398,11 +398,11 @@ def run_planned(entry, member_root, progress=None):
     """Run (or reuse) one entry of :func:`member_plan` in ``member_root``; returns the member's result row."""
     from pathlib import Path
 
-    from ..protocols.rings import run_ring_member
-    from ..protocols.tweezers import run_member
+    from dnarod.workflows.protocols.rings import run_ring_member
+    from dnarod.workflows.protocols.tweezers import run_member
 
     if entry.get("start_from"):  # from the final pose of an earlier member of the plan (it must have run)
-        from ..protocols.sweep import FINAL_POSE, load_pose
+        from dnarod.workflows.protocols.sweep import FINAL_POSE, load_pose
 
         src = Path(member_root) / entry["start_from"] / FINAL_POSE
         if not src.exists():
@@ -432,17 +432,17 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     """
     from pathlib import Path
 
-    from ..forcefield import load_forcefield
-    from ..protocols.tweezers import intrinsic_turns
-    from ..thermal import kT, persistence_length
-    from ..units import PN
-    from ..openmm.nonbonded import member_nonbonded
-    from ..protocols.measure import twisting_moment_offset
-    from ..thermal import relaxed_ribbon_twist
-    from ..errors import DnarodError
-    from .supercoil_theory import (effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair,
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.workflows.protocols.tweezers import intrinsic_turns
+    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.core.units import PN
+    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.measure import twisting_moment_offset
+    from dnarod.physics.thermal import relaxed_ribbon_twist
+    from dnarod.core.errors import DnarodError
+    from dnarod.physics.theory.supercoil import (effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair,
                                    plectoneme_P_from_rings_with_loops, plectoneme_position_torque_shift)
-    from .torsion import bare_twist_persistence, moroz_nelson
+    from dnarod.validate.torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
     plan = member_plan(quick=quick, n_bp=n_bp, force_pN=force_pN, pre_turns=pre_turns, post_turns=post_turns,
@@ -475,7 +475,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     P_single = P_single_err = None
     rings = {e["role"]: e for e in plan if e["kind"] == "ring"}
     if "ring" in rings:  # the model's plectoneme twist stiffness, from a plectonemic ring of the same model
-        from ..forcefield import load_forcefield as _ff
+        from dnarod.core.forcefield import load_forcefield as _ff
 
         ring = run_planned(rings["ring"], root)
         ring_n_bp = ring["n_bp"]

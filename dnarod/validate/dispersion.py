@@ -1,7 +1,7 @@
 """Check ``dispersion``: normal modes of the OpenMM engine equal the exact dispersion relation (design A5 ii).
 
 System: the periodic (screw-closed) twisted straight rod of the ``dna-default`` force field
-(:meth:`dnarod.testsystems.TwistedRod.from_forcefield`; isotropic, with its twist-stretch
+(:meth:`dnarod.physics.testsystems.TwistedRod.from_forcefield`; isotropic, with its twist-stretch
 coupling B33, so stretch and twist mix exactly into two branches), at its intrinsic pose.
 
 The Hessian is built from the **OpenMM engine's** forces: each node coordinate (lab translation,
@@ -20,7 +20,7 @@ import numpy as np
 
 import scipy.linalg
 
-from ._common import new_figure, save_figure
+from dnarod.validate._common import new_figure, save_figure
 
 NAME = "dispersion"
 TOLERANCES = dict(frequency_tol_rad_per_ps=1e-6, zero_mode_tol_rad2_per_ps2=1e-8, zero_mode_cutoff_rad_per_ps=1e-2)
@@ -30,7 +30,7 @@ EPS = 1e-5
 def openmm_hessian(model, elastic="fast", eps=EPS):
     """Hessian (6n, 6n) of the OpenMM engine's energy in lab node coordinates (central differences of forces).
 
-    The differences are taken by :func:`dnarod.modes.hessian_blocks` (one method for every Hessian of
+    The differences are taken by :func:`dnarod.physics.modes.hessian_blocks` (one method for every Hessian of
     the package) with the OpenMM engine's node loads as the load function.
 
     Returns
@@ -40,9 +40,9 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
     asym : float
         Relative asymmetry of the raw differences before symmetrisation.
     """
-    from ..modes import hessian_blocks
-    from ..openmm.particles import particle_forces_to_loads, particle_positions
-    from ..openmm.simulation import RodSimulation
+    from dnarod.physics.modes import hessian_blocks
+    from dnarod.engines.openmm.particles import particle_forces_to_loads, particle_positions
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                         elastic=elastic, nonbonded=False, seed=0)
@@ -59,8 +59,8 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
 
 
 def mass_matrix(model):
-    """``diag(m_k I, L_k diag(J_k) L_k^T)``, shape (6n, 6n) (dense; :func:`dnarod.modes.mass_matrix`)."""
-    from ..modes import mass_matrix as sparse_mass
+    """``diag(m_k I, L_k diag(J_k) L_k^T)``, shape (6n, 6n) (dense; :func:`dnarod.physics.modes.mass_matrix`)."""
+    from dnarod.physics.modes import mass_matrix as sparse_mass
 
     return sparse_mass(model).toarray()
 
@@ -95,7 +95,7 @@ def check_dispersion(out_dir, quick=False, n_nodes=None, rod=None, reference_rod
         The system whose analytic dispersion is the reference (default ``rod``; a different one
         is how the tests show the check can fail).
     """
-    from ..testsystems import TwistedRod
+    from dnarod.physics.testsystems import TwistedRod
 
     t0 = time.perf_counter()
     n_nodes = n_nodes or (12 if quick else 24)

@@ -4,14 +4,14 @@ From one initial state (the Dickerson dodecamer 355D built from the bundled PDB 
 ``dna-default`` force field, Maxwell velocities at 300 K with drift removed), the check runs
 
 * the **Lax-form reference**: the exact strain-space system of design A3
-  (:func:`dnarod.integrators.integrate_exact`, DOP853, rtol = atol = 1e-12), whose time error is
+  (:func:`dnarod.engines.lax.integrate_exact`, DOP853, rtol = atol = 1e-12), whose time error is
   negligible here;
-* the **OpenMM engine** (:class:`dnarod.openmm.simulation.RodSimulation`, ``VerletIntegrator``,
+* the **OpenMM engine** (:class:`dnarod.engines.openmm.simulation.RodSimulation`, ``VerletIntegrator``,
   Reference platform, no non-bonded terms, constraint tolerance 1e-12) at a ladder of time steps,
   started exactly as a user starts it (``initial_velocities=(v, omega)``);
 * the same OpenMM runs with leapfrog half-step velocities set by this module instead
   (independent diagnostic, see below);
-* the Lax-form splitting integrator (:class:`dnarod.integrators.SplittingIntegrator`) at the same
+* the Lax-form splitting integrator (:class:`dnarod.engines.lax.SplittingIntegrator`) at the same
   steps.
 
 Compared over time: node positions (nm), frames (rotation angle, rad), total energy (kJ/mol),
@@ -31,10 +31,10 @@ import time
 
 import numpy as np
 
-from ..units import md_value
+from dnarod.core.units import md_value
 
-from ..errors import DnarodError
-from ._common import new_figure, observed_order, pairwise_orders, rotation_angle, save_figure
+from dnarod.core.errors import DnarodError
+from dnarod.validate._common import new_figure, observed_order, pairwise_orders, rotation_angle, save_figure
 
 NAME = "engines"
 PDB = "355D.pdb"
@@ -45,8 +45,8 @@ TOLERANCES = dict(order_min=1.8, order_max=2.2, small_dt_position_tol_nm=1e-6, r
 
 def default_model():
     """The 355D dodecamer with dna-default parameters (12 nodes, pose from the crystal structure)."""
-    from ..structure import model_from_structure
-    from ..structure._data import data_file
+    from dnarod.structure import model_from_structure
+    from dnarod.structure._data import data_file
 
     return model_from_structure(data_file("structures", PDB), forcefield="dna-default")
 
@@ -55,9 +55,9 @@ def _half_step_particle_velocities(model, radius, v, w, dt):
     """Particle velocities at t = -dt/2 (to O(dt^2)) of rigid nodes moving with (v lab, w body) at t = 0.
 
     ``u_i = v + L (w x b_i)`` with body offsets ``b_i``; ``du_i/dt = F/m + L (wdot x b_i + w x (w x b_i))``,
-    ``wdot = J^-1 (L^T tau - w x J w)`` (Euler), loads from :func:`dnarod.energy.loads`.
+    ``wdot = J^-1 (L^T tau - w x J w)`` (Euler), loads from :func:`dnarod.core.energy.loads`.
     """
-    from ..openmm.particles import BODY_OFFSETS, particle_velocities
+    from dnarod.engines.openmm.particles import BODY_OFFSETS, particle_velocities
 
     _, F, tau = model.loads()
     J = model.inertia
@@ -72,7 +72,7 @@ def _half_step_particle_velocities(model, radius, v, w, dt):
 
 def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
     """OpenMM NVE run; positions, frames, energy, momentum, angular momentum at ``t_report``."""
-    from ..openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
                         elastic=elastic, nonbonded=False, initial_velocities=(v, w),
@@ -98,7 +98,7 @@ def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
 
 
 def _lax_splitting_run(model, v, w, dt, t_report):
-    from ..integrators import RigidState, SplittingIntegrator
+    from dnarod.engines.lax import RigidState, SplittingIntegrator
 
     integ = SplittingIntegrator(model, dt, state=RigidState.from_model(model, v, w), check_stability=False)
     steps = np.rint(np.asarray(t_report) / dt).astype(int)
@@ -122,7 +122,7 @@ def _conventions(model, v, w):
     The OpenMM triangle's principal inertia ``m l^2 (1/2, 1/2, 1)`` against the model's (which the
     Lax-form engine uses), and the round trip of (v lab, omega body) through the OpenMM particles.
     """
-    from ..openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
                         nonbonded=False, initial_velocities=(v, w), seed=0)
@@ -172,8 +172,8 @@ def check_engines(out_dir, quick=False, model=None, lax_model=None, temperature=
     -------
     dict
     """
-    from ..integrators import integrate_exact
-    from ..integrators.splitting import maxwell_state
+    from dnarod.engines.lax import integrate_exact
+    from dnarod.engines.lax.splitting import maxwell_state
 
     t0 = time.perf_counter()
     model = default_model() if model is None else model

@@ -1,17 +1,17 @@
 """Check ``experiment`` (quick, no simulation): the ``dna-default`` model's elastic response against measured DNA.
 
 The model's own numbers are exact (no sampling): its bending persistence length (the discrete chain's exact
-value, :func:`dnarod.thermal.persistence_length`), its bare torsional persistence length C
+value, :func:`dnarod.physics.thermal.persistence_length`), its bare torsional persistence length C
 (:func:`dnarod.validate.torsion.bare_twist_persistence`) and its effective torsional stiffness under tension
 ``C_eff(F)`` from the Moroz-Nelson expansion with those A and C (:func:`dnarod.validate.torsion.moroz_nelson`;
 check ``torsion`` measures that the simulated chain follows it). The measured values are read by
-:mod:`dnarod.protocols.experiments` from ``data/experimental/`` (sources in ``data/README.md``).
+:mod:`dnarod.physics.experiments` from ``data/experimental/`` (sources in ``data/README.md``).
 
 Comparisons (each passes only inside its tolerance; the overall check passes if all do):
 
 1. **Bending persistence length** vs the persistence lengths fitted to single-molecule force-extension curves
    (Wang et al. 1997; Wenner et al. 2002) that bracket the salt ``salt_M``
-   (:func:`~dnarod.protocols.experiments.persistence_length_band`): pass if the model's lp lies inside the
+   (:func:`~dnarod.physics.experiments.persistence_length_band`): pass if the model's lp lies inside the
    measured interval (the tolerance is the experimental spread; the papers' abstracts state no errors). The
    relative extensions x/L that the measured interval implies at ``forces_pN`` (extensible WLC, Bouchiat
    interpolation, the model's stretch modulus) are reported beside the model's own.
@@ -29,8 +29,8 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
    pass if ``|model - 0.7| <= Z_TOL SE_model + WRITHE_ROUNDING``, the allowance being the precision of a value
    quoted as a round percentage (:func:`compare_writhe_fraction`).
 5. **Effective diameter** (gating by default): the model's second-virial effective diameter at ``salt_M``
-   (:func:`dnarod.validate.supercoil_theory.effective_diameter` of the default non-bonded terms: WCA 2 nm + shifted
-   Debye-Hückel with the calibrated Poisson-Boltzmann far-field charge, ``dnarod.openmm.nonbonded``) vs the
+   (:func:`dnarod.physics.theory.supercoil.effective_diameter` of the default non-bonded terms: WCA 2 nm + shifted
+   Debye-Hückel with the calibrated Poisson-Boltzmann far-field charge, ``dnarod.engines.openmm.nonbonded``) vs the
    hard-cylinder diameter with the same second virial coefficient as the Poisson-Boltzmann potential at 150 mM, 5.0 nm (Gebe et al. 1995,
    Biophys J abstract: a computed value, not a measurement; ``dna_diameter.csv``): pass if
    ``|model - reference| <= DIAMETER_PRECISION_NM + DIAMETER_QUADRATURE_NM`` (the reference's precision, "50 Å"
@@ -54,7 +54,7 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
    whose writhe they take as vanishing; 10.54 bp for 210-bp rings; :func:`compare_horowitz_wang`). Their N K ~ 1150
    RT bp of rings longer than 2000 bp is quoted by check ``nicked_ring`` beside the model's K at 3000 bp.
 
-Not compared, because no value could be read (:data:`dnarod.protocols.experiments.MISSING`): buckling torques
+Not compared, because no value could be read (:data:`dnarod.physics.experiments.MISSING`): buckling torques
 and post-buckling plateaus, Depew & Wang's own K and an uncertainty or ionic conditions for K, measured (knotting)
 effective diameters and the primary writhe-fraction measurements. ``lp_override`` / ``c_override`` / ``d_override`` replace the
 model's values (the tests show the check failing with wrong ones).
@@ -76,20 +76,20 @@ WRITHE_ROUNDING = 0.05
 DIAMETER_PRECISION_NM = 0.5
 #: Quadrature allowance of the model's effective diameter, nm: at 0.15 M the grids (angles, offsets, distances)
 #: (10, 2, 120), (12, 2, 200) and (16, 3, 160, the default of
-#: :func:`dnarod.validate.supercoil_theory.effective_diameter`) agree to 1e-4 nm (README "What is calibrated to
+#: :func:`dnarod.physics.theory.supercoil.effective_diameter`) agree to 1e-4 nm (README "What is calibrated to
 #: what"); 0.01 nm is allowed.
 DIAMETER_QUADRATURE_NM = 0.01
 
 
 def compare_writhe_fraction(f_model, f_model_se, description=""):
     """Model writhe fraction ``Wr/ΔLk`` (ratio, with standard error) vs the value read
-    (:func:`dnarod.protocols.experiments.writhe_fraction_reference`).
+    (:func:`dnarod.physics.experiments.writhe_fraction_reference`).
 
     Returns a dict (``model``, ``model_se``, ``measured``, ``tolerance``, ``difference``, ``passed``, source
     fields) or None when no value is tabulated. Pass: ``|model - measured| <= Z_TOL * SE + WRITHE_ROUNDING``
     (+ ``Z_TOL`` times the source's uncertainty when it states one).
     """
-    from ..protocols import experiments as ex
+    from dnarod.physics import experiments as ex
 
     refs = ex.writhe_fraction_reference()
     if not refs:
@@ -105,13 +105,13 @@ def compare_writhe_fraction(f_model, f_model_se, description=""):
 def compare_effective_diameter(d_model_nm, salt_M):
     """Model effective diameter (nm, second-virial definition) at ``salt_M`` (mol/L) vs the computed
     Poisson-Boltzmann second-virial diameter read for that salt
-    (:func:`dnarod.protocols.experiments.effective_diameter_second_virial_reference`).
+    (:func:`dnarod.physics.experiments.effective_diameter_second_virial_reference`).
 
     Returns a dict (``model_nm``, ``reference_nm``, ``tolerance_nm``, ``ratio``, ``agrees``, source fields) or None
     when no reference exists at this salt. Agree: ``|model - reference| <= DIAMETER_PRECISION_NM +
     DIAMETER_QUADRATURE_NM``.
     """
-    from ..protocols import experiments as ex
+    from dnarod.physics import experiments as ex
 
     refs = [m for m in ex.effective_diameter_second_virial_reference()
             if m.salt_M is not None and abs(m.salt_M - salt_M) < 1e-9]
@@ -128,12 +128,12 @@ def compare_effective_diameter(d_model_nm, salt_M):
 
 def compare_force_extension_curve(lp_model_nm, s_model_pN, forces_pN, temperature):
     """Model relative extension x/L (extensible WLC with the model's lp, nm, and S, pN) at ``forces_pN`` beside the
-    curve a source draws over measured lambda-DNA data (:func:`dnarod.protocols.experiments.force_extension_curves`),
+    curve a source draws over measured lambda-DNA data (:func:`dnarod.physics.experiments.force_extension_curves`),
     reported only: the curve's parameters carry no uncertainty. Returns a dict or None when none is tabulated."""
-    from ..protocols import experiments as ex
-    from ..thermal import kT
-    from ..units import PN
-    from ..wlc import extensible_wlc_extension
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.thermal import kT
+    from dnarod.core.units import PN
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     curves = ex.force_extension_curves()
     if not curves:
@@ -154,10 +154,10 @@ def compare_force_extension_curve(lp_model_nm, s_model_pN, forces_pN, temperatur
 
 def compare_topoisomer_fit(c_model_nm, temperature):
     """Model bare torsional persistence length C (nm) beside C / kT of the rigidity Frank-Kamenetskii et al. (1985)
-    fitted to Horowitz & Wang's topoisomer variances (:func:`dnarod.protocols.experiments.
+    fitted to Horowitz & Wang's topoisomer variances (:func:`dnarod.physics.experiments.
     topoisomer_variance_fit_reference`), reported only (no uncertainty stated). Returns a dict or None."""
-    from ..protocols import experiments as ex
-    from ..thermal import kT
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.thermal import kT
 
     ref = ex.topoisomer_variance_fit_reference()
     if "torsional_rigidity" not in ref:
@@ -174,10 +174,10 @@ def compare_topoisomer_fit(c_model_nm, temperature):
 def compare_cyclization_fit(lp_model_nm, c_model_nm, repeat_model_bp, temperature):
     """Model bending persistence length (nm), bare torsional persistence length C (nm) and helical repeat (bp per
     turn) beside the worm-like-chain parameters fitted to measured cyclization j-factors
-    (:func:`dnarod.protocols.experiments.cyclization_fit_reference`; C / kT at ``temperature``, K), reported only
+    (:func:`dnarod.physics.experiments.cyclization_fit_reference`; C / kT at ``temperature``, K), reported only
     (the caption read states no uncertainty). Returns a dict or None when none is tabulated."""
-    from ..protocols import experiments as ex
-    from ..thermal import kT
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.thermal import kT
 
     ref = ex.cyclization_fit_reference()
     if not {"persistence_length", "torsional_rigidity", "helical_repeat"} <= set(ref):
@@ -193,16 +193,16 @@ def compare_cyclization_fit(lp_model_nm, c_model_nm, repeat_model_bp, temperatur
 
 
 def compare_horowitz_wang(c_model_nm, ds_nm, repeat_model_bp, temperature):
-    """The model beside the Horowitz & Wang (1984) abstract (:func:`dnarod.protocols.experiments.
-    horowitz_wang_reference`, :func:`~dnarod.protocols.experiments.supercoiling_free_energy_reference`), reported
+    """The model beside the Horowitz & Wang (1984) abstract (:func:`dnarod.physics.experiments.
+    horowitz_wang_reference`, :func:`~dnarod.physics.experiments.supercoiling_free_energy_reference`), reported
     only (no uncertainty stated): bare C (nm) vs their 2.9e-19 erg cm / kT; the twist-only ``N K = N / (2
     <dTw^2>) = 2 pi^2 C / ds`` (bp; continuum twist variance ``L / (4 pi^2 C)``, exact for the uniform chain to the
     Cayley-angle correction) vs their N K = 3900 RT bp of 200-bp rings, where they take the writhe contribution as
     vanishing (so the twist-only value is the like-for-like one); the helical repeat vs their 10.54 bp of 210-bp
     rings. The long-ring N K ~ 1150 needs the writhe variance and is compared by check ``nicked_ring`` (model K at
     ``full_n_bp``). Returns a dict or None when nothing is tabulated."""
-    from ..protocols import experiments as ex
-    from ..thermal import kT
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.thermal import kT
 
     hw = ex.horowitz_wang_reference()
     if not {"NK_200bp", "torsional_rigidity", "helical_repeat_210bp"} <= set(hw):
@@ -224,12 +224,12 @@ def compare_horowitz_wang(c_model_nm, ds_nm, repeat_model_bp, temperature):
 def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
     """Model stretch modulus S (pN), bare torsional persistence length C (nm, compared as kT C with kT at
     ``temperature``) and twist-stretch coupling g (pN nm, compared as g / kT) against the ranges of measured values
-    that PNAS 114:7049 (2017) Table 1 tabulates (**secondary**; :func:`dnarod.protocols.experiments.
+    that PNAS 114:7049 (2017) Table 1 tabulates (**secondary**; :func:`dnarod.physics.experiments.
     elastic_constant_ranges`). Reported only: a range across experiments carries no uncertainty. Returns a list of
     dicts (``quantity``, ``model``, ``low``, ``high``, ``unit``, ``inside``, ...) or None when none is tabulated."""
-    from ..protocols import experiments as ex
-    from ..thermal import kT
-    from ..units import PN
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.thermal import kT
+    from dnarod.core.units import PN
 
     kt_pn = kT(temperature) / PN
     model = {"stretch_modulus_range": (float(s_model_pN), 1.0 / PN, "pN"),
@@ -249,9 +249,9 @@ def model_helix_constants(forcefield="dna-default"):
     """``(helical repeat bp per turn, twist-stretch coupling g pN nm, rise ds nm)`` of a uniform chain of
     ``forcefield``: the
     repeat from the intrinsic twist rate, ``2 pi / theta0`` with ``theta0 = 2 atan(ds Omega0_3 / 2)`` (the Cayley
-    chart), and ``g = B33 / cos^2(theta0/2)`` (the inverse of the derivation in :mod:`dnarod.dna_default`)."""
-    from ..forcefield import load_forcefield
-    from ..units import PN
+    chart), and ``g = B33 / cos^2(theta0/2)`` (the inverse of the derivation in :mod:`dnarod.physics.dna_default`)."""
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.units import PN
 
     model = load_forcefield(forcefield).model_from_sequence(n_nodes=20)
     th0 = 2.0 * np.arctan(0.5 * model.ds * model.params.intrinsic[0, 2])
@@ -261,10 +261,10 @@ def model_helix_constants(forcefield="dna-default"):
 
 def model_elastic_constants(temperature, forcefield="dna-default"):
     """``(lp nm, C nm, S pN)`` of a uniform chain of ``forcefield`` at ``temperature`` K (exact values)."""
-    from ..forcefield import load_forcefield
-    from ..thermal import kT, persistence_length
-    from ..units import PN
-    from .torsion import bare_twist_persistence
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.core.units import PN
+    from dnarod.validate.torsion import bare_twist_persistence
 
     model = load_forcefield(forcefield).model_from_sequence(n_nodes=20)
     lp = persistence_length(model.params, model.ds, kT(temperature))
@@ -284,11 +284,11 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
     ``nonbonded`` (NonbondedSettings, its salt replaced by ``salt_M``) replaces the default non-bonded terms
     (e.g. ``charge="manning"``).
     """
-    from ..protocols import experiments as ex
-    from ..thermal import kT
-    from ..units import PN
-    from ..wlc import extensible_wlc_extension
-    from .torsion import moroz_nelson
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.thermal import kT
+    from dnarod.core.units import PN
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
+    from dnarod.validate.torsion import moroz_nelson
 
     t0 = time.perf_counter()
     lp0, C0, S = model_elastic_constants(temperature, forcefield)
@@ -330,9 +330,9 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
     bare_res = dict(model_nm=C, measured_low_nm=c_lo, measured_high_nm=c_hi, conversion_temperature_K=temperature,
                     measurements=[dict(value_nm=v, sigma_nm=s, source=src) for v, s, src in bare], passed=bare_ok)
 
-    from ..forcefield import load_forcefield
-    from ..openmm.nonbonded import NonbondedSettings
-    from .supercoil_theory import effective_diameter
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.theory.supercoil import effective_diameter
 
     if d_override is None:
         ds = load_forcefield(forcefield).model_from_sequence(n_nodes=20).ds
@@ -398,7 +398,7 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                                    f"{q['low']:.4g} to {q['high']:.4g} (secondary, {q['source']})"
                                    for q in ranges) + "." if ranges else ""),
                       "Effective diameter: the reference is computed (Poisson-Boltzmann), not measured; the model's "
-                      "Debye-Hueckel line charge is calibrated to it at 0.15 M (dnarod.openmm.nonbonded), so at "
+                      "Debye-Hueckel line charge is calibrated to it at 0.15 M (dnarod.engines.openmm.nonbonded), so at "
                       "0.15 M this checks the calibration (" + ("gating" if gate_effective_diameter else "not gating")
                       + ")."],
                passed=passed)
@@ -424,8 +424,8 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
 
 
 def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
-    from .torsion import moroz_nelson
-    from ._common import new_figure, save_figure
+    from dnarod.validate.torsion import moroz_nelson
+    from dnarod.validate._common import new_figure, save_figure
 
     fig, ax = new_figure(3, 1, width=4.6, height=4.0)
     a = ax[0, 0]
@@ -456,7 +456,7 @@ def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
     if d:
         c.errorbar([1000 * d["salt_M"]], [d["reference_nm"]], yerr=[d["tolerance_nm"]], fmt="s", capsize=3,
                    label=f"PB second virial {d['reference_nm']:g} nm, computed ({d['source']})")
-    from ..protocols import experiments as ex
+    from dnarod.physics import experiments as ex
 
     for m in ex.plectoneme_geometry_reference("superhelix_diameter"):
         c.errorbar([1000 * m.salt_M], [m.value], yerr=[m.uncertainty or 0.0], fmt="^", capsize=3, color="0.5",

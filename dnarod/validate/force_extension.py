@@ -5,10 +5,10 @@ is pulled by opposite constant forces F on its two end nodes (along the initial 
 Langevin dynamics in the Lax-form engine (BAOAB splitting, numba kernel). The mean projected
 end-to-end extension ``<(r_N-1 - r_0) . z> / L0`` (``L0 = (n_bp - 1) ds``) of the second part of
 the run (the first part is discarded as equilibration) is compared with the extensible worm-like
-chain (:func:`dnarod.wlc.extensible_wlc_extension`, Bouchiat et al. 1999 interpolation with
+chain (:func:`dnarod.physics.theory.wlc.extensible_wlc_extension`, Bouchiat et al. 1999 interpolation with
 ``l = x/L - F/S``) with the model's **own** parameters:
 
-* persistence length: the exact discrete value :func:`dnarod.thermal.persistence_length`;
+* persistence length: the exact discrete value :func:`dnarod.physics.thermal.persistence_length`;
 * stretch modulus: ``S = 1 / (K^-1)_66`` (axial compliance with every other stress zero, i.e.
   twist, bend and shear free), converted to pN.
 
@@ -18,7 +18,7 @@ length ``L0/lp ~ 7``, shear, discreteness).
 
 Experiment: the same measured x/L are also compared with the relative extensions implied by the persistence
 lengths measured in single-molecule force-extension experiments at ``experiment_salt_M`` (Wang et al. 1997;
-Wenner et al. 2002; :func:`dnarod.protocols.experiments.wlc_extension_band`, extensible WLC with the model's
+Wenner et al. 2002; :func:`dnarod.physics.experiments.wlc_extension_band`, extensible WLC with the model's
 stretch modulus): a force passes if x/L lies inside that interval widened by the same ``Z_TOL * SE +
 ALLOWANCE``. The measured force-extension points themselves could not be read (``data/README.md``).
 
@@ -36,8 +36,8 @@ import time
 
 import numpy as np
 
-from ..units import PN
-from ._common import jackknife, new_figure, save_figure, split_blocks
+from dnarod.core.units import PN
+from dnarod.validate._common import jackknife, new_figure, save_figure, split_blocks
 
 NAME = "force_extension"
 Z_TOL = 3.0
@@ -47,7 +47,7 @@ DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)
 
 def model_constants(model, temperature):
     """``(lp nm, S pN, kT pN nm, L0 nm)`` of a uniform model at ``temperature`` K."""
-    from ..thermal import kT, persistence_length
+    from dnarod.physics.thermal import kT, persistence_length
 
     kt = kT(temperature)
     lp = persistence_length(model.params, model.ds, kt)
@@ -60,18 +60,18 @@ def model_constants(model, temperature):
 def equilibrium_coil(model, temperature, seed):
     """A pose drawn from the exact force-free equilibrium of an open chain, end-to-end vector along z.
 
-    :func:`dnarod.thermal.equilibrium_sample` (the one home of the sampler) with ``align = z``.
+    :func:`dnarod.physics.thermal.equilibrium_sample` (the one home of the sampler) with ``align = z``.
     """
-    from ..thermal import equilibrium_sample
+    from dnarod.physics.thermal import equilibrium_sample
 
     return equilibrium_sample(model, temperature, seed, align=(0.0, 0.0, 1.0))
 
 
 def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_every, seed, start="straight"):
     """One pulling run along z from ``start`` ("straight" or "coil"); returns the projected extension (nm) series."""
-    from ..forcefield import load_forcefield
-    from ..integrators import BoundaryConditions, SplittingIntegrator
-    from ..integrators.splitting import maxwell_state
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
+    from dnarod.engines.lax.splitting import maxwell_state
 
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     if start == "coil":
@@ -122,8 +122,8 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
     """
     from concurrent.futures import ProcessPoolExecutor
 
-    from ..forcefield import load_forcefield
-    from ..wlc import extensible_wlc_extension
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     t0 = time.perf_counter()
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
@@ -140,7 +140,7 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
             series = list(ex.map(_pull_star, jobs))
     else:
         series = [pull(*j) for j in jobs]
-    from ..protocols.experiments import wlc_extension_band
+    from dnarod.physics.experiments import wlc_extension_band
 
     x_lo, x_hi = wlc_extension_band(forces_pn, experiment_salt_M, S, temperature)
     rows = []
@@ -179,8 +179,8 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
 
 
 def _plot(out_dir, rows, lp, S, kt, salt_M=0.15, temperature=300.0):
-    from ..protocols.experiments import persistence_length_band, wlc_extension_band
-    from ..wlc import extensible_wlc_extension
+    from dnarod.physics.experiments import persistence_length_band, wlc_extension_band
+    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     fig, ax = new_figure(1, 1, width=6.0, height=4.2)
     a = ax[0, 0]

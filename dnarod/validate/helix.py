@@ -1,11 +1,11 @@
 """Check ``helix``: the intrinsic helix is a zero-force state in both engines (design A5 i).
 
-Two intrinsic shapes: the analytic uniform helix (:class:`dnarod.testsystems.UniformHelix`, a
+Two intrinsic shapes: the analytic uniform helix (:class:`dnarod.physics.testsystems.UniformHelix`, a
 strongly bent and sheared screw orbit whose closed form is also compared) and the
 sequence-dependent intrinsic shape of the 355D sequence with the ``olson1998`` force field.
 For each, measured:
 
-* the analytic loads (:func:`dnarod.energy.loads`);
+* the analytic loads (:func:`dnarod.core.energy.loads`);
 * the OpenMM engine's node forces and torques (Reference platform, both elastic paths: the
   numba ``PythonForce`` and the portable ``CustomCompoundBondForce``), summed from the particle
   forces;
@@ -20,7 +20,7 @@ import time
 import numpy as np
 
 
-from ._common import rotation_angle
+from dnarod.validate._common import rotation_angle
 
 NAME = "helix"
 #: The drift tolerance is set by the OpenMM engine's constraint solver, not by the forces: OpenMM holds
@@ -34,8 +34,8 @@ TOLERANCES = dict(force_tol_kJmol_nm=1e-8, torque_tol_kJmol=1e-8, closed_form_to
 
 def default_models():
     """``[(label, RodModel), ...]``: the analytic helix and the olson1998 intrinsic shape of 355D."""
-    from ..forcefield import load_forcefield
-    from ..testsystems import UniformHelix
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.physics.testsystems import UniformHelix
 
     hx = UniformHelix(Omega0=[0.35, -0.2, 1.78], Gamma0=[0.08, -0.05, 1.0], ds=0.34, n_nodes=24)
     ff = load_forcefield("olson1998")
@@ -46,8 +46,8 @@ def default_models():
 def _openmm_loads(model, elastic):
     import openmm
 
-    from ..openmm.particles import particle_forces_to_loads
-    from ..openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.particles import particle_forces_to_loads
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference", elastic=elastic,
                         nonbonded=False, constraint_tolerance=1e-12, seed=0)
@@ -66,8 +66,8 @@ def _drift(model, positions, frames):
 
 def check_helix(out_dir, quick=False, models=None, t_run=1.0):
     """Run the check; ``models`` overrides :func:`default_models` (list of (label, model, helix or None))."""
-    from ..integrators import SplittingIntegrator, integrate_exact
-    from ..integrators.exact import ExactSystem
+    from dnarod.engines.lax import SplittingIntegrator, integrate_exact
+    from dnarod.engines.lax.exact import ExactSystem
 
     t0 = time.perf_counter()
     models = default_models() if models is None else models

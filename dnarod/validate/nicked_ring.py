@@ -2,19 +2,19 @@
 
 A nicked ring's linking number is free and its twist and axis shape are independent, so ``<ΔLk²> = <ΔTw²> +
 <ΔWr*²>`` and ``K = N / (2 <ΔLk²>)``, with the split ``Lk = Tw + Wr*`` made exactly: ``Tw`` the sum of the
-steps' Cayley twist angles and ``Wr* = Lk - Tw`` (:func:`dnarod.protocols.nicked.step_twist_sum`).
+steps' Cayley twist angles and ``Wr* = Lk - Tw`` (:func:`dnarod.workflows.protocols.nicked.step_twist_sum`).
 
-* Twist part: exact from the model's step distribution (:func:`~dnarod.validate.supercoil_theory.
+* Twist part: exact from the model's step distribution (:func:`~dnarod.physics.theory.supercoil.
   twist_variance_exact`), beside the continuum ``L / (4 pi² C)``.
 * ``Wr*`` part, **model**: the variance of ``Wr*`` of the model's ring free to writhe, sampled with OpenMM
-  (excluded volume and Debye-Hueckel at the chosen salt) by :func:`dnarod.protocols.nicked.run_nicked_member`
+  (excluded volume and Debye-Hueckel at the chosen salt) by :func:`dnarod.workflows.protocols.nicked.run_nicked_member`
   (soft twist, exactly reweighted), with a block-jackknife error. ``Wr*`` needs no smoothing and carries no
   shear wiggles; it is close to the writhe of the curve the frames' tangents d3 trace (200 bp: that curve's
   ⟨Wr²⟩ on the model's harmonic ring is 0.00171 ± 0.00007, the MD's Var(Wr*) 0.00194 ± 0.00006; the harmonic
   ring leaves out the anharmonic part).
 * Reference: the Vologodskii-type Monte Carlo of a worm-like ring (:mod:`dnarod.validate.wlc_ring_mc`) with the
   model's persistence length A and its effective diameter at this salt
-  (:func:`~dnarod.validate.supercoil_theory.effective_diameter`), same length, segments of ``segment_nm``
+  (:func:`~dnarod.physics.theory.supercoil.effective_diameter`), same length, segments of ``segment_nm``
   (1.7 nm up to 300 bp, else 3.4 nm). Optionally (``harmonic_samples``) the harmonic ensemble of the model's
   own relaxed ring (:mod:`dnarod.validate.ring_harmonic`), reported, not gating (it is the small-ring limit:
   13 % below the MD at 200 bp).
@@ -23,14 +23,14 @@ Pass: model and reference agree within ``Z_TOL`` combined standard errors plus `
 the reference's own dependence on its segment length, measured at 68 nm (200 bp, 8000-16000 samples):
 0.00161 ± 0.00006, 0.00175 ± 0.00007, 0.00202 ± 0.00010 at 3.4, 1.7, 0.85 nm.
 
-Earlier forms compared the writhe of the axis smoothed over 10-bp blocks (:func:`dnarod.protocols.nicked.
+Earlier forms compared the writhe of the axis smoothed over 10-bp blocks (:func:`dnarod.workflows.protocols.nicked.
 smoothed_axis`); that polygon of 20 vertices at 200 bp misses about half of the ring's writhe (harmonic ring,
 shear made stiff: 0.00089 with blocks of 10 nodes, 0.00154 through every node) and read 1.5-1.9x below the
 Monte Carlo. It is still reported (``model_wr2_axis``).
 
 The free energy coefficient K is reported at the sampled size (model) and, from the exact twist part and the
 reference writhe, at ``full_n_bp`` (default 3000 bp), beside the measured Depew-Wang / Horowitz-Wang K when one
-is tabulated (:func:`dnarod.protocols.experiments.supercoiling_free_energy_reference`: Horowitz & Wang's (1984)
+is tabulated (:func:`dnarod.physics.experiments.supercoiling_free_energy_reference`: Horowitz & Wang's (1984)
 N K "nearly a constant around 1150 RT x bp" for rings longer than 2000 bp; ``measured_K`` is None when none is). ``a_override`` gives the reference a wrong persistence length (the
 tests show the check failing).
 """
@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import new_figure, save_figure
+from dnarod.validate._common import new_figure, save_figure
 
 NAME = "nicked_ring"
 Z_TOL = 3.0
@@ -56,9 +56,9 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     """Run the check (see the module docstring). ``nonbonded`` (dict with ``charge`` and/or ``cutoff_debye``) runs
     the ring with other non-bonded terms than the defaults (the recorded test member was run with Manning's charge
     and 5 Debye lengths)."""
-    from ..protocols.nicked import run_nicked_member
-    from .supercoil_theory import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
-    from .wlc_ring_mc import sample_ring_writhe
+    from dnarod.workflows.protocols.nicked import run_nicked_member
+    from dnarod.physics.theory.supercoil import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
+    from dnarod.validate.wlc_ring_mc import sample_ring_writhe
 
     t0 = time.perf_counter()
     n_bp = n_bp or (200 if quick else 600)
@@ -75,7 +75,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                                 softening=softening, sample_ps=sample_ps, **dict(nonbonded or {})),
                            root / f"ring{n_bp}")
     mc = sample_ring_writhe(L, A_ref, d_eff, b_nm=segment_nm, n_samples=mc_samples, seed=seed)
-    from ..analysis.polymer import integrated_autocorrelation_time
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     w2 = mc["wr"] ** 2
     tau_mc = max(float(integrated_autocorrelation_time(w2)), 0.5)
@@ -91,7 +91,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     lk2_model_err = model_err
     harm = None
     if harmonic_samples:
-        from .ring_harmonic import gaussian_writhe_samples
+        from dnarod.validate.ring_harmonic import gaussian_writhe_samples
 
         hw = gaussian_writhe_samples(ring, harmonic_samples, temperature, seed=seed)["tangent"]
         harm = dict(wr2=float(np.mean(hw ** 2)), wr2_err=float(np.std(hw ** 2, ddof=1) / np.sqrt(len(hw))),
@@ -112,7 +112,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                     reference_wr2_err=wr2_full_se, K=K_full, K_err=K_full * wr2_full_se / (tw_full + wr2_full),
                     writhe_share=wr2_full / (tw_full + wr2_full), segments=mcf["segments"],
                     segment_nm=mcf["segment_nm"])
-    from ..protocols import experiments as ex
+    from dnarod.physics import experiments as ex
 
     measured = ex.supercoiling_free_energy_reference()  # Horowitz & Wang 1984: N K ~ 1150 RT bp above 2000 bp
     measured_K = measured[0].value if measured else None

@@ -1,6 +1,6 @@
 """Check ``paper_scheme``: the paper's printed (3.13) is O(ds) from the exact system and linearly unstable.
 
-Uses :mod:`dnarod.integrators.paper_scheme` (design A3 "Comparison with the paper's (3.13)", C4):
+Uses :mod:`dnarod.engines.lax.paper_scheme` (design A3 "Comparison with the paper's (3.13)", C4):
 
 * **consistency**: on smooth random fields on a ring of fixed length (material constants per unit
   length fixed, ds halved three times) the relative distance between the paper's right-hand side
@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ._common import new_figure, save_figure
+from dnarod.validate._common import new_figure, save_figure
 
 NAME = "paper_scheme"
 TOLERANCES = dict(order_min=0.8, order_max=1.25, unstable_rate_min_per_ps=1e-3, exact_rate_max_per_ps=1e-6)
@@ -24,7 +24,7 @@ DESIGN_RATE = 4.38  # design A3: max Re lambda for "the DNA set", N = 32 (parame
 
 def ring_family(n_ref=32, forcefield="dna-default"):
     """``make(n)``: the dna-default ring of fixed length ``n_ref ds`` discretised with n nodes."""
-    from ..testsystems import TwistedRod
+    from dnarod.physics.testsystems import TwistedRod
 
     base = TwistedRod.from_forcefield(forcefield, n_ref)
     tau0, length = base.tau0, n_ref * base.ds
@@ -47,7 +47,7 @@ def check_paper_scheme(out_dir, quick=False, scheme="paper", n_nodes=32, t_run=2
     """
     from scipy.integrate import solve_ivp
 
-    from ..integrators import paper_scheme as ps
+    from dnarod.engines.lax import paper_scheme as ps
 
     t0 = time.perf_counter()
     make, length = ring_family(n_nodes)

@@ -1,16 +1,16 @@
 """Check ``plectonemes``: the fraction of the linking difference taken up as writhe in closed rings at sigma ~ -0.05.
 
-Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.protocols.rings`; OpenMM engine, WCA +
+Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.workflows.protocols.rings`; OpenMM engine, WCA +
 Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0_T)`` with its standard error from the block
 error of Wr (the measured integrated autocorrelation time of Wr is reported). ``Tw0_T`` is the relaxed ring's mean
-twist at the run's temperature (:func:`dnarod.thermal.relaxed_ribbon_twist`), not the T = 0 sum of intrinsic
+twist at the run's temperature (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`), not the T = 0 sum of intrinsic
 twist angles: for 600 bp of dna-default it is 0.27 turns lower (56.885 ± 0.013 vs 57.143), i.e. ΔLk = -2.885,
 not -3.143, for Lk = 54. Using the T = 0 value understated the writhe fraction by 8 % (0.745 instead of 0.812 for
 the same 60-ns run) and fed the reference a linking difference the model does not have; this was the cause of
 the earlier failure of the full form (0.698 vs 0.798).
 
 Full form: two 600-bp rings at ΔLk = -3, one from the planar start and one from a start that writhes more than
-the model (10 ns with the bending stiffness divided by 3, :func:`dnarod.protocols.rings.bend_softened_model`),
+the model (10 ns with the bending stiffness divided by 3, :func:`dnarod.workflows.protocols.rings.bend_softened_model`),
 each 40 ns after 36 ns of equilibration; their writhes must agree within ``Z_TOL`` SE (an equilibrium bracket:
 the two starts lie on either side), then they are pooled. Quick form: one 400-bp ring, 3 ns.
 
@@ -21,7 +21,7 @@ Vologodskii et al.'s simulations of supercoiled rings) and **the model's own non
 shifted screened Coulomb between sites 0.34 nm apart on its 3.4-nm segments, with the model's charge, cutoff and
 chain-distance exclusion: :func:`dnarod.validate.wlc_ring_mc.pair_parameters`). Beside it (reported, not gating)
 the classic hard-core ring with the model's effective diameter at this salt
-(:func:`dnarod.validate.supercoil_theory.effective_diameter`, 5.00 nm at 0.15 M with the calibrated charge), the
+(:func:`dnarod.physics.theory.supercoil.effective_diameter`, 5.00 nm at 0.15 M with the calibrated charge), the
 two-phase relation ``Wr/ΔLk = 1 - P/C`` with P from the tweezers plateau when ``P_nm`` is given, and the model's
 fraction against the "usually ~70%" read in a review (``vs_experiment``, reported here, gating in check
 ``experiment``; :func:`dnarod.validate.experiment.compare_writhe_fraction`).
@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._common import new_figure, save_figure
+from dnarod.validate._common import new_figure, save_figure
 
 NAME = "plectonemes"
 Z_TOL = 3.0
@@ -60,8 +60,8 @@ Z_TOL = 3.0
 
 def _reference(L, A, C, d, dlk, n, seed, pair=None):
     """Writhe fraction of the worm-like-ring MC: hard core ``d`` (nm), or the soft ``pair`` energy (``d = 0``)."""
-    from ..analysis.polymer import integrated_autocorrelation_time
-    from .wlc_ring_mc import sample_ring_writhe
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
+    from dnarod.validate.wlc_ring_mc import sample_ring_writhe
 
     r = sample_ring_writhe(L, A, d, b_nm=3.4, n_samples=n, seed=seed, C_nm=C, delta_lk=dlk, equilibration_sweeps=300,
                            pair=pair)
@@ -82,10 +82,10 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     ``cutoff_debye``, as in the members' settings) runs the rings and the reference with other non-bonded terms
     than the defaults. ``hard_core=False`` skips the reported hard-core reference.
     """
-    from ..openmm.nonbonded import member_nonbonded, nonbonded_record
-    from ..protocols.rings import relaxed_twist, run_ring_member
-    from .supercoil_theory import ring_constants, thermal_relaxed_twist, writhe_fraction_from_P
-    from .wlc_ring_mc import pair_parameters
+    from dnarod.engines.openmm.nonbonded import member_nonbonded, nonbonded_record
+    from dnarod.workflows.protocols.rings import relaxed_twist, run_ring_member
+    from dnarod.physics.theory.supercoil import ring_constants, thermal_relaxed_twist, writhe_fraction_from_P
+    from dnarod.validate.wlc_ring_mc import pair_parameters
 
     t0 = time.perf_counter()
     n_bp = n_bp or (400 if quick else 600)
@@ -147,7 +147,7 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                hard_core_minus_reference_err=None if f_hard is None else float(np.hypot(f_hard_se, f_ref_se)),
                reference_segments=mc["segments"], reference_acceptance=mc["acceptance"],
                standard_error=se, tolerance=tol, z_tolerance=Z_TOL, bracket=twin, passed=passed)
-    from .experiment import compare_writhe_fraction
+    from dnarod.validate.experiment import compare_writhe_fraction
 
     # against the value read (reported here; check experiment gates on it when run in the same validation)
     res["vs_experiment"] = compare_writhe_fraction(f_model, f_model_se, res["model"])

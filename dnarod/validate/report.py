@@ -11,8 +11,8 @@ import json
 import os
 import platform
 
-from ..io_utils import write_text_atomic
-from ._common import jsonable
+from dnarod.core.io import write_text_atomic
+from dnarod.validate._common import jsonable
 
 
 #: The report's own files (the plots are the checks'; ``results.json`` lists them).

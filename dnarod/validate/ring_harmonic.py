@@ -3,22 +3,22 @@
 An independent reference for the nicked-ring writhe of short rings: no dynamics and no Monte Carlo, only the
 model's own Hessian at its relaxed planar ring and exact writhe evaluations.
 
-* The pose: the model's planar ring (:meth:`dnarod.model.RodModel.ring`) with the intrinsic twist per step set
+* The pose: the model's planar ring (:meth:`dnarod.core.model.RodModel.ring`) with the intrinsic twist per step set
   to ``2 pi Lk / n`` (so the ring carries no twist stress; with a stress ``eps`` the Hessian would hold a
   twist-writhe term ``(C/L) eps Wr`` that a nick removes), relaxed to static equilibrium
-  (:func:`dnarod.statics.solve_static`; loads below 1e-10 kJ/mol/nm).
-* Position covariance: ``Sigma = kT H^+`` of the lab-chart Hessian (:func:`dnarod.modes.hessian`, 6 per node),
+  (:func:`dnarod.physics.statics.solve_static`; loads below 1e-10 kJ/mol/nm).
+* Position covariance: ``Sigma = kT H^+`` of the lab-chart Hessian (:func:`dnarod.physics.modes.hessian`, 6 per node),
   zero modes (rigid motions, the uniform spin of the frames about the tangents) projected out, restricted to
   the positions. At a relaxed ring (twist unstressed) the fixed linking number does not enter the Hessian: the
   twist energy ``(C / 2L) (Wr + ...)^2`` is quartic in the displacements. So ``Sigma`` is also the harmonic
   covariance of the nicked ring, whose Lk is free.
 * Writhe expansion: the writhe of the axis smoothed over blocks of ``block`` nodes
-  (:func:`dnarod.protocols.nicked.smoothed_axis`, the quantity the MD records) is ``Wr(x0 + d) = g.d +
+  (:func:`dnarod.workflows.protocols.nicked.smoothed_axis`, the quantity the MD records) is ``Wr(x0 + d) = g.d +
   d.M d / 2 + ...``. At a planar ring ``g = 0`` exactly (Wr is odd under the mirror image in the ring's plane,
   which leaves the planar ring in place), so the linear-response form ``kT g^T H^+ g`` vanishes and the leading
   term is second order: for Gaussian ``d`` (covariance ``Sigma``), ``<Wr> = tr(M Sigma)/2`` (zero by the same
   symmetry) and ``<Wr²> = g^T Sigma g + tr((M Sigma)^2) / 2 + <Wr>^2``. ``g`` and ``M`` are central finite
-  differences of the exact polygon writhe (:func:`dnarod.analysis.writhe.writhe`) with respect to the smoothed
+  differences of the exact polygon writhe (:func:`dnarod.physics.writhe.writhe`) with respect to the smoothed
   axis's vertices (the axis is linear in the node positions: ``Sigma_axis = B Sigma B^T``).
 * ``gaussian_samples``: the exact writhe of ``x0 + d`` for ``d`` drawn from the same Gaussian, which tests the
   truncation of the writhe at second order (not the harmonic energy).
@@ -36,7 +36,7 @@ import math
 
 import numpy as np
 
-from ..errors import DnarodError
+from dnarod.core.errors import DnarodError
 
 
 def relaxed_ring(model):
@@ -47,7 +47,7 @@ def relaxed_ring(model):
     RodModel
         Same stiffness, masses and linking number; ``Omega0_3 = (2/ds) tan(pi Lk / n)`` at every step.
     """
-    from ..model import RodModel
+    from dnarod.core.model import RodModel
 
     if model.closure is None:
         raise DnarodError("the harmonic writhe needs a ring; give a closed model (ForceField.ring)")
@@ -58,7 +58,7 @@ def relaxed_ring(model):
     params = dataclasses.replace(model.params, intrinsic=xi0)
     ring = RodModel.ring(params, model.ds, model.mass, model.inertia, lk, sequence=model.sequence)
     # the planar pose (d3 along the chords) carries a small torque (~0.015 kJ/mol at 100 bp): relax it
-    from ..statics import solve_static
+    from dnarod.physics.statics import solve_static
 
     return solve_static(ring)[0]
 
@@ -73,8 +73,8 @@ def position_covariance(model, temperature=300.0, zero_tol=1e-12):
         ``n_zero_modes`` (eigenvalues below ``zero_tol`` times the largest), ``smallest_kept`` and
         ``largest`` eigenvalue (kJ/mol per nm² or rad²), ``max_load`` (largest |force| at the pose, kJ/mol/nm).
     """
-    from ..modes import hessian
-    from ..thermal import kT
+    from dnarod.physics.modes import hessian
+    from dnarod.physics.thermal import kT
 
     H = hessian(model).toarray()
     H = 0.5 * (H + H.T)
@@ -87,7 +87,7 @@ def position_covariance(model, temperature=300.0, zero_tol=1e-12):
     pos_idx = (np.arange(n)[:, None] * 6 + np.arange(3)[None, :]).ravel()
     Vp = V[pos_idx][:, ~zero]
     cov = (Vp * (kT(temperature) / lam[~zero])) @ Vp.T
-    from ..modes import total_load_fn
+    from dnarod.physics.modes import total_load_fn
 
     F, tau = total_load_fn(model)(model.positions, model.frames)
     return cov, dict(n_zero_modes=int(zero.sum()), smallest_kept=float(lam[~zero].min()), largest=float(lam.max()),
@@ -100,7 +100,7 @@ def tangent_curve(positions, frames):
     Step k runs along the mean of ``d3_k`` and ``d3_{k+1}`` with the length of the chord ``r_{k+1} - r_k``;
     the (small) closure gap is spread evenly over the steps. Its writhe is the shape writhe without the
     shear wiggles of the node polygon (what ``Lk`` minus the step twist measures; see
-    :func:`dnarod.protocols.nicked.step_twist_sum`).
+    :func:`dnarod.workflows.protocols.nicked.step_twist_sum`).
     """
     P = np.asarray(positions, float)
     t = np.asarray(frames, float)[:, :, 2]
@@ -115,17 +115,17 @@ def gaussian_writhe_samples(model, n_samples, temperature=300.0, seed=0, curves=
 
     Displacements ``(dr, dtheta)`` ~ N(0, kT H^+) over all 6n coordinates (zero modes left out), frames rotated
     by ``exp(hat(dtheta))``. ``curves``: any of ``"tangent"`` (:func:`tangent_curve`), ``"axis"``
-    (:func:`dnarod.protocols.nicked.smoothed_axis`), ``"nodes"`` (the node polygon).
+    (:func:`dnarod.workflows.protocols.nicked.smoothed_axis`), ``"nodes"`` (the node polygon).
 
     Returns
     -------
     dict of str to ndarray (n_samples,)
     """
-    from ..analysis.writhe import writhe
-    from ..modes import hessian
-    from ..protocols.nicked import smoothed_axis
-    from ..rotations import rotation_about_axis
-    from ..thermal import kT
+    from dnarod.physics.writhe import writhe
+    from dnarod.physics.modes import hessian
+    from dnarod.workflows.protocols.nicked import smoothed_axis
+    from dnarod.core.rotations import rotation_about_axis
+    from dnarod.physics.thermal import kT
 
     ring = relaxed_ring(model)
     H = hessian(ring).toarray()
@@ -154,7 +154,7 @@ def writhe_derivatives(points, h=None):
     Central differences of the exact writhe with step ``h`` (default 1e-3 of the mean edge length); the
     writhe is smooth away from self-contact, and the truncation error is O(h²) (relative ~1e-6).
     """
-    from ..analysis.writhe import writhe
+    from dnarod.physics.writhe import writhe
 
     x0 = np.asarray(points, float)
     m = len(x0)
@@ -190,7 +190,7 @@ def harmonic_writhe_variance(model, temperature=300.0, block=None, gaussian_samp
     temperature : float
         K.
     block : int, optional
-        Nodes per vertex of the smoothed axis (default :data:`dnarod.protocols.nicked.AXIS_BLOCK`).
+        Nodes per vertex of the smoothed axis (default :data:`dnarod.workflows.protocols.nicked.AXIS_BLOCK`).
     gaussian_samples : int
         If > 0, also the exact writhe's second moment over this many Gaussian samples of the axis.
 
@@ -201,7 +201,7 @@ def harmonic_writhe_variance(model, temperature=300.0, block=None, gaussian_samp
         ``wr2_gaussian`` and ``wr2_gaussian_err`` (when sampled), ``n_zero_modes``, ``max_load``,
         ``axis_vertices``.
     """
-    from ..protocols.nicked import AXIS_BLOCK, smoothed_axis
+    from dnarod.workflows.protocols.nicked import AXIS_BLOCK, smoothed_axis
 
     block = AXIS_BLOCK if block is None else int(block)
     ring = relaxed_ring(model)
@@ -221,7 +221,7 @@ def harmonic_writhe_variance(model, temperature=300.0, block=None, gaussian_samp
     wr2 = lin + 0.5 * float(np.sum(MS * MS.T)) + mean * mean
     res = dict(wr2=wr2, linear_term=lin, mean_wr=mean, axis_vertices=m, n_nodes=n, **info)
     if gaussian_samples:
-        from ..analysis.writhe import writhe
+        from dnarod.physics.writhe import writhe
 
         rng = np.random.default_rng(seed)
         w, U = np.linalg.eigh(S)

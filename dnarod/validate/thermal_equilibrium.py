@@ -9,9 +9,9 @@ terms). From the sampled frames the check measures, with block-jackknife standar
   ``W = (1 + ds^2 |Omega|^2 / 4)^2`` (all 21 independent entries; the plain covariance
   ``<dxi dxi^T>`` is reported too, it differs at O(kT));
 * the tangent correlations ``<d3(k) . d3(k+n)> = (<R>^n)_33`` for n = 1..n_max
-  (:func:`dnarod.thermal.tangent_correlation`);
+  (:func:`dnarod.physics.thermal.tangent_correlation`);
 * the discrete persistence length ``-ds / ln <d3(k) . d3(k+1)>`` against
-  :func:`dnarod.thermal.persistence_length`;
+  :func:`dnarod.physics.thermal.persistence_length`;
 * the kinetic temperature, 6 degrees of freedom per node.
 
 A quantity passes if ``|measured - exact| <= Z_TOL`` standard errors (40 blocks). With Student-t
@@ -25,7 +25,7 @@ import time
 
 import numpy as np
 
-from ._common import jackknife, new_figure, save_figure, split_blocks
+from dnarod.validate._common import jackknife, new_figure, save_figure, split_blocks
 
 NAME = "thermal"
 Z_TOL = 4.5
@@ -33,7 +33,7 @@ N_BLOCKS = 40
 
 
 def default_model(n_nodes):
-    from ..forcefield import load_forcefield
+    from dnarod.core.forcefield import load_forcefield
 
     return load_forcefield("dna-default").model_from_sequence(n_nodes=n_nodes)
 
@@ -47,9 +47,9 @@ def frame_statistics(model, positions, frames, n_max):
         ``XW`` (n_frames, 6, 6) sum over steps of ``W dxi dxi^T``; ``X`` the same without W;
         ``W`` (n_frames,) sum of W; ``corr`` (n_frames, n_max) mean over k of ``d3(k).d3(k+n)``.
     """
-    from ..analysis.polymer import tangent_correlation_frames
-    from ..analysis.stiffness import haar_weight
-    from ..strains import strains
+    from dnarod.analysis.polymer import tangent_correlation_frames
+    from dnarod.analysis.stiffness import haar_weight
+    from dnarod.core.strains import strains
 
     Om, Ga = strains(positions, frames, model.ds, model.closure)  # (n_frames, n_steps, 3)
     d = np.concatenate([Om, Ga], axis=-1) - model.params.intrinsic
@@ -63,9 +63,9 @@ def frame_statistics(model, positions, frames, n_max):
 
 def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
     """Positions, frames (n_samples, n, ...) and kinetic temperatures (n_samples,) from the Lax-form BAOAB engine."""
-    from ..integrators import SplittingIntegrator
-    from ..integrators.splitting import maxwell_state
-    from ..thermal import kinetic_temperature
+    from dnarod.engines.lax import SplittingIntegrator
+    from dnarod.engines.lax.splitting import maxwell_state
+    from dnarod.physics.thermal import kinetic_temperature
 
     integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed),
                                 temperature=temperature, friction=friction, seed=seed + 1)
@@ -76,7 +76,7 @@ def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equi
 
 def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
     """The same from the OpenMM engine (LangevinMiddleIntegrator, CPU platform, elastic forces only)."""
-    from ..openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
                         platform="CPU", nonbonded=False, seed=seed, threads=1)
@@ -103,8 +103,8 @@ def analyse(model, positions, frames, tkin, temperature, n_max, stiffness_scale=
     ``stiffness_scale`` multiplies the stiffness used for the *expected* values (1 = the model's own;
     any other value must fail -- used by the tests).
     """
-    from ..parameters import StepParameters
-    from ..thermal import kT, persistence_length, tangent_correlation
+    from dnarod.core.parameters import StepParameters
+    from dnarod.physics.thermal import kT, persistence_length, tangent_correlation
 
     kt = kT(temperature)
     ds = model.ds

@@ -2,10 +2,10 @@
 Moroz & Nelson.
 
 System: an open ``dna-default`` chain in magnetic tweezers (node 0 clamped, force F on the last node along z;
-:mod:`dnarod.protocols.tweezers`), OpenMM engine with excluded volume and Debye-Hueckel at 0.15 M.
+:mod:`dnarod.workflows.protocols.tweezers`), OpenMM engine with excluded volume and Debye-Hueckel at 0.15 M.
 
 1. **Torque-turns slope**: two rotation-clamped members at ``+-turns`` (below buckling); the torque is the
-   twisting-moment estimator of :func:`dnarod.protocols.measure.twisting_moment` and the applied linking
+   twisting-moment estimator of :func:`dnarod.workflows.protocols.measure.twisting_moment` and the applied linking
    difference the measured ``Lk - Lk0`` (``Tw + Wr`` with the vertical closure). ``C_slope =
    L d(torque) / (kT 2 pi d(Lk))``.
 2. **Twist fluctuations of an (almost) torque-free end**: one member with a weak rotation clamp k_w at zero
@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ._common import new_figure, save_figure
+from dnarod.validate._common import new_figure, save_figure
 
 NAME = "torsion"
 Z_TOL = 3.0
@@ -46,7 +46,7 @@ def moroz_nelson(C, A, force_pN, kt_pn_nm):
 
 def bare_twist_persistence(model, temperature):
     """C (nm) of a uniform model at constant force: ``sec^4(theta0/2) / ((K^-1)_33 kT)``."""
-    from ..thermal import kT
+    from dnarod.physics.thermal import kT
 
     K = model.params.stiffness[0]
     th0 = 2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[0, 2])
@@ -60,7 +60,7 @@ def twist_friction(model, temperature, C_nm):
     ``J3/ds``; with one end clamped and the other (almost) free the slowest mode has ``q = pi/(2L)``, so
     ``omega = q sqrt(kT C ds / J3)`` and critical damping is ``2 omega``.
     """
-    from ..thermal import kT
+    from dnarod.physics.thermal import kT
 
     L = model.ds * model.n_steps
     w = np.pi / (2 * L) * np.sqrt(kT(temperature) * C_nm * model.ds / float(np.mean(model.inertia[:, 2])))
@@ -74,10 +74,10 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
     import tempfile
     from pathlib import Path
 
-    from ..forcefield import load_forcefield
-    from ..protocols.tweezers import run_member
-    from ..thermal import kT, persistence_length
-    from ..units import PN
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.workflows.protocols.tweezers import run_member
+    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.core.units import PN
 
     t0 = time.perf_counter()
     n_bp = n_bp or (100 if quick else 300)
@@ -104,7 +104,7 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
     fl = run_member(dict(base, turns=0.0, clamp_k_kJ_mol=weak_clamp_kJ_mol, friction_per_ps=fluct_friction,
                          time_ns=fluct_ns, sample_ps=5.0, seed=seed + 2), root / "fluct")
     d = np.genfromtxt(root / "fluct" / "samples.csv", delimiter=",", names=True)
-    from ..analysis.polymer import integrated_autocorrelation_time
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     phi = (d["end_turns"] - d["end_turns"].mean()) * 2 * np.pi
     var = float(np.mean(phi ** 2))

@@ -43,7 +43,7 @@ def bending_coefficient(b_nm, A_nm):
 def _kernels():
     from numba import njit
 
-    from ..analysis.writhe import _numba_pair_sum
+    from dnarod.physics.writhe import _numba_pair_sum
 
     pair_sum = _numba_pair_sum()
 
@@ -269,7 +269,7 @@ def pair_parameters(nonbonded, ds, temperature, b_nm):
 
     Parameters
     ----------
-    nonbonded : dnarod.openmm.nonbonded.NonbondedSettings
+    nonbonded : dnarod.engines.openmm.nonbonded.NonbondedSettings
     ds : float
         The model's node spacing, nm: each segment of length ``b_nm`` carries ``round(b_nm / ds)`` interaction sites
         spaced evenly along it (spacing ``ds`` when ``b_nm`` is a multiple of it).
@@ -285,7 +285,7 @@ def pair_parameters(nonbonded, ds, temperature, b_nm):
         (kT nm), lengths in nm, sites per segment, chain-distance exclusion in sites (the model's own, from
         :meth:`NonbondedSettings.resolve`).
     """
-    from ..thermal import kT
+    from dnarod.physics.thermal import kT
 
     nb = nonbonded.resolve(ds, temperature)
     kt = kT(temperature)
@@ -326,7 +326,7 @@ def sample_ring_writhe(length_nm, A_nm, diameter_nm, b_nm=3.4, n_samples=2000, s
         ``wr`` (n_samples,), ``radius_of_gyration_nm`` (n_samples,, of the vertices), ``segments``, ``bending_coefficient``, ``acceptance``.
     """
     global _SWEEP, _KNOT, _CROSS
-    from ..analysis.writhe import writhe
+    from dnarod.physics.writhe import writhe
 
     if _SWEEP is None:
         _SWEEP, _KNOT, _CROSS = _kernels()

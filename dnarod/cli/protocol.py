@@ -1,0 +1,240 @@
+"""``dnarod protocol``: force-extension, magnetic-tweezers hat curves, torque-turns and supercoiled rings.
+
+Each subcommand is a thin shell over :func:`dnarod.workflows.protocols.run_protocol`: it runs one member per value
+of its axes (dask local workers) and writes ``OUT/curve.csv`` and ``OUT/curve.png``. Bad input exits with
+status 2 and one line, before anything runs.
+"""
+from __future__ import annotations
+
+import click
+
+from dnarod.core.errors import DnarodError
+from dnarod.cli.simulate import CHARGE_OPTIONS
+from dnarod.workflows.protocols.curves import STARTS
+
+
+def _floats(text, what):
+    import math
+
+    parts = str(text).replace(" ", "").split(",")
+    if len(parts) > 1 and "" in parts:
+        raise DnarodError(f"{what}: empty entry in {text!r}; give comma-separated numbers such as 0.5,1,2")
+    try:
+        vals = [float(v) for v in parts if v != ""]
+    except ValueError:
+        raise DnarodError(f"{what}: expected comma-separated numbers, got {text!r}") from None
+    if not vals:
+        raise DnarodError(f"{what}: give at least one value")
+    bad = [v for v in vals if not math.isfinite(v)]
+    if bad:
+        raise DnarodError(f"{what} {text}: {bad[0]} is not a finite number")
+    return vals
+
+
+#: The settings keys the protocol commands fill from their options (for messages in the options' names).
+_OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "temperature_K": "--temperature",
+                  "salt_M": "--salt", "seed": "--seed", "force_pN": "--force", "turns": "--turns",
+                  "delta_lk": "--delta-lk", "rotation_clamp_kJ_mol": "--clamp-k", "source": "--source",
+                  "forcefield": "--forcefield"}
+
+
+def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
+    """:func:`dnarod.workflows.protocols.curves.run_protocol` (which refuses a folder of other settings unless ``overwrite``,
+    any other non-empty folder, and a folder in use), its settings errors named by the command's options."""
+    import re
+
+    from dnarod.workflows.protocols.curves import run_protocol
+
+    try:
+        return run_protocol(kind, axes, base, out, overwrite=overwrite, **kw)
+    except DnarodError as exc:
+        m = re.match(r"\[(base|axes)\] (\w+)(.*)", str(exc), re.S)
+        if m and m.group(2) in _OPTION_OF_KEY:
+            raise DnarodError(f"{_OPTION_OF_KEY[m.group(2)]} ({m.group(2)}){m.group(3)}") from None
+        raise
+
+
+def _check_run_options(workers, out):
+    """Refuse a negative worker count and an output path under a regular file, before anything runs (the
+    folder's content is checked by :func:`~dnarod.workflows.protocols.curves.run_protocol`)."""
+    from dnarod.workflows.ensemble.cluster import check_workers
+    from dnarod.core.io import check_dir_path
+
+    check_workers(workers)
+    check_dir_path(out, what="output folder")
+
+
+def _common(f):
+    opts = [
+        click.option("--source", "-s", default="600", show_default=True,
+                     help="Node count (uniform force field) or DNA sequence."),
+        click.option("--forcefield", default="dna-default", show_default=True),
+        click.option("--time", "time_ns", type=float, default=2.0, show_default=True,
+                     help="Production time per member, ns."),
+        click.option("--equilibration", "equilibration_ns", type=float, default=None,
+                     help="Equilibration per member, ns (default: 5 slowest bending relaxation times)."),
+        click.option("--temperature", "temperature_K", type=float, default=300.0, show_default=True, help="K."),
+        click.option("--salt", "salt_M", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L."),
+        click.option("--seed", type=int, default=1, show_default=True),
+        *CHARGE_OPTIONS,
+        click.option("--workers", type=int, default=2, show_default=True,
+                     help="Dask local workers (0: run members one after another in this process)."),
+        click.option("--out", "-o", type=click.Path(file_okay=False), required=True,
+                     help="Output folder: new, empty or a protocol's (any other non-empty folder is refused); "
+                          "locked (OUT/.dnarod.lock) while the protocol runs."),
+        click.option("--overwrite", is_flag=True,
+                     help="Run into --out although it holds a protocol run with other settings (or another "
+                          "protocol); without it that is refused. The same settings reuse the finished members "
+                          "(more values extend the curve). A non-empty folder that is not a protocol's is "
+                          "always refused."),
+    ]
+    for o in reversed(opts):
+        f = o(f)
+    return f
+
+
+def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, seed, charge=None, cutoff_debye=None,
+          **extra):
+    b = dict(source=str(source), forcefield=forcefield, time_ns=time_ns, temperature_K=temperature_K, salt_M=salt_M,
+             seed=seed, **extra)
+    if equilibration_ns is not None:
+        b["equilibration_ns"] = equilibration_ns
+    from dnarod.engines.openmm.nonbonded import nonbonded_options
+
+    b.update(nonbonded_options(charge, cutoff_debye, salt_M, temperature_K))
+    return b
+
+
+def _report(curve, x, ys):
+    for r in curve.rows:
+        parts = [f"{x} {r.get(x)}"] + [f"{y} {r.get(y):.4g} +- {r.get(y + '_err') or 0:.2g}" for y in ys
+                                      if r.get(y) is not None]
+        click.echo("  " + ", ".join(parts))
+    click.echo(f"wrote {curve.files.get('csv')} and {curve.files.get('png')}")
+
+
+@click.group("protocol")
+def protocol():
+    """Single-molecule protocols: force-extension, hat curves, torque-turns, supercoiled rings."""
+
+
+@protocol.command("force-extension")
+@click.option("--force", "forces", required=True, help="Forces, pN, comma-separated (e.g. 0.1,0.3,1,3,10).")
+@click.option("--turns", default=None, help="Refused: the force-extension bead end is torsionally free.")
+@_common
+def force_extension_cmd(forces, turns, workers, out, overwrite, **kw):
+    """Extension vs force with a torsionally free bead end."""
+    _check_run_options(workers, out)
+    run_protocol = _run_protocol
+
+    if turns not in (None, "", "0"):
+        raise DnarodError(f"--turns {turns}: turns need a rotation clamp; the force-extension bead end is "
+                          f"torsionally free: use `dnarod protocol hat` or `dnarod protocol torque-turns`")
+    c = run_protocol("force_extension", {"force_pN": _floats(forces, "--force")}, _base(**kw), out, workers=workers,
+                     overwrite=overwrite)
+    _report(c, "force_pN", ["relative_extension"])
+
+
+def _clamp_options(default_force):
+    """The options of the rotation-clamp protocols (force list, turns list, clamp stiffness)."""
+    options = [click.option("--force", "forces", default=default_force, show_default=True,
+                            help="Force(s), pN, comma-separated."),
+               click.option("--turns", required=True, help="Turns, comma-separated (e.g. -6,-4,-2,0,2,4,6)."),
+               click.option("--clamp-k", type=float, default=250.0, show_default=True,
+                            help="Rotation clamp stiffness, kJ/mol."),
+               click.option("--start", "start", type=click.Choice(STARTS),
+                            default="static", show_default=True,
+                            help="static: every member from the static pose under its loads; sweep: members run "
+                                 "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "
+                                 "from the largest), each from the previous turn value's final pose turned by the "
+                                 "increment, as magnets are turned in the lab; sweep-in: the same chains towards "
+                                 "zero, each begun at its largest |turns| from a plectoneme grown for 20 ns at 0.3 "
+                                 "of the force; bracket: both sweeps at once, each point the midpoint of its "
+                                 "outward and inward members with an error covering their gap; exchange: the "
+                                 "turn values of each force are the rungs of one replica-exchange ladder (swaps "
+                                 "between neighbouring rungs, the turn difference carried as twist)."),
+               click.option("--exchange-ps", "exchange_ps", type=float, default=None,
+                            help="With --start exchange: time between exchange attempts, ps (default 20)."),
+               click.option("--settle", "settle_ns", type=float, default=None,
+                            help="With --start sweep/sweep-in/bracket: equilibration of each chained member after its turn "
+                                 "increment, ns (default: 2 slowest bending relaxation times; the first member "
+                                 "of each chain uses --equilibration)."),
+               click.option("--settle-buckled", "settle_buckled_ns", type=float, default=None,
+                            help="With --start sweep/sweep-in/bracket: settle of the chained members at or past the buckling "
+                                 "point, ns (|Delta Lk at T| >= 0.8 x Marko's two-phase buckling point with the "
+                                 "model's A, C_s(F) and plectoneme P; default: --settle).")]
+
+    def decorate(f):
+        for option in reversed(options):
+            f = option(f)
+        return f
+
+    return decorate
+
+
+def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None,
+                 settle_buckled_ns=None, overwrite=False, exchange_ps=None):
+    """Run a rotation-clamp protocol over forces x turns and print its curve."""
+    import math
+
+    from dnarod.workflows.protocols.curves import SWEEP_STARTS
+
+    _check_run_options(workers, out)
+    if settle_ns is not None and start not in SWEEP_STARTS:
+        raise DnarodError(f"--settle {settle_ns:g}: the settle time applies to a turn sweep only; add --start sweep "
+                          f"(or sweep-in, bracket)")
+    if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
+        raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
+    if settle_buckled_ns is not None and start not in SWEEP_STARTS:
+        raise DnarodError(f"--settle-buckled {settle_buckled_ns:g}: the settle time applies to a turn sweep only; add "
+                          f"--start sweep (or sweep-in, bracket)")
+    if settle_buckled_ns is not None and not (math.isfinite(settle_buckled_ns) and settle_buckled_ns > 0):
+        raise DnarodError(f"--settle-buckled {settle_buckled_ns}: give a time in ns > 0")
+    from dnarod.workflows.protocols.curves import MAX_MEMBER_NS
+
+    for name, v in (("--settle", settle_ns), ("--settle-buckled", settle_buckled_ns)):
+        if v is not None and v > MAX_MEMBER_NS:
+            raise DnarodError(f"{name} {v:g}: more than {MAX_MEMBER_NS:g} ns (10 us) per member would not "
+                              f"finish here; give a shorter time")
+    c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
+                      _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
+                      settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns, overwrite=overwrite,
+                      exchange_ps=exchange_ps)
+    _report(c, "turns", columns)
+
+
+@protocol.command("hat")
+@_clamp_options("0.5")
+@_common
+def hat_cmd(forces, turns, clamp_k, start, exchange_ps, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
+    """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
+    _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, settle_buckled_ns, overwrite,
+                 exchange_ps)
+
+
+@protocol.command("torque-turns")
+@_clamp_options("1.0")
+@_common
+def torque_turns_cmd(forces, turns, clamp_k, start, exchange_ps, settle_ns, settle_buckled_ns, workers, out, overwrite,
+                     **kw):
+    """Torque on the rotation clamp vs turns at constant force."""
+    _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns,
+                 settle_buckled_ns, overwrite, exchange_ps)
+
+
+@protocol.command("rings")
+@click.option("--delta-lk", required=True, help="Linking differences, comma-separated integers.")
+@_common
+def rings_cmd(delta_lk, workers, out, overwrite, **kw):
+    """Closed rings: Tw, Wr and plectonemes vs linking difference."""
+    _check_run_options(workers, out)
+    run_protocol = _run_protocol
+
+    vals = _floats(delta_lk, "--delta-lk")
+    if any(v != int(v) for v in vals):
+        raise DnarodError(f"--delta-lk {delta_lk}: the linking number of a closed ring is an integer")
+    c = run_protocol("rings", {"delta_lk": [int(v) for v in vals]}, _base(**kw), out, workers=workers,
+                     overwrite=overwrite)
+    _report(c, "delta_lk", ["Wr", "Tw", "writhe_fraction", "plectoneme_fraction"])

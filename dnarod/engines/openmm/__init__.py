@@ -1,0 +1,38 @@
+"""The OpenMM engine (design Part C item 5, issue 7).
+
+Each base pair is a rigid body carried by three particles of mass ``m/3`` on an equilateral
+triangle of circumradius ``l = sqrt(J3/m)`` in its d1-d2 plane, held by constraints: node
+inertia ``J = m l^2 (1/2, 1/2, 1)`` about (d1, d2, d3) (dna-default: 650 amu, l = 0.6 nm,
+(117, 117, 234) amu nm^2). Angular velocities are body-frame (components on d1, d2, d3).
+
+Modules: :mod:`.particles` (node <-> particle maps), :mod:`.forces` (step energy: portable
+CustomCompoundBondForce and fast numba/PythonForce path), :mod:`.nonbonded` (WCA +
+Debye-Hueckel), :mod:`.loads` (external loads), :mod:`.system` (System from a RodModel),
+:mod:`.simulation` (the engine: advance, node state, energies, checkpoints), :mod:`.export`
+(PDB/DCD/XTC for mdtraj and MDAnalysis). Runs with reporters, checkpoints and resume are the
+run layer's (:mod:`dnarod.run`, ``dnarod simulate``).
+
+Example::
+
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm import RodSimulation, PullingForce
+    from dnarod.run import run_engine, DtrajReporter
+    model = load_forcefield("dna-default").model_from_sequence("ACGT" * 250)
+    sim = RodSimulation(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])])
+    rep = DtrajReporter("run1.dtraj", model.n_nodes, interval=10)
+    run_engine(sim, 100000, [rep], checkpoint="run1.npz", checkpoint_interval=10000)
+    rep.close()
+"""
+_EXPORTS = {"RodSimulation": "simulation", "omega_max": "simulation", "load_energies": "simulation",
+            "build_system": "system", "NonbondedSettings": "nonbonded", "PullingForce": "loads",
+            "Torque": "loads", "RotationClamp": "loads", "Clamp": "loads", "Trap": "loads"}
+__all__ = list(_EXPORTS)
+
+
+def __getattr__(name):
+    # Lazy: importing dnarod.engines.openmm (e.g. for the CLI) does not load OpenMM and numba until used.
+    if name in _EXPORTS:
+        import importlib
+
+        return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,481 @@
+"""Simulations of a rod model with OpenMM: minimisation, NVE, Langevin, node state, checkpoints.
+
+Conventions shared with the Lax-form integrator (so the two engines can be compared):
+
+* node k is a rigid body of mass ``m_k`` and principal inertia ``J_k = m_k l_k^2 (1/2, 1/2, 1)``
+  about (d1, d2, d3) (the model's ``inertia``; see :mod:`dnarod.engines.openmm.particles`);
+* node velocities are the centre velocity ``v`` (lab, nm/ps) and the angular velocity
+  ``omega`` in the **body frame** (rad/ps, components on d1, d2, d3), as in the ``.dtraj``
+  format; thermal initial velocities draw ``v_a ~ N(0, kT/m)`` and ``omega_a ~ N(0, kT/J_a)``;
+* velocities are on-step: OpenMM's leapfrog half-step velocities are completed by the half
+  kick of the current loads when read (:meth:`RodSimulation.node_state`) and offset by it when
+  set (:meth:`RodSimulation.set_node_velocities`), so the ``.dtraj`` velocities are those of
+  velocity Verlet / the Lax-form splitting at the frame's time;
+* the kinetic temperature in ``energies.csv`` is OpenMM's (half-step velocities), counting 6
+  degrees of freedom per free node; LangevinMiddle reads it high by O((omega dt)^2): +2.4% at
+  the default omega dt = 0.4 and +1.2% at 0.2 (on-step velocities read -1.5% and -0.4%), while
+  the configurations are sampled correctly (strain variances within 0.5% of the exact density).
+
+:class:`RodSimulation` is the OpenMM engine of the run layer (:mod:`dnarod.run`): it advances,
+reports its node state and energies by term, and writes/restores checkpoints; trajectories,
+energies CSV, checkpoints on a schedule and the run directory are the run layer's reporters.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+
+import numpy as np
+import openmm
+
+from dnarod.core.errors import ParameterError, SimulationError
+from dnarod.core.io import atomic_path
+from dnarod.physics import modes
+from dnarod.physics.modes import DEFAULT_OMEGA_DT, omega_max  # noqa: F401 - dnarod.engines.openmm.omega_max (older imports)
+from dnarod.run.api import MAX_OMEGA_DT
+from dnarod.run.spec import model_fingerprint
+from dnarod.physics.thermal import kT as kT_of, kinetic_temperature
+from dnarod.core.units import md_value
+from dnarod.engines.openmm.forces import GROUPS, loads_kernel
+from dnarod.engines.openmm.particles import (closure_image_positions, node_poses, node_velocities, particle_forces_to_loads,
+                        particle_positions, particle_velocities)
+from dnarod.engines.openmm.platforms import choose_platform
+from dnarod.engines.openmm.system import build_system
+
+#: Temperature (K) that sets the non-bonded energy scales (WCA kT, Bjerrum length) of a run started at 0 K.
+NONBONDED_REFERENCE_T = 300.0
+
+
+class RodSimulation:
+    """An OpenMM simulation of a :class:`~dnarod.core.model.RodModel`.
+
+    Parameters
+    ----------
+    model : RodModel
+        Starting pose (velocities are thermal at ``temperature``, or zero for NVE with
+        ``temperature=0``).
+    integrator : {"langevin", "verlet"}
+        ``LangevinMiddleIntegrator`` at ``temperature`` or ``VerletIntegrator`` (NVE).
+    temperature : float
+        K.
+    dt : float or None
+        ps; default ``DEFAULT_OMEGA_DT / omega_max``. Values above ``MAX_OMEGA_DT / omega_max``
+        raise :class:`~dnarod.core.errors.ParameterError`.
+    friction : float
+        1/ps (Langevin).
+    platform : str or None
+        OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL", "HIP"); ``None`` for the
+        automatic choice of :func:`dnarod.engines.openmm.platforms.choose_platform` (GPU, else the CPU
+        fast path); the choice and its reason are in ``platform_name``, ``platform_reason``.
+    elastic : {"auto", "fast", "portable"}
+    nonbonded : bool or NonbondedSettings
+    loads : sequence
+        External loads (:mod:`dnarod.engines.openmm.loads`).
+    seed : int or None
+        Seed of initial velocities and of the Langevin noise.
+    threads : int or None
+        CPU platform threads.
+    precision : {"single", "mixed", "double"} or None
+        GPU platforms' precision (default mixed).
+    constraint_tolerance : float
+    initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
+    extra_forces : sequence of openmm.Force
+        Further forces on the particles (3 per node, :func:`dnarod.engines.openmm.particles.particle_positions`),
+        added to the System before the Context is created (e.g. the tweezers walls of
+        :func:`dnarod.workflows.protocols.tweezers.tweezers_wall_forces`).
+    """
+
+    name = "openmm"
+
+    def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
+                 elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
+                 initial_velocities=None, omega_max=None, precision=None, extra_forces=()):
+        self.model = model
+        self.temperature = float(temperature)
+        if not (np.isfinite(self.temperature) and self.temperature >= 0):
+            raise ParameterError(f"temperature must be >= 0 K, got {temperature}")
+        if integrator not in ("langevin", "verlet"):
+            raise ParameterError(f"integrator must be 'langevin' or 'verlet', got {integrator!r}")
+        self.integrator_name = integrator
+        self.loads = tuple(loads)
+        plat, props, self.platform_reason = choose_platform(platform, model.n_nodes, elastic, threads, precision)
+        self.platform_name = platform = plat.getName()
+        self.omega_max = float(omega_max) if omega_max is not None else modes.omega_max(model, loads=tuple(loads))
+        limit = MAX_OMEGA_DT / self.omega_max
+        if dt is None:
+            dt = DEFAULT_OMEGA_DT / self.omega_max
+        dt = float(dt)
+        if not (np.isfinite(dt) and dt > 0):
+            raise ParameterError(f"dt must be a positive time in ps, got {dt}")
+        if dt > limit:
+            raise ParameterError(f"dt = {dt:.4g} ps is above the stability limit {limit:.4g} ps of this model "
+                                 f"(fastest mode omega_max = {self.omega_max:.4g} rad/ps, limit 1.8/omega_max); "
+                                 f"use dt <= {DEFAULT_OMEGA_DT / self.omega_max:.3g} ps (the default)")
+        self.dt = dt
+        self.friction = float(friction)
+        if integrator == "langevin" and not (np.isfinite(self.friction) and self.friction >= 0):
+            raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
+        self.seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
+        # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
+        # at rest (0 K) uses the reference one, so the potential does not depend on the start
+        self.rs = build_system(model, platform, elastic, nonbonded, loads,
+                               self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
+        for f in extra_forces:  # added before the Context exists, so every elastic path (plugin included) sees them
+            self.rs.system.addForce(f)
+        if self.rs.elastic == "plugin":
+            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
+            # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
+            from dnarod.engines.openmm.plugin import rigid_body_integrator
+
+            integ = rigid_body_integrator(self.rs.radius, dt, self.temperature,
+                                          self.friction if integrator == "langevin" else 0.0, self.seed)
+        elif integrator == "langevin":
+            integ = openmm.LangevinMiddleIntegrator(self.temperature, self.friction, dt)
+            integ.setRandomNumberSeed(self.seed)
+        else:
+            integ = openmm.VerletIntegrator(dt)
+        integ.setConstraintTolerance(constraint_tolerance)
+        self.integrator = integ
+        t0 = time.perf_counter()
+        self.context = openmm.Context(self.rs.system, integ, plat, props)
+        self.set_particle_positions(particle_positions(model.positions, model.frames, self.rs.radius))
+        self.context_time = time.perf_counter() - t0
+        self._state_cache = None
+        self._report_cache = None
+        if initial_velocities is not None:
+            self.set_node_velocities(*initial_velocities)
+        elif self.temperature > 0:
+            self.thermalize(self.temperature, self.seed)
+        else:  # at rest on-step: the leapfrog velocities start half a kick back (else the run is first order)
+            self.set_node_velocities(np.zeros((model.n_nodes, 3)), np.zeros((model.n_nodes, 3)))
+        self.step = 0
+        self.fingerprint = model_fingerprint(model, pose=False)
+
+    # --- node state -------------------------------------------------------------------
+    def set_particle_positions(self, particles):
+        """Set the positions of the nodes' particles, shape (3 n_nodes, 3) nm (the closure image particles of
+        the portable path of a circular chain, if any, follow node 0)."""
+        x = np.asarray(particles, float)
+        if self.rs.image is not None:
+            x = np.vstack([x, closure_image_positions(x, self.model.closure)])
+        self.invalidate()
+        self.context.setPositions(x)
+
+    def node_particles(self, array):
+        """The rows of a per-particle array (positions, velocities, forces) that belong to the nodes, (3 n_nodes, 3)."""
+        return md_value(array)[:3 * self.model.n_nodes]
+
+    def set_node_velocities(self, velocities, angular_velocities):
+        """Set on-step node velocities at the current positions.
+
+        Parameters
+        ----------
+        velocities : ndarray, shape (n_nodes, 3)
+            Centre velocities, lab frame, nm/ps.
+        angular_velocities : ndarray, shape (n_nodes, 3)
+            Angular velocities in the body frame (on d1, d2, d3), rad/ps.
+
+        OpenMM stores leapfrog half-step velocities, so the half kick of the current loads is
+        taken off (the inverse of :meth:`node_state`); the state then reports exactly these
+        velocities at the current step.
+        """
+        n = self.model.n_nodes
+        for name, a in (("velocities", velocities), ("angular_velocities", angular_velocities)):
+            if np.shape(a) != (n, 3):
+                raise ParameterError(f"{name} must have shape ({n}, 3), got {np.shape(a)}")
+        self.invalidate()
+        st = self.context.getState(getPositions=True, getForces=True)
+        p = self.node_particles(st.getPositions(asNumpy=True))
+        _, frames = node_poses(p)
+        F, tau = particle_forces_to_loads(p, self.node_particles(st.getForces(asNumpy=True)))
+        h = 0.5 * self.dt
+        v = np.asarray(velocities, float) - h * F / self.model.mass[:, None]
+        w = np.asarray(angular_velocities, float) - h * np.einsum("kab,ka->kb", frames, tau) / self.model.inertia
+        u = particle_velocities(frames, self.rs.radius, v, w)
+        for k in self.rs.clamped:
+            u[3 * k:3 * k + 3] = 0.0
+        if self.rs.image is not None:  # massless image particles (OpenMM does not integrate them)
+            u = np.vstack([u, np.zeros((3, 3))])
+        self.context.setVelocities(u)
+
+    def thermalize(self, temperature, seed=None):
+        """Draw Maxwell-Boltzmann node velocities (6 degrees of freedom per free node)."""
+        rng = np.random.default_rng(seed)
+        kt = kT_of(temperature)
+        n = self.model.n_nodes
+        v = rng.normal(size=(n, 3)) * np.sqrt(kt / self.model.mass)[:, None]
+        w = rng.normal(size=(n, 3)) * np.sqrt(kt / self.model.inertia)
+        self.set_node_velocities(v, w)
+
+    def node_pose(self, state=None):
+        """``(centres (n,3) nm, frames (n,3,3))`` of the current (or given) state."""
+        if state is None:
+            rep = self._node_report()
+            if rep is not None:
+                rows = rep[0]
+                return rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy()
+        state = state or self._full_state()
+        return node_poses(self.node_particles(state.getPositions(asNumpy=True)))
+
+    def node_state(self, state=None, on_step=True):
+        """``(centres, frames, velocities (lab, nm/ps), angular velocities (body, rad/ps))``.
+
+        OpenMM's Verlet and LangevinMiddle integrators store leapfrog velocities, half a step
+        behind the positions. With ``on_step=True`` (default; used for the trajectory) they are
+        completed to the positions' time by the half kick of velocity Verlet/RATTLE on each rigid
+        node, ``v += dt/2 F/m`` and ``omega += dt/2 J^-1 L^T tau`` (design A4 b), which is what
+        the Lax-form engine reports; ``on_step=False`` gives OpenMM's raw half-step velocities.
+        """
+        if state is None and on_step:
+            rep = self._node_report()
+            if rep is not None:
+                rows = rep[0]
+                return (rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy(), rows[:, 12:15].copy(),
+                        rows[:, 15:18].copy())
+        state = state or self._full_state()
+        p = self.node_particles(state.getPositions(asNumpy=True))
+        u = self.node_particles(state.getVelocities(asNumpy=True))
+        c, f = node_poses(p)
+        v, w = node_velocities(p, u)
+        if on_step:
+            F, tau = particle_forces_to_loads(p, self.node_particles(state.getForces(asNumpy=True)))
+            free = np.ones(self.model.n_nodes)
+            free[self.rs.clamped] = 0.0
+            h = 0.5 * self.dt * free[:, None]
+            v = v + h * F / self.model.mass[:, None]
+            w = w + h * np.einsum("kab,ka->kb", f, tau) / self.model.inertia
+        return c, f, v, w
+
+    def _full_state(self):
+        """State with positions, velocities, parameters and energy; cached until the context changes."""
+        if self._state_cache is None:
+            self._state_cache = self.context.getState(getPositions=True, getVelocities=True, getParameters=True,
+                                                      getEnergy=True, getForces=True)
+            self._terms_cache = self._callback_terms()
+        return self._state_cache
+
+    def _callback_terms(self):
+        """Per-term energies recorded by the fast-path callbacks during the last evaluation, or None."""
+        el = self.rs.elastic_callback
+        nb = self.rs.nonbonded_callback
+        if el is None:
+            return None
+        return dict(elastic=el.last_energy, nonbonded=sum(nb.last) if nb is not None else 0.0)
+
+    def invalidate(self):
+        """Forget the cached state (call after changing the context directly)."""
+        self._state_cache = None
+        self._report_cache = None
+
+    def _node_report(self):
+        """``(rows (n, 18), energies)`` from the compiled integrator's ``getNodeReport``, or None.
+
+        Available when the compiled integrator evaluates the SMK force (and the node-pair force, if the
+        System has one) itself: then the node state, on-step velocities and energies by term come from
+        one pass over the nodes in C++ (no OpenMM State, no particle arrays in numpy), and the loads it
+        computes are reused by the next step. rows: centre (3, nm), frame (9, row-major), on-step velocity
+        (3, lab, nm/ps), on-step angular velocity (3, body, rad/ps); energies: SMK, WCA, Debye-Hueckel,
+        every other force, kinetic (kJ/mol), then 1.0 if every node value is finite. Cached until the
+        context changes.
+        """
+        if self._report_cache is None:
+            if not self._reports_in_plugin():
+                return None
+            rows = np.empty((self.model.n_nodes, 18))
+            energies = self.integrator.getNodeReport(rows)
+            self._report_cache = (rows, energies)
+        return self._report_cache
+
+    def _reports_in_plugin(self):
+        """True if :meth:`_node_report` can be used (the compiled integrator evaluates all dnarod forces)."""
+        integ = self.integrator
+        return (self.rs.elastic == "plugin" and integ.usesFusedElasticForce()
+                and (self.rs.nonbonded_callback is None or integ.usesFusedPairForce()))
+
+    def energies(self):
+        """Dict of potential energies per term (kJ/mol), plus ``potential``, ``kinetic``, ``temperature``.
+
+        With the fast path the per-term split comes from the callbacks' own evaluation at this
+        state (no extra force evaluations); otherwise each force group is evaluated.
+        """
+        rep = self._node_report()
+        if rep is not None:
+            e_smk, e_wca, e_dh, e_other, kinetic = rep[1][:5]
+            out = dict(elastic=e_smk, nonbonded=e_wca + e_dh, external=e_other,
+                       potential=e_smk + e_wca + e_dh + e_other, kinetic=kinetic)
+            out["temperature"] = float(kinetic_temperature(kinetic, self.rs.degrees_of_freedom))
+            return out
+        st = self._full_state()
+        out = {}
+        pot = md_value(st.getPotentialEnergy())
+        if self._terms_cache is not None:
+            out.update(self._terms_cache)
+            out["external"] = pot - out["elastic"] - out["nonbonded"]
+        else:
+            for name, g in GROUPS.items():
+                out[name] = md_value(self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy())
+        out["potential"] = pot
+        out["kinetic"] = md_value(st.getKineticEnergy())
+        dof = self.rs.degrees_of_freedom
+        out["temperature"] = float(kinetic_temperature(out["kinetic"], dof))
+        return out
+
+    def current_model(self):
+        """The model with the current pose."""
+        c, f = self.node_pose()
+        return self.model.with_pose(c, f)
+
+    def minimize(self, tolerance=1.0, max_iterations=0, max_rounds=20):
+        """Local energy minimisation (tolerance: RMS force, kJ/mol/nm); returns the final potential energy.
+
+        OpenMM's L-BFGS with constraints can stop early on this stiff, constrained system, so it
+        is restarted until the energy stops decreasing (at most ``max_rounds`` rounds).
+        """
+        self.invalidate()
+        E = md_value(self.context.getState(getEnergy=True).getPotentialEnergy())
+        for _ in range(max_rounds):
+            openmm.LocalEnergyMinimizer.minimize(self.context, tolerance, max_iterations)
+            E_new = md_value(self.context.getState(getEnergy=True).getPotentialEnergy())
+            if not E_new < E - 1e-9 * max(1.0, abs(E)):
+                return E_new
+            E = E_new
+        return E
+
+    def set_clamp_rotation(self, angle, index=0):
+        """Turn rotation clamp ``index`` by ``angle`` rad about its axis (magnetic tweezers)."""
+        from dnarod.engines.openmm.loads import set_clamp_rotation
+
+        set_clamp_rotation(self.context, self.rs.load_info["rotation_clamps"][index], angle)
+        self.invalidate()
+
+    def update_loads(self, time_ps, duration_ps=None):
+        """Turn every rotation clamp with ``turns``/``turns_per_ns`` to its angle at ``time_ps`` (run layer hook)."""
+        clamps = self.rs.load_info.get("rotation_clamps") or []
+        if not clamps:
+            return
+        from dnarod.physics.loads import RotationClamp, clamp_angle
+        from dnarod.engines.openmm.loads import set_clamp_rotation
+
+        # build_load_forces lists the rotation clamps in the order of the loads
+        for info, load in zip(clamps, [x for x in self.loads if isinstance(x, RotationClamp)]):
+            if load.turns or load.turns_per_ns is not None:
+                set_clamp_rotation(self.context, info, clamp_angle(load, time_ps, duration_ps))
+        self.invalidate()
+
+    # --- checks -----------------------------------------------------------------------
+    def _report_healthy(self):
+        e = self._node_report()[1]
+        E, K = e[0] + e[1] + e[2] + e[3], e[4]
+        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
+        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < limit
+
+    def _healthy(self, st):
+        E = md_value(st.getPotentialEnergy())
+        K = md_value(st.getKineticEnergy())
+        p = md_value(st.getPositions(asNumpy=True))
+        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
+        return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < limit
+
+    def _diagnose(self, step):
+        """Build the SimulationError for a bad current state: term, node, energies."""
+        terms = {}
+        for name, g in GROUPS.items():
+            try:
+                terms[name] = md_value(self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy())
+            except Exception:  # noqa: BLE001 - a NaN can make OpenMM raise
+                terms[name] = float("nan")
+        el, nb = self.rs.elastic_callback, self.rs.nonbonded_callback
+        if el is not None and nb is not None and getattr(el, "nonbonded", None) is nb:  # fused fast path: split by the callbacks
+            terms["elastic"], terms["nonbonded"] = el.last_energy, sum(nb.last)
+        bad = [k for k, v in terms.items() if not np.isfinite(v)]
+        term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))
+        p = self.node_particles(self.context.getState(getPositions=True).getPositions(asNumpy=True)).reshape(-1, 3, 3)
+        nonfinite = np.argwhere(~np.isfinite(p).all(axis=(1, 2)))
+        if len(nonfinite):
+            node = int(nonfinite[0, 0])
+        else:
+            c, f = node_poses(p.reshape(-1, 3))
+            F = np.zeros_like(c)
+            tau = np.zeros_like(c)
+            m = self.model
+            Q = m.closure.Q if m.closure is not None else np.eye(3)
+            t = m.closure.t if m.closure is not None else np.zeros(3)
+            loads_kernel(c, f, m.params.stiffness, m.params.intrinsic, m.ds, Q, t, m.closure is not None, F, tau)
+            mag = np.linalg.norm(F, axis=1) + np.linalg.norm(tau, axis=1)
+            mag[~np.isfinite(mag)] = np.inf
+            node = int(np.argmax(mag))
+        txt = ", ".join(f"{k} {v:.4g}" for k, v in terms.items())
+        return SimulationError(f"simulation blew up at step {step}: node {node}, term '{term}' "
+                               f"(energies kJ/mol: {txt}); reduce dt or check the loads/model",
+                               step=step, node=node, term=term)
+
+    def advance(self, n_steps):
+        """Integrate ``n_steps`` steps, checking for NaN/blow-up; on failure, locate the first bad step.
+
+        Raises
+        ------
+        SimulationError
+            Naming the step, node and energy term; the context is left at the first bad step.
+        """
+        fast = self._reports_in_plugin()
+        # the state to go back to if the run blows up (positions and velocities are all it needs: cheap)
+        good = (self.context.getState(getPositions=True, getVelocities=True, getParameters=True) if fast
+                else self._full_state())
+        self.integrator.step(int(n_steps))
+        self.invalidate()
+        if self._report_healthy() if fast else self._healthy(self._full_state()):
+            self.step += int(n_steps)
+            return
+        self.context.setState(good)
+        for i in range(int(n_steps)):
+            self.integrator.step(1)
+            st = self.context.getState(getEnergy=True, getPositions=True)
+            if not self._healthy(st):
+                raise self._diagnose(self.step + i + 1)
+        raise self._diagnose(self.step + int(n_steps))
+
+    # --- checkpoints ------------------------------------------------------------------
+    def save_checkpoint(self, path, n_frames=None, extra=None):
+        """Write an OpenMM checkpoint plus step count and model fingerprint (atomically)."""
+        meta = dict(format="dnarod-openmm-checkpoint", step=self.step, n_frames=n_frames,
+                    fingerprint=self.fingerprint, n_nodes=self.model.n_nodes, dt=self.dt,
+                    integrator=self.integrator_name, temperature=self.temperature, extra=extra or {})
+        cb = self.rs.load_info.get("torque_callback")
+        if cb is not None:
+            meta["torque_phi"] = cb.phi.tolist()
+            meta["torque_last"] = cb.last_angle.tolist()
+        blob = np.frombuffer(self.context.createCheckpoint(), dtype=np.uint8)
+        with atomic_path(path) as tmp:
+            with open(tmp, "wb") as fh:
+                np.savez(fh, openmm=blob, meta=np.array(json.dumps(meta)))
+
+    def load_checkpoint(self, path):
+        """Restore a checkpoint written by :meth:`save_checkpoint` for this model; returns its metadata."""
+        from dnarod.run.engine import read_checkpoint
+
+        meta, arrays = read_checkpoint(path, "dnarod-openmm-checkpoint", ("openmm",))
+        blob = arrays["openmm"].tobytes()
+        if meta.get("fingerprint") != self.fingerprint or meta.get("n_nodes") != self.model.n_nodes:
+            raise ParameterError(f"{path}: checkpoint belongs to another model ({meta['n_nodes']} nodes, different "
+                                 f"parameters, masses or closure); resume with the model it was written for")
+        if meta.get("integrator") != self.integrator_name or not math.isclose(meta["dt"], self.dt, rel_tol=1e-12):
+            raise ParameterError(f"{path}: checkpoint was written with integrator {meta['integrator']} and "
+                                 f"dt {meta['dt']} ps, this run uses {self.integrator_name} and dt {self.dt} ps")
+        try:
+            self.context.loadCheckpoint(blob)
+        except Exception as exc:  # noqa: BLE001 - OpenMMException
+            raise ParameterError(f"{path}: OpenMM cannot load this checkpoint here ({exc})") from None
+        self.step = int(meta["step"])
+        self.invalidate()
+        cb = self.rs.load_info.get("torque_callback")
+        if cb is not None and "torque_phi" in meta:
+            cb.phi[:] = meta["torque_phi"]
+            cb.last_angle[:] = meta["torque_last"]
+        return meta
+
+def load_energies(path):
+    """Read ``energies.csv`` into a dict of arrays (:func:`dnarod.run.reporters.load_energies`)."""
+    from dnarod.run.reporters import load_energies as _load
+
+    return _load(path)

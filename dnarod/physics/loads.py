@@ -1,0 +1,443 @@
+"""External loads on nodes, engine-neutral: pulling forces, torques, clamps, rotation clamps, traps.
+
+One vocabulary for both engines: the OpenMM engine translates these dataclasses into OpenMM forces
+(:mod:`dnarod.engines.openmm.loads`), the Lax-form engine into its boundary conditions
+(:mod:`dnarod.engines.lax.boundary`); the static solver (:mod:`dnarod.physics.statics`), the modes
+(:mod:`dnarod.physics.modes`) and the observables (:mod:`dnarod.physics.observables`) use :func:`resolve_loads` and
+:meth:`ResolvedLoads.evaluate`, the numpy reference of the load physics.
+
+Plain numbers are in OpenMM MD units (forces kJ/mol/nm, torques kJ/mol, translational stiffness
+kJ/mol/nm^2, rotational stiffness kJ/mol (per rad^2), positions nm); an ``openmm.unit.Quantity`` in
+any compatible unit is converted (``1 pN = 0.6022 kJ/mol/nm``, ``1 pN nm = 0.6022 kJ/mol``). A value
+of the wrong shape or of an incompatible unit raises :class:`~dnarod.core.errors.ParameterError`.
+
+* :class:`PullingForce` -- constant lab force on a node centre (dead load), energy ``-F . r``.
+* :class:`Torque` -- constant lab torque on a node about its centre (dead load; magnetic tweezers in
+  torque mode).
+* :class:`RotationClamp` -- orientation restraint ``E = k (1 - cos theta)`` (theta: angle of the
+  rotation from the node's frame to the target frame; ``k theta^2/2`` for small angles). The target
+  turns about ``axis`` by ``turns`` full turns spread linearly over the run, or at ``turns_per_ns``
+  (magnetic tweezers in rotation mode).
+* :class:`Clamp` -- the node is fixed in space (position and orientation). Any node may be clamped.
+* :class:`Trap` -- harmonic trap ``k |r - c|^2 / 2`` on a node's centre (optical tweezers).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dnarod.core.errors import ParameterError
+
+__all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
+           "resolve_loads", "ResolvedLoads", "clamp_angle", "check_load_stiffness", "MAX_LOAD_OMEGA_RATIO"]
+
+
+def _md_units():
+    from openmm import unit
+
+    return dict(force=unit.kilojoule_per_mole / unit.nanometer, torque=unit.kilojoule_per_mole,
+                stiffness=unit.kilojoule_per_mole / unit.nanometer**2, length=unit.nanometer,
+                rate=unit.nanosecond**-1)
+
+
+def as_md(value, md_unit, shape, what):
+    """Convert a number/array or Quantity to MD units and check its shape.
+
+    Parameters
+    ----------
+    value : float, array_like or openmm.unit.Quantity
+    md_unit : openmm.unit.Unit or str
+        The MD unit to convert to (or one of ``"force"``, ``"torque"``, ``"stiffness"``, ``"length"``).
+    shape : tuple
+        Required shape, e.g. ``(3,)`` or ``()``.
+    what : str
+        Name used in error messages.
+
+    Returns
+    -------
+    ndarray or float
+    """
+    if hasattr(value, "unit") and hasattr(value, "value_in_unit"):  # an openmm Quantity
+        from openmm import unit
+
+        if isinstance(md_unit, str):
+            md_unit = _md_units()[md_unit]
+        try:
+            value = value.value_in_unit(md_unit)
+        except TypeError:
+            try:  # per-molecule units (pN, pN*nm): times Avogadro's number
+                value = (value * unit.AVOGADRO_CONSTANT_NA).value_in_unit(md_unit)
+            except TypeError:
+                raise ParameterError(f"{what}: unit {value.unit} is not compatible with {md_unit}") from None
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what}: expected numbers in {md_unit}, got {value!r}") from None
+    if arr.shape != tuple(shape):
+        raise ParameterError(f"{what}: expected shape {tuple(shape)} ({md_unit}), got shape {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ParameterError(f"{what}: values must be finite, got {arr}")
+    return float(arr) if arr.ndim == 0 else arr
+
+
+@dataclass
+class PullingForce:
+    """Constant lab force (kJ/mol/nm, shape (3,)) on node ``node`` (negative counts from the end)."""
+
+    node: int
+    force: object
+
+    def __post_init__(self):
+        self.force = as_md(self.force, "force", (3,), f"pulling force on node {self.node}")
+
+
+@dataclass
+class Torque:
+    """Constant lab torque (kJ/mol, shape (3,)) on node ``node`` about its centre."""
+
+    node: int
+    torque: object
+
+    def __post_init__(self):
+        self.torque = as_md(self.torque, "torque", (3,), f"torque on node {self.node}")
+
+
+@dataclass
+class RotationClamp:
+    """Orientation restraint of node ``node``: ``E = k (1 - cos theta)``, k in kJ/mol (per rad^2).
+
+    Parameters
+    ----------
+    node : int
+    k : float or Quantity
+        kJ/mol.
+    frame : ndarray (3, 3), optional
+        Target at angle 0 (default: the node's starting frame).
+    axis : ndarray (3,), optional
+        Lab axis about which the target turns (default: the target's d3).
+    turns : float
+        Total turns applied linearly over a run (positive: right-handed about ``axis``).
+    turns_per_ns : float, optional
+        Turning rate instead of ``turns`` (turns per ns).
+    """
+
+    node: int
+    k: object
+    frame: np.ndarray | None = None
+    axis: np.ndarray | None = None
+    turns: float = 0.0
+    turns_per_ns: float | None = None
+
+    def __post_init__(self):
+        self.k = as_md(self.k, "torque", (), f"rotation clamp stiffness on node {self.node}")
+        if self.k <= 0:
+            raise ParameterError(f"rotation clamp stiffness on node {self.node} must be positive, got {self.k}")
+        if self.frame is not None:
+            f = np.asarray(self.frame, float)
+            if f.shape != (3, 3) or not np.allclose(f.T @ f, np.eye(3), atol=1e-6) or np.linalg.det(f) < 0:
+                raise ParameterError(f"rotation clamp frame of node {self.node} must be a rotation matrix (3, 3)")
+            self.frame = f
+        if self.axis is not None:
+            a = as_md(self.axis, "length", (3,), f"rotation clamp axis of node {self.node}")
+            if np.linalg.norm(a) == 0:
+                raise ParameterError(f"rotation clamp axis of node {self.node} must be a nonzero vector")
+            self.axis = a / np.linalg.norm(a)
+        self.turns = float(self.turns)
+        if not np.isfinite(self.turns):
+            raise ParameterError(f"rotation clamp turns of node {self.node} must be finite, got {self.turns}")
+        if self.turns_per_ns is not None:
+            self.turns_per_ns = float(self.turns_per_ns)
+            if not np.isfinite(self.turns_per_ns):
+                raise ParameterError(f"rotation clamp turns_per_ns of node {self.node} must be finite")
+            if self.turns != 0.0:
+                raise ParameterError(f"rotation clamp of node {self.node}: give turns (over the run) or "
+                                     f"turns_per_ns (a rate), not both")
+
+
+@dataclass
+class Clamp:
+    """Fix node ``node`` in space (position and orientation)."""
+
+    node: int
+
+
+@dataclass
+class Trap:
+    """Harmonic trap on the centre of node ``node``: stiffness k (kJ/mol/nm^2), centre (nm, (3,))
+    (default: the node's starting position)."""
+
+    node: int
+    k: object
+    centre: object = None
+
+    def __post_init__(self):
+        self.k = as_md(self.k, "stiffness", (), f"trap stiffness on node {self.node}")
+        if self.k <= 0:
+            raise ParameterError(f"trap stiffness on node {self.node} must be positive, got {self.k}")
+        if self.centre is not None:
+            self.centre = as_md(self.centre, "length", (3,), f"trap centre of node {self.node}")
+
+
+LOAD_TYPES = (PullingForce, Torque, RotationClamp, Clamp, Trap)
+
+
+def resolve_node(node, n_nodes, what="load"):
+    """A node index in range (negative indices count from the end)."""
+    try:
+        k = int(node)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{what}: node index must be an integer, got {node!r}") from None
+    if not -n_nodes <= k < n_nodes:
+        raise ParameterError(f"{what}: node {node} does not exist (the model has {n_nodes} nodes)")
+    return k % n_nodes
+
+
+def clamp_angle(clamp, time_ps, duration_ps=None):
+    """Angle (rad) by which a rotation clamp's target has turned at ``time_ps``.
+
+    ``turns`` are spread linearly over ``duration_ps`` (the run length, ps); ``turns_per_ns`` is a rate.
+    """
+    if clamp.turns_per_ns is not None:
+        return 2.0 * np.pi * clamp.turns_per_ns * float(time_ps) * 1e-3
+    if clamp.turns == 0.0:
+        return 0.0
+    if duration_ps is None or not duration_ps > 0:
+        raise ParameterError(f"rotation clamp of node {clamp.node}: turns={clamp.turns} are spread over the run, "
+                             f"so the run length must be known (give a positive duration)")
+    return 2.0 * np.pi * clamp.turns * min(float(time_ps) / float(duration_ps), 1.0)
+
+
+@dataclass
+class ResolvedClamp:
+    """A rotation clamp resolved against a model: node index, k (kJ/mol), frame0 (3, 3), unit axis (3,)."""
+
+    node: int
+    k: float
+    frame0: np.ndarray
+    axis: np.ndarray
+    load: RotationClamp
+
+    def target(self, angle):
+        """Target frame (3, 3) turned by ``angle`` rad about the axis."""
+        from dnarod.core.rotations import rotation_about_axis
+
+        return rotation_about_axis(self.axis, float(angle)) @ self.frame0
+
+
+@dataclass
+class ResolvedLoads:
+    """Loads resolved against a model (node indices in range, defaults filled in).
+
+    Attributes
+    ----------
+    n_nodes : int
+    clamped : ndarray of bool, shape (n_nodes,)
+    force : ndarray, shape (n_nodes, 3)
+        Dead lab forces, kJ/mol/nm.
+    torque : ndarray, shape (n_nodes, 3)
+        Dead lab torques, kJ/mol.
+    traps : list of (node, k kJ/mol/nm^2, centre (3,) nm)
+    rotation_clamps : list of ResolvedClamp
+    """
+
+    n_nodes: int
+    clamped: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    traps: list = field(default_factory=list)
+    rotation_clamps: list = field(default_factory=list)
+    loads: tuple = ()
+
+    @property
+    def position_dependent(self):
+        """True if some load depends on the pose (traps, rotation clamps)."""
+        return bool(self.traps or self.rotation_clamps)
+
+    @property
+    def empty(self):
+        return not (self.clamped.any() or self.force.any() or self.torque.any() or self.position_dependent)
+
+    def clamp_angles(self, time_ps=0.0, duration_ps=None):
+        """Angles (rad) of the rotation clamps' targets at ``time_ps``; shape (n_rotation_clamps,)."""
+        return np.array([clamp_angle(c.load, time_ps, duration_ps) for c in self.rotation_clamps])
+
+    def evaluate(self, positions, frames, angles=None):
+        """Energy and lab loads of all external loads at a pose (clamped nodes not zeroed).
+
+        Parameters
+        ----------
+        positions : ndarray, shape (n_nodes, 3)
+            nm.
+        frames : ndarray, shape (n_nodes, 3, 3)
+            Directors as columns.
+        angles : sequence of float, optional
+            Rotation clamp target angles, rad (default 0).
+
+        Returns
+        -------
+        E : float
+            Conservative external energy, kJ/mol: traps, rotation clamps and ``-F . r`` of the pulling
+            forces (dead torques have no potential; their work is tracked by the caller).
+        F : ndarray, shape (n_nodes, 3)
+            kJ/mol/nm.
+        tau : ndarray, shape (n_nodes, 3)
+            kJ/mol.
+        """
+        F = self.force.copy()
+        tau = self.torque.copy()
+        E = -float(np.sum(self.force * positions))
+        for k, kk, c in self.traps:
+            d = positions[k] - c
+            E += 0.5 * kk * float(d @ d)
+            F[k] -= kk * d
+        for i, rc in enumerate(self.rotation_clamps):
+            T = rc.target(0.0 if angles is None else angles[i])
+            e_c, t_c = rotation_clamp_load(frames[rc.node], T, rc.k)
+            E += e_c
+            tau[rc.node] += t_c
+        return E, F, tau
+
+    def clamp_torques(self, frames, angles=None):
+        """Lab torque (kJ/mol) each rotation clamp applies to its node; shape (n_rotation_clamps, 3)."""
+        out = np.zeros((len(self.rotation_clamps), 3))
+        for i, rc in enumerate(self.rotation_clamps):
+            T = rc.target(0.0 if angles is None else angles[i])
+            out[i] = rotation_clamp_load(frames[rc.node], T, rc.k)[1]
+        return out
+
+
+def rotation_clamp_load(L, T, k):
+    """Energy ``k (1 - cos theta) = k (3 - tr(T^T L)) / 2`` (kJ/mol) and lab torque (kJ/mol) on frame L.
+
+    With lab virtual rotations ``dL = hat(dth) L``: ``d tr(T^T L) = dth . v`` with
+    ``v = (S23 - S32, S31 - S13, S12 - S21)``, ``S = L T^T``; the torque is ``-dE/dth = k v / 2``.
+    """
+    S = L @ T.T
+    v = np.array([S[1, 2] - S[2, 1], S[2, 0] - S[0, 2], S[0, 1] - S[1, 0]])
+    return 0.5 * k * (3.0 - np.trace(S)), 0.5 * k * v
+
+
+def resolve_loads(loads, model, positions=None, frames=None):
+    """Resolve a sequence of loads against a model.
+
+    Parameters
+    ----------
+    loads : sequence, ResolvedLoads or BoundaryConditions
+        :class:`PullingForce`, :class:`Torque`, :class:`RotationClamp`, :class:`Clamp`, :class:`Trap`
+        (a :class:`ResolvedLoads` is returned as is; a Lax-form ``BoundaryConditions`` is resolved).
+    model : RodModel
+    positions, frames : ndarray, optional
+        Starting pose for the defaults (trap centres, clamp frames); default the model's.
+
+    Returns
+    -------
+    ResolvedLoads
+
+    Raises
+    ------
+    ParameterError
+        For an unknown load, a node out of range, a force/torque/trap/rotation clamp on a clamped node
+        (it would be absorbed by the clamp) or two rotation clamps on one node.
+    """
+    if isinstance(loads, ResolvedLoads):
+        return loads
+    if hasattr(loads, "resolved") and hasattr(loads, "clamped"):  # integrators.BoundaryConditions
+        return loads.resolved(model, positions, frames)
+    n = model.n_nodes
+    pos = model.positions if positions is None else np.asarray(positions, float)
+    frm = model.frames if frames is None else np.asarray(frames, float)
+    if isinstance(loads, LOAD_TYPES):
+        loads = (loads,)
+    loads = tuple(loads or ())
+    clamped = np.zeros(n, bool)
+    for load in loads:
+        if not isinstance(load, LOAD_TYPES):
+            raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp or Trap")
+        if isinstance(load, Clamp):
+            clamped[resolve_node(load.node, n, "Clamp")] = True
+    out = ResolvedLoads(n, clamped, np.zeros((n, 3)), np.zeros((n, 3)), loads=loads)
+    seen_rc = set()
+    for load in loads:
+        kind = type(load).__name__
+        if isinstance(load, Clamp):
+            continue
+        k = resolve_node(load.node, n, kind)
+        if clamped[k]:
+            raise ParameterError(f"{kind} on node {load.node}: the node is clamped, so the load would be absorbed by "
+                                 f"the clamp; remove one of the two")
+        if isinstance(load, PullingForce):
+            out.force[k] += load.force
+        elif isinstance(load, Torque):
+            out.torque[k] += load.torque
+        elif isinstance(load, Trap):
+            out.traps.append((k, float(load.k), pos[k].copy() if load.centre is None else np.asarray(load.centre)))
+        else:
+            if k in seen_rc:
+                raise ParameterError(f"RotationClamp on node {load.node}: the node already has a rotation clamp")
+            seen_rc.add(k)
+            frame0 = frm[k].copy() if load.frame is None else np.asarray(load.frame, float)
+            axis = frame0[:, 2].copy() if load.axis is None else np.asarray(load.axis, float)
+            out.rotation_clamps.append(ResolvedClamp(k, float(load.k), frame0, axis / np.linalg.norm(axis), load))
+    return out
+
+
+#: Largest ratio of the fastest mode with the loads to the free model's before a load's stiffness is refused:
+#: 10 means a time step 10 times shorter (and a run 10 times longer) than the chain itself needs.
+MAX_LOAD_OMEGA_RATIO = 10.0
+
+#: How :func:`check_load_stiffness` names a stiff load by default: the ``dnarod simulate`` options.
+STIFFNESS_OPTIONS = {"Trap": "--trap", "RotationClamp": "--rotation-clamp"}
+
+
+def check_load_stiffness(model, loads, names=None, omega=None):
+    """Refuse a trap or rotation clamp so stiff that its own vibration, not the chain's, sets the time step.
+
+    The one bound on load stiffness (``dnarod simulate --trap/--rotation-clamp``, ensemble members, the protocols'
+    ``--clamp-k``): the fastest normal mode with the loads (:func:`dnarod.physics.modes.omega_max`) may be at most
+    :data:`MAX_LOAD_OMEGA_RATIO` times the fastest mode without the traps and rotation clamps. A stiffer load
+    holds no better; the run would only be that many times longer. The message names the load and the largest
+    stiffness within the ratio (the mode frequency grows as the square root of the stiffness).
+
+    Parameters
+    ----------
+    model : RodModel
+        The pose the loads act on.
+    loads : sequence of load dataclasses
+    names : dict, optional
+        Load class name -> how to name it in the message (default :data:`STIFFNESS_OPTIONS`); a trap is shown as
+        ``NAME NODE:K`` (K in pN/nm), a rotation clamp as ``NAME K`` (K in kJ/mol).
+    omega : float, optional
+        The fastest mode with the loads, rad/ps, if already known.
+
+    Raises
+    ------
+    ParameterError
+        One line naming the load, its stiffness and the largest accepted.
+    """
+    from dnarod.physics.modes import omega_max
+    from dnarod.core.units import PN
+
+    names = {**STIFFNESS_OPTIONS, **(names or {})}
+    loads = tuple(loads)
+    stiff = [ld for ld in loads if isinstance(ld, (Trap, RotationClamp))]
+    if not stiff:
+        return
+    omega = float(omega_max(model, loads)) if omega is None else float(omega)
+    free = float(omega_max(model, tuple(ld for ld in loads if not any(ld is s for s in stiff))))
+    ratio = omega / free
+    if not ratio > MAX_LOAD_OMEGA_RATIO:
+        return
+    parts = []
+    for ld in stiff:
+        if isinstance(ld, Trap):
+            k = float(ld.k) / PN
+            parts.append(f"{names['Trap']} {ld.node}:{k:g} (pN/nm; use at most "
+                         f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
+        else:
+            k = float(ld.k)
+            parts.append(f"{names['RotationClamp']} {k:g} (kJ/mol; use at most "
+                         f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
+    raise ParameterError(f"{', '.join(parts)}: so stiff that its vibration ({omega:.3g} rad/ps) is {ratio:.3g} times "
+                         f"the chain's fastest mode ({free:.3g} rad/ps) and sets the time step; a stiffer load holds "
+                         f"no better, the run only gets longer")

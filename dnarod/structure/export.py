@@ -1,0 +1,145 @@
+"""Export trajectories of node centres and frames for MD tools (mdtraj, MDAnalysis, VMD).
+
+Coarse-grained topology (names, elements, residues, chains and the REMARK that documents
+them): :mod:`dnarod.structure.cg_topology` -- beads ``BPC`` (node centre), ``BPX`` (tip of
+d1 at ``centre + a d1``), ``BPZ`` (tip of d3), ``a = 1 nm`` by default. The first frame goes to
+a PDB file (the topology) and all frames to a DCD file (float32, Angstrom) whose header holds the
+true time between frames (written with MDAnalysis, which reads the frame times back equal to the
+``.dtraj`` times to the header's float32 precision; mdtraj's DCD reader ignores the header's time
+and numbers the frames), and optionally to an XTC file (mdtraj; each frame stores its time, read
+back by both mdtraj and MDAnalysis). The frames are recovered from the beads by
+:func:`frames_from_beads` (``d2 = d3 x d1``), to float32 precision; the ``.dtraj`` file
+(:func:`load_dtraj`) holds them as the run stored them.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from dnarod.core.errors import DnarodError
+from dnarod.core.trajectory import Trajectory, load_trajectory
+
+from dnarod.structure.cg_topology import BEADS, cg_pdb_text  # noqa: E402  (one home for the CG naming)
+
+
+def load_dtraj(path):
+    """The dnarod loader: a :class:`~dnarod.core.trajectory.Trajectory` with frames bit-exact."""
+    return load_trajectory(path)
+
+
+def bead_positions(positions, frames, arm=1.0):
+    """Bead coordinates ``(n_frames, 3 n_nodes, 3)`` nm from centres and frames.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n_frames, n_nodes, 3)
+    frames : ndarray, shape (n_frames, n_nodes, 3, 3)
+    arm : float
+        Director tip distance, nm.
+    """
+    pos = np.asarray(positions, float)
+    frm = np.asarray(frames, float)
+    out = np.stack([pos, pos + arm * frm[..., :, 0], pos + arm * frm[..., :, 2]], axis=-2)
+    return out.reshape(pos.shape[0], -1, 3)
+
+
+def frames_from_beads(xyz):
+    """Centres and orthonormal frames from bead coordinates ``(n_frames, 3 n_nodes, 3)``."""
+    b = np.asarray(xyz, float).reshape(xyz.shape[0], -1, 3, 3)
+    c = b[:, :, 0]
+    d1 = b[:, :, 1] - c
+    d1 /= np.linalg.norm(d1, axis=-1, keepdims=True)
+    d3 = b[:, :, 2] - c
+    d3 -= np.einsum("fki,fki->fk", d3, d1)[..., None] * d1
+    d3 /= np.linalg.norm(d3, axis=-1, keepdims=True)
+    d2 = np.cross(d3, d1)
+    return c, np.stack([d1, d2, d3], axis=-1)
+
+
+def mdtraj_topology(n_nodes, residue_names=None, sequence=None):
+    """An ``mdtraj.Topology`` with the coarse-grained beads (:mod:`dnarod.structure.cg_topology`)."""
+    from dnarod.structure.cg_topology import mdtraj_topology as _top
+
+    return _top(n_nodes, sequence)
+
+
+def write_dcd(path, xyz_nm, time_ps):
+    """Write bead coordinates ``(n_frames, n_atoms, 3)`` nm to a DCD file whose header holds the frame spacing.
+
+    The frame times must be evenly spaced and start at a multiple of the spacing (the DCD header
+    stores a start step, a step interval and a time step); MDAnalysis reads ``time = frame * dt``.
+    """
+    import warnings
+
+    import MDAnalysis as mda
+    from MDAnalysis.coordinates.DCD import DCDWriter
+
+    from dnarod.core.units import ANGSTROM_PER_NM
+
+    t = np.asarray(time_ps, float)
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    if len(t) > 1 and (dt <= 0 or not np.allclose(np.diff(t), dt, rtol=1e-9, atol=1e-12)):
+        raise DnarodError(f"{path}: the frames are not evenly spaced in time, which DCD cannot store; "
+                          f"export to XTC instead")
+    istart = int(round(t[0] / dt)) if len(t) > 1 else 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # MDAnalysis warns about the missing unit cell
+        u = mda.Universe.empty(xyz_nm.shape[1], trajectory=True)
+        with DCDWriter(str(path), xyz_nm.shape[1], dt=dt, istart=istart, nsavc=1) as w:
+            for frame in xyz_nm:
+                u.atoms.positions = frame * ANGSTROM_PER_NM
+                w.write(u.atoms)
+
+
+def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc_path=None):
+    """Write a ``.dtraj`` trajectory (or :class:`Trajectory`) as PDB topology + DCD (+ XTC) frames.
+
+    Parameters
+    ----------
+    traj : Trajectory or str or Path
+    pdb_path : str or Path
+        First frame with the topology (CONECT records for the bonds).
+    dcd_path : str or Path or None
+        All frames with the true frame spacing in the header (skip if None).
+    xtc_path : str or Path or None
+        All frames with their times (mdtraj XTC, 0.001 nm precision; skip if None).
+    sequence : str or None
+        Strand I letters for residue names (default: the trajectory's metadata ``sequence``).
+    arm : float
+        nm.
+
+    Returns
+    -------
+    mdtraj.Trajectory
+    """
+    import mdtraj as md
+
+    from dnarod.core.io import atomic_path
+
+    if not isinstance(traj, Trajectory):
+        traj = load_trajectory(traj)
+    if traj.n_frames == 0:
+        raise DnarodError("the trajectory has no frames to export")
+    n = traj.n_nodes
+    seq = sequence if sequence is not None else traj.metadata.get("sequence") or None
+    if seq is not None and len(seq) != n:
+        seq = None
+    top = mdtraj_topology(n, sequence=seq)
+    xyz = bead_positions(traj.positions, traj.frames, arm).astype(np.float32)
+    t = md.Trajectory(xyz, top, time=traj.time)
+    if pdb_path is not None:
+        with atomic_path(Path(pdb_path)) as tmp:
+            Path(tmp).write_text(cg_pdb_text(traj.positions[0], traj.frames[0], seq, arm))
+    for path, sl in ((xtc_path, slice(None)),):
+        if path is None:
+            continue
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            tmp_ext = str(tmp) + path.suffix
+            t[sl].save(tmp_ext, force_overwrite=True)
+            Path(tmp_ext).replace(tmp)
+    if dcd_path is not None:
+        with atomic_path(dcd_path) as tmp:
+            write_dcd(tmp, xyz, traj.time)
+    return t

@@ -1,0 +1,232 @@
+"""Ring members: a closed DNA ring with a chosen linking number, sampled at equilibrium.
+
+The ring is :meth:`dnarod.core.forcefield.ForceField.ring` (a planar circle with ``Lk = Lk0 + delta_lk``, the
+relaxed ``Lk0 = round(intrinsic twist / 2 pi)``), run with Langevin dynamics (the dynamics conserve Lk);
+each sample reports Tw (ribbon twist of d1), Wr (exact polygon writhe), Lk = Tw + Wr (checked to be the
+integer set), the writhe fraction ``Wr / (Lk - Tw0_T)`` with ``Tw0_T`` the relaxed ring's mean twist at the
+run's temperature (:func:`dnarod.physics.theory.supercoil.thermal_relaxed_twist`; ``relaxed_twist`` is the
+T = 0 value, the sum of intrinsic twist angles, 0.27 turns higher for 600 bp of dna-default), and the plectoneme
+detector of :mod:`dnarod.workflows.protocols.measure` with chain separations wrapping around, and the number of plectoneme
+end loops (:func:`~dnarod.workflows.protocols.measure.plectoneme_end_loops`: 2 for an unbranched plectoneme, more if it
+branches).
+
+Nicked rings (free linking number) are not sampled by this module: a nick with zero twist stiffness
+still cannot let the strand pass 180 degrees of step rotation in the Cayley coordinates (the energy
+diverges there), so the linking number cannot change. Their ``<ΔLk²> = <ΔTw²> + <Wr²>`` is computed by
+:mod:`dnarod.workflows.protocols.nicked` (writhe of a ring free to writhe) and check ``nicked_ring``.
+
+Units: nm, turns, ps.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dnarod.core.errors import DnarodError
+
+COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_length_nm", "plectonemic",
+           "radius_of_gyration_nm", "end_loops")
+
+
+def _settings(s):
+    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+    from dnarod.engines.openmm.platforms import member_platform
+
+    out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
+               temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None,
+               threads=None, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
+               start_bend_softening=None, start_ns=None)
+    unknown = set(s) - set(out)
+    if unknown:
+        raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
+    out.update({k: v for k, v in s.items() if v is not None})
+    out.update(member_platform(out["platform"], out["threads"], "auto"))  # the platform it runs on, in its key
+    return out
+
+
+def relaxed_twist(model):
+    """Relaxed twist Tw0 (turns) of a ring: the sum of intrinsic twist angles / 2 pi."""
+    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
+
+
+def check_ring(delta_lk, lk0):
+    """Refuse linking differences the model cannot represent (|sigma| > 0.1), one line."""
+    from dnarod.workflows.protocols.tweezers import MAX_SIGMA
+
+    d = float(delta_lk)
+    if d != int(d):
+        raise DnarodError(f"delta_lk {delta_lk}: the linking number of a closed ring is an integer")
+    if abs(d / lk0) > MAX_SIGMA:
+        raise DnarodError(f"delta_lk {int(d)} is sigma = {d / lk0:+.3f} for Lk0 = {lk0:.1f}: beyond |sigma| = "
+                          f"{MAX_SIGMA:g} real DNA denatures or changes structure and the elastic rod is outside its "
+                          f"calibration; use |delta_lk| <= {int(MAX_SIGMA * lk0)}")
+
+
+def bend_softened_model(model, factor):
+    """The model with its bending rows and columns of every step's stiffness scaled by ``1/factor``.
+
+    ``K' = S K S`` with ``S = diag(f^-1/2, f^-1/2, 1, 1, 1, 1)`` (f = ``factor``): the bending persistence
+    length falls by about f, the matrix stays positive definite, the intrinsic strains and pose are kept.
+    Used only to prepare starts (a ring that writhes more than the model's own).
+    """
+    from dataclasses import replace
+
+    S = np.diag([float(factor) ** -0.5] * 2 + [1.0] * 4)
+    K = np.einsum("ij,kjl,lm->kim", S, np.asarray(model.params.stiffness, float), S)
+    return replace(model, params=replace(model.params, stiffness=K))
+
+
+def cached_member(member_dir, key):
+    """``(result or None, path)``: the stored result of a member folder if it was run with settings ``key``."""
+    from dnarod.core.io import ensure_dir
+
+    done = ensure_dir(Path(member_dir), "member folder") / "protocol_result.json"
+    if done.exists():
+        old = json.loads(done.read_text())
+        if old.get("settings") == key:
+            return old["result"], done
+    return None, done
+
+
+def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per_ns, max_sample_ps, min_samples,
+                progress=None):
+    """Run one ring member (closed or nicked) and sample it: the plan and loop both ring protocols share.
+
+    Friction: :func:`~dnarod.workflows.protocols.tweezers.auto_friction` unless ``s["friction_per_ps"]`` is set;
+    equilibration: five slowest bending relaxation times (``s["equilibration_ns"]`` overrides); a sample
+    every ``min(tau * tau_fraction, time / samples_per_ns)`` ps, clipped to [1, ``max_sample_ps``]
+    (``s["sample_ps"]`` overrides), at least ``min_samples`` samples. Each sample fills ``time_ps``, ``Tw``,
+    ``Wr``, ``Lk`` (turns) and ``radius_of_gyration_nm`` of ``out``; ``record(out, i, positions, frames)``
+    fills the caller's other columns.
+
+    Returns
+    -------
+    out : dict of str to ndarray, shape (n_samples,)
+    run : dict
+        ``friction_per_ps, tau_bend_estimate_ps, equilibration_ps, production_ps, wall_s, cpu_s, dt_ps,
+        n_steps, n_samples, sample_ps, ns_per_day, contour_length_nm``, ``stride`` (steps per sample),
+        ``elastic_path`` and ``nonbonded`` (the terms' record, :func:`dnarod.engines.openmm.nonbonded.nonbonded_record`:
+        charge model, e per node, cutoff in Debye lengths and nm).
+    """
+    from dnarod.analysis.polymer import bending_relaxation_time
+    from dnarod.physics.writhe import twist, writhe
+    from dnarod.engines.openmm.nonbonded import member_nonbonded, nonbonded_record
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.workflows.protocols.tweezers import auto_friction
+
+    T = float(s["temperature_K"])
+    fr = auto_friction(model, 0.0, T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
+    L = model.ds * model.n_nodes
+    tau = bending_relaxation_time(L, lp, T, float(np.mean(model.mass)) / model.ds, fr)
+    eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
+    sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
+                           max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
+    nb = member_nonbonded(s)
+    t0, c0 = time.perf_counter(), time.process_time()
+    if s.get("start_bend_softening") and s.get("start_ns"):
+        # start "from above": run first with the bending stiffness divided by start_bend_softening (plectonemes
+        # cost less bending, so the ring writhes more), then continue with the model from that pose
+        soft = bend_softened_model(model, float(s["start_bend_softening"]))
+        psim = RodSimulation(soft, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb,
+                             seed=int(s["seed"]) + 7919, threads=s["threads"])
+        psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
+        model = model.with_pose(*psim.node_pose())
+        del psim
+    sim = RodSimulation(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
+                        threads=s["threads"])
+    dt = sim.dt
+    stride = max(1, int(round(sample / dt)))
+    n_eq = int(round(eq / dt))
+    n_samp = max(min_samples, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
+    sim.advance(n_eq)
+    out = {c: np.empty(n_samp) for c in columns}
+    for i in range(n_samp):
+        sim.advance(stride)
+        pos, frm = sim.node_pose()
+        tw, wr = twist(pos, frm[:, :, 0]), writhe(pos)
+        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
+        out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
+        out["radius_of_gyration_nm"][i] = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
+        if record is not None:
+            record(out, i, pos, frm)
+        if progress:
+            progress(i + 1, n_samp)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    steps = n_eq + n_samp * stride
+    run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq,
+               production_ps=n_samp * stride * dt, wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps,
+               n_samples=n_samp, sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0,
+               stride=stride, elastic_path=sim.rs.elastic, nonbonded=nonbonded_record(nb, model.ds, T))
+    return out, run
+
+
+def write_member(member_dir, done, key, columns, out, res):
+    """Write ``samples.csv`` (the sampled columns) and ``protocol_result.json`` of a member atomically."""
+    from dnarod.core.io import jsonable, write_text_atomic
+
+    n = len(out[columns[0]])
+    lines = [",".join(columns)] + [",".join(f"{out[c][i]:.10g}" for c in columns) for i in range(n)]
+    write_text_atomic(Path(member_dir) / "samples.csv", "\n".join(lines) + "\n")
+    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+
+
+def run_ring_member(settings, member_dir, progress=None):
+    """Run (or reuse) one ring member; writes ``samples.csv`` and ``protocol_result.json``, returns the row."""
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.io import jsonable
+    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops, plectoneme_state
+
+    s = _settings(settings)
+    # start options left unset are not part of the key (members recorded before they existed stay valid)
+    key = jsonable({k: v for k, v in s.items() if not (k in ("start_bend_softening", "start_ns") and v is None)})
+    cached, done = cached_member(member_dir, key)
+    if cached is not None:
+        return cached
+    ff = load_forcefield(s["forcefield"])
+    tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
+    tw0 = relaxed_twist(tw0_model)
+    check_ring(s["delta_lk"], tw0)
+    model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
+                    delta_linking_number=int(s["delta_lk"]))
+    T = float(s["temperature_K"])
+    lp = persistence_length(model.params, model.ds, kT(T))
+    # the plectoneme detector's distances follow the member's non-bonded terms and salt
+    sep_nm, contact_nm = detector_distances(member_nonbonded(s), T, model.ds)
+
+    def record(out, i, pos, frm):
+        f, length, plec = plectoneme_state(pos, model.ds, sep_nm, contact_nm, circular=True)
+        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
+        # 2 unbranched, more branched
+        out["end_loops"][i] = plectoneme_end_loops(pos, model.ds, circular=True, min_separation_nm=sep_nm,
+                                                   contact_distance_nm=contact_nm)[0]
+
+    out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.1, samples_per_ns=200.0,
+                           max_sample_ps=200.0, min_samples=4, progress=progress)
+    stride, dt = run.pop("stride"), run["dt_ps"]
+    run.pop("elastic_path")
+    res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
+               seed=int(s["seed"]), relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0, plectoneme_contact_nm=contact_nm,
+               plectoneme_min_separation_nm=sep_nm, **run)
+    for c in COLUMNS[1:]:
+        x = out[c]
+        res[c] = float(x.mean())
+        b = np.array([v.mean() for v in np.array_split(x, 10 if len(x) >= 20 else max(2, len(x) // 2))])
+        res[c + "_err"] = float(b.std(ddof=1) / np.sqrt(len(b)))
+        t = integrated_autocorrelation_time(x)
+        res[c + "_tau_ps"] = float(t * stride * dt) if np.isfinite(t) else None
+    res["lk_integer"] = int(np.rint(out["Lk"]).min()) if np.ptp(np.rint(out["Lk"])) == 0 else None
+    res["delta_lk_measured"] = res["Lk"] - round(tw0)
+    from dnarod.physics.thermal import relaxed_ribbon_twist as thermal_relaxed_twist
+
+    # the linking difference that supercoils the ring is relative to the relaxed ring's mean twist at T
+    res["relaxed_twist_thermal"], res["relaxed_twist_thermal_err"] = thermal_relaxed_twist(model, T)
+    d = res["Lk"] - res["relaxed_twist_thermal"]
+    res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
+    write_member(member_dir, done, key, COLUMNS, out, res)
+    return jsonable(res)

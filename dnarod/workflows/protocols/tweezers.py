@@ -1,0 +1,564 @@
+"""Tweezers members: one chain, one force and one number of turns, sampled at equilibrium.
+
+Geometry (magnetic tweezers): node 0 is clamped (position and orientation: the surface), the last node
+carries a constant pulling force F along +z (the bead), walls keep the chain above the surface plane and
+below the bead (:func:`tweezers_wall_forces`; without them the chain unwinds around its ends) and, for
+rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` whose target is the last
+node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free (force-extension).
+
+Start ("relaxed under load"): the uniformly strained straight helix that is the static equilibrium of a
+uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), refined by
+:func:`dnarod.physics.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
+per step carries the turns, and the other strains follow the linear constitutive law ``K dxi = (0, 0, tau, 0, 0, F)``
+(twist-stretch coupling included). Past buckling this state is unstable and thermal noise takes the chain
+into its plectonemic state during equilibration. A member of a turn sweep starts instead from the previous turn
+value's final pose with the increment added as twist (``build_member(..., start_pose=...)``,
+:mod:`dnarod.workflows.protocols.sweep`).
+
+Friction (:func:`auto_friction`): the equilibrium does not depend on it, so it is chosen to decorrelate
+fast: ``zeta = 2 omega_1``, critical damping of the slowest bending mode of the chain under tension
+(``omega_1^2 = (A q^4 + F q^2)/rho``, ``q = 4.730/L``); the slowest linear relaxation time is then
+``~1/omega_1`` instead of ``zeta rho/(A q^4)`` at the default 1/ps (see
+:func:`dnarod.analysis.polymer.bending_relaxation_time`). The *measured* integrated autocorrelation times of
+extension and torque are reported with every member and set the statistical errors.
+
+Units: pN, pN nm and nm at this interface (converted to MD units inside), ps, K.
+"""
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+
+from dnarod.core.errors import DnarodError
+from dnarod.core.units import PN
+
+#: Largest pulling force (pN) a member accepts: real DNA overstretches near 65 pN (a structural transition
+#: the elastic rod does not have), and its stretch modulus is calibrated at low force.
+MAX_FORCE_PN = 50.0
+#: Largest |sigma| = |turns| / Lk0: beyond a few percent real DNA denatures (underwinding) or forms other
+#: structures (overwinding) under tension; the rod's quadratic twist energy is far outside its calibration at
+#: 10 % and its Cayley twist coordinate stays regular only below 180 degrees per step.
+MAX_SIGMA = 0.1
+DEFAULT_CLAMP_K = 250.0  # kJ/mol: ~100 kT, clamp angle fluctuations ~0.1 rad
+
+#: Observables sampled per frame (column names of ``samples.csv``).
+COLUMNS = ("time_ps", "extension_nm", "end_turns", "clamp_torque_pN_nm", "twist_torque_pN_nm", "Tw", "Wr", "Lk",
+           "plectoneme_fraction", "plectoneme_length_nm", "plectonemic")
+
+
+def intrinsic_turns(model):
+    """Relaxed linking number Lk0 of an open chain: its intrinsic twist in turns (Cayley twist angles)."""
+    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
+
+
+def check_tweezers(force_pN, turns=None, rotation_clamp=True, n_bp=None, lk0=None, torque_pN_nm=None):
+    """Refuse loads the protocol or the model cannot represent (one-line :class:`DnarodError`).
+
+    Parameters
+    ----------
+    force_pN : float
+    turns : float or None
+    rotation_clamp : bool
+        Whether the bead end is rotation-clamped.
+    lk0 : float, optional
+        Relaxed linking number (for the |sigma| limit).
+    torque_pN_nm : float, optional
+        A constant torque on the bead end.
+    """
+    F = float(force_pN)
+    if not math.isfinite(F) or F < 0:
+        raise DnarodError(f"force {force_pN} pN: give a pulling force >= 0 pN")
+    if torque_pN_nm not in (None, 0, 0.0) and F <= 0:
+        raise DnarodError(f"a torque of {torque_pN_nm} pN nm on a free end with no pulling force has no "
+                          f"equilibrium (the end rotates and wanders away): add a pulling force (--force)")
+    if F <= 0:
+        raise DnarodError("tweezers need a pulling force > 0 pN (at zero force the bead end has no equilibrium "
+                          "position): give --force")
+    if F > MAX_FORCE_PN:
+        raise DnarodError(f"force {F:g} pN is above {MAX_FORCE_PN:g} pN: DNA overstretches near 65 pN, a transition "
+                          f"the elastic rod model does not have; use forces up to {MAX_FORCE_PN:g} pN")
+    if turns not in (None, 0, 0.0):
+        if not rotation_clamp:
+            raise DnarodError(f"turns = {turns} without a rotation clamp: the bead end is torsionally free and "
+                              f"turns cannot be imposed; use a rotation-clamped protocol (hat, torque-turns)")
+        t = float(turns)
+        if not math.isfinite(t):
+            raise DnarodError(f"turns must be finite, got {turns}")
+        if lk0:
+            sigma = t / lk0
+            if abs(sigma) > MAX_SIGMA:
+                raise DnarodError(f"turns {t:g} is a supercoiling density sigma = {sigma:+.3f} for Lk0 = {lk0:.1f}: "
+                                  f"beyond |sigma| = {MAX_SIGMA:g} real DNA denatures or changes structure and "
+                                  f"the elastic rod is outside its calibration; use |turns| <= "
+                                  f"{MAX_SIGMA * lk0:.1f}")
+
+
+def strained_helix(model, force_pN, turns):
+    """The straight helix uniformly strained by tension and turns (start "relaxed under load").
+
+    Parameters
+    ----------
+    model : RodModel
+        Open chain at its intrinsic straight shape along z (node 0 at the origin, identity frame).
+    force_pN : float
+    turns : float
+        Extra turns spread evenly over the steps.
+
+    Returns
+    -------
+    RodModel
+    """
+    from dnarod.core.strains import chain_from_strains
+
+    n = model.n_steps
+    K = model.params.stiffness
+    xi0 = model.params.intrinsic
+    F = float(force_pN) * PN
+    th0 = 2.0 * np.arctan(0.5 * model.ds * xi0[:, 2])
+    th = th0 + 2.0 * np.pi * float(turns) / n
+    if np.abs(th).max() >= 0.9 * np.pi:
+        raise DnarodError(f"turns {turns}: the twist per step would reach {np.degrees(np.abs(th).max()):.0f} "
+                          f"degrees; the model represents steps only well below 180 degrees")
+    d3 = 2.0 / model.ds * np.tan(0.5 * th) - xi0[:, 2]
+    Ci = np.linalg.inv(K)
+    tau = (d3 - Ci[:, 2, 5] * F) / Ci[:, 2, 2]
+    s = np.zeros((n, 6))
+    s[:, 2], s[:, 5] = tau, F
+    xi = xi0 + np.einsum("kij,kj->ki", Ci, s)
+    pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds, model.positions[0], model.frames[0])
+    return model.with_pose(pos, frm)
+
+
+def auto_friction(model, force_pN, temperature, lp=None):
+    """Collision rate (1/ps) critically damping the slowest bending mode under tension, in [1e-4, 1]."""
+    from dnarod.analysis.polymer import FREE_FREE_BETA1_L
+    from dnarod.physics.thermal import kT, persistence_length
+
+    lp = persistence_length(model.params, model.ds, kT(temperature)) if lp is None else lp
+    L = model.ds * model.n_steps
+    q = FREE_FREE_BETA1_L / L
+    rho = float(np.mean(model.mass)) / model.ds
+    w1 = math.sqrt((kT(temperature) * lp * q ** 4 + float(force_pN) * PN * q * q) / rho)
+    return float(np.clip(2.0 * w1, 1e-4, 1.0))
+
+
+def _settings(s):
+    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+    from dnarod.engines.openmm.platforms import member_platform
+
+    out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
+               equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
+               friction_per_ps=None, sample_ps=None, platform=None, threads=None, electrostatics=True,
+               excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE, elastic="auto",
+               start_force_pN=None, start_ns=None, previous_turns=None, start_pose_sha256=None)
+    unknown = set(s) - set(out)
+    if unknown:
+        raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
+    out.update({k: v for k, v in s.items() if v is not None or k == "turns"})
+    out.update(member_platform(out["platform"], out["threads"], out["elastic"]))  # the platform it runs on, in its key
+    return out
+
+
+def build_member(settings, start_pose=None):
+    """Model, start pose, loads and run parameters of one tweezers member (validated).
+
+    Parameters
+    ----------
+    settings : dict
+        Member settings (see ``_settings``).
+    start_pose : tuple of ndarray, optional
+        ``(positions (n, 3) nm, frames (n, 3, 3))``: the final pose of the member at ``settings["previous_turns"]``
+        (a turn sweep, :mod:`dnarod.workflows.protocols.sweep`). The member starts from it with ``turns - previous_turns``
+        added as twist (:func:`dnarod.workflows.protocols.sweep.add_turns`) instead of from the static pose; equilibration
+        then defaults to two slowest bending relaxation times.
+
+    Returns
+    -------
+    dict
+        ``model`` (start pose), ``loads``, ``clamp_target`` (3, 3) or None, ``friction``, ``tau_ps``,
+        ``equilibration_ps``, ``production_ps``, ``sample_ps``, ``lk0`` and the resolved settings.
+    """
+    from dnarod.analysis.polymer import bending_relaxation_time
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.loads import Clamp, PullingForce, RotationClamp
+    from dnarod.physics.thermal import kT, persistence_length
+
+    s = _settings(settings)
+    ff = load_forcefield(s["forcefield"])
+    model = ff.model_from_sequence(s["sequence"]) if s["sequence"] else ff.model_from_sequence(n_nodes=int(s["n_bp"]))
+    lk0 = intrinsic_turns(model)
+    clamp = s["turns"] is not None
+    check_tweezers(s["force_pN"], s["turns"], rotation_clamp=clamp, lk0=lk0)
+    turns = float(s["turns"] or 0.0)
+    T = float(s["temperature_K"])
+    start = strained_helix(model, s["force_pN"], turns)
+    F = float(s["force_pN"]) * PN
+    loads = [Clamp(0), PullingForce(-1, [0.0, 0.0, F])]
+    target = None
+    if clamp:
+        target = start.frames[-1].copy()
+        loads.append(RotationClamp(-1, float(s["clamp_k_kJ_mol"]), frame=target, axis=np.array([0.0, 0.0, 1.0])))
+    ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
+    if start_pose is not None:
+        from dnarod.workflows.protocols.sweep import add_turns
+
+        if s["previous_turns"] is None:
+            raise DnarodError("a start pose from a sweep needs previous_turns (the turns it was sampled at)")
+        if s["start_force_pN"] is not None:
+            raise DnarodError("start_force_pN with a sweep's start pose: a member starts either from the previous turn "
+                              "value's pose or from a plectoneme grown at a lower force, not both")
+        pos, frm = (np.asarray(a, float) for a in start_pose)
+        if pos.shape != start.positions.shape or frm.shape != start.frames.shape:
+            raise DnarodError(f"start pose of {len(pos)} nodes for a chain of {start.n_nodes}: the sweep's members "
+                              f"must share the source")
+        dt_ = turns - float(s["previous_turns"])
+        start = start.with_pose(*add_turns(pos, frm, dt_))
+        start_info = (f"final pose at {float(s['previous_turns']):+g} turns turned by {dt_:+g} turns "
+                      f"(turn sweep)")
+    else:
+        start_info = "strained helix (linear constitutive law)"
+        try:  # refine to the exact static equilibrium under the loads (a few Newton steps from the helix)
+            from dnarod.physics.statics import solve_static
+
+            start, info = solve_static(start, loads)
+            start_info = f"static equilibrium under the loads (dnarod.physics.statics, {info['iterations']} Newton steps)"
+        except ImportError:
+            pass
+    lp = persistence_length(model.params, model.ds, kT(T))
+    fr = auto_friction(model, s["force_pN"], T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
+    tau = bending_relaxation_time(model.ds * model.n_steps, lp, T, float(np.mean(model.mass)) / model.ds, fr, F)
+    eq = (2.0 if start_pose is not None else 5.0) * tau if s["equilibration_ns"] is None \
+        else 1000.0 * float(s["equilibration_ns"])
+    prod = 1000.0 * float(s["time_ns"])
+    # at least ~200 samples per member (the autocorrelation time is measured from them), at most 10 per tau_1
+    sample = float(np.clip(min(tau / 10.0, prod / 200.0), 1.0, 200.0)) if s["sample_ps"] is None \
+        else float(s["sample_ps"])
+    return dict(settings=s, model=start, loads=loads, clamp_target=target, friction=fr, tau_ps=tau, start=start_info,
+                ref_frame=ref_frame,
+                equilibration_ps=eq, production_ps=prod, sample_ps=sample, lk0=lk0,
+                persistence_length_nm=lp, turns=turns)
+
+
+#: Stiffness (kJ/mol/nm^2) of the surface and bead walls (penetration ~ sqrt(kT/k) = 0.16 nm at 300 K).
+WALL_K = 100.0
+#: Nodes next to each end that the walls leave alone (they sit at the wall by construction).
+WALL_SKIP = 3
+
+
+def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP, platform="CPU", form="auto"):
+    """The surface and the bead of a tweezers member as OpenMM forces (node 0 clamped, last node pulled along +z).
+
+    Without them the chain could swing below its anchor or around the free end and change its linking
+    number through the closure (a real surface and a micron bead forbid both). Surface: every node but the
+    first ``skip`` stays above the plane ``z = z_0`` (``E = k/2 min(0, z - z_0)^2`` on its particles).
+    Bead (a plane, the large-bead limit): every node but the last ``skip`` stays below the last node
+    (``E = k/2 max(0, z_i - z_last)^2`` between one particle of each node and the last node's centroid).
+    Both in the "external" force group (:mod:`dnarod.engines.openmm.walls`: the compiled form on the host platforms
+    where the plugin is usable, else OpenMM Custom forces). Pass them as ``RodSimulation(..., extra_forces=...)``
+    so they exist before the Context is created (every elastic path, the compiled plugin included, then sees
+    them).
+
+    Parameters
+    ----------
+    model : RodModel
+        The member's start pose (z_0 = node 0's z, nm).
+    k : float
+        Wall stiffness, kJ/mol/nm^2.
+    skip : int
+        Nodes next to each end left alone.
+    platform : str
+        OpenMM platform the member runs on (chooses the form).
+    form : {"auto", "compiled", "reference"}
+        See :func:`dnarod.engines.openmm.walls.wall_forces`.
+
+    Returns
+    -------
+    list of openmm.Force
+    """
+    from dnarod.engines.openmm.walls import wall_forces
+
+    return wall_forces(model.n_nodes, float(model.positions[0, 2]), k, skip, platform=platform, form=form)
+
+
+def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
+    """Add the walls of :func:`tweezers_wall_forces` to an existing simulation (``Context.reinitialize``).
+
+    Only for simulations on a path that can follow a reinitialised Context (``elastic="fast"`` or
+    ``"portable"``); members create their simulation with ``extra_forces`` instead.
+    """
+    for f in tweezers_wall_forces(model, k, skip, platform=sim.platform_name):
+        sim.rs.system.addForce(f)
+    sim.context.reinitialize(preserveState=True)
+    sim.invalidate()
+
+
+def _member_simulation(m, model, dt=None):
+    """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``; ``dt`` ps, default
+    the model's own, :class:`~dnarod.engines.openmm.simulation.RodSimulation`)."""
+    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.engines.openmm.platforms import choose_platform
+    from dnarod.engines.openmm.simulation import RodSimulation
+
+    s = m["settings"]
+    nb = member_nonbonded(s)
+    # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
+    # is built) applies; settings["elastic"] can force another path. The walls' form follows the platform.
+    platform = choose_platform(s["platform"], model.n_nodes, s["elastic"], s["threads"])[0].getName()
+    return RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
+                         nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
+                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"], platform=platform),
+                         dt=dt)
+
+
+#: Wall-clock seconds between a member's checkpoints (:func:`sample_member`).
+CHECKPOINT_WALL_S = 120.0
+
+
+def grown_start(m, force_pN, ns):
+    """The member ``m`` (from :func:`build_member`) started from a plectoneme grown for ``ns`` ns at the lower
+    force ``force_pN`` (pN; same turns and clamp target, so the same linking number): "from above", a bracket of
+    the equilibrium with the straight start."""
+    pre = build_member({**m["settings"], "force_pN": force_pN, "start_force_pN": None, "start_ns": None})
+    psim = _member_simulation(pre, pre["model"])
+    psim.advance(int(round(1000.0 * float(ns) / psim.dt)))
+    return {**m, "model": m["model"].with_pose(*psim.node_pose())}
+
+
+def observe(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, contact_nm):
+    """The observables of one tweezers sample (:data:`COLUMNS` but ``time_ps``).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+        Node centres, nm (node 0 on the surface, the last node the bead's).
+    frames : ndarray, shape (n, 3, 3)
+        Directors as columns.
+    model : RodModel
+        The member's model (``params``, ``ds``).
+    end_turns : float
+        The bead's unwrapped rotation about z, turns (the caller follows it between samples).
+    clamp_target : ndarray, shape (3, 3) or None
+        The rotation clamp's target frame (None: no clamp, zero clamp torque).
+    clamp_k : float
+        Clamp stiffness, kJ/mol.
+    sep_nm, contact_nm : float
+        The plectoneme detector's distances (:func:`dnarod.workflows.protocols.measure.detector_distances`).
+
+    Returns
+    -------
+    dict
+        Column -> value (extension nm, torques pN nm, Tw, Wr, Lk in turns, plectoneme fraction, length nm, flag).
+    """
+    from dnarod.workflows.protocols.measure import clamp_torque_z, plectoneme_state, twist_writhe_open, twisting_moment
+
+    row = {"extension_nm": positions[-1, 2] - positions[0, 2], "end_turns": end_turns,
+           "clamp_torque_pN_nm": (clamp_torque_z(frames[-1], clamp_target, clamp_k)
+                                  if clamp_target is not None else 0.0)}
+    tw, wr = twist_writhe_open(positions, frames)
+    row["Tw"], row["Wr"], row["Lk"] = tw, wr, tw + wr
+    f, length, plec, mask = plectoneme_state(positions, model.ds, sep_nm, contact_nm, return_mask=True)
+    row["twist_torque_pN_nm"] = twisting_moment(positions, frames, model.params, model.ds, mask)
+    row["plectoneme_fraction"], row["plectoneme_length_nm"], row["plectonemic"] = f, length, plec
+    return row
+
+
+def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pose_out=None):
+    """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs.
+
+    With ``start_force_pN`` and ``start_ns`` set, the member first runs ``start_ns`` at ``start_force_pN`` (same
+    turns and clamp target, so the same linking number) and starts from that pose: past buckling, a lower
+    force grows a longer plectoneme, so the member approaches its equilibrium from the other side than from
+    the straight start (a bracket of the equilibrium).
+
+    Parameters
+    ----------
+    m : dict
+        From :func:`build_member`.
+    progress : callable, optional
+        ``progress(i, n)`` after each sample.
+    checkpoint : path, optional
+        Checkpoint file (``.npz``): written every ``checkpoint_wall_s`` wall seconds (default
+        :data:`CHECKPOINT_WALL_S`) with the OpenMM state, the samples so far, the unwrapped end rotation and the
+        cost so far; if it exists at the start (same settings), the member resumes from it (the start run is
+        not repeated), so an interrupted member loses at most that much work. Removed by :func:`run_member` once
+        the member is written.
+    pose_out : path, optional
+        Where to write the last pose (``.npz``, :func:`dnarod.workflows.protocols.sweep.save_pose`): the next member of a
+        turn sweep starts from it.
+    """
+    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.measure import detector_distances, rotation_about_z
+
+    s = m["settings"]
+    t0, c0 = time.perf_counter(), time.process_time()
+    resuming = checkpoint is not None and Path(checkpoint).exists()
+    if s["start_force_pN"] is not None and s["start_ns"] and not resuming:
+        # start "from above": a longer plectoneme grown at a lower force (same turns, same clamp target)
+        m = grown_start(m, s["start_force_pN"], s["start_ns"])
+    model = m["model"]
+    sim = _member_simulation(m, model)
+    dt = sim.dt
+    stride = max(1, int(round(m["sample_ps"] / dt)))
+    n_eq = int(round(m["equilibration_ps"] / dt))
+    n_samp = max(4, int(round(m["production_ps"] / (stride * dt))))
+    # equilibrate in chunks (end rotation must be followed to unwrap it)
+    f_ref = m["ref_frame"]
+    last_angle = 0.0
+    turns_acc = 0.0
+
+    def end_rotation(frm):
+        nonlocal last_angle, turns_acc
+        a = float(rotation_about_z(frm[-1], f_ref))
+        turns_acc += ((a - last_angle + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
+        last_angle = a
+        return turns_acc
+
+    done, first, t_eq = 0, 0, None
+    out = {c: np.empty(n_samp) for c in COLUMNS}
+    wall0 = cpu0 = 0.0  # cost of the earlier attempts (resumed from a checkpoint)
+    key = json.dumps(_jsonable_settings(s), sort_keys=True)
+    if resuming:
+        meta = sim.load_checkpoint(checkpoint)["extra"]
+        if meta.get("settings") != key or meta.get("n_samples") != n_samp:
+            raise DnarodError(f"{checkpoint}: checkpoint of a member with other settings; delete it or use a new "
+                              f"member folder")
+        done, first = int(meta["eq_steps"]), int(meta["samples_done"])
+        last_angle, turns_acc = float(meta["last_angle"]), float(meta["turns_acc"])
+        wall0, cpu0, t_eq = float(meta["wall_s"]), float(meta["cpu_s"]), meta.get("equilibration_wall_s")
+        for c in COLUMNS:
+            out[c][:first] = meta["samples"][c]
+    last_ckpt = time.perf_counter()
+    every = CHECKPOINT_WALL_S if checkpoint_wall_s is None else float(checkpoint_wall_s)
+
+    def save(i):
+        nonlocal last_ckpt
+        if checkpoint is None:
+            return
+        sim.save_checkpoint(checkpoint, extra=dict(
+            settings=key, n_samples=n_samp, eq_steps=done, samples_done=i, last_angle=last_angle,
+            turns_acc=turns_acc, wall_s=wall0 + time.perf_counter() - t0, cpu_s=cpu0 + time.process_time() - c0,
+            equilibration_wall_s=t_eq, samples={c: out[c][:i].tolist() for c in COLUMNS}))
+        last_ckpt = time.perf_counter()
+
+    while done < n_eq:
+        k = min(stride, n_eq - done)
+        sim.advance(k)
+        done += k
+        end_rotation(sim.node_pose()[1])
+        if time.perf_counter() - last_ckpt >= every:
+            save(0)
+    if t_eq is None:
+        t_eq = wall0 + time.perf_counter() - t0
+    k_clamp = float(s["clamp_k_kJ_mol"])
+    # the plectoneme detector's distances follow the member's non-bonded terms and salt
+    sep_nm, contact_nm = detector_distances(member_nonbonded(s), float(s["temperature_K"]), model.ds)
+    for i in range(first, n_samp):
+        sim.advance(stride)
+        pos, frm = sim.node_pose()
+        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
+        # the start frame already carries the turns
+        row = observe(pos, frm, model, m["turns"] + end_rotation(frm), m["clamp_target"], k_clamp, sep_nm, contact_nm)
+        for c in COLUMNS[1:]:
+            out[c][i] = row[c]
+        if progress:
+            progress(i + 1, n_samp)
+        if i + 1 < n_samp and time.perf_counter() - last_ckpt >= every:
+            save(i + 1)
+    if pose_out is not None:
+        from dnarod.workflows.protocols.sweep import save_pose
+
+        save_pose(pose_out, *sim.node_pose())
+    wall, cpu = wall0 + time.perf_counter() - t0, cpu0 + time.process_time() - c0
+    steps = n_eq + n_samp * stride
+    cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
+                elastic_path=sim.rs.elastic, plectoneme_contact_nm=contact_nm, plectoneme_min_separation_nm=sep_nm,
+                sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
+    return out, cost
+
+
+def summarize(samples, m, cost):
+    """Means, block standard errors and integrated autocorrelation times of a member's samples."""
+    from dnarod.analysis.polymer import integrated_autocorrelation_time
+
+    s = m["settings"]
+    L0 = m["model"].ds * m["model"].n_steps
+    res = {k: s[k] for k in ("n_bp", "force_pN", "turns", "temperature_K", "salt_M", "seed")}
+    res["turns"] = m["turns"] if s["turns"] is not None else None
+    start = m["start"]
+    if s.get("start_force_pN") is not None and s.get("start_ns"):
+        start += f", begun after {s['start_ns']} ns at {s['start_force_pN']} pN (grown plectoneme)"
+    res["previous_turns"] = s.get("previous_turns")
+    res.update(start=start, contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
+               tau_bend_estimate_ps=m["tau_ps"],
+               equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
+    dt_s = cost["sample_ps"]
+    for c in COLUMNS[1:]:
+        x = np.asarray(samples[c], float)
+        res[c] = float(x.mean())
+        nb = 10 if len(x) >= 20 else max(2, len(x) // 2)
+        b = np.array([v.mean() for v in np.array_split(x, nb)])
+        res[c + "_err"] = float(b.std(ddof=1) / np.sqrt(nb))
+        tau = integrated_autocorrelation_time(x)
+        res[c + "_tau_ps"] = float(tau * dt_s) if np.isfinite(tau) else None
+        if np.isfinite(tau):
+            res[c + "_err_tau"] = float(x.std(ddof=1) * np.sqrt(2.0 * tau / len(x)))
+    slips = np.rint(np.asarray(samples["Lk"]) - m["lk0"] - np.asarray(samples["end_turns"]))
+    res["lk_slips"] = int(np.abs(slips).max())  # nonzero: the chain passed through the closure (see measure)
+    res["relative_extension"] = res["extension_nm"] / L0
+    res["relative_extension_err"] = res["extension_nm_err"] / L0
+    res["delta_lk"] = res["Lk"] - m["lk0"]
+    res["writhe_fraction"] = res["Wr"] / res["delta_lk"] if abs(res["delta_lk"]) > 0.25 else None
+    res["n_effective_extension"] = (len(samples["extension_nm"]) * dt_s / (2.0 * res["extension_nm_tau_ps"])
+                                    if res.get("extension_nm_tau_ps") else None)
+    return res
+
+
+def run_member(settings, member_dir, progress=None, start_pose=None):
+    """Run (or reuse) one tweezers member in ``member_dir``: writes ``samples.csv``, ``final_pose.npz`` and
+    ``protocol_result.json`` (and ``start_pose.npz`` for a member of a turn sweep).
+
+    A finished member (``protocol_result.json`` present with the same settings) is returned without rerunning.
+    With ``start_pose`` (see :func:`build_member`) the key also holds the pose's SHA-256, so the member is
+    reused only if it started from that very pose.
+    """
+    from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
+    from dnarod.workflows.protocols.sweep import FINAL_POSE, START_POSE, pose_sha256, save_pose
+
+    member_dir = ensure_dir(Path(member_dir), "member folder")
+    if start_pose is not None:
+        settings = dict(settings, start_pose_sha256=pose_sha256(*start_pose))
+    m = build_member(settings, start_pose=start_pose)
+    done = member_dir / "protocol_result.json"
+    # start options left unset are not part of the key (members recorded before they existed stay valid)
+    key = jsonable({k: v for k, v in m["settings"].items()
+                    if not (k in ("start_force_pN", "start_ns", "previous_turns", "start_pose_sha256") and v is None)})
+    if done.exists():
+        old = json.loads(done.read_text())
+        if old.get("settings") == key:
+            return old["result"]
+    ckpt = member_dir / "member_checkpoint.npz"
+    if start_pose is not None:
+        save_pose(member_dir / START_POSE, m["model"].positions, m["model"].frames)
+    samples, cost = sample_member(m, progress, checkpoint=ckpt, pose_out=member_dir / FINAL_POSE)
+    res = summarize(samples, m, cost)
+    from dnarod.engines.openmm.nonbonded import member_nonbonded, nonbonded_record
+
+    # the non-bonded terms as run: charge model, e per node, cutoff in Debye lengths and nm
+    res["nonbonded"] = nonbonded_record(member_nonbonded(m["settings"]), m["model"].ds,
+                                        float(m["settings"]["temperature_K"]))
+    lines = [",".join(COLUMNS)] + [",".join(f"{samples[c][i]:.10g}" for c in COLUMNS)
+                                   for i in range(len(samples["time_ps"]))]
+    write_text_atomic(member_dir / "samples.csv", "\n".join(lines) + "\n")
+    write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
+    ckpt.unlink(missing_ok=True)
+    return jsonable(res)
+
+
+def _jsonable_settings(s):
+    from dnarod.core.io import jsonable
+
+    return jsonable(s)
