@@ -14,7 +14,7 @@ from dnarod.analysis import LinkingNumber, StepAnalysis, StiffnessFit, TangentCo
 from dnarod.physics.sampling import sample_chains
 from dnarod.physics.writhe import writhe
 from dnarod.core.forcefield import load_forcefield
-from dnarod.physics.thermal import kT
+from dnarod.core.units import kT
 
 
 def timed(fn, repeat=3):

@@ -65,7 +65,7 @@ def single(n, budget, repeats, elastic="fast"):
                radius_of_gyration_nm=float(np.sqrt(((model.positions - model.positions.mean(0)) ** 2).sum(1).mean())))
     sims = {}
     timed = None
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.nonbonded import NonbondedSettings
 
     legacy = NonbondedSettings(charge="manning", cutoff_debye=5.0)
     for name, nb in (("bonded", False), ("full", True), ("manning5", legacy)):

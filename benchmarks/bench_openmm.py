@@ -54,7 +54,8 @@ def single(n, budget, repeats):
     from dnarod.core.forcefield import load_forcefield
     from dnarod.engines.openmm.particles import particle_positions
     from dnarod.engines.openmm.platforms import choose_platform
-    from dnarod.engines.openmm.simulation import RodSimulation, omega_max
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.physics.modes import omega_max
 
     ff = load_forcefield("dna-default")
     rng = np.random.default_rng(0)

@@ -3,7 +3,7 @@ calibration, in one process.
 
 Runs :func:`dnarod.validate.plectonemes.check_plectonemes` (quick form: 400 bp, ΔLk -2, 3 ns after five bending
 relaxation times, seed 5, 0.15 M, 300 K) twice, each ring in a fresh folder: ``calibrated`` with the default
-:class:`~dnarod.engines.openmm.nonbonded.NonbondedSettings` (Poisson-Boltzmann far-field charge calibrated to the 5.0 nm
+:class:`~dnarod.physics.nonbonded.NonbondedSettings` (Poisson-Boltzmann far-field charge calibrated to the 5.0 nm
 effective diameter, cutoff 12 Debye lengths) and ``manning5`` with Manning's charge and a 5-Debye-length cutoff
 (the defaults before the calibration; a settings subclass with those defaults replaces the class in
 ``dnarod.engines.openmm.nonbonded`` for that run, so every part of the check -- ring member and effective diameter --
@@ -31,7 +31,7 @@ KEYS = ("effective_diameter_nm", "model_writhe", "model_writhe_err", "model_writ
 
 
 def run(mode, root):
-    import dnarod.engines.openmm.nonbonded as nbm
+    import dnarod.physics.nonbonded as nbm
     import dnarod.engines.openmm.simulation  # noqa: F401  (bind the real class in modules that import it at load time)
     import dnarod.engines.openmm.system  # noqa: F401
     from dnarod.validate import plectonemes

@@ -35,7 +35,7 @@ def main():
     ap.add_argument("--full", action="store_true", help="also the 600-bp ring of the full check (~3 min CPU)")
     ap.add_argument("--json", default=str(H.RESULTS / "bench_ring_reference.json"))
     args = ap.parse_args()
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings, member_nonbonded
+    from dnarod.physics.nonbonded import NonbondedSettings, member_nonbonded
     from dnarod.physics.theory.supercoil import effective_diameter, ring_constants
     from dnarod.validate.wlc_ring_mc import pair_parameters, sample_ring_writhe
 

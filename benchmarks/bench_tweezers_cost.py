@@ -173,7 +173,7 @@ def main(argv=None):
     import openmm
 
     from dnarod.engines.openmm import walls as wl
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.nonbonded import NonbondedSettings
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.workflows.protocols import tweezers as tw
     from dnarod.workflows.protocols.measure import plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment

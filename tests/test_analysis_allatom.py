@@ -11,7 +11,7 @@ from dnarod.analysis.allatom import load_allatom
 from dnarod.physics.sampling import sample_chains
 from dnarod.core.forcefield import load_forcefield
 from dnarod.core.stepparams import to_angstrom_degrees
-from dnarod.physics.thermal import kT
+from dnarod.core.units import kT
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "allatom"
 TOP = DATA / "355D_obc2_top.pdb"

@@ -9,7 +9,8 @@ from click.testing import CliRunner
 from dnarod.physics.sampling import sample_chains
 from dnarod.cli.main import main
 from dnarod.core.forcefield import load_forcefield
-from dnarod.physics.thermal import kT, persistence_length
+from dnarod.physics.thermal import persistence_length
+from dnarod.core.units import kT
 
 DATA = Path(__file__).resolve().parent.parent / "data" / "allatom"
 

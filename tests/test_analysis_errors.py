@@ -11,7 +11,7 @@ from dnarod.physics.sampling import sample_chains
 from dnarod.cli.main import main
 from dnarod.core.errors import DnarodError, GeometryError, StructureError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.physics.thermal import kT
+from dnarod.core.units import kT
 from dnarod.core.trajectory import Trajectory
 
 FF = load_forcefield("dna-default")

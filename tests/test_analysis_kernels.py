@@ -135,7 +135,8 @@ def test_haar_weight_and_weighted_moments_match_loops():
 def test_exact_tangent_correlation_average_over_starts():
     from dnarod.physics.thermal import exact_tangent_correlation
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.thermal import kT, mean_rotation, tangent_correlation
+    from dnarod.physics.thermal import mean_rotation, tangent_correlation
+    from dnarod.core.units import kT
 
     ff = load_forcefield("dna-default")
     p = ff.step_parameters(n_steps=12)

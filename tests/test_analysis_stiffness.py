@@ -8,7 +8,8 @@ from dnarod.physics.sampling import sample_chains, sample_steps
 from dnarod.analysis.stiffness import StiffnessFit, stiffness_from_samples
 from dnarod.core.forcefield import load_forcefield
 from dnarod.core.parameters import StepParameters
-from dnarod.physics.thermal import kT, persistence_length, reweighted_covariance_expected, tangent_correlation
+from dnarod.physics.thermal import persistence_length, reweighted_covariance_expected, tangent_correlation
+from dnarod.core.units import kT
 
 KT = kT(300.0)
 
@@ -120,7 +121,7 @@ def test_tangent_correlation_of_exact_samples_matches_transfer_formula():
 def _fit_lax_langevin(tmp_path, n_nodes, n_steps, seed, skip, n_blocks):
     """Run the Lax-form BAOAB engine on dna-default (dt 0.04 ps, friction 2/ps, a frame every 4 ps),
     fit the Haar-reweighted stiffness and check it against the force field's."""
-    from dnarod.engines.lax.run import simulate_langevin
+    from dnarod.run.lax import simulate_langevin
     from dnarod.core.trajectory import Trajectory
 
     ff = load_forcefield("dna-default")

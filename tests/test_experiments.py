@@ -36,7 +36,7 @@ def test_persistence_length_band_brackets_the_salt():
 
 
 def test_wlc_band_orders_and_matches_the_formula():
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     lo, hi = ex.wlc_extension_band([0.1, 1.0, 10.0], 0.15, 1100.0, 300.0)
@@ -54,7 +54,7 @@ def test_torsional_values_in_md_units():
     ms = ex.effective_torsional_persistence(temperature=300.0)
     mtt = [m for m in ms if m.force_pN == pytest.approx(6.5)][0]
     assert (mtt.value, mtt.uncertainty, mtt.unit) == (103.0, 4.0, "nm")
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     rb = [m for m in ms if m.force_pN == pytest.approx(15.0)][0]
     assert rb.value == pytest.approx(440.0 * PN / kT(300.0)) and "300 K" in rb.conditions
@@ -181,7 +181,7 @@ def test_effective_diameter_gate_fails_with_manning_or_a_wrong_charge(tmp_path):
     """The diameter comparison is a check: Manning's charge (the old default) and the calibrated charge halved or
     doubled all fail it; the calibrated charge passes (coarse grid: agrees with the default grid to 1e-4 nm at
     0.15 M)."""
-    from dnarod.engines.openmm.nonbonded import CALIBRATED_LINE_CHARGE, NonbondedSettings
+    from dnarod.physics.nonbonded import CALIBRATED_LINE_CHARGE, NonbondedSettings
     from dnarod.validate.experiment import check_experiment, compare_effective_diameter
     from dnarod.physics.theory.supercoil import effective_diameter
 

@@ -120,7 +120,7 @@ def test_experiment_check_reports_the_comparisons_without_stated_uncertainty(tmp
     assert fe["stretch_modulus_ratio"] == pytest.approx(1.1, rel=1e-6) and fe["max_abs_difference"] < 1.5e-3
     assert "reported" in fe["kind"] and "S 1100 pN vs 1000 pN" in " ".join(r["notes"])
     topo = r["topoisomer_fit"]
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     assert topo["reference_nm"] == pytest.approx(300.0 * PN / kT(300.0), rel=1e-9)  # 72.4 nm at 300 K
     assert topo["ratio"] == pytest.approx(98.25 / 72.43, rel=2e-3)

@@ -45,7 +45,7 @@ def test_model_helix_constants_are_the_dna_default_targets():
 
 
 def test_reported_comparisons_use_the_numbers_read_and_follow_the_model():
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.validate.experiment import compare_cyclization_fit, compare_elastic_ranges
 
     kt = kT(300.0)
@@ -105,7 +105,7 @@ def test_horowitz_wang_abstract_read_as_stated():
 
 
 def test_horowitz_wang_comparison_reports_the_model_beside_the_abstract():
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.validate.experiment import compare_horowitz_wang
 
     r = compare_horowitz_wang(98.25, 0.34, 10.5, 300.0)

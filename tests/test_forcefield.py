@@ -11,7 +11,8 @@ from dnarod.core.errors import ParameterError
 from dnarod.core.forcefield import available_forcefields, load_forcefield, normalise_sequence
 from dnarod.core.parameters import StepParameters
 from dnarod.core.rotations import cayley
-from dnarod.physics.thermal import kT, mean_rotation, persistence_length
+from dnarod.physics.thermal import mean_rotation, persistence_length
+from dnarod.core.units import kT
 
 
 def test_bundled_sets_load():

@@ -7,7 +7,7 @@ from click.testing import CliRunner
 
 from dnarod.core.errors import SimulationError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.engines.lax.run import simulate_exact, simulate_langevin, simulate_nve
+from dnarod.run.lax import simulate_exact, simulate_langevin, simulate_nve
 from dnarod.core.trajectory import Trajectory
 from dnarod.physics.testsystems import dna_like_rod
 

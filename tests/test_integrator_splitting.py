@@ -6,7 +6,7 @@ import pytest
 
 from dnarod.core.errors import DnarodError, SimulationError
 from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator, integrate_exact, omega_max
-from dnarod.engines.lax.modes import normal_modes
+from dnarod.physics.modes import normal_modes
 from dnarod.engines.lax.splitting import RigidState, maxwell_state
 from dnarod.physics.testsystems import TwistedRod, dna_like_rod
 

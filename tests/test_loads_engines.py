@@ -4,8 +4,7 @@ import pytest
 
 from dnarod.core.errors import DnarodError, ParameterError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.physics.loads import (Clamp, PullingForce, RotationClamp, Torque, Trap, clamp_angle, resolve_loads,
-                          rotation_clamp_load)
+from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Torque, Trap, clamp_angle, resolve_loads, rotation_clamp_load
 from dnarod.core.rotations import rotation_about_axis
 
 
@@ -27,12 +26,6 @@ def loaded_set(model):
     return (PullingForce(-1, [0.5, -0.3, 6.0]), Torque(-1, [0.1, 0.2, 1.5]),
             Trap(0, 200.0, centre=model.positions[0] + [0.01, 0.0, -0.02]),
             RotationClamp(0, 300.0, axis=[0.0, 0.0, 1.0], turns=0.25), Clamp(n // 2))
-
-
-def test_old_import_path_is_the_same_class():
-    from dnarod.engines.openmm import loads as old
-
-    assert old.PullingForce is PullingForce and old.RotationClamp is RotationClamp and old.Trap is Trap
 
 
 def test_rotation_clamp_load_matches_finite_differences():

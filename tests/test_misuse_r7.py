@@ -333,7 +333,7 @@ def test_temperature_bound_is_liquid_water():
 def test_cutoff_bound_in_the_api():
     """The API (RunSpec, the protocols' member settings) refuses the cutoffs the options refuse; 50 is accepted."""
     from dnarod.core.errors import DnarodError
-    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.run import RunSpec
 
     RunSpec(source=SEQ, cutoff_debye=50.0).check()

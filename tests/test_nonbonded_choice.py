@@ -7,7 +7,7 @@ from click.testing import CliRunner
 
 from dnarod.cli.main import main
 from dnarod.core.errors import ParameterError
-from dnarod.engines.openmm.nonbonded import NonbondedSettings, member_nonbonded, nonbonded_record
+from dnarod.physics.nonbonded import NonbondedSettings, member_nonbonded, nonbonded_record
 from dnarod.run import RunSpec, run
 from dnarod.run.spec import compare_fingerprints, fingerprint
 

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from dnarod.core.forcefield import load_forcefield
-from dnarod.engines.openmm.nonbonded import (NonbondedCallback, NonbondedSettings, VerletList, nonbonded_reference)
+from dnarod.engines.openmm.nonbonded import NonbondedCallback, VerletList
+from dnarod.physics.nonbonded import NonbondedSettings, nonbonded_reference
 from dnarod.physics.testsystems import gaussian_coil, plectoneme_centres
 
 
@@ -127,7 +128,7 @@ def test_engine_energies_and_forces_equal_all_pairs_on_a_coil():
 def test_gaussian_coil_samples_the_step_covariance_without_close_pairs():
     from scipy.spatial import cKDTree
 
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     m = load_forcefield("dna-default").model_from_sequence("ACGT" * 750)
     c = gaussian_coil(m, seed=11, min_distance=2.3, n_exclude=12)

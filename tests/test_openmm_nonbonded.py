@@ -4,7 +4,8 @@ import pytest
 
 from dnarod.core.errors import GeometryError, ParameterError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.engines.openmm.nonbonded import NonbondedSettings, NonbondedCallback, nonbonded_reference
+from dnarod.engines.openmm.nonbonded import NonbondedCallback
+from dnarod.physics.nonbonded import NonbondedSettings, nonbonded_reference
 from dnarod.engines.openmm.system import build_system
 
 
@@ -28,7 +29,7 @@ def test_debye_and_bjerrum_lengths():
 
 
 def test_charge_models():
-    from dnarod.engines.openmm.nonbonded import CALIBRATED_LINE_CHARGE
+    from dnarod.physics.nonbonded import CALIBRATED_LINE_CHARGE
 
     cal = NonbondedSettings(salt=0.15).resolve(0.34, 300.0)
     # at the calibration salt the Poisson-Boltzmann far-field charge of the calibrated cylinder is the calibrated
@@ -98,8 +99,8 @@ def test_crossing_diameter_of_line_charges_matches_the_continuum_formula(gamma):
     # Debye-Hueckel energy U/kT = 2 pi nu^2 l_B exp(-kappa h) / (kappa sin gamma) (integrate exp(-kappa r)/r over
     # the plane spanned by the lines, area element ds1 ds2 sin gamma). Sites 0.1 nm apart, no core, cutoff 12
     # Debye lengths (the shift is then e^-12 per pair): the site sum must reproduce it.
-    from dnarod.engines.openmm.nonbonded import crossing_diameter
-    from dnarod.physics.thermal import kT
+    from dnarod.physics.nonbonded import crossing_diameter
+    from dnarod.core.units import kT
 
     ds = 0.1
     nb = NonbondedSettings(salt=0.1, excluded_volume=False, cutoff_debye=12.0, charge=0.2).resolve(ds, 300.0)
@@ -115,8 +116,7 @@ def test_poisson_boltzmann_far_field_charge():
     nonlinear charge is below the linearised one (saturation); the calibrated radius reproduces the constant."""
     from scipy.special import k1
 
-    from dnarod.engines.openmm.nonbonded import (BARE_LINE_CHARGE, CALIBRATED_LINE_CHARGE, CALIBRATED_RADIUS,
-                                         calibrated_radius, pb_far_field_line_charge)
+    from dnarod.physics.nonbonded import BARE_LINE_CHARGE, CALIBRATED_LINE_CHARGE, CALIBRATED_RADIUS, calibrated_radius, pb_far_field_line_charge
 
     for salt, a in ((0.01, 1.0), (0.15, 1.159), (1.0, 0.8)):
         k = NonbondedSettings(salt=salt).resolve(0.34, 300.0)["kappa"]
@@ -132,7 +132,7 @@ def test_poisson_boltzmann_far_field_charge():
 
 
 def test_effective_diameter_of_the_default_potential():
-    from dnarod.engines.openmm.nonbonded import CALIBRATION, effective_diameter
+    from dnarod.physics.nonbonded import CALIBRATION, effective_diameter
 
     sigma = 2.0
     grid = dict(n_angles=12, n_phase=2, n_h=200)  # agrees with finer grids to 1e-4 nm at 0.15 M (README)
@@ -151,7 +151,7 @@ def test_effective_diameter_of_the_default_potential():
 
 @pytest.mark.slow
 def test_calibrated_line_charge_is_recomputed():
-    from dnarod.engines.openmm.nonbonded import CALIBRATED_LINE_CHARGE, calibrated_line_charge
+    from dnarod.physics.nonbonded import CALIBRATED_LINE_CHARGE, calibrated_line_charge
 
     nu = calibrated_line_charge(tol_nm=0.005)
     assert nu == pytest.approx(CALIBRATED_LINE_CHARGE, rel=0.01)

@@ -21,7 +21,7 @@ from dnarod.core.energy import loads
 from dnarod.core.forcefield import load_forcefield
 from dnarod.engines.openmm.particles import node_poses, particle_forces_to_loads
 from dnarod.core.rotations import cayley
-from dnarod.physics.thermal import kT
+from dnarod.core.units import kT
 
 TOL = {"mixed": 2e-5, "single": 1e-4}
 
@@ -49,7 +49,8 @@ def model():
 
 
 def _sim(model, precision, elastic="portable"):
-    from dnarod.engines.openmm.simulation import RodSimulation, omega_max
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.physics.modes import omega_max
 
     _require_opencl()
     return RodSimulation(model, platform="OpenCL", precision=precision, temperature=300, friction=1.0,

@@ -8,11 +8,12 @@ from openmm import app, unit
 
 from dnarod.core.errors import ParameterError, SimulationError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.engines.openmm.loads import Clamp, PullingForce, RotationClamp, Torque, Trap
+from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Torque, Trap
 from dnarod.engines.openmm.particles import particle_forces_to_loads
-from dnarod.engines.openmm.simulation import RodSimulation, omega_max
+from dnarod.engines.openmm.simulation import RodSimulation
+from dnarod.physics.modes import omega_max
 from dnarod.run import load_energies, simulate_engine
-from dnarod.physics.thermal import kT
+from dnarod.core.units import kT
 from dnarod.core.trajectory import load_trajectory
 
 
@@ -221,7 +222,8 @@ def test_export_opens_in_mdtraj_and_mdanalysis(dna40, tmp_path):
     import MDAnalysis as mda
     import mdtraj as md
 
-    from dnarod.structure.export import export_trajectory, frames_from_beads
+    from dnarod.structure.export import export_trajectory
+    from dnarod.structure.cg_topology import frames_from_beads
 
     sim = RodSimulation(dna40, temperature=300, nonbonded=False, seed=3)
     simulate_engine(sim, 40, tmp_path, frame_interval=10, progress=False, velocities=True)
@@ -259,7 +261,7 @@ def test_energy_terms_equal_force_group_evaluations(ff):
     """The per-term split read from the fast-path callbacks equals separate force-group evaluations."""
     from dnarod.engines.openmm.forces import GROUPS
 
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings, nonbonded_reference
+    from dnarod.physics.nonbonded import NonbondedSettings, nonbonded_reference
 
     m = ff.model_from_sequence("ACGT" * 15)
     nb = NonbondedSettings(n_exclude=3, diameter=1.1)  # short exclusion: Debye-Hueckel acts along the chain
@@ -375,7 +377,7 @@ def test_nve_converges_to_the_exact_lax_reference(ff):
     """Same mechanical system as the Lax-form engine: OpenMM Verlet (Reference) from the same
     initial centre velocities and body angular velocities converges at order 2 in dt to the
     exact strain-space DOP853 solution of ``dnarod.engines.lax`` (inertia J = m l^2 (1/2, 1/2, 1))."""
-    from dnarod.engines.lax import simulate_exact
+    from dnarod.run.lax import simulate_exact
 
     m = ff.model_from_sequence("ACGTTGCAAC")
     rng = np.random.default_rng(3)

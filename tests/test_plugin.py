@@ -212,7 +212,7 @@ def test_build_without_compiler_still_installs_and_records_why(tmp_path):
 def test_node_pair_force_equals_nonbonded_reference_as_nodes_move(mod):
     """The compiled WCA + Debye-Hueckel (Verlet list) against the all-pairs numpy reference, on a squashed ring
     with many contacts, after small moves (list kept) and large ones (list rebuilt)."""
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings, nonbonded_reference
+    from dnarod.physics.nonbonded import NonbondedSettings, nonbonded_reference
 
     model = load_forcefield("dna-default").ring(n_nodes=120)
     numbers = NonbondedSettings(salt=0.05).resolve(model.ds, 300.0)

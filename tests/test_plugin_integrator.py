@@ -14,7 +14,7 @@ import pytest
 from dnarod.core.forcefield import load_forcefield
 from dnarod.engines.openmm import particles as P
 from dnarod.engines.openmm import plugin
-from dnarod.physics.thermal import kT as kT_of
+from dnarod.core.units import kT as kT_of
 
 
 @pytest.fixture(scope="module")
@@ -141,7 +141,7 @@ def test_checkpoint_resume_is_bit_for_bit(mod):
 
 
 def test_triangles_stay_rigid_and_clamped_nodes_stay_put(mod):
-    from dnarod.engines.openmm.loads import Clamp, PullingForce
+    from dnarod.physics.loads import Clamp, PullingForce
     from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
@@ -161,7 +161,7 @@ def test_triangles_stay_rigid_and_clamped_nodes_stay_put(mod):
 def test_nve_with_loads_and_nonbonded_conserves_energy(mod):
     """Forces OpenMM evaluates (non-bonded PythonForce, an external pull) enter the rigid update correctly: the
     shadow energy is conserved at small dt (drift far below the energy's fluctuation)."""
-    from dnarod.engines.openmm.loads import PullingForce
+    from dnarod.physics.loads import PullingForce
     from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").ring(n_nodes=60)
@@ -274,10 +274,10 @@ def test_node_report_equals_the_openmm_state_path(mod, integrator):
     particles), after steps (the kept node state) and with a force OpenMM evaluates; asking for reports does not
     change the trajectory."""
     from dnarod.engines.openmm.forces import GROUPS
-    from dnarod.engines.openmm.loads import PullingForce
+    from dnarod.physics.loads import PullingForce
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.nonbonded import NonbondedSettings
 
     # small enough for Debye-Hueckel across the ring: a 5-Debye-length cutoff excludes 12 neighbours each side
     # (the default 12 Debye lengths would exclude all 29)

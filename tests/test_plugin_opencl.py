@@ -222,7 +222,7 @@ def test_rigid_body_langevin_on_device(mod):
     with the Context), and node velocities and angular velocities have the Maxwell-Boltzmann variances kT/m,
     kT/J_a (400 samples of 30 nodes 10 steps apart at friction 5/ps: within 10%; measured 0.97-1.02)."""
     from dnarod.engines.openmm.system import build_system
-    from dnarod.physics.thermal import kT as kT_of
+    from dnarod.core.units import kT as kT_of
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 3)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)

@@ -9,14 +9,16 @@ from click.testing import CliRunner
 from dnarod.cli.main import main
 from dnarod.core.errors import DnarodError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.engines.openmm.nonbonded import NonbondedSettings
+from dnarod.physics.nonbonded import NonbondedSettings
 from dnarod.workflows.protocols.measure import (CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops,
                                       plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment)
-from dnarod.workflows.protocols.tweezers import check_tweezers, intrinsic_turns, strained_helix
+from dnarod.workflows.protocols.tweezers import check_tweezers, strained_helix
+from dnarod.physics.loads import intrinsic_turns
 from dnarod.core.rotations import rotation_about_axis
 from dnarod.core.strains import chain_from_strains
 from dnarod.physics.testsystems import plectoneme_centres
-from dnarod.physics.thermal import equilibrium_sample, kT, sample_open_chain_strains
+from dnarod.physics.thermal import equilibrium_sample, sample_open_chain_strains
+from dnarod.core.units import kT
 from dnarod.core.units import PN
 from dnarod.physics.theory.supercoil import effective_diameter
 
@@ -202,7 +204,7 @@ def test_protocol_cli_misuse_exits_2(tmp_path, args, words):
 def test_torque_turns_curve_short_chain(tmp_path):
     """100 bp at 3 pN, +-0.5 turns: the slope gives C_eff near Moroz-Nelson; Lk tracks the clamp; files written."""
     from dnarod.workflows.protocols import torque_turns
-    from dnarod.validate.torsion import bare_twist_persistence, moroz_nelson
+    from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson
 
     c = torque_turns([-0.5, 0.5], tmp_path / "tt", force_pN=3.0, source="100", workers=0,
                      base=dict(time_ns=0.3, equilibration_ns=0.1, seed=3))
@@ -312,7 +314,8 @@ def test_bracketing_starts_keep_the_linking_number(tmp_path):
     from dnarod.core.forcefield import load_forcefield
     from dnarod.workflows.protocols.rings import bend_softened_model, run_ring_member
     from dnarod.workflows.protocols.tweezers import run_member
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
 
     base = dict(n_bp=100, force_pN=1.0, turns=0.8, time_ns=0.02, equilibration_ns=0.01, seed=3)
     a = run_member(base, tmp_path / "straight")
@@ -327,7 +330,7 @@ def test_bracketing_starts_keep_the_linking_number(tmp_path):
     assert persistence_length(soft.params, soft.ds, kT(300.0)) == pytest.approx(lp / 3.0, rel=0.05)
     r = run_ring_member(dict(n_bp=200, delta_lk=-1, time_ns=0.02, equilibration_ns=0.01, start_bend_softening=3.0,
                              start_ns=0.02), tmp_path / "ring")
-    assert r["lk_integer"] == 18 and r["relaxed_twist_thermal"] < r["relaxed_twist"] - 0.05
+    assert r["lk_integer"] == 18 and r["relaxed_twist_thermal"] < r["intrinsic_turns"] - 0.05
 
 
 def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
@@ -560,7 +563,7 @@ def test_member_keys_carry_the_non_bonded_terms(tmp_path):
 
     from dnarod.core.errors import DnarodError
     from dnarod.core.io import jsonable
-    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE, member_nonbonded
+    from dnarod.physics.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE, member_nonbonded
     from dnarod.workflows.protocols import nicked, rings, tweezers
 
     for mod in (rings, nicked, tweezers):

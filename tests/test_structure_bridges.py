@@ -26,7 +26,7 @@ def test_1cgp_cap_kinks_kept_with_intrinsic_structure(intrinsic, kept):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     ff = load_forcefield("dna-default")
-    m = ff.model_from_structure(DATA / "1CGP.pdb", intrinsic=intrinsic)
+    m = model_from_structure(DATA / "1CGP.pdb", forcefield=ff, intrinsic=intrinsic)
     assert m.metadata["intrinsic"] == intrinsic and "amino acid" in m.metadata["selection"]
     roll0 = _roll(m)
     assert roll0[9] > 35 and roll0[19] > 25  # the two CAP kinks (3DNA: roll ~39 and ~29 deg)

@@ -12,7 +12,8 @@ from dnarod.core.model import RodModel
 from dnarod.core.rotations import rotation_about_axis
 from dnarod.core.stepparams import step_parameters
 from dnarod.core.strains import strains
-from dnarod.structure.analysis import analyze_structure, analyze_trajectory, step_parameters_over_frames
+from dnarod.structure.analysis import analyze_structure, step_parameters_over_frames
+from dnarod.structure.trajectory import read_duplex_trajectory
 from dnarod.structure.builders import model_from_sequence, model_from_structure
 from dnarod.structure.rebuild import rebuild_coordinates, rebuild_model, write_pdb
 
@@ -93,7 +94,8 @@ def test_step_parameters_over_frames_matches_direct(tmp_path):
     assert np.allclose(morg, O, atol=1e-9)
     # the same through a multi-model PDB read by MDAnalysis
     write_pdb(tmp_path / "traj.pdb", X, atoms)
-    d2, sp2, _ = analyze_trajectory(tmp_path / "top.pdb", tmp_path / "traj.pdb")
+    r = read_duplex_trajectory(tmp_path / "top.pdb", tmp_path / "traj.pdb")
+    d2, sp2 = r.duplex, r.step_params
     assert sp2.shape == (nf, 13, 6) and np.abs(sp2 - want).max() < 2e-3  # PDB rounds to 1e-4 nm
     with pytest.raises(StructureError, match="coordinates have 5 atoms"):
         step_parameters_over_frames(d, X[:, :5])

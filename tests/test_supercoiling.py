@@ -169,7 +169,7 @@ def test_writhe_fraction_and_P_are_inverse():
 
 def test_twist_variance_exact_matches_the_continuum_formula():
     ring = FF.ring(n_nodes=300)
-    from dnarod.validate.torsion import bare_twist_persistence
+    from dnarod.physics.theory.torsion import bare_twist_persistence
 
     C = bare_twist_persistence(FF.model_from_sequence(n_nodes=4), 300.0)
     exact = th.twist_variance_exact(ring, 300.0)
@@ -180,12 +180,13 @@ def test_twist_variance_exact_matches_the_continuum_formula():
 def test_relaxed_twist_at_temperature():
     """The ring's relaxed linking number at T: the T = 0 intrinsic sum in the cold limit; at 300 K the mean step
     twist angle of the exact step distribution (no geometry), whether or not bending and shear fluctuate."""
-    from dnarod.workflows.protocols.rings import relaxed_twist
-    from dnarod.physics.thermal import kT, relaxed_ribbon_twist, sample_step_strains
+    from dnarod.physics.loads import intrinsic_turns
+    from dnarod.physics.thermal import relaxed_ribbon_twist, sample_step_strains
+    from dnarod.core.units import kT
 
     ring = FF.ring(n_nodes=200)
     cold, se_cold = relaxed_ribbon_twist(ring, 1.0)
-    assert cold == pytest.approx(relaxed_twist(ring), abs=4 * se_cold + 1e-3)
+    assert cold == pytest.approx(intrinsic_turns(ring), abs=4 * se_cold + 1e-3)
     warm, se = relaxed_ribbon_twist(ring, 300.0)
     S = np.diag([100.0, 100.0, 1.0, 100.0, 100.0, 100.0])  # only the twist keeps its (marginal) fluctuations
     from dataclasses import replace
@@ -197,11 +198,11 @@ def test_relaxed_twist_at_temperature():
     direct = 200 * float(np.mean(2 * np.arctan(0.5 * ring.ds * x[:, 2]))) / (2 * np.pi)
     assert tw_s == pytest.approx(direct, abs=4 * se_s + 2e-3)
     assert warm == pytest.approx(direct, abs=4 * se + 2e-3)
-    assert relaxed_twist(ring) - warm > 10 * se  # ~0.085 turns lower than the intrinsic sum at 200 bp
+    assert intrinsic_turns(ring) - warm > 10 * se  # ~0.085 turns lower than the intrinsic sum at 200 bp
 
 
 def test_effective_diameter_of_the_model():
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.nonbonded import NonbondedSettings
 
     d15 = th.effective_diameter(NonbondedSettings(salt=0.15), FF.ds, 300.0)
     coarse = dict(n_h=100, n_gamma=8, n_offset=2)  # converged to < 0.01 nm (finer grids agree to 1e-4 nm at 0.15 M)
@@ -323,9 +324,9 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatc
 
 def test_soft_pair_energy_of_the_ring_reference():
     """The MC's soft pair energy between moved and unmoved segments equals the model's pair energy summed over
-    the same site pairs (numpy, :func:`dnarod.engines.openmm.nonbonded.pair_energy`), exclusions included."""
-    from dnarod.engines.openmm.nonbonded import member_nonbonded, pair_energy
-    from dnarod.physics.thermal import kT
+    the same site pairs (numpy, :func:`dnarod.physics.nonbonded.pair_energy`), exclusions included."""
+    from dnarod.physics.nonbonded import member_nonbonded, pair_energy
+    from dnarod.core.units import kT
     from dnarod.validate import wlc_ring_mc as mc
 
     mc.sample_ring_writhe(68.0, 50.0, 2.0, n_samples=2, equilibration_sweeps=1, seed=0)  # compiles the kernels

@@ -4,7 +4,7 @@ import pytest
 
 from dnarod.core.errors import ParameterError
 from dnarod.engines.lax import omega_max
-from dnarod.engines.lax.modes import normal_modes
+from dnarod.physics.modes import normal_modes
 from dnarod.physics.testsystems import TwistedRod, UniformHelix
 
 

@@ -11,7 +11,8 @@ from dnarod.analysis.polymer import (TangentCorrelation, bending_relaxation_time
 from dnarod.cli.main import main
 from dnarod.core.errors import DnarodError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.physics.thermal import equilibrium_sample, kT, persistence_length
+from dnarod.physics.thermal import equilibrium_sample, persistence_length
+from dnarod.core.units import kT
 from dnarod.core.trajectory import Trajectory
 
 FF = load_forcefield("dna-default")

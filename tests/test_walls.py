@@ -155,7 +155,7 @@ def test_without_the_plugin_the_walls_fall_back_to_numba(monkeypatch):
 
 def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm.loads import Clamp, PullingForce
+    from dnarod.physics.loads import Clamp, PullingForce
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.workflows.protocols import tweezers as tw
     from dnarod.core.units import PN

@@ -4,7 +4,8 @@ import numpy as np
 from dnarod.core.forcefield import load_forcefield
 from dnarod.core.strains import strains
 from dnarod.core.units import PN
-from dnarod.physics.thermal import kT, relaxed_ribbon_twist
+from dnarod.physics.thermal import relaxed_ribbon_twist
+from dnarod.core.units import kT
 from dnarod.workflows.protocols.measure import plectoneme_state, twisting_moment_offset
 from dnarod.physics.writhe import writhe
 from dnarod.analysis.polymer import integrated_autocorrelation_time
@@ -103,8 +104,8 @@ def ring(path, n_bp, every=1):
                 tau_from_Tw=KT * C * 2 * np.pi * (Tw[0] - tw0T) / L, cpu=float(d["cpu"]), n=len(m3s), offset=(off, off_se))
 
 def model_lk0(model):
-    from dnarod.workflows.protocols.rings import relaxed_twist
-    return relaxed_twist(model)
+    from dnarod.physics.loads import intrinsic_turns
+    return intrinsic_turns(model)
 
 if __name__ == "__main__":
     kind = sys.argv[1]

@@ -3,7 +3,8 @@ import sys, time, os
 import numpy as np
 from dnarod.core.forcefield import load_forcefield
 from dnarod.workflows.protocols.rings import sample_ring, _settings
-from dnarod.physics.thermal import kT, persistence_length
+from dnarod.physics.thermal import persistence_length
+from dnarod.core.units import kT
 out_path, n_bp, dlk, time_ns, seed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), float(sys.argv[4]), int(sys.argv[5])
 s = _settings(dict(n_bp=n_bp, delta_lk=dlk, time_ns=time_ns, seed=seed))
 ff = load_forcefield("dna-default")

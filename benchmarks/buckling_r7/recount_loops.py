@@ -16,7 +16,7 @@ import numpy as np
 
 from dnarod.core.forcefield import load_forcefield
 from dnarod.core.io import write_text_atomic
-from dnarod.engines.openmm.nonbonded import member_nonbonded
+from dnarod.physics.nonbonded import member_nonbonded
 from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops
 from dnarod.workflows.protocols.rings import _settings
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
-from dnarod.engines.openmm.nonbonded import member_nonbonded
+from dnarod.physics.nonbonded import member_nonbonded
 from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops, plectoneme_state
 from dnarod.physics.theory.supercoil import effective_diameter
 

@@ -15,7 +15,7 @@ import sys
 import numpy as np
 
 from dnarod.core.forcefield import load_forcefield
-from dnarod.engines.openmm.nonbonded import NonbondedSettings
+from dnarod.physics.nonbonded import NonbondedSettings
 from dnarod.workflows.protocols.measure import detector_distances, plectoneme_state
 from dnarod.physics.thermal import equilibrium_sample
 

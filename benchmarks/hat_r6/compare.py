@@ -68,7 +68,7 @@ def times(root):
 def marko_line(turns, force_pN=1.0, n_bp=1000):
     """Marko's two-phase x/L against turns (the model's A, C_s(F), P; long-chain extension; see sweep.py)."""
     from dnarod.workflows.protocols.sweep import buckling_estimate
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
     from dnarod.physics.theory.supercoil import marko_two_phase
 

@@ -122,7 +122,7 @@ def figure(points, path, target):
     b.axhline(100 * target, color="0.5", lw=0.8, ls="--")
     b.set(ylabel="% of x", xlabel="turns")
     b.legend(fontsize=7)
-    from dnarod.validate._common import save_figure  # atomic PNG, 110 dpi
+    from dnarod.analysis.plots import save_figure  # atomic PNG, 110 dpi
 
     path.parent.mkdir(parents=True, exist_ok=True)
     print(f"wrote {path.parent / save_figure(fig, path.parent, path.name)}")

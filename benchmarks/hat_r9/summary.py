@@ -144,7 +144,7 @@ def figure(points, path, target, labels=("r8",), title="--start exchange"):
     b.plot(*zip(*mids), "^:", color="C5", ms=4, label="swap acceptance of the pair (%)")
     b.set(ylabel="%", xlabel="turns")
     b.legend(fontsize=7)
-    from dnarod.validate._common import save_figure  # atomic PNG, 110 dpi
+    from dnarod.analysis.plots import save_figure  # atomic PNG, 110 dpi
 
     path.parent.mkdir(parents=True, exist_ok=True)
     print(f"wrote {path.parent / save_figure(fig, path.parent, path.name)}")

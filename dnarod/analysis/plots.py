@@ -105,3 +105,16 @@ def plot_step_parameters(mean, std, names, path, title="step parameters"):
     fig.suptitle(title)
     fig.tight_layout()
     _save(fig, path)
+
+
+def new_figure(ncols=1, nrows=1, width=6.0, height=4.0):
+    """A matplotlib figure and its (nrows, ncols) axes array (Agg backend, no display)."""
+    fig, axes = plt.subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False)
+    return fig, axes
+
+
+def save_figure(fig, out_dir, name):
+    """Write ``fig`` to ``out_dir/name`` (PNG, 110 dpi) atomically and close it; returns ``name``."""
+    fig.tight_layout()
+    _save(fig, f"{out_dir}/{name}")
+    return name

@@ -290,7 +290,7 @@ def bending_relaxation_time(contour_length, persistence_length, temperature, mas
     float
         ps (``inf`` without friction: nothing relaxes the mode but the dynamics itself).
     """
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     if ends not in ("free", "hinged"):
         raise DnarodError(f"ends must be 'free' or 'hinged', got {ends!r}")

@@ -226,7 +226,8 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     """
     from dnarod.core.forcefield import load_forcefield
     from dnarod.core.stepparams import to_angstrom_degrees
-    from dnarod.physics.thermal import exact_tangent_correlation, kT as thermal_kT
+    from dnarod.physics.thermal import exact_tangent_correlation
+    from dnarod.core.units import kT as thermal_kT
     from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
     from dnarod.analysis.steps import StepAnalysis
     from dnarod.analysis.stiffness import StiffnessFit

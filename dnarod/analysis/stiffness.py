@@ -32,7 +32,7 @@ import numpy as np
 from dnarod.core.errors import DnarodError, ParameterError
 from dnarod.core.forcefield import write_forcefield
 from dnarod.core.parameters import STRAIN_NAMES, StepParameters
-from dnarod.physics.thermal import kT as thermal_kT
+from dnarod.core.units import kT as thermal_kT
 from dnarod.analysis.base import AnalysisBase, closure_of
 from dnarod.analysis.steps import frame_strains, step_names
 

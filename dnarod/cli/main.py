@@ -119,7 +119,8 @@ def forcefields_cmd(name):
     import numpy as np
 
     from dnarod.core.forcefield import available_forcefields, load_forcefield
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
 
     if name is None:
         for n in available_forcefields():

@@ -99,7 +99,7 @@ def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, 
              seed=seed, **extra)
     if equilibration_ns is not None:
         b["equilibration_ns"] = equilibration_ns
-    from dnarod.engines.openmm.nonbonded import nonbonded_options
+    from dnarod.physics.nonbonded import nonbonded_options
 
     b.update(nonbonded_options(charge, cutoff_debye, salt_M, temperature_K))
     return b

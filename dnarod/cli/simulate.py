@@ -99,7 +99,7 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                       torque, rotation_clamp, turns, clamp_first, trap, minimize, equilibrium, frame_interval,
                       checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
-    from dnarod.engines.openmm.nonbonded import nonbonded_options
+    from dnarod.physics.nonbonded import nonbonded_options
     from dnarod.run.api import source_model
     from dnarod.run.setup import tweezers_loads
     from dnarod.run.spec import RunSpec

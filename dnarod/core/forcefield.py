@@ -34,7 +34,7 @@ from dnarod.core.errors import ParameterError
 from dnarod.core.model import RodModel
 from dnarod.core.parameters import StepParameters, check_stiffness
 from dnarod.core.strains import Closure, chain_from_strains
-from dnarod.physics.thermal import kT
+from dnarod.core.units import kT
 from dnarod.core.units import KG_PER_M3, PA, PN
 
 
@@ -234,24 +234,6 @@ class ForceField:
         return RodModel(pos, frm, params, self.ds, np.full(n, self.node_mass),
                         np.tile(self.node_inertia, (n, 1)), closure=closure, sequence=sequence,
                         metadata={"forcefield": self.name})
-
-
-    def model_from_structure(self, path=None, duplex=None, intrinsic="sequence", **options):
-        """A model whose nodes are the base pairs of a structure file's duplex, with this force field.
-
-        Thin front to :func:`dnarod.structure.builders.model_from_structure`: ``duplex`` is
-        0-based (default the longest); ``intrinsic="structure"`` takes the structure's own step
-        parameters as the intrinsic shape (stiffness from this force field), ``"sequence"``
-        (default) this force field's intrinsic shape for the sequence. ``options``: ``model``,
-        ``altloc``, ``analysis``, ``pairs``, ``extra_residues``, ``ignore_residues``.
-
-        Returns
-        -------
-        RodModel
-        """
-        from dnarod.structure.builders import model_from_structure
-
-        return model_from_structure(path, forcefield=self, duplex=duplex, intrinsic=intrinsic, **options)
 
     def ring(self, sequence=None, n_nodes=None, linking_number=None, delta_linking_number=0):
         """A planar closed ring (see :meth:`RodModel.ring`).

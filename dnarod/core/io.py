@@ -2,9 +2,14 @@
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import tempfile
 from pathlib import Path
+
+import numpy as np
+
+from dnarod.core.errors import DnarodError, ParameterError
 
 
 @contextlib.contextmanager
@@ -17,15 +22,11 @@ def atomic_path(path):
     path = Path(path)
     bad = _first_file_component(path.parent)
     if bad is not None:
-        from dnarod.core.errors import DnarodError
-
         raise DnarodError(f"cannot write {path}: {bad} is a regular file, not a folder; choose another path")
     ensure_dir(path.parent, what=f"folder of {path}")
     try:
         fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     except OSError as exc:  # name the file asked for, not the temporary one (/proc, a read-only disk, ...)
-        from dnarod.core.errors import DnarodError
-
         raise DnarodError(f"cannot write {path}: no file can be created in {path.parent} ({exc.strerror or exc}); "
                           f"choose another path") from None
     os.close(fd)
@@ -61,8 +62,6 @@ def _first_file_component(path):
 
 def check_dir_path(path, what="output folder"):
     """Raise DnarodError if ``path`` or a parent is an existing regular file (nothing is created)."""
-    from dnarod.core.errors import DnarodError
-
     path = Path(path)
     bad = _first_file_component(path)
     if bad is not None:
@@ -79,8 +78,6 @@ def ensure_dir(path, what="output folder"):
     DnarodError
         ``path`` or one of its parents is an existing regular file, or it cannot be created.
     """
-    from dnarod.core.errors import DnarodError
-
     path = check_dir_path(path, what)
     try:
         path.mkdir(parents=True, exist_ok=True)
@@ -141,8 +138,6 @@ def folder_lock(folder, what="output folder"):
     DnarodError
         Another process holds the lock (the message names its pid when known).
     """
-    from dnarod.core.errors import DnarodError
-
     folder = ensure_dir(folder, what)
     path = folder / LOCK_NAME
     fh, previous = _take_lock(path)
@@ -191,8 +186,6 @@ def _take_lock(path):
             return fh, fh.read().strip()
         fcntl.flock(fh, fcntl.LOCK_UN)
         fh.close()
-    from dnarod.core.errors import DnarodError
-
     raise DnarodError(f"{path}: the lock file keeps being replaced by other processes; try again")
 
 
@@ -257,8 +250,6 @@ def check_output_folder(folder, mine, kind, what="output folder"):
     ParameterError
         One line naming the folder and the first entries it holds.
     """
-    from dnarod.core.errors import ParameterError
-
     folder = check_dir_path(folder, what)
     if not folder.is_dir():
         return False
@@ -280,8 +271,6 @@ def check_output_file(path, overwrite=False, what="output file"):
     DnarodError
         A parent is a regular file, ``path`` is a folder, or ``path`` exists and ``overwrite`` is false.
     """
-    from dnarod.core.errors import DnarodError
-
     path = Path(path)
     ensure_dir(path.parent, what=f"folder of the {what}")
     if path.is_dir():
@@ -320,3 +309,37 @@ def jsonable(obj, nonfinite=None):
     if isinstance(obj, Path):
         return str(obj)
     return obj
+
+
+def read_checkpoint(path, fmt, keys):
+    """Read a dnarod checkpoint ``.npz``: ``(meta dict, {key: array})``.
+
+    Raises
+    ------
+    ParameterError
+        One line naming the file when it is missing, truncated, not a checkpoint, or of another
+        engine (``fmt`` is the expected ``meta["format"]``).
+    """
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            meta = json.loads(str(z["meta"]))
+            arrays = {k: z[k].copy() for k in keys}
+    except FileNotFoundError:
+        raise ParameterError(f"cannot resume: {path} does not exist (no checkpoint was written); start a new "
+                             f"run with --overwrite") from None
+    except Exception as exc:  # noqa: BLE001 - BadZipFile, EOFError, KeyError, ValueError, JSON errors, ...
+        why = type(exc).__name__ if not str(exc) else str(exc).splitlines()[0][:80]
+        raise ParameterError(f"{path}: not a readable dnarod checkpoint ({why}); nothing was changed; start a new "
+                             f"run with --overwrite or -o NEWDIR") from None
+    if not isinstance(meta, dict) or meta.get("format") != fmt:
+        got = meta.get("format") if isinstance(meta, dict) else None
+        raise ParameterError(f"{path}: a {got or 'foreign'} file, not a {fmt}; resume with the engine that wrote "
+                             f"it or start a new run with --overwrite")
+    return meta, arrays
+
+
+#: The record an ensemble member keeps beside its run files (its result, settings and log): a folder holding them
+#: is a run folder too (the run layer runs a member into it).
+RESULT = "result.json"
+MEMBER = "member.json"
+LOG = "member.log"

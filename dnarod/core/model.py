@@ -10,6 +10,7 @@ Units: nm, amu, amu nm^2, kJ/mol. Shapes: positions ``(n_nodes, 3)``, frames
 """
 from __future__ import annotations
 
+import hashlib
 import json
 import zipfile
 from dataclasses import dataclass, field, replace
@@ -231,3 +232,19 @@ class RodModel:
                 raise
             raise ParameterError(f"{path}: cannot read dnarod model file ({exc or type(exc).__name__}); give a "
                                  f".npz written by `dnarod build` or a run's final_model.npz") from None
+
+
+def model_fingerprint(model, pose=True):
+    """SHA-256 of everything that defines the mechanical system: sizes, sequence, parameters,
+    masses, inertias, closure, and (with ``pose``) the pose."""
+    h = hashlib.sha256()
+    h.update(f"{model.n_nodes}|{model.sequence or ''}|{float(model.ds)!r}".encode())
+    arrays = [model.params.stiffness, model.params.intrinsic, model.mass, model.inertia]
+    if pose:
+        arrays += [model.positions, model.frames]
+    for a in arrays:
+        h.update(np.ascontiguousarray(a, float).tobytes())
+    if model.closure is not None:
+        h.update(np.ascontiguousarray(model.closure.Q, float).tobytes())
+        h.update(np.ascontiguousarray(model.closure.t, float).tobytes())
+    return h.hexdigest()

@@ -20,3 +20,8 @@ def md_value(quantity):
 
         return quantity.value_in_unit_system(unit.md_unit_system)
     return quantity
+
+
+def kT(temperature):
+    """Thermal energy at ``temperature`` (K), kJ/mol."""
+    return BOLTZMANN * float(temperature)

@@ -27,7 +27,8 @@ from scipy.optimize import brentq
 
 from dnarod.core.forcefield import data_dir
 from dnarod.core.parameters import StepParameters
-from dnarod.physics.thermal import kT as kT_of, persistence_length
+from dnarod.physics.thermal import persistence_length
+from dnarod.core.units import kT as kT_of
 from dnarod.core.units import PN
 
 TARGETS = dict(

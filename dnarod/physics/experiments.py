@@ -175,7 +175,7 @@ def wlc_extension_band(forces_pN, salt_M, stretch_modulus_pN, temperature):
     """Relative extension x/L (extensible WLC, Bouchiat interpolation) implied by the measured persistence
     lengths at ``salt_M``: ``(low, high)`` arrays over ``forces_pN`` (pN) with the model's stretch modulus (pN)
     and kT at ``temperature`` (K). Not measured points: those could not be read (:data:`MISSING`)."""
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     lo, hi, _ = persistence_length_band(salt_M)
@@ -206,7 +206,7 @@ def effective_torsional_persistence(temperature=298.15):
     ``temperature`` (K): the captions read do not state the experiments' temperature, so the conversion is
     the caller's choice and is written into ``conditions``.
     """
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     out = []
     for r in read_table("effective_torsional_stiffness.csv"):
@@ -414,7 +414,7 @@ def effective_diameter_second_virial_reference():
     """Computed effective diameters (nm) with the model's definition -- hard rods with the same second virial
     coefficient as the electrostatic potential -- read in a stored source: 5.0 nm at 0.15 M from the
     Poisson-Boltzmann potential (Gebe et al. 1995, Biophys J abstract, ``dna_diameter.csv``), with its salt
-    (mol/L). The model's Debye-Hückel line charge is calibrated to it (``dnarod.engines.openmm.nonbonded.CALIBRATION``)."""
+    (mol/L). The model's Debye-Hückel line charge is calibrated to it (``dnarod.physics.nonbonded.CALIBRATION``)."""
     out = []
     for r in read_table("dna_diameter.csv"):
         if r["quantity"] != "effective_diameter_second_virial_pb":

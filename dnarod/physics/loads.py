@@ -30,7 +30,7 @@ import numpy as np
 from dnarod.core.errors import ParameterError
 
 __all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
-           "resolve_loads", "ResolvedLoads", "clamp_angle", "check_load_stiffness", "MAX_LOAD_OMEGA_RATIO"]
+           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA"]
 
 
 def _md_units():
@@ -382,62 +382,17 @@ def resolve_loads(loads, model, positions=None, frames=None):
     return out
 
 
-#: Largest ratio of the fastest mode with the loads to the free model's before a load's stiffness is refused:
-#: 10 means a time step 10 times shorter (and a run 10 times longer) than the chain itself needs.
-MAX_LOAD_OMEGA_RATIO = 10.0
-
-#: How :func:`check_load_stiffness` names a stiff load by default: the ``dnarod simulate`` options.
-STIFFNESS_OPTIONS = {"Trap": "--trap", "RotationClamp": "--rotation-clamp"}
+#: Largest pulling force (pN) a member accepts: real DNA overstretches near 65 pN (a structural transition
+#: the elastic rod does not have), and its stretch modulus is calibrated at low force.
+MAX_FORCE_PN = 50.0
 
 
-def check_load_stiffness(model, loads, names=None, omega=None):
-    """Refuse a trap or rotation clamp so stiff that its own vibration, not the chain's, sets the time step.
+#: Largest |sigma| = |turns| / Lk0: beyond a few percent real DNA denatures (underwinding) or forms other
+#: structures (overwinding) under tension; the rod's quadratic twist energy is far outside its calibration at
+#: 10 % and its Cayley twist coordinate stays regular only below 180 degrees per step.
+MAX_SIGMA = 0.1
 
-    The one bound on load stiffness (``dnarod simulate --trap/--rotation-clamp``, ensemble members, the protocols'
-    ``--clamp-k``): the fastest normal mode with the loads (:func:`dnarod.physics.modes.omega_max`) may be at most
-    :data:`MAX_LOAD_OMEGA_RATIO` times the fastest mode without the traps and rotation clamps. A stiffer load
-    holds no better; the run would only be that many times longer. The message names the load and the largest
-    stiffness within the ratio (the mode frequency grows as the square root of the stiffness).
 
-    Parameters
-    ----------
-    model : RodModel
-        The pose the loads act on.
-    loads : sequence of load dataclasses
-    names : dict, optional
-        Load class name -> how to name it in the message (default :data:`STIFFNESS_OPTIONS`); a trap is shown as
-        ``NAME NODE:K`` (K in pN/nm), a rotation clamp as ``NAME K`` (K in kJ/mol).
-    omega : float, optional
-        The fastest mode with the loads, rad/ps, if already known.
-
-    Raises
-    ------
-    ParameterError
-        One line naming the load, its stiffness and the largest accepted.
-    """
-    from dnarod.physics.modes import omega_max
-    from dnarod.core.units import PN
-
-    names = {**STIFFNESS_OPTIONS, **(names or {})}
-    loads = tuple(loads)
-    stiff = [ld for ld in loads if isinstance(ld, (Trap, RotationClamp))]
-    if not stiff:
-        return
-    omega = float(omega_max(model, loads)) if omega is None else float(omega)
-    free = float(omega_max(model, tuple(ld for ld in loads if not any(ld is s for s in stiff))))
-    ratio = omega / free
-    if not ratio > MAX_LOAD_OMEGA_RATIO:
-        return
-    parts = []
-    for ld in stiff:
-        if isinstance(ld, Trap):
-            k = float(ld.k) / PN
-            parts.append(f"{names['Trap']} {ld.node}:{k:g} (pN/nm; use at most "
-                         f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
-        else:
-            k = float(ld.k)
-            parts.append(f"{names['RotationClamp']} {k:g} (kJ/mol; use at most "
-                         f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
-    raise ParameterError(f"{', '.join(parts)}: so stiff that its vibration ({omega:.3g} rad/ps) is {ratio:.3g} times "
-                         f"the chain's fastest mode ({free:.3g} rad/ps) and sets the time step; a stiffer load holds "
-                         f"no better, the run only gets longer")
+def intrinsic_turns(model):
+    """Relaxed linking number Lk0 of an open chain: its intrinsic twist in turns (Cayley twist angles)."""
+    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))

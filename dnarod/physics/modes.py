@@ -42,7 +42,9 @@ from numba import njit
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.kernels import step_loads
-from dnarod.physics.loads import resolve_loads
+from dnarod.core.errors import ParameterError
+from dnarod.core.units import PN
+from dnarod.physics.loads import RotationClamp, Trap, resolve_loads, rotation_clamp_load
 from dnarod.core.rotations import rotation_about_axis
 
 __all__ = ["hessian", "hessian_blocks", "omega_max", "normal_modes", "mass_matrix", "default_time_step",
@@ -51,6 +53,8 @@ __all__ = ["hessian", "hessian_blocks", "omega_max", "normal_modes", "mass_matri
 #: Default time step of both engines: omega_max * dt (design A4: <= 0.25-0.5 for accuracy; the
 #: leapfrog/velocity-Verlet stability limit is 2).
 DEFAULT_OMEGA_DT = 0.4
+#: Largest accepted omega_max * dt (90% of the leapfrog limit 2); the default is dnarod.physics.modes.DEFAULT_OMEGA_DT.
+MAX_OMEGA_DT = 1.8
 #: Relative finite-difference step (translations ``REL_STEP * ds`` nm, rotations ``REL_STEP`` rad).
 REL_STEP = 1e-5
 
@@ -382,7 +386,6 @@ def hessian_blocks(model, loads=(), positions=None, frames=None, mass_weighted=T
 
 def _add_external(diag, rl, frm, angles, hr):
     """Add the stiffness of traps (``k I``) and rotation clamps (central differences of their torque)."""
-    from dnarod.physics.loads import rotation_clamp_load
 
     for k, kk, _ in rl.traps:
         diag[k, :3, :3] += kk * np.eye(3)
@@ -605,3 +608,62 @@ def normal_modes(model, loads=(), k=None, positions=None, frames=None, load_fn=N
     modes[:, :, :3] = q[:, :, :3] / np.sqrt(model.mass)[None, :, None]
     modes[:, :, 3:] = np.einsum("kab,mkb->mka", pos_frm, q[:, :, 3:] / np.sqrt(model.inertia)[None])
     return np.sign(w2) * np.sqrt(np.abs(w2)), modes
+
+
+#: Largest ratio of the fastest mode with the loads to the free model's before a load's stiffness is refused:
+#: 10 means a time step 10 times shorter (and a run 10 times longer) than the chain itself needs.
+MAX_LOAD_OMEGA_RATIO = 10.0
+
+
+#: How :func:`check_load_stiffness` names a stiff load by default: the ``dnarod simulate`` options.
+STIFFNESS_OPTIONS = {"Trap": "--trap", "RotationClamp": "--rotation-clamp"}
+
+
+def check_load_stiffness(model, loads, names=None, omega=None):
+    """Refuse a trap or rotation clamp so stiff that its own vibration, not the chain's, sets the time step.
+
+    The one bound on load stiffness (``dnarod simulate --trap/--rotation-clamp``, ensemble members, the protocols'
+    ``--clamp-k``): the fastest normal mode with the loads (:func:`dnarod.physics.modes.omega_max`) may be at most
+    :data:`MAX_LOAD_OMEGA_RATIO` times the fastest mode without the traps and rotation clamps. A stiffer load
+    holds no better; the run would only be that many times longer. The message names the load and the largest
+    stiffness within the ratio (the mode frequency grows as the square root of the stiffness).
+
+    Parameters
+    ----------
+    model : RodModel
+        The pose the loads act on.
+    loads : sequence of load dataclasses
+    names : dict, optional
+        Load class name -> how to name it in the message (default :data:`STIFFNESS_OPTIONS`); a trap is shown as
+        ``NAME NODE:K`` (K in pN/nm), a rotation clamp as ``NAME K`` (K in kJ/mol).
+    omega : float, optional
+        The fastest mode with the loads, rad/ps, if already known.
+
+    Raises
+    ------
+    ParameterError
+        One line naming the load, its stiffness and the largest accepted.
+    """
+    names = {**STIFFNESS_OPTIONS, **(names or {})}
+    loads = tuple(loads)
+    stiff = [ld for ld in loads if isinstance(ld, (Trap, RotationClamp))]
+    if not stiff:
+        return
+    omega = float(omega_max(model, loads)) if omega is None else float(omega)
+    free = float(omega_max(model, tuple(ld for ld in loads if not any(ld is s for s in stiff))))
+    ratio = omega / free
+    if not ratio > MAX_LOAD_OMEGA_RATIO:
+        return
+    parts = []
+    for ld in stiff:
+        if isinstance(ld, Trap):
+            k = float(ld.k) / PN
+            parts.append(f"{names['Trap']} {ld.node}:{k:g} (pN/nm; use at most "
+                         f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
+        else:
+            k = float(ld.k)
+            parts.append(f"{names['RotationClamp']} {k:g} (kJ/mol; use at most "
+                         f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
+    raise ParameterError(f"{', '.join(parts)}: so stiff that its vibration ({omega:.3g} rad/ps) is {ratio:.3g} times "
+                         f"the chain's fastest mode ({free:.3g} rad/ps) and sets the time step; a stiffer load holds "
+                         f"no better, the run only gets longer")

@@ -4,12 +4,10 @@
 (clamps of any node, dead forces and torques, traps, rotation clamps) to a gradient of ``gtol``
 times the load scale. Each iteration:
 
-* gradient ``g = -(F, tau)`` (lab forces kJ/mol/nm and torques kJ/mol on the free nodes) from the
-  chosen engine: ``engine="lax"`` the exact numpy/numba loads (:func:`dnarod.core.energy.loads` +
-  :meth:`dnarod.physics.loads.ResolvedLoads.evaluate`, what the Lax-form engine integrates); ``engine="openmm"``
-  the OpenMM engine's own forces (Reference platform, double precision, the portable
-  ``CustomCompoundBondForce`` elastic path and the OpenMM translation of the loads), summed to node
-  loads. The fixed point is therefore each engine's own equilibrium;
+* gradient ``g = -(F, tau)`` (lab forces kJ/mol/nm and torques kJ/mol on the free nodes): by default the
+  exact numpy/numba loads (:func:`dnarod.core.energy.loads` + :meth:`dnarod.physics.loads.ResolvedLoads.evaluate`,
+  what the Lax-form engine integrates); an engine may pass its own (``load_fn``; the OpenMM engine's is
+  :func:`dnarod.engines.openmm.simulation.static_load_fn`), so the fixed point is that engine's equilibrium;
 * Hessian: the exact sparse block-tridiagonal Hessian of :mod:`dnarod.physics.modes` in the chart
   ``(dr_k, dtheta_k)`` (``L_k -> exp(hat(dtheta_k)) L_k``), shifted by ``mu I`` (Levenberg) until it
   is positive definite;
@@ -50,33 +48,13 @@ def _lax_loads(model, rl, angles):
     return fn
 
 
-def _openmm_loads(model, loads, angles):
-    from dnarod.engines.openmm.particles import particle_forces_to_loads, particle_positions
-    from dnarod.engines.openmm.simulation import RodSimulation
-
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=1e-3, platform="Reference",
-                        elastic="portable", nonbonded=False, loads=loads, omega_max=1.0)
-    for i, a in enumerate(angles):
-        sim.set_clamp_rotation(float(a), i)
-    radius = sim.rs.radius
-
-    def fn(pos, frm):
-        x = particle_positions(pos, frm, radius)
-        sim.set_particle_positions(x)
-        st = sim.context.getState(getForces=True)
-        F, tau = particle_forces_to_loads(x, sim.node_particles(st.getForces(asNumpy=True)))
-        return np.nan, F, tau
-
-    return fn
-
-
 class StaticResult(dict):
     """Info of a static solve: ``iterations``, ``gradient_norm`` (kJ/mol/nm, max over free nodes of
     ``|g_F|`` and ``|g_tau|/ds``), ``load_scale`` (kJ/mol/nm), ``relative_gradient``, ``converged``,
-    ``energy_kJ_mol`` (elastic + external, dead torques excluded), ``engine``."""
+    ``energy_kJ_mol`` (elastic + external, dead torques excluded)."""
 
 
-def solve_static(model, loads=(), gtol=1e-8, engine="lax", max_iter=200, angles=None, positions=None, frames=None):
+def solve_static(model, loads=(), gtol=1e-8, load_fn=None, max_iter=200, angles=None, positions=None, frames=None):
     """Relax a loaded rod to static equilibrium.
 
     Parameters
@@ -87,8 +65,10 @@ def solve_static(model, loads=(), gtol=1e-8, engine="lax", max_iter=200, angles=
         Clamps (any node), pulling forces, torques, traps, rotation clamps.
     gtol : float
         Relative gradient tolerance (of the load scale, see the module docstring).
-    engine : {"lax", "openmm"}
-        Whose loads define the equilibrium (see the module docstring).
+    load_fn : callable, optional
+        ``load_fn(positions, frames) -> (E, F, tau)``: the loads whose balance defines the equilibrium (kJ/mol,
+        (n, 3) kJ/mol/nm, (n, 3) kJ/mol); default the exact loads (see the module docstring). The energy it
+        returns is not used (the line search uses the exact energy).
     max_iter : int
         Newton iterations.
     angles : sequence of float, optional
@@ -105,10 +85,8 @@ def solve_static(model, loads=(), gtol=1e-8, engine="lax", max_iter=200, angles=
     Raises
     ------
     DnarodError
-        Unknown engine, a free chain with a net dead load (no equilibrium), or no convergence.
+        A free chain with a net dead load (no equilibrium), or no convergence.
     """
-    if engine not in ("lax", "openmm"):
-        raise DnarodError(f"engine must be 'lax' or 'openmm', got {engine!r}")
     if not (np.isfinite(gtol) and gtol > 0):
         raise DnarodError(f"gtol must be a positive number, got {gtol}")
     pos = np.array(model.positions if positions is None else positions, float)
@@ -122,7 +100,7 @@ def solve_static(model, loads=(), gtol=1e-8, engine="lax", max_iter=200, angles=
     free = ~rl.clamped
     ds = model.ds
     merit_fn = _lax_loads(model, rl, angles)
-    grad_fn = merit_fn if engine == "lax" else _openmm_loads(model, loads, angles)
+    grad_fn = merit_fn if load_fn is None else load_fn
 
     def gradient(p, f):
         _, F, tau = grad_fn(p, f)
@@ -198,7 +176,7 @@ def solve_static(model, loads=(), gtol=1e-8, engine="lax", max_iter=200, angles=
         pos, frm, work, g = p2, f2, w2, g2
     info = StaticResult(iterations=it, gradient_norm=float(gnorm(g)), load_scale=float(scale),
                         relative_gradient=float(gnorm(g) / scale), converged=bool(converged),
-                        energy_kJ_mol=float(merit_fn(pos, frm)[0]), engine=engine)
+                        energy_kJ_mol=float(merit_fn(pos, frm)[0]))
     if not converged:
         raise DnarodError(f"static solve did not converge in {max_iter} Newton iterations (gradient "
                           f"{info['gradient_norm']:.3g} kJ/mol/nm, {info['relative_gradient']:.3g} of the load "

@@ -244,7 +244,8 @@ class TwistedRod:
 
 def thermal_tangent_correlation(params, ds, temperature, n_max):
     """Exact ``<d3(k) . d3(k+n)>``, n = 0..n_max, of the free open chain at ``temperature`` (K) (design A5 iii)."""
-    from dnarod.physics.thermal import kT, tangent_correlation
+    from dnarod.physics.thermal import tangent_correlation
+    from dnarod.core.units import kT
 
     return tangent_correlation(params, ds, kT(temperature), n_max)
 
@@ -307,7 +308,7 @@ def gaussian_coil(model, temperature=300.0, seed=0, min_distance=1.0, n_exclude=
     RodModel
         The model with the coiled pose.
     """
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     if model.closure is not None:
         raise ParameterError("gaussian_coil needs an open chain")

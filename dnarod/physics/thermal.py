@@ -15,13 +15,7 @@ import numpy as np
 
 from dnarod.core.parameters import StepParameters
 from dnarod.core.rotations import cayley
-from dnarod.core.units import BOLTZMANN
-
-
-
-def kT(temperature):
-    """Thermal energy at ``temperature`` (K), kJ/mol."""
-    return BOLTZMANN * float(temperature)
+from dnarod.core.units import BOLTZMANN, kT
 
 
 def node_kinetic_energy(mass, inertia, velocities, angular_velocities):
@@ -230,7 +224,7 @@ def relaxed_ribbon_twist(model, temperature, n_samples=400, seed=0):
     ``<Tw>_relaxed`` the mean twist (of d1 about the polygon through the nodes: the Tw of ``Lk = Tw + Wr``) of
     the same steps free of any constraint (``<Wr> = 0`` for the relaxed ring by mirror symmetry of a model
     without chiral bending couplings). At T = 0 it is the sum of the intrinsic Cayley twist angles over 2 pi
-    (``dnarod.workflows.protocols.rings.relaxed_twist``); at finite T it is lower, because the step rotations are
+    (``dnarod.physics.loads.intrinsic_turns``); at finite T it is lower, because the step rotations are
     distributed with the invariant (Haar) measure, whose density in Cayley coordinates ``w = ds Omega`` falls
     as ``(1 + |w|²/4)^-2`` and so pulls the mean twist strain of a step below its intrinsic value, and because
     the twist angle ``2 atan(w_3/2)`` is concave in the strain. For ``dna-default`` at 300 K this is 0.44

@@ -12,10 +12,10 @@ adapter, checkpoint files), :mod:`.reporters` (``.dtraj``, energies CSV, progres
 (:func:`run_engine`, the one run loop), :mod:`.api` (:func:`run`, :class:`RunResult`).
 """
 from dnarod.run.api import RUN_FILES, RunResult, run
-from dnarod.run.engine import LaxEngine
+from dnarod.run.engine import Engine
 from dnarod.run.loop import run_engine, simulate_engine
 from dnarod.run.reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter, load_energies
 from dnarod.run.spec import RunSpec
 
-__all__ = ["RunSpec", "run", "RunResult", "RUN_FILES", "run_engine", "simulate_engine", "LaxEngine", "DtrajReporter",
+__all__ = ["RunSpec", "run", "RunResult", "RUN_FILES", "run_engine", "simulate_engine", "Engine", "DtrajReporter",
            "EnergyReporter", "ProgressReporter", "ENERGY_COLUMNS", "load_energies"]

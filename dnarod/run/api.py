@@ -25,14 +25,14 @@ import numpy as np
 from dnarod.core.errors import ParameterError
 from dnarod.core.io import check_dir_path, check_output_folder, folder_lock, jsonable, write_text_atomic
 from dnarod.run.spec import RunSpec, compare_fingerprints, fingerprint
+from dnarod.core.io import read_checkpoint
+from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
 RUN_FILES = {"run_json": "run.json", "trajectory": "trajectory.dtraj", "energies": "energies.csv",
              "checkpoint": "checkpoint.npz", "final_model": "final_model.npz", "pdb": "trajectory.pdb",
              "dcd": "trajectory.dcd", "xtc": "trajectory.xtc"}
 CHECKPOINT_FORMATS = {"openmm": "dnarod-openmm-checkpoint", "lax": "dnarod-lax-checkpoint"}
-#: Largest accepted omega_max * dt (90% of the leapfrog limit 2); the default is dnarod.physics.modes.DEFAULT_OMEGA_DT.
-MAX_OMEGA_DT = 1.8
 #: Mean elastic energy per step of the start pose (kT) above which a run warns / is refused.
 WARN_KT_PER_STEP = 20.0
 REFUSE_KT_PER_STEP = 100.0
@@ -113,8 +113,6 @@ def default_omega_max(model, loads=()):
 
 def choose_dt(spec, model, omega):
     """Time step, ps: ``spec.dt`` (checked against the stability limit) or ``0.4 / omega_max``."""
-    from dnarod.physics.modes import DEFAULT_OMEGA_DT
-
     limit = MAX_OMEGA_DT / omega
     if spec.dt is None:
         return DEFAULT_OMEGA_DT / omega
@@ -130,7 +128,7 @@ def check_start_pose(model, temperature):
     storing far more elastic energy than equipartition (a tiny ring), which heats the run up."""
     from dnarod.core.energy import loads as elastic_loads
     from dnarod.core.rotations import MAX_CAYLEY_ANGLE
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     if model.n_steps == 0:
         raise ParameterError("the model has a single node: a chain needs at least 2")
@@ -190,15 +188,13 @@ def preflight(spec, model=None):
 
 
 def _default_dt(omega):
-    from dnarod.physics.modes import DEFAULT_OMEGA_DT
-
     return DEFAULT_OMEGA_DT / omega
 
 
 def check_load_stiffness(spec, model, omega=None):
     """:func:`dnarod.physics.loads.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode with
     the loads, rad/ps, if known), naming the ``simulate`` options."""
-    from dnarod.physics.loads import check_load_stiffness as check
+    from dnarod.physics.modes import check_load_stiffness as check
 
     check(model, spec.loads, omega=omega)
 
@@ -207,7 +203,7 @@ def make_engine(spec, model, dt, seed, omega):
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
     if spec.engine == "lax":
-        from dnarod.run.engine import LaxEngine
+        from dnarod.engines.lax.engine import LaxEngine
 
         return LaxEngine(model, dt, spec.temperature, spec.friction, seed, spec.loads, duration_ps, omega)
     from dnarod.engines.openmm.simulation import RodSimulation
@@ -238,9 +234,9 @@ def intervals(spec, dt):
 
 def run_folder_markers():
     """Names that mark a folder as a run's (any of them): the run files, and the record of an ensemble member
-    (:mod:`dnarod.workflows.ensemble.member`), whose folder is a run folder. A new run refuses any other non-empty folder
-    (:func:`dnarod.core.io.check_output_folder`)."""
-    from dnarod.workflows.ensemble.member import LOG, MEMBER, RESULT
+    (:data:`dnarod.core.io.RESULT`, ``MEMBER``, ``LOG``), whose folder is a run folder. A new run refuses any other
+    non-empty folder (:func:`dnarod.core.io.check_output_folder`)."""
+    from dnarod.core.io import LOG, MEMBER, RESULT
 
     return (*RUN_FILES.values(), MEMBER, LOG, RESULT)
 
@@ -340,8 +336,6 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
 
 
 def _resume(spec, outdir, paths, progress):
-    from dnarod.run.engine import read_checkpoint
-
     if not paths["run_json"].exists():
         raise ParameterError(f"cannot resume: {paths['run_json']} does not exist (no run was started in {outdir}); "
                              f"drop --resume to start one")

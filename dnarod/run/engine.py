@@ -1,211 +1,64 @@
-"""The engine protocol of the run layer, the Lax-form engine adapter, and checkpoint files.
+"""The engine protocol of the run layer: what :func:`dnarod.run.run_engine` drives.
 
-An *engine* is anything with (duck-typed, like OpenMM's reporters)::
+An engine is any object with these members (duck-typed, like OpenMM's reporters; :class:`Engine` states them
+as a :class:`typing.Protocol` for type checkers). Engines never import the run layer: the run layer builds
+them (:func:`dnarod.run.api.make_engine`) and feeds their state to its reporters.
 
-    name : str                          "openmm" or "lax"
-    model : RodModel                    the model it was built from (parameters, masses, closure)
-    dt : float                          time step, ps
-    step : int                          steps done since the start of the run
-    omega_max : float                   fastest normal mode of the start pose, rad/ps
-    advance(n_steps)                    integrate; raise SimulationError naming step, node, term
-    node_state() -> (positions (n,3) nm, frames (n,3,3), velocities (n,3) nm/ps lab,
-                     angular_velocities (n,3) rad/ps body), on-step
-    energies() -> dict                  kJ/mol: potential, kinetic, elastic, nonbonded, external; K: temperature
-    save_checkpoint(path, extra=None)   atomically; enough to continue bit-for-bit
-    load_checkpoint(path) -> meta       restore (raises ParameterError on a foreign/corrupt file)
-    current_model() -> RodModel         the model at the current pose
-    update_loads(time_ps, duration_ps)  turn rotation clamps to their angle at time_ps (optional)
-
-:class:`dnarod.engines.openmm.simulation.RodSimulation` is the OpenMM engine; :class:`LaxEngine` wraps
-:class:`dnarod.engines.lax.splitting.SplittingIntegrator`.
+* :class:`dnarod.engines.openmm.simulation.RodSimulation`: the OpenMM engine.
+* :class:`dnarod.engines.lax.engine.LaxEngine`: the direct Lax-form splitting integrator.
 """
 from __future__ import annotations
 
-import json
+from pathlib import Path
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from dnarod.core.errors import ParameterError, SimulationError
-from dnarod.core.io import atomic_path
+from dnarod.core.model import RodModel
 
 
-def read_checkpoint(path, fmt, keys):
-    """Read a dnarod checkpoint ``.npz``: ``(meta dict, {key: array})``.
+@runtime_checkable
+class Engine(Protocol):
+    """An engine the run layer can drive.
 
-    Raises
-    ------
-    ParameterError
-        One line naming the file when it is missing, truncated, not a checkpoint, or of another
-        engine (``fmt`` is the expected ``meta["format"]``).
-    """
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            meta = json.loads(str(z["meta"]))
-            arrays = {k: z[k].copy() for k in keys}
-    except FileNotFoundError:
-        raise ParameterError(f"cannot resume: {path} does not exist (no checkpoint was written); start a new "
-                             f"run with --overwrite") from None
-    except Exception as exc:  # noqa: BLE001 - BadZipFile, EOFError, KeyError, ValueError, JSON errors, ...
-        why = type(exc).__name__ if not str(exc) else str(exc).splitlines()[0][:80]
-        raise ParameterError(f"{path}: not a readable dnarod checkpoint ({why}); nothing was changed; start a new "
-                             f"run with --overwrite or -o NEWDIR") from None
-    if not isinstance(meta, dict) or meta.get("format") != fmt:
-        got = meta.get("format") if isinstance(meta, dict) else None
-        raise ParameterError(f"{path}: a {got or 'foreign'} file, not a {fmt}; resume with the engine that wrote "
-                             f"it or start a new run with --overwrite")
-    return meta, arrays
-
-
-class LaxEngine:
-    """The Lax-form splitting integrator (:mod:`dnarod.engines.lax.splitting`) as a run-layer engine.
-
-    Parameters
+    Attributes
     ----------
+    name : str
+        ``"openmm"`` or ``"lax"`` (recorded in run files).
     model : RodModel
-        Start pose, parameters, masses, inertias, closure.
+        The model it was built from (parameters, masses, closure).
     dt : float
         Time step, ps.
-    temperature : float
-        K; Maxwell initial velocities (0: at rest) and, with ``friction > 0``, the thermostat.
-    friction : float
-        Collision rate, 1/ps; 0 runs NVE (symplectic splitting), > 0 BAOAB Langevin.
-    seed : int
-        Initial velocities and Langevin noise.
-    loads : sequence
-        :mod:`dnarod.physics.loads` dataclasses.
-    duration_ps : float, optional
-        Run length over which rotation clamps' ``turns`` are spread.
-    omega_max : float, optional
-        rad/ps, if already known (recorded only; the run layer checks the time step).
-    fast : bool or str
-        numba kernel (default) or the numpy reference (False).
+    step : int
+        Steps done since the start of the run (restored by :meth:`load_checkpoint`).
+    omega_max : float
+        Fastest normal mode of the start pose, rad/ps.
     """
 
-    name = "lax"
-
-    def __init__(self, model, dt, temperature=300.0, friction=1.0, seed=None, loads=(), duration_ps=None,
-                 omega_max=None, fast=True):
-        from dnarod.engines.lax.boundary import BoundaryConditions
-        from dnarod.engines.lax.splitting import SplittingIntegrator, maxwell_state
-
-        self.model = model
-        self.temperature = float(temperature)
-        if not (np.isfinite(self.temperature) and self.temperature >= 0):
-            raise ParameterError(f"temperature must be >= 0 K, got {temperature}")
-        friction = float(friction)
-        if not (np.isfinite(friction) and friction >= 0):
-            raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
-        self.friction = friction
-        self.seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
-        loads = tuple(loads)
-        self.boundary = BoundaryConditions.from_loads(loads, duration_ps=duration_ps) if loads \
-            else BoundaryConditions()
-        state = maxwell_state(model, self.temperature, self.seed, self.boundary)
-        langevin = friction > 0
-        integ = SplittingIntegrator(model, dt, state=state, boundary=self.boundary,
-                                    temperature=self.temperature if langevin else None,
-                                    friction=friction if langevin else None, seed=self.seed, fast=fast,
-                                    check_stability=False)
-        self._attach(integ, omega_max, duration_ps)
-
-    def _attach(self, integ, omega_max, duration_ps):
-        self.integ = integ
-        self.model = integ.model
-        self.boundary = integ.boundary
-        self.dt = float(integ.dt)
-        self.omega_max = omega_max if omega_max is not None else integ.omega_max
-        self.n_dof = 6 * int(integ.free.sum())
-        has_loads = hasattr(self.boundary, "resolved") and not self.boundary.empty
-        self._resolved = self.boundary.resolved(self.model) if has_loads else None
-        self._duration = duration_ps if duration_ps is not None else getattr(self.boundary, "duration_ps", None)
-
-    @classmethod
-    def wrap(cls, integrator, temperature=0.0, friction=0.0, seed=None):
-        """An engine around an existing :class:`SplittingIntegrator` (its state, boundary and noise)."""
-        self = cls.__new__(cls)
-        self.temperature = float(temperature)
-        self.friction = float(friction)
-        self.seed = seed
-        self._attach(integrator, None, None)
-        return self
+    name: str
+    model: RodModel
+    dt: float
+    omega_max: float
 
     @property
-    def step(self):
-        return self.integ.step_count
+    def step(self) -> int: ...
 
-    def advance(self, n_steps):
-        """Integrate ``n_steps`` steps (SimulationError names the step, node and quantity on a blow-up)."""
-        self.integ.step(int(n_steps))
-        if not np.isfinite(self.integ.potential_energy):
-            st = self.integ.state
-            ke = (np.sum(st.momenta**2, 1) / self.model.mass + np.sum(st.angular_momenta**2 / self.model.inertia, 1))
-            node = int(np.argmax(np.where(np.isfinite(ke), ke, np.inf)))
-            raise SimulationError(f"simulation blew up at step {self.step}: node {node}, term 'elastic' (energy "
-                                  f"not finite); reduce dt or check the loads/model", step=self.step, node=node,
-                                  term="elastic")
+    def advance(self, n_steps: int) -> None:
+        """Integrate ``n_steps`` steps; raise :class:`~dnarod.core.errors.SimulationError` naming the step, node
+        and term on a blow-up."""
 
-    def node_state(self):
-        s = self.integ.state
-        v, w = s.velocities(self.model.mass, self.model.inertia)
-        return s.positions, s.frames, v, w
+    def node_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """On-step ``(positions (n, 3) nm, frames (n, 3, 3), velocities (n, 3) nm/ps lab, angular velocities
+        (n, 3) rad/ps body)``."""
 
-    def energies(self):
-        """kJ/mol per term (elastic, nonbonded = 0, external) plus potential, kinetic; temperature K."""
-        from dnarod.physics.thermal import kinetic_temperature
+    def energies(self) -> dict[str, float]:
+        """kJ/mol: ``potential``, ``kinetic``, ``elastic``, ``nonbonded``, ``external``; K: ``temperature``."""
 
-        s = self.integ.state
-        elastic = float(self.integ.potential_energy)
-        external = 0.0
-        if self._resolved is not None:
-            angles = self._resolved.clamp_angles(self.step * self.dt, self._duration) \
-                if self._resolved.rotation_clamps else None
-            external = float(self._resolved.evaluate(s.positions, s.frames, angles)[0])
-        ke = self.integ.kinetic_energy()
-        return dict(elastic=elastic, nonbonded=0.0, external=external, potential=elastic + external, kinetic=ke,
-                    temperature=float(kinetic_temperature(ke, self.n_dof)))
+    def save_checkpoint(self, path: str | Path, extra: dict[str, Any] | None = None) -> None:
+        """Write, atomically, everything needed to continue bit for bit."""
 
-    def current_model(self):
-        s = self.integ.state
-        return self.model.with_pose(s.positions.copy(), s.frames.copy())
+    def load_checkpoint(self, path: str | Path) -> dict[str, Any]:
+        """Restore a checkpoint; a foreign or corrupt file raises :class:`~dnarod.core.errors.ParameterError`."""
 
-    def update_loads(self, time_ps, duration_ps=None):
-        """Rotation clamps turn inside the integrator (from its step count); nothing to do."""
-
-    def save_checkpoint(self, path, extra=None):
-        """State, step, time step and the random-number state, atomically (npz)."""
-        from dnarod.run.spec import model_fingerprint
-
-        s = self.integ.state
-        meta = dict(format="dnarod-lax-checkpoint", version=2, step=self.step, dt=self.dt,
-                    n_nodes=self.model.n_nodes, langevin=self.integ.langevin,
-                    fingerprint=model_fingerprint(self.model, pose=False),
-                    rng=self.integ.rng.bit_generator.state, extra=extra or {})
-        with atomic_path(path) as tmp:
-            with open(tmp, "wb") as fh:
-                np.savez(fh, positions=s.positions, frames=s.frames, momenta=s.momenta,
-                         angular_momenta=s.angular_momenta, meta=np.array(json.dumps(meta)))
-
-    def load_checkpoint(self, path):
-        """Restore a checkpoint of :meth:`save_checkpoint` for this model and time step; returns its metadata."""
-        from dnarod.run.spec import model_fingerprint
-
-        meta, a = read_checkpoint(path, "dnarod-lax-checkpoint",
-                                  ("positions", "frames", "momenta", "angular_momenta"))
-        n = self.model.n_nodes
-        if meta.get("n_nodes") != n or any(a[k].shape[0] != n for k in a) or \
-                meta.get("fingerprint", model_fingerprint(self.model, pose=False)) != \
-                model_fingerprint(self.model, pose=False):
-            raise ParameterError(f"{path}: checkpoint belongs to another model ({meta.get('n_nodes')} nodes, "
-                                 f"different parameters or masses); resume with the model it was written for")
-        if not np.isclose(meta.get("dt", np.nan), self.dt, rtol=1e-12, atol=0) or \
-                bool(meta.get("langevin")) != self.integ.langevin:
-            raise ParameterError(f"{path}: checkpoint was written with dt {meta.get('dt')} ps "
-                                 f"({'Langevin' if meta.get('langevin') else 'NVE'}), this run uses dt {self.dt} ps "
-                                 f"({'Langevin' if self.integ.langevin else 'NVE'})")
-        st = self.integ.state
-        for k in a:
-            getattr(st, k)[...] = a[k]
-        self.integ.step_count = int(meta["step"])
-        self.integ.rng.bit_generator.state = meta["rng"]
-        self.integ.potential_energy, self.integ.F, self.integ.tau = self.integ._initial_loads()
-        return meta
+    def current_model(self) -> RodModel:
+        """The model at the current pose."""

@@ -73,7 +73,7 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
     if turns is not None and not np.isfinite(turns):
         raise ParameterError(f"--turns {turns}: must be a finite number")
     if turns:
-        from dnarod.workflows.protocols.tweezers import intrinsic_turns
+        from dnarod.physics.loads import intrinsic_turns
 
         lk0 = float(intrinsic_turns(model))
         # an untwisted rod (uniform force fields): the limit is a quarter turn per step
@@ -81,7 +81,7 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
             raise ParameterError(f"--turns {turns:g} is more than the {lk0:.1f} helical turns of this {n}-node chain "
                                  f"(sigma = {turns / lk0:+.3g}): the rod model cannot hold it (real DNA denatures "
                                  f"beyond |sigma| ~ 0.1); use |turns| <= {0.1 * abs(lk0):.2g} for real DNA")
-    from dnarod.workflows.protocols.tweezers import MAX_FORCE_PN  # below overstretching (~65 pN), which the rod model lacks
+    from dnarod.physics.loads import MAX_FORCE_PN  # below overstretching (~65 pN), which the rod model lacks
 
     if pull is not None and abs(pull) > MAX_FORCE_PN:
         raise ParameterError(f"--pull {pull:g} pN is above {MAX_FORCE_PN:g} pN: DNA overstretches near 65 pN, a "

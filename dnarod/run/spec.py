@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 import numpy as np
 
 from dnarod.core.errors import ParameterError
+from dnarod.core.model import model_fingerprint
 
 ENGINES = ("openmm", "lax")
 STARTS = ("intrinsic", "equilibrium", "minimized")
@@ -52,7 +53,7 @@ class RunSpec:
         Non-bonded interactions (OpenMM engine; the Lax engine has none and refuses them on).
     charge, cutoff_debye : str or float, float, optional
         Non-bonded charge model (``"calibrated"``, ``"manning"`` or e per base pair) and Debye-Hueckel cutoff
-        (Debye lengths) of :class:`dnarod.engines.openmm.nonbonded.NonbondedSettings`; ``None``: its defaults. What they
+        (Debye lengths) of :class:`dnarod.physics.nonbonded.NonbondedSettings`; ``None``: its defaults. What they
         resolve to (model, e per node, cutoff in nm and Debye lengths) is recorded in the run's fingerprint.
     platform : str or None
         OpenMM platform (default CPU).
@@ -241,11 +242,11 @@ class RunSpec:
         return self
 
     def nonbonded_settings(self, check=False):
-        """The :class:`dnarod.engines.openmm.nonbonded.NonbondedSettings` of the run, or ``False`` when both terms are off
+        """The :class:`dnarod.physics.nonbonded.NonbondedSettings` of the run, or ``False`` when both terms are off
         (``check``: refuse a bad charge or cutoff with one line, :class:`ParameterError`)."""
         if not self.nonbonded:
             return False
-        from dnarod.engines.openmm.nonbonded import NonbondedSettings, member_nonbonded
+        from dnarod.physics.nonbonded import NonbondedSettings, member_nonbonded
 
         extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
         if check:
@@ -284,22 +285,6 @@ def load_json(load):
     return jsonable({"type": type(load).__name__, **d})
 
 
-def model_fingerprint(model, pose=True):
-    """SHA-256 of everything that defines the mechanical system: sizes, sequence, parameters,
-    masses, inertias, closure, and (with ``pose``) the pose."""
-    h = hashlib.sha256()
-    h.update(f"{model.n_nodes}|{model.sequence or ''}|{float(model.ds)!r}".encode())
-    arrays = [model.params.stiffness, model.params.intrinsic, model.mass, model.inertia]
-    if pose:
-        arrays += [model.positions, model.frames]
-    for a in arrays:
-        h.update(np.ascontiguousarray(a, float).tobytes())
-    if model.closure is not None:
-        h.update(np.ascontiguousarray(model.closure.Q, float).tobytes())
-        h.update(np.ascontiguousarray(model.closure.t, float).tobytes())
-    return h.hexdigest()
-
-
 def fingerprint(spec, model, dt, seed):
     """Everything a resumed run must share with the run it continues (name -> JSON value).
 
@@ -333,7 +318,7 @@ def _nonbonded_fingerprint(spec, model):
     fp = dict(excluded_volume=bool(spec.excluded_volume), electrostatics=bool(spec.electrostatics),
               salt_mol_L=float(spec.salt) if spec.nonbonded else None)
     if spec.engine == "openmm" and spec.electrostatics:
-        from dnarod.engines.openmm.nonbonded import nonbonded_record
+        from dnarod.physics.nonbonded import nonbonded_record
 
         rec = nonbonded_record(spec.nonbonded_settings(), model.ds, spec.temperature or 300.0)
         fp.update({k: rec[k] for k in CHARGE_ENTRIES})

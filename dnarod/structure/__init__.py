@@ -6,10 +6,11 @@ middle frames), ``analysis`` (the pipeline, also over trajectory frames), ``buil
 (RodModel from a structure or a sequence), ``rebuild`` (all-atom PDB from node frames),
 ``cli_structure`` (the ``steps``, ``pairs``, ``build``, ``rebuild`` commands).
 """
-from dnarod.structure.analysis import analyze_structure, analyze_trajectory, step_parameters_over_frames
+from dnarod.structure.analysis import analyze_structure, step_parameters_over_frames
+from dnarod.structure.trajectory import read_duplex_trajectory
 from dnarod.structure.builders import model_from_sequence, model_from_structure
 from dnarod.structure.reader import read_structure
 from dnarod.structure.rebuild import rebuild_coordinates, rebuild_model, write_pdb
 
-__all__ = ["analyze_structure", "analyze_trajectory", "step_parameters_over_frames", "model_from_sequence",
+__all__ = ["analyze_structure", "read_duplex_trajectory", "step_parameters_over_frames", "model_from_sequence",
            "model_from_structure", "read_structure", "rebuild_coordinates", "rebuild_model", "write_pdb"]

@@ -229,29 +229,3 @@ def step_parameters_over_frames(duplex, coordinates):
     bp, mid, morg = pair_parameters(F[0], O[0], F[1], O[1])
     sp = step_parameters(mid[:, :-1], morg[:, :-1], mid[:, 1:], morg[:, 1:])
     return sp, bp, mid, morg
-
-
-def analyze_trajectory(topology, trajectory=None, duplex=0, model=1):
-    """Step parameters of every frame of an all-atom trajectory (vectorised over frames).
-
-    Parameters
-    ----------
-    topology : str or Path
-        PDB/mmCIF of the system (pairs are found on it with :func:`analyze_structure`).
-    trajectory : str or Path, optional
-        Any trajectory MDAnalysis reads (DCD, XTC, multi-model PDB, ...), atoms in the order
-        of ``topology``. Default: the models of ``topology`` itself.
-    duplex : int
-        Which duplex (0-based).
-    model : int
-        Model of ``topology`` used for pairing.
-
-    Returns
-    -------
-    (DuplexAnalysis, step_params (n_frames, n_bp - 1, 6), bp_params (n_frames, n_bp, 6))
-        nm and rad.
-    """
-    from dnarod.structure.trajectory import read_duplex_trajectory  # the one all-atom trajectory reader
-
-    r = read_duplex_trajectory(topology, trajectory, duplex=duplex, model=model)
-    return r.duplex, r.step_params, r.pair_params

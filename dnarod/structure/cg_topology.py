@@ -172,7 +172,6 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
     """
     import mdtraj as md
 
-    from dnarod.structure.export import frames_from_beads
     from dnarod.core.trajectory import Trajectory
 
     t = md.load(str(trajectory_path), top=str(pdb_path)) if trajectory_path else md.load(str(pdb_path))
@@ -180,3 +179,32 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
         raise DnarodError(f"{pdb_path}: {t.n_atoms} atoms is not three beads per node; not a dnarod export")
     c, f = frames_from_beads(t.xyz.astype(float))
     return Trajectory(np.asarray(t.time, float), c, f, metadata={"source": str(trajectory_path or pdb_path)})
+
+
+def bead_positions(positions, frames, arm=1.0):
+    """Bead coordinates ``(n_frames, 3 n_nodes, 3)`` nm from centres and frames.
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n_frames, n_nodes, 3)
+    frames : ndarray, shape (n_frames, n_nodes, 3, 3)
+    arm : float
+        Director tip distance, nm.
+    """
+    pos = np.asarray(positions, float)
+    frm = np.asarray(frames, float)
+    out = np.stack([pos, pos + arm * frm[..., :, 0], pos + arm * frm[..., :, 2]], axis=-2)
+    return out.reshape(pos.shape[0], -1, 3)
+
+
+def frames_from_beads(xyz):
+    """Centres and orthonormal frames from bead coordinates ``(n_frames, 3 n_nodes, 3)``."""
+    b = np.asarray(xyz, float).reshape(xyz.shape[0], -1, 3, 3)
+    c = b[:, :, 0]
+    d1 = b[:, :, 1] - c
+    d1 /= np.linalg.norm(d1, axis=-1, keepdims=True)
+    d3 = b[:, :, 2] - c
+    d3 -= np.einsum("fki,fki->fk", d3, d1)[..., None] * d1
+    d3 /= np.linalg.norm(d3, axis=-1, keepdims=True)
+    d2 = np.cross(d3, d1)
+    return c, np.stack([d1, d2, d3], axis=-1)

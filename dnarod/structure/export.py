@@ -8,7 +8,7 @@ true time between frames (written with MDAnalysis, which reads the frame times b
 ``.dtraj`` times to the header's float32 precision; mdtraj's DCD reader ignores the header's time
 and numbers the frames), and optionally to an XTC file (mdtraj; each frame stores its time, read
 back by both mdtraj and MDAnalysis). The frames are recovered from the beads by
-:func:`frames_from_beads` (``d2 = d3 x d1``), to float32 precision; the ``.dtraj`` file
+:func:`dnarod.structure.cg_topology.frames_from_beads` (``d2 = d3 x d1``), to float32 precision; the ``.dtraj`` file
 (:func:`load_dtraj`) holds them as the run stored them.
 """
 from __future__ import annotations
@@ -20,41 +20,12 @@ import numpy as np
 from dnarod.core.errors import DnarodError
 from dnarod.core.trajectory import Trajectory, load_trajectory
 
-from dnarod.structure.cg_topology import BEADS, cg_pdb_text  # noqa: E402  (one home for the CG naming)
+from dnarod.structure.cg_topology import bead_positions, cg_pdb_text
 
 
 def load_dtraj(path):
     """The dnarod loader: a :class:`~dnarod.core.trajectory.Trajectory` with frames bit-exact."""
     return load_trajectory(path)
-
-
-def bead_positions(positions, frames, arm=1.0):
-    """Bead coordinates ``(n_frames, 3 n_nodes, 3)`` nm from centres and frames.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (n_frames, n_nodes, 3)
-    frames : ndarray, shape (n_frames, n_nodes, 3, 3)
-    arm : float
-        Director tip distance, nm.
-    """
-    pos = np.asarray(positions, float)
-    frm = np.asarray(frames, float)
-    out = np.stack([pos, pos + arm * frm[..., :, 0], pos + arm * frm[..., :, 2]], axis=-2)
-    return out.reshape(pos.shape[0], -1, 3)
-
-
-def frames_from_beads(xyz):
-    """Centres and orthonormal frames from bead coordinates ``(n_frames, 3 n_nodes, 3)``."""
-    b = np.asarray(xyz, float).reshape(xyz.shape[0], -1, 3, 3)
-    c = b[:, :, 0]
-    d1 = b[:, :, 1] - c
-    d1 /= np.linalg.norm(d1, axis=-1, keepdims=True)
-    d3 = b[:, :, 2] - c
-    d3 -= np.einsum("fki,fki->fk", d3, d1)[..., None] * d1
-    d3 /= np.linalg.norm(d3, axis=-1, keepdims=True)
-    d2 = np.cross(d3, d1)
-    return c, np.stack([d1, d2, d3], axis=-1)
 
 
 def mdtraj_topology(n_nodes, residue_names=None, sequence=None):

@@ -64,10 +64,10 @@ def _check_ring_twist(relaxed, delta_lk):
     twist would wrap around by whole turns and the ring would silently hold another linking number)."""
     import numpy as np
 
-    from dnarod.workflows.protocols.rings import relaxed_twist
+    from dnarod.physics.loads import intrinsic_turns
     from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 
-    lk0 = float(relaxed_twist(relaxed))
+    lk0 = float(intrinsic_turns(relaxed))
     n = relaxed.n_nodes
     per_step = 2 * np.pi * abs(lk0 + delta_lk) / n
     if per_step > 0.8 * MAX_CAYLEY_ANGLE:

@@ -6,12 +6,9 @@ so ``results.json`` can be read by scripts without knowing the check.
 """
 from __future__ import annotations
 
-import io
-import math
 
 import numpy as np
 
-from dnarod.core.io import atomic_path
 from dnarod.core.io import jsonable as _jsonable
 
 
@@ -47,38 +44,6 @@ def pairwise_orders(h, err):
     return np.log(err[:-1] / err[1:]) / np.log(h[:-1] / h[1:])
 
 
-def jackknife(estimator, blocks):
-    """Block-jackknife estimate and standard error.
-
-    Parameters
-    ----------
-    estimator : callable
-        Maps a list of per-block summaries (each whatever ``blocks`` holds) to an estimate (array).
-    blocks : list
-        One summary per block of consecutive frames (time blocks longer than the correlation time).
-
-    Returns
-    -------
-    estimate, standard_error : ndarray
-        Estimate from all blocks, and the jackknife standard error over the blocks.
-    """
-    nb = len(blocks)
-    full = np.asarray(estimator(blocks), float)
-    loo = np.array([np.asarray(estimator(blocks[:i] + blocks[i + 1:]), float) for i in range(nb)])
-    se = np.sqrt((nb - 1) / nb * np.sum((loo - loo.mean(axis=0)) ** 2, axis=0))
-    return full, se
-
-
-def split_blocks(arrays, n_blocks):
-    """Split arrays (same leading length, the frames) into ``n_blocks`` consecutive blocks.
-
-    Returns a list of tuples, one per block, of the arrays' slices.
-    """
-    n = len(arrays[0])
-    edges = np.linspace(0, n, n_blocks + 1).astype(int)
-    return [tuple(a[edges[i]:edges[i + 1]] for a in arrays) for i in range(n_blocks)]
-
-
 def rotation_angle(A, B):
     """Rotation angle (rad) between frames ``A`` and ``B``, shape (..., 3, 3) -> (...).
 
@@ -88,26 +53,3 @@ def rotation_angle(A, B):
     return 2.0 * np.arcsin(np.clip(d / np.sqrt(8.0), 0.0, 1.0))
 
 
-def new_figure(ncols=1, nrows=1, width=6.0, height=4.0):
-    """A matplotlib figure (Agg backend, no display)."""
-    import matplotlib
-
-    matplotlib.use("Agg", force=True)
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(nrows, ncols, figsize=(width * ncols, height * nrows), squeeze=False)
-    return fig, axes
-
-
-def save_figure(fig, out_dir, name):
-    """Write ``fig`` to ``out_dir/name`` (PNG) atomically and close it; returns ``name``."""
-    import matplotlib.pyplot as plt
-
-    buf = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buf, format="png", dpi=110)
-    plt.close(fig)
-    with atomic_path(f"{out_dir}/{name}") as tmp:
-        with open(tmp, "wb") as fh:
-            fh.write(buf.getvalue())
-    return name

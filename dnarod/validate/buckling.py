@@ -127,7 +127,7 @@ import time
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.validate._common import new_figure, save_figure
+from dnarod.analysis.plots import new_figure, save_figure
 
 #: Folder of the members in the report folder when no ``member_root`` is given (reused by a rerun).
 MEMBER_FOLDER = "buckling_members"
@@ -254,13 +254,13 @@ def drift_z(samples_csv, column, min_blocks=8, start=0):
     return float((halves[1].mean() - halves[0].mean()) / np.hypot(*se))
 
 
-def plectoneme_twist_stiffness(ring_row, C_nm, relaxed_twist, relaxed_twist_err=0.0):
+def plectoneme_twist_stiffness(ring_row, C_nm, intrinsic_turns, relaxed_twist_err=0.0):
     """P (nm) and its standard error from a plectonemic ring member's writhe fraction, ``P = C (1 - Wr/ΔLk)``.
 
-    ``ΔLk = Lk - relaxed_twist``, the relaxed ring's mean twist at the run's temperature
+    ``ΔLk = Lk - intrinsic_turns``, the relaxed ring's mean twist at the run's temperature
     (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`; turns).
     """
-    d = ring_row["Lk"] - relaxed_twist
+    d = ring_row["Lk"] - intrinsic_turns
     f = ring_row["Wr"] / d
     f_err = float(np.hypot(ring_row["Wr_err"], f * relaxed_twist_err) / abs(d))
     return C_nm * (1.0 - f), C_nm * f_err, f, f_err
@@ -328,7 +328,7 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
     members recorded on one platform are reused only by a check asked to run on it.
     """
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.workflows.protocols.tweezers import intrinsic_turns
+    from dnarod.physics.loads import intrinsic_turns
 
     n_bp = n_bp or (400 if quick else 600)
     lk0 = intrinsic_turns(load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp))
@@ -368,7 +368,7 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
                           f"plectoneme grown at a lower force)")
     above = bracket and bracket_start == "above"
     if above:  # one source member with more turns than either post-buckling member: its plectoneme is larger
-        from dnarod.workflows.protocols.tweezers import MAX_SIGMA
+        from dnarod.physics.loads import MAX_SIGMA
 
         t_src = round(float(above_turns if above_turns is not None
                             else min(max(ABOVE_SIGMA * lk0, ABOVE_MIN_FACTOR * max(post_turns)), 0.95 * MAX_SIGMA * lk0)), 4)
@@ -433,16 +433,17 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from pathlib import Path
 
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.workflows.protocols.tweezers import intrinsic_turns
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.loads import intrinsic_turns
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
-    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.workflows.protocols.measure import twisting_moment_offset
     from dnarod.physics.thermal import relaxed_ribbon_twist
     from dnarod.core.errors import DnarodError
     from dnarod.physics.theory.supercoil import (effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair,
                                    plectoneme_P_from_rings_with_loops, plectoneme_position_torque_shift)
-    from dnarod.validate.torsion import bare_twist_persistence, moroz_nelson
+    from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
     plan = member_plan(quick=quick, n_bp=n_bp, force_pN=force_pN, pre_turns=pre_turns, post_turns=post_turns,

@@ -20,7 +20,7 @@ import numpy as np
 
 import scipy.linalg
 
-from dnarod.validate._common import new_figure, save_figure
+from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "dispersion"
 TOLERANCES = dict(frequency_tol_rad_per_ps=1e-6, zero_mode_tol_rad2_per_ps2=1e-8, zero_mode_cutoff_rad_per_ps=1e-2)

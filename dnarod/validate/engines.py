@@ -34,7 +34,8 @@ import numpy as np
 from dnarod.core.units import md_value
 
 from dnarod.core.errors import DnarodError
-from dnarod.validate._common import new_figure, observed_order, pairwise_orders, rotation_angle, save_figure
+from dnarod.validate._common import observed_order, pairwise_orders, rotation_angle
+from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "engines"
 PDB = "355D.pdb"

@@ -131,7 +131,7 @@ def compare_force_extension_curve(lp_model_nm, s_model_pN, forces_pN, temperatur
     curve a source draws over measured lambda-DNA data (:func:`dnarod.physics.experiments.force_extension_curves`),
     reported only: the curve's parameters carry no uncertainty. Returns a dict or None when none is tabulated."""
     from dnarod.physics import experiments as ex
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
     from dnarod.physics.theory.wlc import extensible_wlc_extension
 
@@ -157,7 +157,7 @@ def compare_topoisomer_fit(c_model_nm, temperature):
     fitted to Horowitz & Wang's topoisomer variances (:func:`dnarod.physics.experiments.
     topoisomer_variance_fit_reference`), reported only (no uncertainty stated). Returns a dict or None."""
     from dnarod.physics import experiments as ex
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     ref = ex.topoisomer_variance_fit_reference()
     if "torsional_rigidity" not in ref:
@@ -177,7 +177,7 @@ def compare_cyclization_fit(lp_model_nm, c_model_nm, repeat_model_bp, temperatur
     (:func:`dnarod.physics.experiments.cyclization_fit_reference`; C / kT at ``temperature``, K), reported only
     (the caption read states no uncertainty). Returns a dict or None when none is tabulated."""
     from dnarod.physics import experiments as ex
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     ref = ex.cyclization_fit_reference()
     if not {"persistence_length", "torsional_rigidity", "helical_repeat"} <= set(ref):
@@ -202,7 +202,7 @@ def compare_horowitz_wang(c_model_nm, ds_nm, repeat_model_bp, temperature):
     rings. The long-ring N K ~ 1150 needs the writhe variance and is compared by check ``nicked_ring`` (model K at
     ``full_n_bp``). Returns a dict or None when nothing is tabulated."""
     from dnarod.physics import experiments as ex
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     hw = ex.horowitz_wang_reference()
     if not {"NK_200bp", "torsional_rigidity", "helical_repeat_210bp"} <= set(hw):
@@ -228,7 +228,7 @@ def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
     elastic_constant_ranges`). Reported only: a range across experiments carries no uncertainty. Returns a list of
     dicts (``quantity``, ``model``, ``low``, ``high``, ``unit``, ``inside``, ...) or None when none is tabulated."""
     from dnarod.physics import experiments as ex
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
 
     kt_pn = kT(temperature) / PN
@@ -262,9 +262,10 @@ def model_helix_constants(forcefield="dna-default"):
 def model_elastic_constants(temperature, forcefield="dna-default"):
     """``(lp nm, C nm, S pN)`` of a uniform chain of ``forcefield`` at ``temperature`` K (exact values)."""
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
-    from dnarod.validate.torsion import bare_twist_persistence
+    from dnarod.physics.theory.torsion import bare_twist_persistence
 
     model = load_forcefield(forcefield).model_from_sequence(n_nodes=20)
     lp = persistence_length(model.params, model.ds, kT(temperature))
@@ -285,10 +286,10 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
     (e.g. ``charge="manning"``).
     """
     from dnarod.physics import experiments as ex
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
     from dnarod.physics.theory.wlc import extensible_wlc_extension
-    from dnarod.validate.torsion import moroz_nelson
+    from dnarod.physics.theory.torsion import moroz_nelson
 
     t0 = time.perf_counter()
     lp0, C0, S = model_elastic_constants(temperature, forcefield)
@@ -331,7 +332,7 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                     measurements=[dict(value_nm=v, sigma_nm=s, source=src) for v, s, src in bare], passed=bare_ok)
 
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.nonbonded import NonbondedSettings
     from dnarod.physics.theory.supercoil import effective_diameter
 
     if d_override is None:
@@ -424,8 +425,8 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
 
 
 def _plot(out_dir, res, F, x_model, x_lo, x_hi, C, lp, kt_pn):
-    from dnarod.validate.torsion import moroz_nelson
-    from dnarod.validate._common import new_figure, save_figure
+    from dnarod.physics.theory.torsion import moroz_nelson
+    from dnarod.analysis.plots import new_figure, save_figure
 
     fig, ax = new_figure(3, 1, width=4.6, height=4.0)
     a = ax[0, 0]

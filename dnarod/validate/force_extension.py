@@ -37,7 +37,8 @@ import time
 import numpy as np
 
 from dnarod.core.units import PN
-from dnarod.validate._common import jackknife, new_figure, save_figure, split_blocks
+from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.analysis.statistics import jackknife, split_blocks
 
 NAME = "force_extension"
 Z_TOL = 3.0
@@ -47,7 +48,8 @@ DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)
 
 def model_constants(model, temperature):
     """``(lp nm, S pN, kT pN nm, L0 nm)`` of a uniform model at ``temperature`` K."""
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
 
     kt = kT(temperature)
     lp = persistence_length(model.params, model.ds, kt)

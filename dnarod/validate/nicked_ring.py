@@ -42,7 +42,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.validate._common import new_figure, save_figure
+from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "nicked_ring"
 Z_TOL = 3.0

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from dnarod.validate._common import new_figure, save_figure
+from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "paper_scheme"
 TOLERANCES = dict(order_min=0.8, order_max=1.25, unstable_rate_min_per_ps=1e-3, exact_rate_max_per_ps=1e-6)

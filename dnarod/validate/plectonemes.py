@@ -52,7 +52,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.validate._common import new_figure, save_figure
+from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "plectonemes"
 Z_TOL = 3.0
@@ -82,8 +82,9 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     ``cutoff_debye``, as in the members' settings) runs the rings and the reference with other non-bonded terms
     than the defaults. ``hard_core=False`` skips the reported hard-core reference.
     """
-    from dnarod.engines.openmm.nonbonded import member_nonbonded, nonbonded_record
-    from dnarod.workflows.protocols.rings import relaxed_twist, run_ring_member
+    from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
+    from dnarod.physics.loads import intrinsic_turns
+    from dnarod.workflows.protocols.rings import run_ring_member
     from dnarod.physics.theory.supercoil import ring_constants, thermal_relaxed_twist, writhe_fraction_from_P
     from dnarod.validate.wlc_ring_mc import pair_parameters
 
@@ -118,7 +119,7 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
         row = dict(row, Wr=(wa * row["Wr"] + wb * w["Wr"]) / (wa + wb), Wr_err=(wa + wb) ** -0.5,
                    production_ps=row["production_ps"] + w["production_ps"], wall_s=row["wall_s"] + w["wall_s"],
                    cpu_s=row["cpu_s"] + w["cpu_s"])
-    tw0 = relaxed_twist(ring)  # T = 0: the sum of intrinsic twist angles
+    tw0 = intrinsic_turns(ring)  # T = 0: the sum of intrinsic twist angles
     tw0_T, tw0_T_se = thermal_relaxed_twist(ring, temperature)  # the relaxed ring's mean twist at T
     dlk = row["Lk"] - tw0_T
     f_model = row["Wr"] / dlk

@@ -74,7 +74,7 @@ def position_covariance(model, temperature=300.0, zero_tol=1e-12):
         ``largest`` eigenvalue (kJ/mol per nm² or rad²), ``max_load`` (largest |force| at the pose, kJ/mol/nm).
     """
     from dnarod.physics.modes import hessian
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     H = hessian(model).toarray()
     H = 0.5 * (H + H.T)
@@ -125,7 +125,7 @@ def gaussian_writhe_samples(model, n_samples, temperature=300.0, seed=0, curves=
     from dnarod.physics.modes import hessian
     from dnarod.workflows.protocols.nicked import smoothed_axis
     from dnarod.core.rotations import rotation_about_axis
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     ring = relaxed_ring(model)
     H = hessian(ring).toarray()

@@ -25,7 +25,8 @@ import time
 
 import numpy as np
 
-from dnarod.validate._common import jackknife, new_figure, save_figure, split_blocks
+from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.analysis.statistics import jackknife, split_blocks
 
 NAME = "thermal"
 Z_TOL = 4.5
@@ -104,7 +105,8 @@ def analyse(model, positions, frames, tkin, temperature, n_max, stiffness_scale=
     any other value must fail -- used by the tests).
     """
     from dnarod.core.parameters import StepParameters
-    from dnarod.physics.thermal import kT, persistence_length, tangent_correlation
+    from dnarod.physics.thermal import persistence_length, tangent_correlation
+    from dnarod.core.units import kT
 
     kt = kT(temperature)
     ds = model.ds

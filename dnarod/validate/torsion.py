@@ -29,42 +29,12 @@ import time
 
 import numpy as np
 
-from dnarod.validate._common import new_figure, save_figure
+from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson, twist_friction
+from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "torsion"
 Z_TOL = 3.0
 THEORY_ALLOWANCE = 0.10
-
-
-def moroz_nelson(C, A, force_pN, kt_pn_nm):
-    """Moroz-Nelson effective torsional persistence length (nm), third order in 1/K0."""
-    M = C / A
-    K0 = np.sqrt(A * np.asarray(force_pN, float) / kt_pn_nm)
-    return C * (1 - M / (4 * K0) + (M * M - 2 * M) / (16 * K0 ** 2)
-                - (4 * M ** 3 - 16 * M * M + 21 * M) / (256 * K0 ** 3))
-
-
-def bare_twist_persistence(model, temperature):
-    """C (nm) of a uniform model at constant force: ``sec^4(theta0/2) / ((K^-1)_33 kT)``."""
-    from dnarod.physics.thermal import kT
-
-    K = model.params.stiffness[0]
-    th0 = 2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[0, 2])
-    return float(np.cos(0.5 * th0) ** -4 / (np.linalg.inv(K)[2, 2] * kT(temperature)))
-
-
-def twist_friction(model, temperature, C_nm):
-    """Collision rate (1/ps) critically damping the slowest twist mode of a chain clamped at one end.
-
-    The twist angle obeys a wave equation with torsional rigidity ``kT C`` and rotational inertia per length
-    ``J3/ds``; with one end clamped and the other (almost) free the slowest mode has ``q = pi/(2L)``, so
-    ``omega = q sqrt(kT C ds / J3)`` and critical damping is ``2 omega``.
-    """
-    from dnarod.physics.thermal import kT
-
-    L = model.ds * model.n_steps
-    w = np.pi / (2 * L) * np.sqrt(kT(temperature) * C_nm * model.ds / float(np.mean(model.inertia[:, 2])))
-    return float(2 * w)
 
 
 def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slope_ns=None, fluct_ns=None,
@@ -76,7 +46,8 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
 
     from dnarod.core.forcefield import load_forcefield
     from dnarod.workflows.protocols.tweezers import run_member
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
 
     t0 = time.perf_counter()

@@ -269,7 +269,7 @@ def pair_parameters(nonbonded, ds, temperature, b_nm):
 
     Parameters
     ----------
-    nonbonded : dnarod.engines.openmm.nonbonded.NonbondedSettings
+    nonbonded : dnarod.physics.nonbonded.NonbondedSettings
     ds : float
         The model's node spacing, nm: each segment of length ``b_nm`` carries ``round(b_nm / ds)`` interaction sites
         spaced evenly along it (spacing ``ds`` when ``b_nm`` is a multiple of it).
@@ -285,7 +285,7 @@ def pair_parameters(nonbonded, ds, temperature, b_nm):
         (kT nm), lengths in nm, sites per segment, chain-distance exclusion in sites (the model's own, from
         :meth:`NonbondedSettings.resolve`).
     """
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
 
     nb = nonbonded.resolve(ds, temperature)
     kt = kT(temperature)

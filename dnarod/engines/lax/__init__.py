@@ -8,15 +8,16 @@
   one sweep per step; the blocked one is the default), tested equal to the numpy reference.
 * :mod:`.modes`: Hessian and normal modes from force differences.
 * :mod:`.paper_scheme`: the paper's printed (3.13) right-hand side, kept for comparison only.
-* :mod:`.run`: ``simulate_nve``, ``simulate_langevin``, ``simulate_exact`` writing ``.dtraj``.
+* :mod:`.engine`: :class:`LaxEngine`, the engine the run layer drives (:mod:`dnarod.run`; Python runs that
+  write ``.dtraj`` files: :mod:`dnarod.run.lax`).
 """
 from dnarod.engines.lax.boundary import BoundaryConditions
 from dnarod.engines.lax.exact import ExactSystem, integrate_exact, strain_rates
-from dnarod.engines.lax.run import SimulationResult, simulate_exact, simulate_langevin, simulate_nve
-from dnarod.engines.lax.splitting import RigidState, SplittingIntegrator, maxwell_state, omega_max, stable_time_step
+from dnarod.engines.lax.engine import LaxEngine
+from dnarod.engines.lax.splitting import RigidState, SplittingIntegrator, maxwell_state, omega_max
 
 __all__ = [
     "BoundaryConditions", "ExactSystem", "integrate_exact", "strain_rates",
-    "RigidState", "SplittingIntegrator", "maxwell_state", "omega_max", "stable_time_step",
-    "SimulationResult", "simulate_nve", "simulate_langevin", "simulate_exact",
+    "RigidState", "SplittingIntegrator", "maxwell_state", "omega_max",
+    "LaxEngine",
 ]

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dnarod.core.kernels import _DEN_LIMIT, _FM  # noqa: F401 (re-exported for fast_blocked)
+from dnarod.core.kernels import _FM
 from dnarod.core.kernels import chain_loads
 from dnarod.core.kernels import step_loads as _step_loads
 from dnarod.engines.lax.splitting_limits import MOMENTUM_LIMIT
@@ -202,58 +202,3 @@ def run_steps(pos, frm, P, pi, F, tau, inv_m, invJ, free, Fext, tauext, K, xi0, 
                 _kick(P, pi, frm, F, tau, 0, h)
                 _advance(pos, frm, P, pi, inv_m, invJ, 0, dt, langevin, c, sigP, sigpi, noise, i + 1)
     return 0, n_steps, -1, E
-
-
-class NumbaKernel:
-    """The fast path of :class:`.splitting.SplittingIntegrator` (same interface as ``NumpyKernel``)."""
-
-    def __init__(self, model, ext_force, ext_torque, free, blocked=True):
-        self.blocked = blocked
-        self.model = model
-        self.F_ext = np.ascontiguousarray(ext_force, float)
-        self.tau_ext = np.ascontiguousarray(ext_torque, float)
-        self.free = np.ascontiguousarray(free, float)
-        self.K = np.ascontiguousarray(model.params.stiffness)
-        self.xi0 = np.ascontiguousarray(model.params.intrinsic)
-        cl = model.closure
-        self.circular = cl is not None
-        self.Q = np.eye(3) if cl is None else np.ascontiguousarray(cl.Q)
-        self.t = np.zeros(3) if cl is None else np.ascontiguousarray(cl.t)
-        self._dummy_noise = np.zeros((1, 6, 1))
-        # distinct parameter sets of the steps (uniform rod: 1; dinucleotide model: <= 16)
-        flat = np.concatenate([self.K.reshape(self.K.shape[0], 36), self.xi0], axis=1)
-        table, idx = np.unique(flat, axis=0, return_inverse=True)
-        self.ktab = np.ascontiguousarray(table.T)
-        self.kidx = np.ascontiguousarray(idx.reshape(-1), dtype=np.int64)
-
-    def loads(self, state):
-        from dnarod.core.errors import GeometryError
-
-        n = state.positions.shape[0]
-        F = np.empty((n, 3))
-        tau = np.empty((n, 3))
-        E, bad = compute_loads(state.positions, state.frames, self.K, self.xi0, self.model.ds, self.circular,
-                               self.Q, self.t, self.F_ext, self.tau_ext, self.free, F, tau)
-        if bad >= 0:
-            raise GeometryError(f"step {bad}: rotation between nodes {bad} and {(bad + 1) % n} is at or beyond "
-                                f"180 deg (or not finite)")
-        return E, F, tau
-
-    def run(self, state, F, tau, dt, n_steps, inv_m, inv_J, c=None, sig_P=None, sig_pi=None, noise=None):
-        langevin = noise is not None
-        n = state.positions.shape[0]
-        if not langevin:
-            c, sig_P, sig_pi, noise = 1.0, np.zeros(n), np.zeros((n, 3)), self._dummy_noise
-        for name in ("positions", "frames", "momenta", "angular_momenta"):
-            arr = getattr(state, name)
-            if not arr.flags.c_contiguous:
-                setattr(state, name, np.ascontiguousarray(arr))
-        if self.blocked:
-            from dnarod.engines.lax.fast_blocked import run_steps_blocked as kernel
-        else:
-            kernel = run_steps
-        return kernel(state.positions, state.frames, state.momenta, state.angular_momenta, F, tau,
-                         np.ascontiguousarray(inv_m), np.ascontiguousarray(inv_J), self.free, self.F_ext,
-                         self.tau_ext, self.K, self.xi0, self.model.ds, self.circular, self.Q, self.t, float(dt),
-                         int(n_steps), langevin, float(c), np.ascontiguousarray(sig_P),
-                         np.ascontiguousarray(sig_pi), noise, *((self.ktab, self.kidx) if self.blocked else ()))

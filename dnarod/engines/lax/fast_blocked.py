@@ -21,7 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dnarod.engines.lax.fast import _DEN_LIMIT, _FM, _MOM2, _rotor_node, _step_loads
+from dnarod.core.kernels import _DEN_LIMIT, _FM
+from dnarod.engines.lax.fast import _MOM2, _rotor_node, _step_loads
 
 #: Nodes per block (a compile-time constant of the kernel). Measured at 1000 nodes on this project's
 #: AVX-512 machine: 8 lanes 1.37e7, 16 lanes 1.67e7, 32 lanes 1.84e7, 64 lanes 1.90e7 node-steps/s.

@@ -28,7 +28,7 @@ from dnarod.core.energy import loads as _loads
 from dnarod.core.errors import DnarodError, GeometryError, SimulationError
 from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 from dnarod.core.strains import step_geometry
-from dnarod.physics.thermal import kT as _kT
+from dnarod.core.units import kT as _kT
 from dnarod.engines.lax.boundary import BoundaryConditions
 from dnarod.engines.lax.splitting_limits import MOMENTUM_LIMIT
 
@@ -226,11 +226,6 @@ def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-9):
     return _omega_max(model, loads, positions, frames, rtol=tol)
 
 
-def stable_time_step(model, positions=None, frames=None, boundary=None):
-    """Leapfrog stability limit ``dt_crit = 2 / omega_max``, ps."""
-    return 2.0 / omega_max(model, positions, frames, boundary)
-
-
 # ---------------------------------------------------------------------------------------------
 # driver
 # ---------------------------------------------------------------------------------------------
@@ -320,7 +315,7 @@ class SplittingIntegrator:
                     raise SimulationError(msg, step=0, node=None, term="dt")
                 warnings.warn(msg, RuntimeWarning, stacklevel=2)
         if fast:
-            from dnarod.engines.lax.fast import NumbaKernel
+            from dnarod.engines.lax.kernel import NumbaKernel
             if fast not in (True, "blocked", "scalar"):
                 raise DnarodError(f"fast must be True, False, 'blocked' or 'scalar', got {fast!r}")
             self.kernel = NumbaKernel(model, F_ext, tau_ext, self.free, blocked=(fast != "scalar"))

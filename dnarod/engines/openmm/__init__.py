@@ -15,7 +15,8 @@ run layer's (:mod:`dnarod.run`, ``dnarod simulate``).
 Example::
 
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm import RodSimulation, PullingForce
+    from dnarod.engines.openmm import RodSimulation
+    from dnarod.physics.loads import PullingForce
     from dnarod.run import run_engine, DtrajReporter
     model = load_forcefield("dna-default").model_from_sequence("ACGT" * 250)
     sim = RodSimulation(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])])
@@ -23,9 +24,7 @@ Example::
     run_engine(sim, 100000, [rep], checkpoint="run1.npz", checkpoint_interval=10000)
     rep.close()
 """
-_EXPORTS = {"RodSimulation": "simulation", "omega_max": "simulation", "load_energies": "simulation",
-            "build_system": "system", "NonbondedSettings": "nonbonded", "PullingForce": "loads",
-            "Torque": "loads", "RotationClamp": "loads", "Clamp": "loads", "Trap": "loads"}
+_EXPORTS = {"RodSimulation": "simulation", "build_system": "system"}
 __all__ = list(_EXPORTS)
 
 

@@ -30,7 +30,7 @@ import numpy as np
 import openmm
 
 from dnarod.core.errors import ParameterError
-from dnarod.core.kernels import loads_kernel  # noqa: F401 (one compiled home of the A2 loads)
+from dnarod.core.kernels import loads_kernel
 from dnarod.engines.openmm.particles import SQRT3
 
 #: Force groups used by the engine (energies are attributed per group on a blow-up).

@@ -1,8 +1,7 @@
 """OpenMM translation of the engine-neutral loads of :mod:`dnarod.physics.loads`.
 
-The load dataclasses (:class:`PullingForce`, :class:`Torque`, :class:`RotationClamp`, :class:`Clamp`,
-:class:`Trap`) live in :mod:`dnarod.physics.loads` and are re-exported here, so ``from dnarod.engines.openmm.loads
-import PullingForce`` keeps working. This module turns them into OpenMM forces:
+The load dataclasses (:class:`~dnarod.physics.loads.PullingForce`, ``Torque``, ``RotationClamp``, ``Clamp``,
+``Trap``) live in :mod:`dnarod.physics.loads`; this module turns them into OpenMM forces:
 
 * pulling force: a ``CustomExternalForce`` ``-F . x`` spread over the node's three particles;
 * torque: a ``PythonForce`` (constant lab torque about the node centre; the reported energy is
@@ -18,13 +17,11 @@ import numpy as np
 import openmm
 
 from dnarod.core.errors import ParameterError
-from dnarod.physics.loads import (LOAD_TYPES, Clamp, PullingForce, RotationClamp, Torque, Trap, as_md,  # noqa: F401 (re-export)
-                     resolve_node)
+from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, resolve_node
 from dnarod.engines.openmm.forces import GROUPS
 from dnarod.engines.openmm.particles import SQRT3
 
-__all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "as_md", "resolve_node", "TorqueCallback",
-           "build_load_forces", "set_clamp_rotation"]
+__all__ = ["TorqueCallback", "build_load_forces", "set_clamp_rotation"]
 
 
 class TorqueCallback:

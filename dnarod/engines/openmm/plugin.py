@@ -329,7 +329,7 @@ def node_pair_force(model, numbers, particles=None):
     model : RodModel
         Its node count and closure (circular chains wrap the exclusions) are used.
     numbers : dict
-        From :meth:`dnarod.engines.openmm.nonbonded.NonbondedSettings.resolve` (eps kJ/mol, sigma nm, rc_wca nm,
+        From :meth:`dnarod.physics.nonbonded.NonbondedSettings.resolve` (eps kJ/mol, sigma nm, rc_wca nm,
         a_dh kJ/mol nm, kappa 1/nm, rc_dh nm, n_exclude).
     particles : ndarray of int, shape (n_nodes, 3), optional
         Particle indices of every node (default ``3k, 3k+1, 3k+2``).

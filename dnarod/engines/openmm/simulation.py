@@ -32,12 +32,14 @@ import openmm
 from dnarod.core.errors import ParameterError, SimulationError
 from dnarod.core.io import atomic_path
 from dnarod.physics import modes
-from dnarod.physics.modes import DEFAULT_OMEGA_DT, omega_max  # noqa: F401 - dnarod.engines.openmm.omega_max (older imports)
-from dnarod.run.api import MAX_OMEGA_DT
-from dnarod.run.spec import model_fingerprint
-from dnarod.physics.thermal import kT as kT_of, kinetic_temperature
+from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
+from dnarod.core.model import model_fingerprint
+from dnarod.core.io import read_checkpoint
+from dnarod.physics.thermal import kinetic_temperature
+from dnarod.core.units import kT as kT_of
 from dnarod.core.units import md_value
-from dnarod.engines.openmm.forces import GROUPS, loads_kernel
+from dnarod.core.kernels import loads_kernel
+from dnarod.engines.openmm.forces import GROUPS
 from dnarod.engines.openmm.particles import (closure_image_positions, node_poses, node_velocities, particle_forces_to_loads,
                         particle_positions, particle_velocities)
 from dnarod.engines.openmm.platforms import choose_platform
@@ -452,8 +454,6 @@ class RodSimulation:
 
     def load_checkpoint(self, path):
         """Restore a checkpoint written by :meth:`save_checkpoint` for this model; returns its metadata."""
-        from dnarod.run.engine import read_checkpoint
-
         meta, arrays = read_checkpoint(path, "dnarod-openmm-checkpoint", ("openmm",))
         blob = arrays["openmm"].tobytes()
         if meta.get("fingerprint") != self.fingerprint or meta.get("n_nodes") != self.model.n_nodes:
@@ -474,8 +474,23 @@ class RodSimulation:
             cb.last_angle[:] = meta["torque_last"]
         return meta
 
-def load_energies(path):
-    """Read ``energies.csv`` into a dict of arrays (:func:`dnarod.run.reporters.load_energies`)."""
-    from dnarod.run.reporters import load_energies as _load
 
-    return _load(path)
+def static_load_fn(model, loads=(), angles=None):
+    """The OpenMM engine's own node loads as a function ``(positions, frames) -> (nan, F, tau)`` for
+    :func:`dnarod.physics.statics.solve_static` (Reference platform, double precision, the portable elastic path
+    and the OpenMM translation of the loads; rotation clamps at ``angles``, rad), so the solved pose is this
+    engine's equilibrium. Forces kJ/mol/nm and torques kJ/mol, (n, 3) each."""
+    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=1e-3, platform="Reference",
+                        elastic="portable", nonbonded=False, loads=loads, omega_max=1.0)
+    for i, a in enumerate(() if angles is None else angles):
+        sim.set_clamp_rotation(float(a), i)
+    radius = sim.rs.radius
+
+    def fn(pos, frm):
+        x = particle_positions(pos, frm, radius)
+        sim.set_particle_positions(x)
+        st = sim.context.getState(getForces=True)
+        F, tau = particle_forces_to_loads(x, sim.node_particles(st.getForces(asNumpy=True)))
+        return np.nan, F, tau
+
+    return fn

@@ -30,11 +30,11 @@ from dnarod.core.errors import GeometryError, ParameterError
 from dnarod.engines.openmm import plugin
 from dnarod.engines.openmm.forces import ElasticCallback, add_closure_image, elastic_compound_forces, elastic_python_force
 from dnarod.engines.openmm.loads import build_load_forces
-from dnarod.engines.openmm.nonbonded import NonbondedSettings, nonbonded_force
+from dnarod.engines.openmm.nonbonded import nonbonded_force
+from dnarod.physics.nonbonded import NonbondedSettings
 from dnarod.engines.openmm.particles import SQRT3, triangle_radius
-from dnarod.engines.openmm.platforms import CALLBACK_PLATFORMS, get_platform  # noqa: F401 (re-exported)
+from dnarod.engines.openmm.platforms import CALLBACK_PLATFORMS
 
-PYTHON_FORCE_PLATFORMS = CALLBACK_PLATFORMS
 
 
 def base_pair_names(model):
@@ -144,7 +144,7 @@ def choose_elastic(elastic, platform):
             plugin.announce_device(platform)
             if plugin.device_kernel(platform)[0]:
                 return "plugin"
-        return "fast" if platform in PYTHON_FORCE_PLATFORMS else "portable"
+        return "fast" if platform in CALLBACK_PLATFORMS else "portable"
     if elastic not in ("fast", "portable", "plugin"):
         raise ParameterError(f"elastic must be 'auto', 'plugin', 'fast' or 'portable', got {elastic!r}")
     return elastic

@@ -324,7 +324,8 @@ def twist_variance_exact(model, temperature, n_samples=400_000, seed=0, steps=No
     steps : array_like of int, optional
         Steps to include (default all).
     """
-    from dnarod.physics.thermal import kT, sample_step_strains
+    from dnarod.physics.thermal import sample_step_strains
+    from dnarod.core.units import kT
 
     rng = np.random.default_rng(seed)
     p = model.params
@@ -372,9 +373,10 @@ def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default", nonbonde
         with ``charge`` and/or ``cutoff_debye`` for other terms than the defaults, as in the members' settings).
     """
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm.nonbonded import member_nonbonded
-    from dnarod.physics.thermal import kT, persistence_length
-    from dnarod.validate.torsion import bare_twist_persistence
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
+    from dnarod.physics.theory.torsion import bare_twist_persistence
 
     terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt_M, **dict(nonbonded or {})))
     ff = load_forcefield(forcefield)
@@ -399,7 +401,7 @@ _DEFF_CACHE = {}
 
 def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
     """The model's effective diameter (nm): Onsager's excluded volume of two long straight chains of its nodes,
-    computed by :func:`dnarod.engines.openmm.nonbonded.effective_diameter` (the one home of this computation; ``n_gamma``
+    computed by :func:`dnarod.physics.nonbonded.effective_diameter` (the one home of this computation; ``n_gamma``
     angles, ``n_offset`` site offsets per chain, ``n_h`` distances).
 
     Two long rods crossing at angle gamma with closest distance h exclude ``2 L² |sin gamma| d(gamma)``, with
@@ -421,7 +423,7 @@ def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
     -------
     float
     """
-    from dnarod.engines.openmm.nonbonded import effective_diameter as nb_effective_diameter
+    from dnarod.physics.nonbonded import effective_diameter as nb_effective_diameter
 
     return float(nb_effective_diameter(nonbonded, ds, temperature, n_angles=n_gamma, n_phase=n_offset, n_h=n_h))
 

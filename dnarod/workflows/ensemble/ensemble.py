@@ -21,7 +21,8 @@ from pathlib import Path
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.io import check_output_folder, write_text_atomic
-from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member, RESULT
+from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
+from dnarod.core.io import RESULT
 from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol
 from dnarod.workflows.ensemble.results import CSV, SUMMARY, TABLE, collect_rows, plot_axes, rows_to_table, write_summary, write_table
 from dnarod.workflows.ensemble.schema import SpecError

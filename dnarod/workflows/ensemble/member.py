@@ -25,11 +25,7 @@ import traceback
 import warnings
 from pathlib import Path
 
-from dnarod.core.io import write_text_atomic
-
-RESULT = "result.json"
-MEMBER = "member.json"
-LOG = "member.log"
+from dnarod.core.io import LOG, MEMBER, RESULT, write_text_atomic
 
 
 def member_dir(outdir, mid):

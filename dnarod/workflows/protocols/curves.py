@@ -61,8 +61,9 @@ def _members(kind, axes, base):
     """Expand the axes (cross product) into member settings, checking every member before any runs."""
     from itertools import product
 
-    from dnarod.workflows.protocols.rings import check_ring, relaxed_twist
-    from dnarod.workflows.protocols.tweezers import check_tweezers, intrinsic_turns
+    from dnarod.physics.loads import intrinsic_turns
+    from dnarod.workflows.protocols.rings import check_ring
+    from dnarod.workflows.protocols.tweezers import check_tweezers
 
     names = list(axes)
     values = [list(np.atleast_1d(axes[n]).tolist()) for n in names]
@@ -82,7 +83,7 @@ def _members(kind, axes, base):
     seq, n_nodes = protocol_source(base.get("source", ""), min_nodes=3 if kind == "rings" else 2 * WALL_SKIP + 2)
     if kind == "rings":
         ring = ff.ring(seq, n_nodes=n_nodes)
-        tw0 = relaxed_twist(ring)
+        tw0 = intrinsic_turns(ring)
         for m in members:
             check_ring(m.get("delta_lk", 0), tw0)
         # the start pose every member runs from, checked as `dnarod simulate` checks it (a tiny ring heats up)
@@ -105,7 +106,8 @@ def _check_clamp_stiffness(model, members, table):
     """The rotation clamp of the tweezers members against the one bound on load stiffness
     (:func:`dnarod.physics.loads.check_load_stiffness`, as ``dnarod simulate --rotation-clamp``), on the free chain with
     node 0 clamped; named as the setting ``rotation_clamp_kJ_mol`` (``--clamp-k``)."""
-    from dnarod.physics.loads import Clamp, RotationClamp, check_load_stiffness
+    from dnarod.physics.loads import Clamp, RotationClamp
+    from dnarod.physics.modes import check_load_stiffness
     from dnarod.workflows.protocols.tweezers import DEFAULT_CLAMP_K
 
     for k in sorted({float(m.get("rotation_clamp_kJ_mol") or DEFAULT_CLAMP_K) for m in members}):
@@ -292,7 +294,7 @@ def _run_members(kind, axes, base, members, outdir, workers, progress, client, p
     rows.sort(key=lambda r: (r.get(x) if r.get(x) is not None else 0.0))
     for r in rows:
         if kind == "rings" and "Tw" in r:
-            r["Tw_minus_Tw0"] = r["Tw"] - r["relaxed_twist"]
+            r["Tw_minus_Tw0"] = r["Tw"] - r["intrinsic_turns"]
     _thermal_corrections(kind, base, rows)
     curve = Curve(kind, rows)
     curve.files["csv"] = _write_csv(rows, outdir / "curve.csv")
@@ -522,7 +524,7 @@ def read_experimental(name):
 
 def plot_curve(kind, rows, path):
     """Plot a protocol's curve (mean +- block standard error per member) with the experimental tables beside."""
-    from dnarod.validate._common import new_figure, save_figure
+    from dnarod.analysis.plots import new_figure, save_figure
 
     xk, yks, xl, yl = PLOTS[kind]
     fig, ax = new_figure(1, 1, width=6.0, height=5.4)
@@ -571,7 +573,7 @@ def _draw_experiment(a, kind, name, rows):
     * rings: the line ``Wr = f dLk`` for the writhe fraction read ("usually ~70%", a review quoting its sources;
       no superhelical density or salt stated, the label says so beside the run's salt).
     """
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
     from dnarod.physics import experiments as ex
 

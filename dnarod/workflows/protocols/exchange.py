@@ -234,7 +234,7 @@ class ReplicaGroup:
     def __init__(self, settings, rids, grow=True):
         from dnarod.workflows.protocols.measure import detector_distances
         from dnarod.workflows.protocols.tweezers import build_member
-        from dnarod.engines.openmm.nonbonded import member_nonbonded
+        from dnarod.physics.nonbonded import member_nonbonded
 
         t0, c0 = time.perf_counter(), time.process_time()
         self.members = [build_member(s) for s in settings]
@@ -405,7 +405,7 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
     """
     from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
     from dnarod.workflows.protocols.sweep import save_pose, FINAL_POSE
-    from dnarod.physics.thermal import kT
+    from dnarod.core.units import kT
     from dnarod.workflows.protocols.tweezers import COLUMNS, build_member, summarize
 
     if not (isinstance(exchange_ps, (int, float)) and math.isfinite(exchange_ps) and exchange_ps > 0):

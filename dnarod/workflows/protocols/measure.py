@@ -175,7 +175,7 @@ def detector_distances(nonbonded=None, temperature=300.0, ds=0.34):
     tuple of float
         nm, nm.
     """
-    from dnarod.engines.openmm.nonbonded import NonbondedSettings
+    from dnarod.physics.nonbonded import NonbondedSettings
     from dnarod.physics.theory.supercoil import effective_diameter
 
     nb = NonbondedSettings() if nonbonded is None else nonbonded
@@ -323,7 +323,8 @@ def twisting_moment_offset(model, temperature, n_samples=400_000, seed=0):
     tuple of float
         ``(offset, standard_error)``, pN nm.
     """
-    from dnarod.physics.thermal import kT, sample_step_strains
+    from dnarod.physics.thermal import sample_step_strains
+    from dnarod.core.units import kT
 
     rng = np.random.default_rng(seed)
     p = model.params

@@ -50,7 +50,7 @@ DEFAULT_SOFTENING = 16.0
 
 
 def _settings(s):
-    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+    from dnarod.physics.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
     from dnarod.engines.openmm.platforms import member_platform
 
     out = dict(n_bp=300, forcefield="dna-default", time_ns=4.0, equilibration_ns=None, temperature_K=300.0,
@@ -98,7 +98,8 @@ def soft_twist_model(model, softening, temperature=300.0, n_samples=200_000, see
         Kn[k][np.ix_(other, other)] = b - np.outer(c, c) / K[k][2, 2]
         Kn[k][2, 2] = K[k][2, 2] / float(softening)
     xi0 = np.array(model.params.intrinsic, float)
-    from dnarod.physics.thermal import kT, sample_step_strains
+    from dnarod.physics.thermal import sample_step_strains
+    from dnarod.core.units import kT
 
     rng = np.random.default_rng(seed)
     ds = model.ds
@@ -134,7 +135,8 @@ def step_twist_sum(positions, frames, ds, closure):
 
 def twist_sum_moments(model, temperature, n_samples=400_000, seed=0):
     """Mean and variance (turns, turns²) of the total twist of the model's steps, from the exact step distribution."""
-    from dnarod.physics.thermal import kT, sample_step_strains
+    from dnarod.physics.thermal import sample_step_strains
+    from dnarod.core.units import kT
 
     rng = np.random.default_rng(seed)
     p = model.params
@@ -161,7 +163,7 @@ def free_writhe_moments(wr, lk, tw_mean, tw_var, n_blocks=10):
         ``mean``, ``mean_err``, ``second_moment``, ``second_moment_err``, ``variance`` (about the mean),
         ``unweighted_second_moment``, ``weight_spread`` (max/min weight).
     """
-    from dnarod.validate._common import jackknife, split_blocks
+    from dnarod.analysis.statistics import jackknife, split_blocks
 
     wr = np.asarray(wr, float)
     a = (lk - tw_mean - wr) ** 2 / (2.0 * tw_var)
@@ -192,7 +194,8 @@ def run_nicked_member(settings, member_dir, progress=None):
     from dnarod.physics.writhe import writhe
     from dnarod.core.forcefield import load_forcefield
     from dnarod.core.io import jsonable
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
     from dnarod.workflows.protocols.rings import cached_member, sample_ring, write_member
 
     s = _settings(settings)

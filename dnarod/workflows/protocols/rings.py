@@ -4,7 +4,7 @@ The ring is :meth:`dnarod.core.forcefield.ForceField.ring` (a planar circle with
 relaxed ``Lk0 = round(intrinsic twist / 2 pi)``), run with Langevin dynamics (the dynamics conserve Lk);
 each sample reports Tw (ribbon twist of d1), Wr (exact polygon writhe), Lk = Tw + Wr (checked to be the
 integer set), the writhe fraction ``Wr / (Lk - Tw0_T)`` with ``Tw0_T`` the relaxed ring's mean twist at the
-run's temperature (:func:`dnarod.physics.theory.supercoil.thermal_relaxed_twist`; ``relaxed_twist`` is the
+run's temperature (:func:`dnarod.physics.theory.supercoil.thermal_relaxed_twist`; ``intrinsic_turns`` is the
 T = 0 value, the sum of intrinsic twist angles, 0.27 turns higher for 600 bp of dna-default), and the plectoneme
 detector of :mod:`dnarod.workflows.protocols.measure` with chain separations wrapping around, and the number of plectoneme
 end loops (:func:`~dnarod.workflows.protocols.measure.plectoneme_end_loops`: 2 for an unbranched plectoneme, more if it
@@ -26,13 +26,14 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.physics.loads import MAX_SIGMA, intrinsic_turns
 
 COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_length_nm", "plectonemic",
            "radius_of_gyration_nm", "end_loops")
 
 
 def _settings(s):
-    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+    from dnarod.physics.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
     from dnarod.engines.openmm.platforms import member_platform
 
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
@@ -47,15 +48,8 @@ def _settings(s):
     return out
 
 
-def relaxed_twist(model):
-    """Relaxed twist Tw0 (turns) of a ring: the sum of intrinsic twist angles / 2 pi."""
-    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
-
-
 def check_ring(delta_lk, lk0):
     """Refuse linking differences the model cannot represent (|sigma| > 0.1), one line."""
-    from dnarod.workflows.protocols.tweezers import MAX_SIGMA
-
     d = float(delta_lk)
     if d != int(d):
         raise DnarodError(f"delta_lk {delta_lk}: the linking number of a closed ring is an integer")
@@ -108,12 +102,12 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     run : dict
         ``friction_per_ps, tau_bend_estimate_ps, equilibration_ps, production_ps, wall_s, cpu_s, dt_ps,
         n_steps, n_samples, sample_ps, ns_per_day, contour_length_nm``, ``stride`` (steps per sample),
-        ``elastic_path`` and ``nonbonded`` (the terms' record, :func:`dnarod.engines.openmm.nonbonded.nonbonded_record`:
+        ``elastic_path`` and ``nonbonded`` (the terms' record, :func:`dnarod.physics.nonbonded.nonbonded_record`:
         charge model, e per node, cutoff in Debye lengths and nm).
     """
     from dnarod.analysis.polymer import bending_relaxation_time
     from dnarod.physics.writhe import twist, writhe
-    from dnarod.engines.openmm.nonbonded import member_nonbonded, nonbonded_record
+    from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.workflows.protocols.tweezers import auto_friction
 
@@ -178,8 +172,9 @@ def run_ring_member(settings, member_dir, progress=None):
     from dnarod.analysis.polymer import integrated_autocorrelation_time
     from dnarod.core.forcefield import load_forcefield
     from dnarod.core.io import jsonable
-    from dnarod.physics.thermal import kT, persistence_length
-    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
+    from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops, plectoneme_state
 
     s = _settings(settings)
@@ -190,7 +185,7 @@ def run_ring_member(settings, member_dir, progress=None):
         return cached
     ff = load_forcefield(s["forcefield"])
     tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
-    tw0 = relaxed_twist(tw0_model)
+    tw0 = intrinsic_turns(tw0_model)
     check_ring(s["delta_lk"], tw0)
     model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
                     delta_linking_number=int(s["delta_lk"]))
@@ -211,7 +206,7 @@ def run_ring_member(settings, member_dir, progress=None):
     stride, dt = run.pop("stride"), run["dt_ps"]
     run.pop("elastic_path")
     res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
-               seed=int(s["seed"]), relaxed_twist=tw0, sigma=int(s["delta_lk"]) / tw0, plectoneme_contact_nm=contact_nm,
+               seed=int(s["seed"]), intrinsic_turns=tw0, sigma=int(s["delta_lk"]) / tw0, plectoneme_contact_nm=contact_nm,
                plectoneme_min_separation_nm=sep_nm, **run)
     for c in COLUMNS[1:]:
         x = out[c]

@@ -185,11 +185,12 @@ def buckling_estimate(source, force_pN, temperature_K=300.0, forcefield="dna-def
     """The numbers behind :func:`buckling_turns` (dict: ``A_nm``, ``C_nm``, ``C_s_nm``, ``P_nm``,
     ``buckling_delta_lk``, ``thermal_offset_turns`` (lk0 - Lk_T), ``margin``, ``turns_lo``, ``turns_hi``)."""
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.thermal import kT, persistence_length, relaxed_ribbon_twist
+    from dnarod.physics.thermal import persistence_length, relaxed_ribbon_twist
+    from dnarod.core.units import kT
     from dnarod.core.units import PN
     from dnarod.physics.theory.supercoil import marko_two_phase
-    from dnarod.validate.torsion import bare_twist_persistence, moroz_nelson
-    from dnarod.workflows.protocols.tweezers import intrinsic_turns
+    from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson
+    from dnarod.physics.loads import intrinsic_turns
 
     if not (0.0 < float(margin) <= 1.0):
         raise DnarodError(f"buckling margin {margin}: give a fraction in (0, 1]")

@@ -35,24 +35,13 @@ import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.units import PN
+from dnarod.physics.loads import MAX_FORCE_PN, MAX_SIGMA, intrinsic_turns
 
-#: Largest pulling force (pN) a member accepts: real DNA overstretches near 65 pN (a structural transition
-#: the elastic rod does not have), and its stretch modulus is calibrated at low force.
-MAX_FORCE_PN = 50.0
-#: Largest |sigma| = |turns| / Lk0: beyond a few percent real DNA denatures (underwinding) or forms other
-#: structures (overwinding) under tension; the rod's quadratic twist energy is far outside its calibration at
-#: 10 % and its Cayley twist coordinate stays regular only below 180 degrees per step.
-MAX_SIGMA = 0.1
 DEFAULT_CLAMP_K = 250.0  # kJ/mol: ~100 kT, clamp angle fluctuations ~0.1 rad
 
 #: Observables sampled per frame (column names of ``samples.csv``).
 COLUMNS = ("time_ps", "extension_nm", "end_turns", "clamp_torque_pN_nm", "twist_torque_pN_nm", "Tw", "Wr", "Lk",
            "plectoneme_fraction", "plectoneme_length_nm", "plectonemic")
-
-
-def intrinsic_turns(model):
-    """Relaxed linking number Lk0 of an open chain: its intrinsic twist in turns (Cayley twist angles)."""
-    return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
 
 
 def check_tweezers(force_pN, turns=None, rotation_clamp=True, n_bp=None, lk0=None, torque_pN_nm=None):
@@ -136,7 +125,8 @@ def strained_helix(model, force_pN, turns):
 def auto_friction(model, force_pN, temperature, lp=None):
     """Collision rate (1/ps) critically damping the slowest bending mode under tension, in [1e-4, 1]."""
     from dnarod.analysis.polymer import FREE_FREE_BETA1_L
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
 
     lp = persistence_length(model.params, model.ds, kT(temperature)) if lp is None else lp
     L = model.ds * model.n_steps
@@ -147,7 +137,7 @@ def auto_friction(model, force_pN, temperature, lp=None):
 
 
 def _settings(s):
-    from dnarod.engines.openmm.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+    from dnarod.physics.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
     from dnarod.engines.openmm.platforms import member_platform
 
     out = dict(n_bp=200, forcefield="dna-default", sequence=None, force_pN=1.0, turns=None, time_ns=1.0,
@@ -184,8 +174,9 @@ def build_member(settings, start_pose=None):
     """
     from dnarod.analysis.polymer import bending_relaxation_time
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm.loads import Clamp, PullingForce, RotationClamp
-    from dnarod.physics.thermal import kT, persistence_length
+    from dnarod.physics.loads import Clamp, PullingForce, RotationClamp
+    from dnarod.physics.thermal import persistence_length
+    from dnarod.core.units import kT
 
     s = _settings(settings)
     ff = load_forcefield(s["forcefield"])
@@ -299,7 +290,7 @@ def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
 def _member_simulation(m, model, dt=None):
     """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``; ``dt`` ps, default
     the model's own, :class:`~dnarod.engines.openmm.simulation.RodSimulation`)."""
-    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.engines.openmm.platforms import choose_platform
     from dnarod.engines.openmm.simulation import RodSimulation
 
@@ -390,7 +381,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
         Where to write the last pose (``.npz``, :func:`dnarod.workflows.protocols.sweep.save_pose`): the next member of a
         turn sweep starts from it.
     """
-    from dnarod.engines.openmm.nonbonded import member_nonbonded
+    from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.workflows.protocols.measure import detector_distances, rotation_about_z
 
     s = m["settings"]
@@ -545,7 +536,7 @@ def run_member(settings, member_dir, progress=None, start_pose=None):
         save_pose(member_dir / START_POSE, m["model"].positions, m["model"].frames)
     samples, cost = sample_member(m, progress, checkpoint=ckpt, pose_out=member_dir / FINAL_POSE)
     res = summarize(samples, m, cost)
-    from dnarod.engines.openmm.nonbonded import member_nonbonded, nonbonded_record
+    from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
 
     # the non-bonded terms as run: charge model, e per node, cutoff in Debye lengths and nm
     res["nonbonded"] = nonbonded_record(member_nonbonded(m["settings"]), m["model"].ds,

@@ -1,7 +1,7 @@
 """Running the Lax-form engine from Python: NVE and Langevin runs with trajectories, energies and checkpoints.
 
 ``simulate_nve``/``simulate_langevin`` are thin wrappers over the run layer's one loop
-(:func:`dnarod.run.run_engine` with :class:`dnarod.run.LaxEngine` and its reporters), writing the
+(:func:`dnarod.run.run_engine` with :class:`dnarod.engines.lax.engine.LaxEngine` and its reporters), writing the
 shared formats, so every analysis runs on both engines:
 
 * ``.dtraj`` trajectory with centre velocities (lab, nm/ps) and body angular velocities (rad/ps),
@@ -26,7 +26,10 @@ from dnarod.core.errors import DnarodError
 from dnarod.core.io import atomic_path
 from dnarod.physics.thermal import kinetic_temperature, node_kinetic_energy
 from dnarod.core.trajectory import load_trajectory
+from dnarod.engines.lax.engine import LaxEngine
 from dnarod.engines.lax.splitting import RigidState, SplittingIntegrator, maxwell_state
+from dnarod.run.loop import run_engine
+from dnarod.run.reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter
 
 
 @dataclass
@@ -89,10 +92,6 @@ class _Rows:
 def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, seed, out, report_interval,
               energy_csv, checkpoint, checkpoint_interval, resume, fast, allow_unstable, check_stability,
               metadata, progress):
-    from dnarod.run.engine import LaxEngine
-    from dnarod.run.loop import run_engine
-    from dnarod.run.reporters import DtrajReporter, EnergyReporter, ProgressReporter
-
     n_steps = int(n_steps)
     if n_steps < 0:
         raise DnarodError(f"n_steps must be >= 0, got {n_steps}")
@@ -212,7 +211,6 @@ def simulate_exact(model, t_end, velocities=None, angular_velocities=None, tempe
     if out is not None:
         res.trajectory.save(out)
     if energy_csv is not None:
-        from dnarod.run.reporters import ENERGY_COLUMNS
         from dnarod.engines.lax.boundary import BoundaryConditions
 
         tr = res.trajectory
