@@ -176,7 +176,8 @@ def main(argv=None):
     from dnarod.physics.nonbonded import NonbondedSettings
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.workflows.protocols import tweezers as tw
-    from dnarod.workflows.protocols.measure import plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment
+    from dnarod.workflows.protocols.measure import plectoneme_state, rotation_about_z, twisting_moment
+    from dnarod.physics.observables import twist_writhe_open
 
     load0 = os.getloadavg()
     m = tw.build_member(dict(n_bp=a.n_bp, force_pN=a.force, turns=a.turns, time_ns=a.time, equilibration_ns=0.1))

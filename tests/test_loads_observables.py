@@ -76,3 +76,27 @@ def test_open_chain_lk_follows_the_turns_of_the_held_end(ff):
     obs_r = csv_observables(m.with_pose(m.positions @ R.T, R @ m.frames),
                             (Clamp(0), PullingForce(-1, 5.0 * (R @ a)), RotationClamp(-1, 100.0)))
     assert obs_r(snap(m.positions @ R.T, R @ m.frames))["lk"] == pytest.approx(lk0, abs=1e-9)
+
+
+def test_open_chain_lk_is_one_construction_for_any_pull_axis():
+    """Tw, Wr and Lk of an open chain have one home (physics.observables): rotating the chain and its pull axis
+    together changes neither, and turning the last node about the axis by phi changes Lk by phi/2pi."""
+    from dnarod.core.rotations import rotation_about_axis
+    from dnarod.physics.observables import _to_axis_frame, twist_writhe_open
+
+    m = load_forcefield("dna-default").model_from_sequence(n_nodes=40)
+    rng = np.random.default_rng(3)
+    pos = m.positions + rng.normal(scale=0.05, size=m.positions.shape)
+    frm = m.frames
+    tw, wr = twist_writhe_open(pos, frm)
+    axis = np.array([0.3, -0.4, 0.866])
+    axis /= np.linalg.norm(axis)
+    R = _to_axis_frame(axis).T  # z -> axis
+    assert np.allclose(R @ [0, 0, 1.0], axis)
+    tw2, wr2 = twist_writhe_open(pos @ R.T, R @ frm, axis)
+    assert abs(tw2 - tw) < 1e-9 and abs(wr2 - wr) < 1e-9
+    phi = 0.7
+    frm3 = frm.copy()
+    frm3[-1] = rotation_about_axis(np.array([0.0, 0.0, 1.0]), phi) @ frm[-1]
+    lk3 = sum(twist_writhe_open(pos, frm3))
+    assert abs(lk3 - (tw + wr) - phi / (2 * np.pi)) < 1e-9

@@ -260,13 +260,13 @@ def test_legitimate_stiff_loads_and_default_clamp_still_run(tmp_path):
     from dnarod.run.api import check_load_stiffness
     from dnarod.run import RunSpec
     from dnarod.structure.inputs import load_model
-    from dnarod.run.setup import tweezers_loads
+    from dnarod.physics.loads import tweezers
 
     model = load_model("40")
-    for clamp, traps in ((250.0, ("3:1000",)), (1e5, ())):
-        loads = tweezers_loads(model, 1.0, None, clamp, 0.0, True, traps)
+    for clamp, traps in ((250.0, ((3, 1000.0),)), (1e5, ())):
+        loads = tweezers(model, 1.0, None, clamp, 0.0, anchor="surface", traps=traps)
         check_load_stiffness(RunSpec(source="40", loads=loads), model)   # no error
-    loads = tweezers_loads(model, 1.0, None, 1e7, 0.0, True, ())
+    loads = tweezers(model, 1.0, None, 1e7, 0.0, anchor="surface")
     with pytest.raises(Exception, match=r"--rotation-clamp 1e\+07 .*use at most"):
         check_load_stiffness(RunSpec(source="40", loads=loads), model)
 

@@ -10,8 +10,8 @@ from dnarod.cli.main import main
 from dnarod.core.errors import DnarodError
 from dnarod.core.forcefield import load_forcefield
 from dnarod.physics.nonbonded import NonbondedSettings
-from dnarod.workflows.protocols.measure import (CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops,
-                                      plectoneme_state, rotation_about_z, twist_writhe_open, twisting_moment)
+from dnarod.workflows.protocols.measure import CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops, plectoneme_state, rotation_about_z, twisting_moment
+from dnarod.physics.observables import twist_writhe_open
 from dnarod.workflows.protocols.tweezers import check_tweezers, strained_helix
 from dnarod.physics.loads import intrinsic_turns
 from dnarod.core.rotations import rotation_about_axis

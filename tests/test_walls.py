@@ -155,14 +155,19 @@ def test_without_the_plugin_the_walls_fall_back_to_numba(monkeypatch):
 
 def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.loads import Clamp, PullingForce
+    from dnarod.physics.loads import Clamp, PullingForce, Walls
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.workflows.protocols import tweezers as tw
     from dnarod.core.units import PN
 
     model = tw.strained_helix(load_forcefield("dna-default").model_from_sequence(n_nodes=N), 2.0, 0.0)
     loads = [Clamp(0), PullingForce(-1, [0.0, 0.0, 2.0 * PN])]
-    extra = tw.tweezers_wall_forces(model, platform=platform, form=form) if walls_now else ()
+    if form == "load":  # the tweezers set-up's Walls load, built by the engine
+        loads.append(Walls())
+        extra = ()
+    else:
+        extra = walls.wall_forces(N, float(model.positions[0, 2]), 100.0, 3, platform=platform, form=form) \
+            if walls_now else ()
     sim = RodSimulation(model, platform=platform, elastic=elastic, nonbonded=False, loads=loads, seed=1,
                         extra_forces=extra)
     return sim, model
@@ -176,7 +181,7 @@ def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
     from dnarod.engines.openmm.particles import particle_positions
 
     got = {}
-    for form in FORMS:
+    for form in (*FORMS, "load"):
         sim, model = _member_sim(elastic, platform, form=form)
         p = particle_positions(model.positions, model.frames, sim.rs.radius).reshape(-1, 3).copy()
         z0 = float(model.positions[0, 2])
@@ -192,37 +197,8 @@ def test_walls_in_a_member_simulation_report_in_external(elastic, platform):
         assert es > 1.0 and eb > 1.0
         # the pulling force's energy -F z_last did not change (the last node was not moved)
         assert e_ext - e_pull0 == pytest.approx(es + eb, rel=1e-9), (elastic, form, sim.rs.elastic)
-    for form in FORMS:
+    for form in (*FORMS, "load"):
         assert got[form] == pytest.approx(got["reference"], rel=1e-10)
-
-
-@needs_plugin
-def test_walls_after_a_reinitialised_context():
-    """add_tweezers_walls on a running fast-path simulation: after the reinitialisation the compiled walls act
-    (pushing nodes through both walls raises the "external" energy by the numpy wall energy) and it runs on."""
-    from dnarod.engines.openmm.particles import particle_positions
-    from dnarod.workflows.protocols import tweezers as tw
-
-    sim, model = _member_sim("fast", walls_now=False)
-    sim.advance(20)
-    e_before = sim.energies()["external"]
-    tw.add_tweezers_walls(sim, model)
-    names = [sim.rs.system.getForce(i).getName() for i in range(sim.rs.system.getNumForces())]
-    assert "dnarod tweezers walls (surface + bead plane, plugin)" in names
-    assert sim.energies()["external"] == pytest.approx(e_before, abs=1e-9)  # a near-straight chain touches nothing
-    sim.advance(20)
-    assert np.isfinite(sim.energies()["potential"])
-    c, f = sim.node_pose()
-    p = particle_positions(c, f, sim.rs.radius).reshape(-1, 3).copy()
-    e0 = sim.energies()["external"]
-    z0 = float(model.positions[0, 2])
-    p[3 * 8:3 * 9, 2] = z0 - 0.25
-    p[3 * 14, 2] = p[3 * (N - 1):, 2].mean() + 0.2
-    sim.context.setPositions(p)
-    sim.invalidate()
-    es, eb, _ = walls.wall_energy(p[:, 2], N, z0, 100.0, 3)
-    assert es > 1.0 and eb > 1.0
-    assert sim.energies()["external"] - e0 == pytest.approx(es + eb, rel=1e-9)
 
 
 @needs_plugin

@@ -3,8 +3,8 @@ python long_member.py OUT.npz TURNS TIME_NS SEED [grown] [n_bp] [force]"""
 import sys, time, os, json
 import numpy as np
 from dnarod.workflows.protocols.tweezers import COLUMNS, _member_simulation, build_member, grown_start
-from dnarod.workflows.protocols.measure import (clamp_torque_z, plectoneme_state, rotation_about_z, twist_writhe_open,
-                                      twisting_moment)
+from dnarod.workflows.protocols.measure import clamp_torque_z, plectoneme_state, rotation_about_z, twisting_moment
+from dnarod.physics.observables import twist_writhe_open
 
 out_path, turns, time_ns, seed = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
 grown = len(sys.argv) > 5 and sys.argv[5] == "grown"

@@ -7,6 +7,7 @@ from __future__ import annotations
 import functools
 
 import click
+import numpy as np
 
 from dnarod.core.errors import ParameterError
 
@@ -53,14 +54,17 @@ _OPTIONS = [
                  help="Debye-Hueckel electrostatics [default: on with --engine openmm; the lax engine has none]."),
     click.option("--salt", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L (Debye length)."),
     *CHARGE_OPTIONS,
-    click.option("--pull", type=float, default=None, help="Pull the ends apart along their initial axis, pN."),
-    click.option("--torque", type=float, default=None,
-                 help="Torque on the last node about the end-to-end axis, pN nm."),
+    click.option("--pull", type=float, default=None,
+                 help="Pull the last node along the axis (and node 0 the other way unless --clamp-first), pN."),
+    click.option("--torque", type=float, default=None, help="Torque on the last node about the axis, pN nm."),
     click.option("--rotation-clamp", type=float, default=None,
                  help="Clamp the last node's orientation, stiffness kJ/mol."),
     click.option("--turns", type=float, default=0.0,
                  help="Turn the rotation clamp by this many turns, at a constant rate over the run."),
-    click.option("--clamp-first", is_flag=True, help="Fix node 0 in space (position and orientation)."),
+    click.option("--clamp-first", is_flag=True,
+                 help="Fix node 0 in space (position and orientation): the surface of a magnetic-tweezers cell."),
+    click.option("--axis", type=click.Choice(["end-to-end", "z"]), default="end-to-end", show_default=True,
+                 help="Axis of --pull, --torque and --rotation-clamp: the source's end-to-end direction or lab z."),
     click.option("--trap", multiple=True,
                  help="Harmonic trap NODE:K (node from 0, K in pN/nm) at the node's start position; repeatable."),
     click.option("--minimize", is_flag=True, help="Start from the static minimum under the loads."),
@@ -94,14 +98,29 @@ def _simulate_options(f):
     return f
 
 
+def parse_trap(text, n_nodes):
+    """``"NODE:K"`` (K in pN/nm) -> (node, K); node 0-based, negative counts from the end."""
+    try:
+        node, k = text.split(":")
+        node, k = int(node), float(k)
+    except ValueError:
+        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (stiffness in pN/nm), e.g. 0:50") from None
+    if not -n_nodes <= node < n_nodes:
+        raise ParameterError(f"--trap {text!r}: node {node} does not exist (the chain has {n_nodes} nodes)")
+    if not (np.isfinite(k) and k > 0):
+        raise ParameterError(f"--trap {text!r}: the stiffness must be positive (pN/nm)")
+    return node, k
+
+
 def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, duplex, intrinsic, time_ns, dt, temperature,
                       friction, integrator, platform, threads, elastic, excluded_volume, electrostatics, salt, pull,
                       torque, rotation_clamp, turns, clamp_first, trap, minimize, equilibrium, frame_interval,
-                      checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None):
+                      checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None,
+                      axis="end-to-end"):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
     from dnarod.physics.nonbonded import nonbonded_options
     from dnarod.run.api import source_model
-    from dnarod.run.setup import tweezers_loads
+    from dnarod.physics.loads import tweezers
     from dnarod.run.spec import RunSpec
 
     if minimize and equilibrium:
@@ -127,7 +146,9 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
     _refuse_ignored_options(spec, xtc, export)
     if pull is not None or torque is not None or rotation_clamp is not None or clamp_first or trap or turns:
         model = source_model(spec)
-        spec = spec.replace(loads=tweezers_loads(model, pull, torque, rotation_clamp, turns, clamp_first, trap))
+        traps = tuple(parse_trap(t, model.n_nodes) for t in trap)
+        spec = spec.replace(loads=tweezers(model, pull, torque, rotation_clamp, turns,
+                                           anchor="surface" if clamp_first else "ends", axis=axis, traps=traps))
     return spec
 
 

@@ -30,7 +30,8 @@ import numpy as np
 from dnarod.core.errors import ParameterError
 
 __all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
-           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA"]
+           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls", "tweezers",
+           "pull_axis", "ANCHORS", "AXES"]
 
 
 def _md_units():
@@ -179,7 +180,39 @@ class Trap:
             self.centre = as_md(self.centre, "length", (3,), f"trap centre of node {self.node}")
 
 
-LOAD_TYPES = (PullingForce, Torque, RotationClamp, Clamp, Trap)
+@dataclass
+class Walls:
+    """The surface and the bead of a magnetic-tweezers set-up, as two planar walls normal to the lab z axis.
+
+    Node 0 is anchored at the surface and the last node is pulled along +z (``tweezers(anchor="surface",
+    axis="z")``): every node but the first ``skip`` stays above the surface plane (node 0's starting z) and every
+    node but the last ``skip`` stays below the pulled node (a plane through it: the large-bead limit), each with
+    the harmonic penalty ``k/2 d^2`` on the penetration d. Without them the chain could swing below its anchor or
+    around the free end and change its linking number through the closure (a real surface and a micron bead forbid
+    both). Engines translate them (the OpenMM engine: :mod:`dnarod.engines.openmm.walls`, which defines the energy
+    on the particles that carry each node).
+
+    Parameters
+    ----------
+    k : float
+        Stiffness, kJ/mol/nm^2 (default 100: a penetration of ``sqrt(kT/k)`` = 0.16 nm at 300 K).
+    skip : int
+        Nodes next to each end the walls leave alone (they sit at the walls by construction).
+    """
+
+    k: float = 100.0
+    skip: int = 3
+
+    def __post_init__(self):
+        self.k = as_md(self.k, "stiffness", (), "wall stiffness")
+        if self.k <= 0:
+            raise ParameterError(f"wall stiffness must be positive, got {self.k}")
+        if isinstance(self.skip, bool) or int(self.skip) != self.skip or self.skip < 0:
+            raise ParameterError(f"wall skip must be a whole number of nodes >= 0, got {self.skip!r}")
+        self.skip = int(self.skip)
+
+
+LOAD_TYPES = (PullingForce, Torque, RotationClamp, Clamp, Trap, Walls)
 
 
 def resolve_node(node, n_nodes, what="load"):
@@ -239,6 +272,8 @@ class ResolvedLoads:
         Dead lab torques, kJ/mol.
     traps : list of (node, k kJ/mol/nm^2, centre (3,) nm)
     rotation_clamps : list of ResolvedClamp
+    walls : Walls or None
+        The tweezers walls, which engines translate themselves (:meth:`evaluate` does not include them).
     """
 
     n_nodes: int
@@ -248,6 +283,7 @@ class ResolvedLoads:
     traps: list = field(default_factory=list)
     rotation_clamps: list = field(default_factory=list)
     loads: tuple = ()
+    walls: Walls | None = None
 
     @property
     def position_dependent(self):
@@ -353,14 +389,21 @@ def resolve_loads(loads, model, positions=None, frames=None):
     clamped = np.zeros(n, bool)
     for load in loads:
         if not isinstance(load, LOAD_TYPES):
-            raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp or Trap")
+            raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp, Trap or "
+                                 f"Walls")
         if isinstance(load, Clamp):
             clamped[resolve_node(load.node, n, "Clamp")] = True
     out = ResolvedLoads(n, clamped, np.zeros((n, 3)), np.zeros((n, 3)), loads=loads)
     seen_rc = set()
+    walls = [ld for ld in loads if isinstance(ld, Walls)]
+    if len(walls) > 1:
+        raise ParameterError("Walls given twice; a tweezers set-up has one surface and one bead")
+    if walls and walls[0].skip >= n:
+        raise ParameterError(f"Walls skip {walls[0].skip}: must be below the {n} nodes of the chain")
+    out.walls = walls[0] if walls else None
     for load in loads:
         kind = type(load).__name__
-        if isinstance(load, Clamp):
+        if isinstance(load, (Clamp, Walls)):
             continue
         k = resolve_node(load.node, n, kind)
         if clamped[k]:
@@ -396,3 +439,128 @@ MAX_SIGMA = 0.1
 def intrinsic_turns(model):
     """Relaxed linking number Lk0 of an open chain: its intrinsic twist in turns (Cayley twist angles)."""
     return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
+
+
+#: Where a tweezers set-up holds the chain: "ends" pulls both ends apart (a free chain in an optical trap),
+#: "surface" clamps node 0 (the surface of a magnetic-tweezers flow cell) and pulls the last node (the bead).
+ANCHORS = ("ends", "surface")
+#: The pull axis of a tweezers set-up: the chain's end-to-end direction at set-up, or the lab z axis.
+AXES = ("end-to-end", "z")
+
+
+def pull_axis(model, axis="end-to-end"):
+    """Unit pull axis (3,) of a set-up: lab z, or from the first to the last node (a ring or a coiled start whose
+    ends coincide: node 0's d3)."""
+    if axis == "z":
+        return np.array([0.0, 0.0, 1.0])
+    a = model.positions[-1] - model.positions[0]
+    if model.closure is not None or np.linalg.norm(a) < 1e-9 * max(model.ds, 1.0):
+        a = model.frames[0][:, 2]
+    return a / np.linalg.norm(a)
+
+
+def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns=0.0, anchor="ends",
+             axis="end-to-end", traps=(), walls=False, clamp_frame=None):
+    """The loads of a tweezers set-up: the one way dnarod pulls and twists a chain (``dnarod simulate``, ensemble
+    members and the protocols all build their loads here).
+
+    Parameters
+    ----------
+    model : RodModel
+        The chain at set-up (its pose defines the end-to-end axis and, by default, the rotation clamp's target).
+    force_pN : float, optional
+        Pulling force, pN: on the last node along the axis, and (``anchor="ends"``) the opposite force on node 0.
+    torque_pN_nm : float, optional
+        Torque on the last node about the axis, pN nm.
+    rotation_clamp : float, optional
+        Stiffness of an orientation clamp of the last node, kJ/mol (``E = k (1 - cos theta)``), turning about the
+        axis.
+    turns : float
+        Turns of the rotation clamp spread linearly over the run (0: the clamp holds its target).
+    anchor : {"ends", "surface"}
+        See :data:`ANCHORS`.
+    axis : {"end-to-end", "z"}
+        See :data:`AXES`.
+    traps : sequence of (int, float)
+        ``(node, k)`` harmonic traps at the nodes' start positions, k in pN/nm (node 0-based; negative counts from
+        the end).
+    walls : bool
+        Add the surface and bead :class:`Walls` (``anchor="surface"``, ``axis="z"`` only).
+    clamp_frame : ndarray (3, 3), optional
+        Target of the rotation clamp (default: the last node's frame when the engine starts).
+
+    Returns
+    -------
+    tuple of load dataclasses (MD units)
+
+    Raises
+    ------
+    ParameterError
+        One line naming the option: loads on a closed ring, a force above :data:`MAX_FORCE_PN`, turns without a
+        clamp or beyond the chain's helical turns, a torque on a free chain with no force, a non-positive
+        stiffness, two traps on one node, an unknown anchor or axis.
+    """
+    from dnarod.core.units import PN
+
+    n = model.n_nodes
+    if anchor not in ANCHORS:
+        raise ParameterError(f"anchor {anchor!r}: choose one of {', '.join(ANCHORS)}")
+    if axis not in AXES:
+        raise ParameterError(f"axis {axis!r}: choose one of {', '.join(AXES)}")
+    surface = anchor == "surface"
+    if model.closure is not None and (force_pN is not None or torque_pN_nm is not None or rotation_clamp is not None
+                                      or surface or walls):
+        raise ParameterError("--pull/--torque/--rotation-clamp/--clamp-first need an open chain with two ends; "
+                             "this model is closed (--ring/--circular)")
+    for name, v in (("--pull", force_pN), ("--torque", torque_pN_nm), ("--rotation-clamp", rotation_clamp)):
+        if v is not None and not np.isfinite(v):
+            raise ParameterError(f"{name} {v}: must be a finite number")
+    if rotation_clamp is not None and rotation_clamp <= 0:
+        raise ParameterError(f"--rotation-clamp {rotation_clamp:g}: the stiffness must be positive (kJ/mol)")
+    if turns is not None and not np.isfinite(turns):
+        raise ParameterError(f"--turns {turns}: must be a finite number")
+    if turns and rotation_clamp is None:
+        raise ParameterError("--turns needs --rotation-clamp (the clamp is what turns)")
+    if turns:
+        lk0 = intrinsic_turns(model)
+        # an untwisted rod (uniform force fields): the limit is a quarter turn per step
+        if abs(turns) > (abs(lk0) if abs(lk0) >= 1 else n / 4):
+            raise ParameterError(f"--turns {turns:g} is more than the {lk0:.1f} helical turns of this {n}-node chain "
+                                 f"(sigma = {turns / lk0:+.3g}): the rod model cannot hold it (real DNA denatures "
+                                 f"beyond |sigma| ~ 0.1); use |turns| <= {0.1 * abs(lk0):.2g} for real DNA")
+    if force_pN is not None and abs(force_pN) > MAX_FORCE_PN:
+        raise ParameterError(f"--pull {force_pN:g} pN is above {MAX_FORCE_PN:g} pN: DNA overstretches near 65 pN, a "
+                             f"transition the elastic rod model does not have; use forces up to {MAX_FORCE_PN:g} pN")
+    if torque_pN_nm is not None and torque_pN_nm != 0 and not force_pN and not surface:  # --pull 0 pulls nothing
+        raise ParameterError(f"--torque {torque_pN_nm:g} on a free chain with no pulling force (--pull absent or 0) "
+                             f"and no --clamp-first has no equilibrium (the chain spins up without bound); add "
+                             f"--clamp-first and/or --pull")
+    if walls and not (surface and axis == "z"):
+        raise ParameterError("walls need the surface anchor and the lab z axis (a magnetic-tweezers set-up: node 0 on "
+                             "the surface, the bead pulled along +z)")
+    a = pull_axis(model, axis)
+    loads = []
+    if surface:
+        loads.append(Clamp(0))
+    if force_pN is not None:
+        loads.append(PullingForce(n - 1, force_pN * PN * a))
+        if not surface:
+            loads.append(PullingForce(0, -force_pN * PN * a))
+    if torque_pN_nm is not None:
+        loads.append(Torque(n - 1, torque_pN_nm * PN * a))
+    if rotation_clamp is not None:
+        loads.append(RotationClamp(n - 1, rotation_clamp, frame=clamp_frame, axis=a, turns=float(turns)))
+    trapped = {}
+    for node, k in traps:
+        text = f"{node}:{k:g}"
+        k_node = resolve_node(node, n, f"--trap {text!r}")
+        if not (np.isfinite(k) and k > 0):
+            raise ParameterError(f"--trap {text!r}: the stiffness must be positive (pN/nm)")
+        if k_node in trapped:  # two traps on one node add up silently: say so
+            raise ParameterError(f"--trap {text!r}: node {k_node} already has a trap ({trapped[k_node]!r}); give "
+                                 f"one --trap per node with the stiffness you want")
+        trapped[k_node] = text
+        loads.append(Trap(node, k * PN))
+    if walls:
+        loads.append(Walls())
+    return tuple(loads)

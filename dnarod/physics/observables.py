@@ -10,12 +10,12 @@
 * ``lk`` -- linking number ``Lk = Tw + Wr`` of the base-pair ribbon (centreline through the node
   centres, ribbon vector d1), with Tw and Wr from :mod:`dnarod.physics.writhe` (one home):
   for a ring (identity closure) of the closed ribbon (an integer); for an open chain whose two end
-  frames are held (Clamp or RotationClamp on node 0 and on node n-1), ``Lk = Tw(chain) + Wr(closed
-  curve)``, the curve closed by the standard magnetic-tweezers construction: from each end straight
-  out along the pull axis far beyond the molecule, joined by a segment far to the side (Vologodskii &
-  Marko 1997, Biophys. J. 73:123-132, "Extension of torsionally stressed DNA by external force";
-  the closure carries writhe only). Lk then changes by exactly the turns of the held end about the
-  axis as long as the molecule does not pass around the closure. Cost O(n^2) per frame (numba pair
+  frames are held (Clamp or RotationClamp on node 0 and on node n-1), ``Lk = Tw + Wr`` of the chain
+  closed by the standard magnetic-tweezers construction (:func:`closed_polygon`, :func:`open_twist`: from
+  each end straight out along the pull axis far beyond the molecule, joined far to the side; Vologodskii &
+  Marko 1997, Biophys. J. 73:123-132). Lk then changes by exactly the turns of the held end about the
+  axis as long as the molecule does not pass around the closure. This is the one home of Tw, Wr and Lk
+  of open chains (the protocols measure with it too). Cost O(n^2) per frame (numba pair
   sum), so ``lk`` is reported by default only up to :data:`LK_MAX_NODES` nodes.
 """
 from __future__ import annotations
@@ -26,13 +26,11 @@ from dnarod.physics.writhe import _perp, _signed_angle, _transport, twist, writh
 from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Trap, clamp_angle, resolve_loads, resolve_node
 from dnarod.core.units import PN
 
-__all__ = ["extension", "applied_turns", "clamp_torque", "linking_number", "open_twist", "csv_observables",
-           "TweezersGeometry", "LK_MAX_NODES"]
+__all__ = ["extension", "applied_turns", "clamp_torque", "linking_number", "open_twist", "closed_polygon",
+           "twist_writhe_open", "csv_observables", "TweezersGeometry", "LK_MAX_NODES"]
 
 #: Largest chain for which :func:`csv_observables` reports ``lk`` by default (O(n^2) writhe per frame).
 LK_MAX_NODES = 4000
-#: Closure legs of an open chain: this many times the molecule's size beyond it.
-CLOSURE_FACTOR = 100.0
 
 
 class TweezersGeometry:
@@ -112,37 +110,91 @@ def clamp_torque(frames, geometry, time_ps, duration_ps=None):
     return float(tau @ g.rc_axis) / PN
 
 
-def open_twist(points, ribbon):
-    """Twist (turns) of an open polygonal ribbon: the along-edge rotations of the ribbon plus the
-    parallel-transport corners at the interior vertices (the open form of
-    :func:`dnarod.physics.writhe.twist`, with its helpers)."""
-    P = np.asarray(points, float)
-    U = np.asarray(ribbon, float)
-    e = P[1:] - P[:-1]
+Z = np.array([0.0, 0.0, 1.0])
+
+
+def _to_axis_frame(axis):
+    """A rotation R (3, 3) with ``R @ axis = z`` (Tw and Wr do not change under a rotation)."""
+    a = np.asarray(axis, float)
+    a = a / np.linalg.norm(a)
+    v = np.cross(a, Z)
+    s, c = np.linalg.norm(v), float(a @ Z)
+    if s < 1e-12:
+        return np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    k = v / s
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + s * K + (1.0 - c) * K @ K
+
+
+def closed_polygon(positions, axis=Z, margin=None):
+    """The open chain (n, 3) extended along ``axis`` at both ends and closed far away, shape (n + 4, 3), nm.
+
+    The chain is extended by straight legs along ``-axis`` below node 0 and ``+axis`` beyond the last node, and
+    closed far away in the plane of those two parallel lines (two parallel lines are always coplanar), so the
+    closure is planar: it adds no writhe of its own and no twist holonomy. ``margin`` (nm, default ``1000 x``
+    the chain's extent + 1000 nm) is the length of the legs and the reach of the return path; the chain-closure
+    cross terms fall off as extent/margin. This is the standard magnetic-tweezers construction (Vologodskii &
+    Marko 1997, Biophys. J. 73:123-132).
+    """
+    R = _to_axis_frame(axis)
+    P = np.asarray(positions, float) @ R.T
+    ext = float(np.ptp(P, axis=0).max())
+    h = 1000.0 * ext + 1000.0 if margin is None else float(margin)
+    u = P[-1, :2] - P[0, :2]
+    nu = np.linalg.norm(u)
+    u = np.array([1.0, 0.0]) if nu < 1e-9 * max(ext, 1.0) else u / nu
+    top = P[:, 2].max() + h
+    bottom = P[:, 2].min() - h
+    far = P[-1, :2] + h * u
+    Q = np.vstack([P, [P[-1, 0], P[-1, 1], top], [far[0], far[1], top], [far[0], far[1], bottom],
+                   [P[0, 0], P[0, 1], bottom]])
+    return Q @ R
+
+
+def open_twist(positions, ribbon, axis=Z):
+    """Twist (turns) of the open polygonal ribbon with legs along ``axis`` at both ends.
+
+    Along each chain edge: rotation of the ribbon about the edge; at each node: rotation about the next edge
+    relative to parallel transport, where the edge before node 0 and the edge after the last node point along
+    ``axis`` (the legs of :func:`closed_polygon`, whose planar closure adds no twist).
+
+    Parameters
+    ----------
+    positions : ndarray, shape (n, 3)
+        Node centres, nm.
+    ribbon : ndarray, shape (n, 3)
+        Ribbon vector at each node (d1), not parallel to the adjacent edges.
+    axis : ndarray, shape (3,)
+        Direction of the end legs (the pull axis).
+
+    Returns
+    -------
+    float
+    """
+    R = _to_axis_frame(axis)
+    P = np.asarray(positions, float) @ R.T
+    U = np.asarray(ribbon, float) @ R.T
+    e = np.diff(P, axis=0)
     t = e / np.linalg.norm(e, axis=1)[:, None]
     a0 = _perp(U[:-1], t)
     a1 = _perp(U[1:], t)
-    along = _signed_angle(a0, a1, t)
-    moved = _transport(a1[:-1], t[:-1], t[1:])
-    corner = _signed_angle(moved, a0[1:], t[1:])
-    return float((along.sum() + corner.sum()) / (2 * np.pi))
+    along = _signed_angle(a0, a1, t).sum()
+    tz = np.broadcast_to(Z, (1, 3))
+    # corners: at node 0 from the leg to t_0, at interior nodes from t_{k-1} to t_k, at the last node to the leg
+    t_in = np.vstack([tz, t])
+    t_out = np.vstack([t, tz])
+    u_in = np.vstack([_perp(U[:1], tz), a1])     # ribbon arriving at each node, perpendicular to the incoming edge
+    u_out = np.vstack([a0, _perp(U[-1:], tz)])   # ribbon leaving each node, perpendicular to the outgoing edge
+    corner = _signed_angle(_transport(u_in, t_in, t_out), u_out, t_out).sum()
+    return float((along + corner) / (2.0 * np.pi))
 
 
-def closure_points(positions, axis):
-    """Vertices (4, 3) closing an open chain far along ``axis`` (see the module docstring), nm."""
-    a = np.asarray(axis, float) / np.linalg.norm(axis)
-    h = positions @ a
-    size = max(float(np.ptp(positions, axis=0).max()), 1.0)
-    far = CLOSURE_FACTOR * size
-    x = np.cross(a, [1.0, 0.0, 0.0])
-    if np.linalg.norm(x) < 0.5:
-        x = np.cross(a, [0.0, 1.0, 0.0])
-    x /= np.linalg.norm(x)
-    top = h.max() + far
-    bot = h.min() - far
-    A = positions[-1] + (top - h[-1]) * a
-    D = positions[0] + (bot - h[0]) * a
-    return np.array([A, A + far * x, D + far * x, D])
+def twist_writhe_open(positions, frames, axis=Z):
+    """``(Tw, Wr)`` (turns) of an open chain closed along ``axis`` (:func:`open_twist`, :func:`closed_polygon`):
+    ``Lk = Tw + Wr`` changes exactly by the rotation of the last node about the axis as long as the chain does not
+    pass around the closure. Positions (n, 3) nm, frames (n, 3, 3)."""
+    P = np.asarray(positions, float)
+    return open_twist(P, np.asarray(frames)[:, :, 0], axis), float(writhe(closed_polygon(P, axis)))
 
 
 def linking_number(positions, frames, geometry):
@@ -150,11 +202,9 @@ def linking_number(positions, frames, geometry):
     g = geometry
     if not g.has_lk:
         return float("nan")
-    d1 = frames[:, :, 0]
     if g.circular:
-        return float(twist(positions, d1) + writhe(positions))
-    closed = np.concatenate([positions, closure_points(positions, g.closure_axis)])
-    return float(open_twist(positions, d1) + writhe(closed))
+        return float(twist(positions, frames[:, :, 0]) + writhe(positions))
+    return float(sum(twist_writhe_open(positions, frames, g.closure_axis)))
 
 
 def csv_observables(model, loads=(), duration_ps=None, lk=None):

@@ -17,7 +17,7 @@ import numpy as np
 import openmm
 
 from dnarod.core.errors import ParameterError
-from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, resolve_node
+from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, Walls, resolve_node
 from dnarod.engines.openmm.forces import GROUPS
 from dnarod.engines.openmm.particles import SQRT3
 
@@ -63,7 +63,7 @@ def _director_defs(i, j, k, ua, va):
     return defs
 
 
-def build_load_forces(loads, model, radius, system):
+def build_load_forces(loads, model, radius, system, platform="CPU"):
     """Add the OpenMM forces of ``loads`` to ``system``.
 
     Parameters
@@ -74,6 +74,9 @@ def build_load_forces(loads, model, radius, system):
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius, nm.
     system : openmm.System
+    platform : str
+        The OpenMM platform the forces will run on (chooses the form of the tweezers walls,
+        :func:`dnarod.engines.openmm.walls.wall_forces`).
 
     Returns
     -------
@@ -90,7 +93,14 @@ def build_load_forces(loads, model, radius, system):
     for load in loads:
         kind = type(load).__name__
         if not isinstance(load, LOAD_TYPES):
-            raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp or Trap")
+            raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp, Trap or "
+                                 f"Walls")
+        if isinstance(load, Walls):
+            from dnarod.engines.openmm.walls import wall_forces
+
+            for f in wall_forces(n, float(model.positions[0, 2]), float(load.k), load.skip, platform=platform):
+                system.addForce(f)
+            continue
         k = resolve_node(load.node, n, kind)
         if isinstance(load, Clamp):
             out["clamped"].append(k)

@@ -85,7 +85,8 @@ class RodSimulation:
     extra_forces : sequence of openmm.Force
         Further forces on the particles (3 per node, :func:`dnarod.engines.openmm.particles.particle_positions`),
         added to the System before the Context is created (e.g. the tweezers walls of
-        :func:`dnarod.workflows.protocols.tweezers.tweezers_wall_forces`).
+        :func:`dnarod.engines.openmm.walls.wall_forces`; the tweezers set-up passes its walls as the load
+        :class:`dnarod.physics.loads.Walls` instead).
     """
 
     name = "openmm"

@@ -69,12 +69,13 @@ def build_runspec(settings, model_cache=None):
             model = load_model(*key)
             if model_cache is not None:
                 model_cache[key] = model
-        # the command line's set-up and checks (overstretching, a torque with no equilibrium, turns without
-        # a clamp, loads on a closed ring): the same loads, in the same order, as before
-        from dnarod.run.setup import tweezers_loads
+        # the one tweezers set-up (dnarod.physics.loads.tweezers), with the command line's checks (overstretching, a
+        # torque with no equilibrium, turns without a clamp, loads on a closed ring)
+        from dnarod.physics.loads import tweezers
 
-        loads = list(tweezers_loads(model, force or None, torque or None, rclamp, s.get("turns", 0.0),
-                                    bool(s.get("clamp_first")), ()))
+        loads = list(tweezers(model, force or None, torque or None, rclamp, s.get("turns", 0.0),
+                              anchor="surface" if s.get("clamp_first") else "ends",
+                              axis=s.get("axis", "end-to-end")))
     kw = dict(source=s["source"], forcefield=s.get("forcefield", "dna-default"), engine=s.get("engine", "openmm"),
               time_ns=s.get("time_ns", 1.0), temperature=s.get("temperature_K", 300.0),
               friction=s.get("friction_per_ps", 1.0), dt=s.get("dt_ps"), seed=s.get("seed"), loads=tuple(loads),

@@ -58,9 +58,11 @@ RUN_KEYS = {k.name: k for k in [
     Key("velocities", bool, False, "store velocities in the trajectory"),
     Key("export", bool, False, "also write trajectory.pdb + .dcd"),
     Key("clamp_first", bool, False, "fix node 0 in space (position and orientation)"),
-    Key("force_pN", float, 0.0, "pull the last node along the initial end-to-end axis, pN (and node 0 the "
-        "other way unless clamp_first)"),
-    Key("torque_pN_nm", float, 0.0, "torque on the last node about the initial end-to-end axis, pN nm"),
+    Key("axis", str, "end-to-end", "axis of the pulling force, torque and rotation clamp: the initial end-to-end "
+        "direction or lab z", "end-to-end|z"),
+    Key("force_pN", float, 0.0, "pull the last node along the axis, pN (and node 0 the other way unless "
+        "clamp_first)"),
+    Key("torque_pN_nm", float, 0.0, "torque on the last node about the axis, pN nm"),
     Key("rotation_clamp_kJ_mol", float, None, "clamp the last node's orientation, stiffness kJ/mol", ">0"),
     Key("turns", float, 0.0, "turn the rotation clamp by this many turns at a constant rate over the run"),
 ]}

@@ -77,10 +77,10 @@ def _members(kind, axes, base):
     ff = load_forcefield(base.get("forcefield", "dna-default"))
     from dnarod.structure.inputs import protocol_source
     from dnarod.run.api import check_start_pose
-    from dnarod.workflows.protocols.tweezers import WALL_SKIP
+    from dnarod.physics.loads import Walls
 
-    # tweezers: the surface and bead walls leave WALL_SKIP nodes free at each end
-    seq, n_nodes = protocol_source(base.get("source", ""), min_nodes=3 if kind == "rings" else 2 * WALL_SKIP + 2)
+    # tweezers: the surface and bead walls leave Walls().skip nodes free at each end
+    seq, n_nodes = protocol_source(base.get("source", ""), min_nodes=3 if kind == "rings" else 2 * Walls().skip + 2)
     if kind == "rings":
         ring = ff.ring(seq, n_nodes=n_nodes)
         tw0 = intrinsic_turns(ring)

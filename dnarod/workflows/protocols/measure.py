@@ -10,14 +10,8 @@ clamp act on the last node, both along the lab z axis.
 * **Clamp torque** (pN nm): the z component of the torque the rotation clamp ``E = k (1 - cos theta)``
   exerts on the last node, ``k sin(theta) n_z`` (theta, n: angle and axis of the rotation from the node's
   frame to the clamp target). In equilibrium its mean is the torque the DNA exerts on the bead.
-* **Tw, Wr, Lk** (turns) of an open chain whose end tangents are held along z (Fuller-White with a closure):
-  the centreline is extended by straight segments along -z below node 0 and +z above the last node and
-  closed far away in the plane of those two vertical lines (:func:`closed_polygon`); ``Wr`` is the writhe
-  of that closed polygon;
-  ``Tw`` is the twist of the ribbon d1 along the chain including the corners onto the vertical extensions
-  (:func:`open_twist`). ``Lk = Tw + Wr`` then changes exactly by the rotation of the last node about z
-  when the chain deforms with its end tangents vertical and does not pass through the closure (checked in
-  the tests), so ``Lk - Lk0`` is the number of turns applied.
+* **Tw, Wr, Lk** (turns) of an open chain closed along z: :func:`dnarod.physics.observables.twist_writhe_open`
+  (the one home of Tw, Wr and Lk and their end closure). ``Lk - Lk0`` is the number of turns applied.
 * **Plectoneme detector** (:func:`plectoneme_state`): a node is *in a plectoneme* if some node at least
   ``min_separation_nm`` away along the chain is closer than ``contact_distance_nm`` in space (a
   self-contact of the interwound superhelix; a stretched or coiled chain has essentially none at these
@@ -53,7 +47,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from dnarod.physics.writhe import _perp, _signed_angle, _transport, writhe
 from dnarod.core.units import PN
 
 Z = np.array([0.0, 0.0, 1.0])
@@ -85,67 +78,6 @@ def clamp_torque_z(frame, target, k):
     ax = 0.5 * np.stack([R[..., 2, 1] - R[..., 1, 2], R[..., 0, 2] - R[..., 2, 0], R[..., 1, 0] - R[..., 0, 1]], -1)
     # ax = sin(theta) n, so k sin(theta) n_z = k ax_z
     return k * ax[..., 2] / PN
-
-
-def closed_polygon(positions, margin=None):
-    """The open chain (n, 3) extended vertically at both ends and closed far away, shape (n + 4, 3).
-
-    The closure lies in the vertical plane through the two vertical extensions (two vertical lines are
-    always coplanar), so it is planar: it adds no writhe of its own and no twist holonomy. ``margin``
-    (nm, default ``1000 x`` the chain's extent + 1000 nm) is the height of the vertical extensions and
-    the horizontal reach of the return path; the chain-closure cross terms fall off as extent/margin.
-    """
-    P = np.asarray(positions, float)
-    ext = float(np.ptp(P, axis=0).max())
-    h = 1000.0 * ext + 1000.0 if margin is None else float(margin)
-    u = P[-1, :2] - P[0, :2]
-    nu = np.linalg.norm(u)
-    u = np.array([1.0, 0.0]) if nu < 1e-9 * max(ext, 1.0) else u / nu
-    top = P[:, 2].max() + h
-    bottom = P[:, 2].min() - h
-    far = P[-1, :2] + h * u
-    return np.vstack([P, [P[-1, 0], P[-1, 1], top], [far[0], far[1], top], [far[0], far[1], bottom],
-                      [P[0, 0], P[0, 1], bottom]])
-
-
-def open_twist(positions, ribbon):
-    """Twist (turns) of the open polygonal ribbon with vertical (z) extensions at both ends.
-
-    Along each chain edge: rotation of the ribbon about the edge; at each node: rotation about the next
-    edge relative to parallel transport, where the edge before node 0 and the edge after the last node
-    point along +z.
-
-    Parameters
-    ----------
-    positions : ndarray, shape (n, 3)
-    ribbon : ndarray, shape (n, 3)
-        Ribbon vector at each node (d1), not parallel to the adjacent edges.
-
-    Returns
-    -------
-    float
-    """
-    P = np.asarray(positions, float)
-    U = np.asarray(ribbon, float)
-    e = np.diff(P, axis=0)
-    t = e / np.linalg.norm(e, axis=1)[:, None]
-    a0 = _perp(U[:-1], t)
-    a1 = _perp(U[1:], t)
-    along = _signed_angle(a0, a1, t).sum()
-    tz = np.broadcast_to(Z, (1, 3))
-    # corners: at node 0 from +z to t_0, at interior nodes from t_{k-1} to t_k, at the last node from t_{-1} to +z
-    t_in = np.vstack([tz, t])
-    t_out = np.vstack([t, tz])
-    u_in = np.vstack([_perp(U[:1], tz), a1])     # ribbon arriving at each node, perpendicular to the incoming edge
-    u_out = np.vstack([a0, _perp(U[-1:], tz)])   # ribbon leaving each node, perpendicular to the outgoing edge
-    corner = _signed_angle(_transport(u_in, t_in, t_out), u_out, t_out).sum()
-    return float((along + corner) / (2.0 * np.pi))
-
-
-def twist_writhe_open(positions, frames):
-    """``(Tw, Wr)`` (turns) of one open-chain pose with vertical end tangents (see the module docstring)."""
-    P = np.asarray(positions, float)
-    return open_twist(P, np.asarray(frames)[:, :, 0]), float(writhe(closed_polygon(P)))
 
 
 #: Contact distance of the plectoneme detector in effective diameters of the model's pair energy (module docstring).

@@ -2,7 +2,7 @@
 
 Geometry (magnetic tweezers): node 0 is clamped (position and orientation: the surface), the last node
 carries a constant pulling force F along +z (the bead), walls keep the chain above the surface plane and
-below the bead (:func:`tweezers_wall_forces`; without them the chain unwinds around its ends) and, for
+below the bead (:class:`dnarod.physics.loads.Walls`; without them the chain unwinds around its ends) and, for
 rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` whose target is the last
 node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free (force-extension).
 
@@ -174,7 +174,7 @@ def build_member(settings, start_pose=None):
     """
     from dnarod.analysis.polymer import bending_relaxation_time
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.loads import Clamp, PullingForce, RotationClamp
+    from dnarod.physics.loads import Walls, tweezers
     from dnarod.physics.thermal import persistence_length
     from dnarod.core.units import kT
 
@@ -188,11 +188,11 @@ def build_member(settings, start_pose=None):
     T = float(s["temperature_K"])
     start = strained_helix(model, s["force_pN"], turns)
     F = float(s["force_pN"]) * PN
-    loads = [Clamp(0), PullingForce(-1, [0.0, 0.0, F])]
-    target = None
-    if clamp:
-        target = start.frames[-1].copy()
-        loads.append(RotationClamp(-1, float(s["clamp_k_kJ_mol"]), frame=target, axis=np.array([0.0, 0.0, 1.0])))
+    # the one tweezers set-up: node 0 on the surface, the bead pulled along +z; the start pose already carries the
+    # turns, so the clamp holds the start's last frame (turns=0 here)
+    target = start.frames[-1].copy() if clamp else None
+    loads = list(tweezers(start, s["force_pN"], None, float(s["clamp_k_kJ_mol"]) if clamp else None, 0.0,
+                          anchor="surface", axis="z", clamp_frame=target))
     ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
     if start_pose is not None:
         from dnarod.workflows.protocols.sweep import add_turns
@@ -215,7 +215,7 @@ def build_member(settings, start_pose=None):
         try:  # refine to the exact static equilibrium under the loads (a few Newton steps from the helix)
             from dnarod.physics.statics import solve_static
 
-            start, info = solve_static(start, loads)
+            start, info = solve_static(start, loads)  # the walls (added below) do not touch the straight start
             start_info = f"static equilibrium under the loads (dnarod.physics.statics, {info['iterations']} Newton steps)"
         except ImportError:
             pass
@@ -228,81 +228,27 @@ def build_member(settings, start_pose=None):
     # at least ~200 samples per member (the autocorrelation time is measured from them), at most 10 per tau_1
     sample = float(np.clip(min(tau / 10.0, prod / 200.0), 1.0, 200.0)) if s["sample_ps"] is None \
         else float(s["sample_ps"])
+    loads.append(Walls())
     return dict(settings=s, model=start, loads=loads, clamp_target=target, friction=fr, tau_ps=tau, start=start_info,
                 ref_frame=ref_frame,
                 equilibration_ps=eq, production_ps=prod, sample_ps=sample, lk0=lk0,
                 persistence_length_nm=lp, turns=turns)
 
 
-#: Stiffness (kJ/mol/nm^2) of the surface and bead walls (penetration ~ sqrt(kT/k) = 0.16 nm at 300 K).
-WALL_K = 100.0
-#: Nodes next to each end that the walls leave alone (they sit at the wall by construction).
-WALL_SKIP = 3
-
-
-def tweezers_wall_forces(model, k=WALL_K, skip=WALL_SKIP, platform="CPU", form="auto"):
-    """The surface and the bead of a tweezers member as OpenMM forces (node 0 clamped, last node pulled along +z).
-
-    Without them the chain could swing below its anchor or around the free end and change its linking
-    number through the closure (a real surface and a micron bead forbid both). Surface: every node but the
-    first ``skip`` stays above the plane ``z = z_0`` (``E = k/2 min(0, z - z_0)^2`` on its particles).
-    Bead (a plane, the large-bead limit): every node but the last ``skip`` stays below the last node
-    (``E = k/2 max(0, z_i - z_last)^2`` between one particle of each node and the last node's centroid).
-    Both in the "external" force group (:mod:`dnarod.engines.openmm.walls`: the compiled form on the host platforms
-    where the plugin is usable, else OpenMM Custom forces). Pass them as ``RodSimulation(..., extra_forces=...)``
-    so they exist before the Context is created (every elastic path, the compiled plugin included, then sees
-    them).
-
-    Parameters
-    ----------
-    model : RodModel
-        The member's start pose (z_0 = node 0's z, nm).
-    k : float
-        Wall stiffness, kJ/mol/nm^2.
-    skip : int
-        Nodes next to each end left alone.
-    platform : str
-        OpenMM platform the member runs on (chooses the form).
-    form : {"auto", "compiled", "reference"}
-        See :func:`dnarod.engines.openmm.walls.wall_forces`.
-
-    Returns
-    -------
-    list of openmm.Force
-    """
-    from dnarod.engines.openmm.walls import wall_forces
-
-    return wall_forces(model.n_nodes, float(model.positions[0, 2]), k, skip, platform=platform, form=form)
-
-
-def add_tweezers_walls(sim, model, k=WALL_K, skip=WALL_SKIP):
-    """Add the walls of :func:`tweezers_wall_forces` to an existing simulation (``Context.reinitialize``).
-
-    Only for simulations on a path that can follow a reinitialised Context (``elastic="fast"`` or
-    ``"portable"``); members create their simulation with ``extra_forces`` instead.
-    """
-    for f in tweezers_wall_forces(model, k, skip, platform=sim.platform_name):
-        sim.rs.system.addForce(f)
-    sim.context.reinitialize(preserveState=True)
-    sim.invalidate()
-
-
 def _member_simulation(m, model, dt=None):
     """The member's RodSimulation from ``model``'s pose (loads, walls, friction and seed of ``m``; ``dt`` ps, default
     the model's own, :class:`~dnarod.engines.openmm.simulation.RodSimulation`)."""
     from dnarod.physics.nonbonded import member_nonbonded
-    from dnarod.engines.openmm.platforms import choose_platform
     from dnarod.engines.openmm.simulation import RodSimulation
 
     s = m["settings"]
     nb = member_nonbonded(s)
-    # the walls exist before the Context is created, so the automatic elastic path (the compiled plugin where it
-    # is built) applies; settings["elastic"] can force another path. The walls' form follows the platform.
-    platform = choose_platform(s["platform"], model.n_nodes, s["elastic"], s["threads"])[0].getName()
+    # the walls are loads (dnarod.physics.loads.Walls): the engine builds them before its Context exists, so the
+    # automatic elastic path (the compiled plugin where it is built) applies; settings["elastic"] can force another
+    # path. The walls' form follows the platform.
     return RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
                          nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
-                         elastic=s["elastic"], extra_forces=tweezers_wall_forces(m["model"], platform=platform),
-                         dt=dt)
+                         elastic=s["elastic"], dt=dt)
 
 
 #: Wall-clock seconds between a member's checkpoints (:func:`sample_member`).
@@ -344,7 +290,8 @@ def observe(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, 
     dict
         Column -> value (extension nm, torques pN nm, Tw, Wr, Lk in turns, plectoneme fraction, length nm, flag).
     """
-    from dnarod.workflows.protocols.measure import clamp_torque_z, plectoneme_state, twist_writhe_open, twisting_moment
+    from dnarod.workflows.protocols.measure import clamp_torque_z, plectoneme_state, twisting_moment
+    from dnarod.physics.observables import twist_writhe_open
 
     row = {"extension_nm": positions[-1, 2] - positions[0, 2], "end_turns": end_turns,
            "clamp_torque_pN_nm": (clamp_torque_z(frames[-1], clamp_target, clamp_k)
