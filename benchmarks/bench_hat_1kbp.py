@@ -195,7 +195,7 @@ def main(argv=None):
 
 def main_extend(a):
     """Continue sweep members at their own turns and analyse the continuations (see the module docstring)."""
-    from dnarod.workflows.protocols.sweep import load_pose
+    from dnarod.workflows.protocols.poses import load_pose
     from dnarod.workflows.protocols.tweezers import run_member
 
     rows = []

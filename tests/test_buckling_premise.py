@@ -139,7 +139,7 @@ def test_above_twins_start_from_the_larger_plectoneme_of_their_source(tmp_path):
     import numpy as np
 
     from dnarod.core.errors import DnarodError
-    from dnarod.workflows.protocols.sweep import FINAL_POSE, START_POSE, load_pose
+    from dnarod.workflows.protocols.poses import FINAL_POSE, START_POSE, load_pose
     from dnarod.validate.buckling import member_plan, run_planned
 
     plan = member_plan(n_bp=100, pre_turns=0.2, post_turns=(0.4, 0.6), time_ns=0.02, pre_time_ns=0.02, P_nm=29.7,

@@ -28,7 +28,7 @@ def _random_frames(rng, n):
 
 
 def test_twist_move_is_an_involution_that_keeps_lab_angular_velocity():
-    from dnarod.workflows.protocols.sweep import add_turns
+    from dnarod.workflows.protocols.poses import add_turns
 
     rng = np.random.default_rng(1)
     F = _random_frames(rng, 9)

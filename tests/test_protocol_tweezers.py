@@ -353,6 +353,11 @@ def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
     with pytest.raises(Stop):
         tw.sample_member(tw.build_member(settings), stop_at, checkpoint=ck, checkpoint_wall_s=0.0)
     assert ck.exists()
+    # one checkpoint format: the engine's own (as for `dnarod simulate`), the samples in its metadata
+    with np.load(ck) as z:
+        meta = json.loads(str(z["meta"]))
+    assert meta["format"] == "dnarod-openmm-checkpoint" and len(meta["extra"]["reporters"]["samples"]["rows"]
+                                                                  ["extension_nm"]) == 11
     seen = []
     got, cost = tw.sample_member(tw.build_member(settings), lambda i, n: seen.append(i), checkpoint=ck)
     assert seen[0] == 12  # the 11 samples saved before the interruption were not redone
@@ -371,7 +376,7 @@ def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
 def test_add_turns_adds_twist_only():
     """Turning a pose by dt adds dt to the twist (so to Lk), keeps positions, writhe and node 0's frame, and
     turns the last node by 2 pi dt about its own d3."""
-    from dnarod.workflows.protocols.sweep import add_turns
+    from dnarod.workflows.protocols.poses import add_turns
 
     m = strained_helix(FF.model_from_sequence(n_nodes=60), 1.0, 0.3)
     rng = np.random.default_rng(5)
@@ -393,7 +398,8 @@ def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
     reuses every finished member, and after one member's result is lost only that member runs again."""
     from dnarod.workflows.protocols import hat_curve
     from dnarod.workflows.protocols import tweezers as tw
-    from dnarod.workflows.protocols.sweep import add_turns, load_pose, sweep_chains
+    from dnarod.workflows.protocols.sweep import sweep_chains
+    from dnarod.workflows.protocols.poses import add_turns, load_pose
 
     assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4]) == [[0.0, 0.4, 0.8], [-0.4, -1.2]]
     kw = dict(force_pN=2.0, source="60", workers=0, start="sweep", settle_ns=0.005,
@@ -451,7 +457,8 @@ def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch)
     """start='sweep-in': chains run towards zero turns; each head starts from a plectoneme grown at a lower force
     (same Lk) and the next member from the head's final pose with the turns taken out."""
     from dnarod.workflows.protocols import hat_curve, sweep
-    from dnarod.workflows.protocols.sweep import add_turns, load_pose, sweep_chains
+    from dnarod.workflows.protocols.sweep import sweep_chains
+    from dnarod.workflows.protocols.poses import add_turns, load_pose
 
     assert sweep_chains([0.8, -0.4, 0, -1.2, 0.4], inward=True) == [[0.8, 0.4, 0.0], [-1.2, -0.4]]
     monkeypatch.setattr(sweep, "GROW_NS", 0.01)
@@ -708,3 +715,34 @@ def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host
     f = [np.asarray(st.getForces(asNumpy=True).value_in_unit(unit_f)) for st in states]
     assert abs(e[0]) > 1.0 and e[0] == pytest.approx(e[1], rel=1e-5, abs=1e-3)
     assert np.max(np.abs(f[0] - f[1])) < 1e-4 * np.max(np.abs(f[0]))
+
+
+def test_ring_member_interrupted_and_resumed_gives_the_uninterrupted_samples(tmp_path, monkeypatch):
+    """A ring member runs on the run layer: interrupted mid-production, it resumes from the engine's checkpoint
+    (with the samples so far) and writes the samples an uninterrupted member writes; the checkpoint is removed."""
+    import dnarod.run.sampling as sampling
+    from dnarod.workflows.protocols.rings import run_ring_member
+
+    settings = dict(n_bp=120, delta_lk=-1, time_ns=0.02, equilibration_ns=0.01, sample_ps=1.0, seed=5,
+                    platform="Reference")
+    run_ring_member(settings, tmp_path / "ref")
+
+    class Stop(Exception):
+        pass
+
+    def stop_at(i, n):
+        if i == 7:
+            raise Stop
+
+    monkeypatch.setattr(sampling, "CHECKPOINT_WALL_S", 0.0)  # a checkpoint at every sample
+    with pytest.raises(Stop):
+        run_ring_member(settings, tmp_path / "cut", progress=stop_at)
+    assert (tmp_path / "cut" / "member_checkpoint.npz").exists()
+    seen = []
+    run_ring_member(settings, tmp_path / "cut", progress=lambda i, n: seen.append(i))
+    assert seen[0] == 7  # the samples before the interruption were not redone
+    ref = np.loadtxt(tmp_path / "ref" / "samples.csv", delimiter=",", skiprows=1)
+    got = np.loadtxt(tmp_path / "cut" / "samples.csv", delimiter=",", skiprows=1)
+    assert got.shape == ref.shape and got.shape[0] >= 20
+    np.testing.assert_allclose(got, ref, rtol=1e-6, atol=1e-9)
+    assert not (tmp_path / "cut" / "member_checkpoint.npz").exists()

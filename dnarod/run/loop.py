@@ -13,7 +13,7 @@ def _next_multiple(step, interval):
 
 
 def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interval=0, progress=None,
-               duration_ps=None, checkpoint_extra=None, report_start=True):
+               duration_ps=None, checkpoint_extra=None, report_start=True, checkpoint_wall_s=None):
     """Advance ``engine`` to a total of ``n_steps`` steps, feeding the reporters and writing checkpoints.
 
     Parameters
@@ -24,13 +24,17 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
     reporters : sequence
         Objects with ``describeNextReport(engine)``, ``due(step)``, ``report(engine, snapshot)``, ``flush()``.
     checkpoint : Path or None
-        Checkpoint file: written every ``checkpoint_interval`` steps (0: none in between) and always
-        at the end, after the reporters are flushed.
+        Checkpoint file: written every ``checkpoint_interval`` steps (0: none in between), at the first report
+        after ``checkpoint_wall_s`` wall seconds since the last one, and always at the end, after the reporters
+        are flushed. Reporters with ``state()`` (and ``name``) have their state stored in it
+        (``meta["extra"]["reporters"][name]``), so they resume with the engine (:mod:`dnarod.run.sampling`).
     progress : ProgressReporter or None
     duration_ps : float or None
         Run length over which rotation clamps spread their turns (passed to ``engine.update_loads``).
     checkpoint_extra : dict or None
         Stored in every checkpoint's metadata.
+    checkpoint_wall_s : float or None
+        Wall seconds between checkpoints (None: by steps only).
     report_start : bool
         Report the starting state (a new run; a resumed run has it on disk).
 
@@ -52,6 +56,19 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
             if r.due(snap.step):
                 r.report(engine, snap)
 
+    stateful = [r for r in reporters if hasattr(r, "state")]
+
+    def save():
+        for r in reporters:
+            r.flush()
+        extra = dict(checkpoint_extra or {})
+        if stateful:
+            extra["reporters"] = {r.name: r.state() for r in stateful}
+        engine.save_checkpoint(checkpoint, extra=extra)
+        return time.perf_counter()
+
+    last_save = t0
+
     if report_start:
         report_all()
     while engine.step < n_steps:
@@ -66,14 +83,15 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
         report_all()
         if progress is not None:
             progress.update(engine.step)
-        if checkpoint is not None and ci and engine.step % ci == 0 and engine.step < n_steps:
-            for r in reporters:
-                r.flush()
-            engine.save_checkpoint(checkpoint, extra=checkpoint_extra)
-    for r in reporters:
-        r.flush()
+        if checkpoint is not None and engine.step < n_steps and (
+                (ci and engine.step % ci == 0)
+                or (checkpoint_wall_s is not None and time.perf_counter() - last_save >= checkpoint_wall_s)):
+            last_save = save()
     if checkpoint is not None:
-        engine.save_checkpoint(checkpoint, extra=checkpoint_extra)
+        save()
+    else:
+        for r in reporters:
+            r.flush()
     return dict(steps=int(engine.step), steps_this_run=int(engine.step) - start,
                 wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
 

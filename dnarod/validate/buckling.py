@@ -402,7 +402,7 @@ def run_planned(entry, member_root, progress=None):
     from dnarod.workflows.protocols.tweezers import run_member
 
     if entry.get("start_from"):  # from the final pose of an earlier member of the plan (it must have run)
-        from dnarod.workflows.protocols.sweep import FINAL_POSE, load_pose
+        from dnarod.workflows.protocols.poses import FINAL_POSE, load_pose
 
         src = Path(member_root) / entry["start_from"] / FINAL_POSE
         if not src.exists():

@@ -79,7 +79,7 @@ def twist_move(frames, omega_body, delta_turns):
         (:func:`dnarod.workflows.protocols.sweep.add_turns`), ``Omega'_k = Q(phi_k)^T Omega_k`` so that the lab angular
         velocity is unchanged. ``twist_move(*twist_move(F, W, d), -d)`` returns ``(F, W)``.
     """
-    from dnarod.workflows.protocols.sweep import add_turns
+    from dnarod.workflows.protocols.poses import add_turns
 
     F = np.asarray(frames, float)
     W = np.array(omega_body, float)
@@ -116,9 +116,21 @@ class _Replica:
 
     def follow(self):
         """Unwrap the bead's rotation (call at least every half turn: every exchange round)."""
-        a = self._angle(self.sim.node_pose()[1])
+        self.update(*self.sim.node_pose(), self.sim.step)
+
+    def update(self, positions, frames, step):
+        """:meth:`follow` at a pose the run loop hands over (:class:`dnarod.run.sampling.FollowReporter`)."""
+        a = self._angle(frames)
         self.turns_acc += ((a - self.last_angle + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
         self.last_angle = a
+
+    def advance(self, n_steps):
+        """Advance ``n_steps`` steps through the run loop, following the bead's rotation at the end."""
+        from dnarod.run.loop import run_engine
+        from dnarod.run.sampling import FollowReporter
+
+        n = int(n_steps)
+        run_engine(self.sim, self.sim.step + n, [FollowReporter(self, n, origin=self.sim.step)], report_start=False)
 
     def _set_rung(self, label):
         dn = self.rungs[label]["turns"] - self.rungs[self.init_label]["turns"]
@@ -273,8 +285,7 @@ class ReplicaGroup:
         """Advance every replica ``n_steps`` steps (following the bead's rotation)."""
         def go():
             for r in self.replicas.values():
-                r.sim.advance(int(n_steps))
-                r.follow()
+                r.advance(n_steps)
         return self._timed(go)
 
     def labels(self):
@@ -302,7 +313,7 @@ class ReplicaGroup:
 
     def sample(self):
         """One sample per replica: ``{label: row}`` (:func:`dnarod.workflows.protocols.tweezers.observe`)."""
-        from dnarod.workflows.protocols.tweezers import observe
+        from dnarod.workflows.protocols.tweezers import observe_tweezers as observe
 
         def go():
             out = {}
@@ -404,7 +415,7 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
         Each rung's result (:func:`dnarod.workflows.protocols.tweezers.summarize`, with ``exchange_*`` keys).
     """
     from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
-    from dnarod.workflows.protocols.sweep import save_pose, FINAL_POSE
+    from dnarod.workflows.protocols.poses import save_pose, FINAL_POSE
     from dnarod.core.units import kT
     from dnarod.workflows.protocols.tweezers import COLUMNS, build_member, summarize
 

@@ -23,6 +23,7 @@ Units: nm, turns, ps.
 from __future__ import annotations
 
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 
@@ -191,7 +192,7 @@ def run_nicked_member(settings, member_dir, progress=None):
     the soft chain's total-twist moments, the integrated autocorrelation time of Wr², and the cost.
     """
     from dnarod.analysis.polymer import integrated_autocorrelation_time
-    from dnarod.physics.writhe import writhe
+    from dnarod.physics.writhe import twist, writhe
     from dnarod.core.forcefield import load_forcefield
     from dnarod.core.io import jsonable
     from dnarod.physics.thermal import persistence_length
@@ -210,13 +211,14 @@ def run_nicked_member(settings, member_dir, progress=None):
     tw_mean, tw_var = twist_sum_moments(model, T)
     lp = persistence_length(ring.params, ring.ds, kT(T))
 
-    def record(out, i, pos, frm):
-        out["Wr_axis"][i] = writhe(smoothed_axis(pos))
-        out["step_twist"][i] = step_twist_sum(pos, frm, model.ds, model.closure)
-        out["Wr_star"][i] = out["Lk"][i] - out["step_twist"][i]
+    def record(pos, frm):
+        tw_step = step_twist_sum(pos, frm, model.ds, model.closure)
+        lk = twist(pos, frm[:, :, 0]) + writhe(pos)  # as sample_ring's Lk (an integer: the ring is closed)
+        return {"Wr_axis": writhe(smoothed_axis(pos)), "step_twist": tw_step, "Wr_star": lk - tw_step}
 
+    ckpt = Path(member_dir) / "member_checkpoint.npz"
     out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.05, samples_per_ns=400.0,
-                           max_sample_ps=100.0, min_samples=20, progress=progress)
+                           max_sample_ps=100.0, min_samples=20, progress=progress, checkpoint=ckpt)
     stride, dt, n_samp = run.pop("stride"), run["dt_ps"], run["n_samples"]
     lk_int = np.rint(out["Lk"])
     if np.ptp(lk_int) != 0:
@@ -244,4 +246,5 @@ def run_nicked_member(settings, member_dir, progress=None):
                n_effective=float(n_samp / (2 * tau_wr2)) if np.isfinite(tau_wr2) and tau_wr2 > 0 else None,
                radius_of_gyration_nm=float(out["radius_of_gyration_nm"].mean()), **run)
     write_member(member_dir, done, key, COLUMNS, out, res)
+    ckpt.unlink(missing_ok=True)
     return jsonable(res)

@@ -20,12 +20,13 @@ Units: nm, turns, ps.
 from __future__ import annotations
 
 import json
-import time
+import math
 from pathlib import Path
 
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import jsonable
 from dnarod.physics.loads import MAX_SIGMA, intrinsic_turns
 
 COLUMNS = ("time_ps", "Tw", "Wr", "Lk", "plectoneme_fraction", "plectoneme_length_nm", "plectonemic",
@@ -86,15 +87,16 @@ def cached_member(member_dir, key):
 
 
 def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per_ns, max_sample_ps, min_samples,
-                progress=None):
-    """Run one ring member (closed or nicked) and sample it: the plan and loop both ring protocols share.
+                progress=None, checkpoint=None, checkpoint_wall_s=None):
+    """Run one ring member (closed or nicked) on the run layer and sample it: the plan both ring protocols share.
 
     Friction: :func:`~dnarod.workflows.protocols.tweezers.auto_friction` unless ``s["friction_per_ps"]`` is set;
     equilibration: five slowest bending relaxation times (``s["equilibration_ns"]`` overrides); a sample
     every ``min(tau * tau_fraction, time / samples_per_ns)`` ps, clipped to [1, ``max_sample_ps``]
-    (``s["sample_ps"]`` overrides), at least ``min_samples`` samples. Each sample fills ``time_ps``, ``Tw``,
-    ``Wr``, ``Lk`` (turns) and ``radius_of_gyration_nm`` of ``out``; ``record(out, i, positions, frames)``
-    fills the caller's other columns.
+    (``s["sample_ps"]`` overrides), at least ``min_samples`` samples. Each sample has ``time_ps``, ``Tw``,
+    ``Wr``, ``Lk`` (turns) and ``radius_of_gyration_nm``; ``record(positions, frames) -> dict`` gives the caller's
+    other columns. The engine runs through the run loop with a :class:`dnarod.run.sampling.SampleReporter`;
+    ``checkpoint`` (the engine's checkpoint, with the samples) makes an interrupted member resume where it was.
 
     Returns
     -------
@@ -106,9 +108,10 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
         charge model, e per node, cutoff in Debye lengths and nm).
     """
     from dnarod.analysis.polymer import bending_relaxation_time
-    from dnarod.physics.writhe import twist, writhe
-    from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
     from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
+    from dnarod.physics.writhe import twist, writhe
+    from dnarod.run.sampling import SampleReporter, run_sampling
     from dnarod.workflows.protocols.tweezers import auto_friction
 
     T = float(s["temperature_K"])
@@ -119,8 +122,8 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
                            max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
     nb = member_nonbonded(s)
-    t0, c0 = time.perf_counter(), time.process_time()
-    if s.get("start_bend_softening") and s.get("start_ns"):
+    resuming = checkpoint is not None and Path(checkpoint).exists()
+    if s.get("start_bend_softening") and s.get("start_ns") and not resuming:
         # start "from above": run first with the bending stiffness divided by start_bend_softening (plectonemes
         # cost less bending, so the ring writhes more), then continue with the model from that pose
         soft = bend_softened_model(model, float(s["start_bend_softening"]))
@@ -133,28 +136,28 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
                         threads=s["threads"])
     dt = sim.dt
     stride = max(1, int(round(sample / dt)))
-    n_eq = int(round(eq / dt))
+    n_eq = stride * int(math.ceil(eq / dt / stride))  # whole strides: samples on the schedule
     n_samp = max(min_samples, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
-    sim.advance(n_eq)
-    out = {c: np.empty(n_samp) for c in columns}
-    for i in range(n_samp):
-        sim.advance(stride)
-        pos, frm = sim.node_pose()
+
+    def observe(pos, frm, step):
         tw, wr = twist(pos, frm[:, :, 0]), writhe(pos)
-        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
-        out["Tw"][i], out["Wr"][i], out["Lk"][i] = tw, wr, tw + wr
-        out["radius_of_gyration_nm"][i] = float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))
+        row = {"Tw": tw, "Wr": wr, "Lk": tw + wr,
+               "radius_of_gyration_nm": float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))}
         if record is not None:
-            record(out, i, pos, frm)
-        if progress:
-            progress(i + 1, n_samp)
-    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            row.update(record(pos, frm))
+        return row
+
+    sampler = SampleReporter(columns, stride, observe, start=n_eq, n_samples=n_samp)
+    key = json.dumps(jsonable(s), sort_keys=True)
+    res = run_sampling(sim, sampler, checkpoint, extra={"settings": key}, checkpoint_wall_s=checkpoint_wall_s,
+                       progress=progress)
+    wall, cpu = res["wall_s"], res["cpu_s"]
     steps = n_eq + n_samp * stride
-    run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=eq,
+    run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=n_eq * dt,
                production_ps=n_samp * stride * dt, wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps,
                n_samples=n_samp, sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0,
                stride=stride, elastic_path=sim.rs.elastic, nonbonded=nonbonded_record(nb, model.ds, T))
-    return out, run
+    return res["samples"], run
 
 
 def write_member(member_dir, done, key, columns, out, res):
@@ -194,15 +197,16 @@ def run_ring_member(settings, member_dir, progress=None):
     # the plectoneme detector's distances follow the member's non-bonded terms and salt
     sep_nm, contact_nm = detector_distances(member_nonbonded(s), T, model.ds)
 
-    def record(out, i, pos, frm):
+    def record(pos, frm):
         f, length, plec = plectoneme_state(pos, model.ds, sep_nm, contact_nm, circular=True)
-        out["plectoneme_fraction"][i], out["plectoneme_length_nm"][i], out["plectonemic"][i] = f, length, plec
-        # 2 unbranched, more branched
-        out["end_loops"][i] = plectoneme_end_loops(pos, model.ds, circular=True, min_separation_nm=sep_nm,
-                                                   contact_distance_nm=contact_nm)[0]
+        # end loops: 2 unbranched, more branched
+        loops = plectoneme_end_loops(pos, model.ds, circular=True, min_separation_nm=sep_nm,
+                                     contact_distance_nm=contact_nm)[0]
+        return {"plectoneme_fraction": f, "plectoneme_length_nm": length, "plectonemic": plec, "end_loops": loops}
 
+    ckpt = Path(member_dir) / "member_checkpoint.npz"
     out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.1, samples_per_ns=200.0,
-                           max_sample_ps=200.0, min_samples=4, progress=progress)
+                           max_sample_ps=200.0, min_samples=4, progress=progress, checkpoint=ckpt)
     stride, dt = run.pop("stride"), run["dt_ps"]
     run.pop("elastic_path")
     res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
@@ -224,4 +228,5 @@ def run_ring_member(settings, member_dir, progress=None):
     d = res["Lk"] - res["relaxed_twist_thermal"]
     res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
     write_member(member_dir, done, key, COLUMNS, out, res)
+    ckpt.unlink(missing_ok=True)
     return jsonable(res)

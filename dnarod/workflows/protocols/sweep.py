@@ -34,12 +34,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.workflows.protocols.poses import FINAL_POSE, load_pose
 
-#: File of a member's last pose (written by :func:`dnarod.workflows.protocols.tweezers.run_member`).
-FINAL_POSE = "final_pose.npz"
 #: Head of an inward sweep: its plectoneme is grown at this fraction of the member's force ...
 GROW_FORCE_FRACTION = 0.3
 #: ... for this long (ns), before its equilibration at the member's force.
@@ -52,66 +50,6 @@ PLECTONEME_P_NM = 17.3
 #: covers any P down to 12 nm at 1 pN (a smaller P buckles earlier) and the torque overshoot's spread of the
 #: buckling point (the settle is long for a member or two before buckling rather than short for one past it).
 BUCKLING_MARGIN = 0.8
-#: File of a chained member's start pose (the previous member's final pose with the turns added).
-START_POSE = "start_pose.npz"
-
-
-def add_turns(positions, frames, delta_turns):
-    """The pose with ``delta_turns`` extra turns of twist spread evenly along the chain.
-
-    Node ``i`` of ``n`` is turned about its own d3 by ``2 pi delta_turns i / (n - 1)``; positions are kept, so
-    the writhe is unchanged and the twist (hence the linking number) grows by ``delta_turns`` while node 0 (the
-    clamped surface node) keeps its frame and the last node turns by the whole increment, as the magnets turn
-    the bead (about +z when the last node's d3 is along the pull, which the clamp holds to thermal accuracy).
-
-    Parameters
-    ----------
-    positions : ndarray, shape (n, 3)
-        nm (returned unchanged, as a copy).
-    frames : ndarray, shape (n, 3, 3)
-        Directors as columns.
-    delta_turns : float
-
-    Returns
-    -------
-    positions, frames : ndarray
-    """
-    P = np.array(positions, float)
-    F = np.array(frames, float)
-    n = len(F)
-    if n < 2:
-        raise DnarodError("add_turns: a chain needs at least two nodes")
-    phi = 2.0 * np.pi * float(delta_turns) * np.arange(n) / (n - 1)
-    c, s = np.cos(phi), np.sin(phi)
-    d1, d2 = F[:, :, 0].copy(), F[:, :, 1].copy()
-    F[:, :, 0] = c[:, None] * d1 + s[:, None] * d2
-    F[:, :, 1] = -s[:, None] * d1 + c[:, None] * d2
-    return P, F
-
-
-def pose_sha256(positions, frames):
-    """SHA-256 (hex) of a pose's float64 bytes (the key of a chained member's start)."""
-    import hashlib
-
-    h = hashlib.sha256()
-    h.update(np.ascontiguousarray(positions, dtype=np.float64).tobytes())
-    h.update(np.ascontiguousarray(frames, dtype=np.float64).tobytes())
-    return h.hexdigest()
-
-
-def save_pose(path, positions, frames):
-    """Write a pose (positions nm, frames) to ``path`` (``.npz``) atomically."""
-    from dnarod.core.io import atomic_path
-
-    with atomic_path(path) as tmp:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, positions=np.asarray(positions, float), frames=np.asarray(frames, float))
-
-
-def load_pose(path):
-    """``(positions, frames)`` from a file written by :func:`save_pose`."""
-    with np.load(path) as z:
-        return z["positions"], z["frames"]
 
 
 def sweep_chains(turns, inward=False):

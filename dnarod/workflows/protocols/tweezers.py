@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import math
-import time
 from pathlib import Path
 
 import numpy as np
@@ -195,7 +194,7 @@ def build_member(settings, start_pose=None):
                           anchor="surface", axis="z", clamp_frame=target))
     ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
     if start_pose is not None:
-        from dnarod.workflows.protocols.sweep import add_turns
+        from dnarod.workflows.protocols.poses import add_turns
 
         if s["previous_turns"] is None:
             raise DnarodError("a start pose from a sweep needs previous_turns (the turns it was sampled at)")
@@ -251,10 +250,6 @@ def _member_simulation(m, model, dt=None):
                          elastic=s["elastic"], dt=dt)
 
 
-#: Wall-clock seconds between a member's checkpoints (:func:`sample_member`).
-CHECKPOINT_WALL_S = 120.0
-
-
 def grown_start(m, force_pN, ns):
     """The member ``m`` (from :func:`build_member`) started from a plectoneme grown for ``ns`` ns at the lower
     force ``force_pN`` (pN; same turns and clamp target, so the same linking number): "from above", a bracket of
@@ -265,7 +260,7 @@ def grown_start(m, force_pN, ns):
     return {**m, "model": m["model"].with_pose(*psim.node_pose())}
 
 
-def observe(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, contact_nm):
+def observe_tweezers(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, contact_nm):
     """The observables of one tweezers sample (:data:`COLUMNS` but ``time_ps``).
 
     Parameters
@@ -304,13 +299,36 @@ def observe(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, 
     return row
 
 
-def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pose_out=None):
-    """Run one member built by :func:`build_member`; returns the per-sample observables (dict of arrays) and costs.
+class EndRotation:
+    """Follows the bead's rotation about z between samples and unwraps it (turns), so a member's ``end_turns``
+    counts whole turns; its state travels in the member's checkpoint (:class:`dnarod.run.sampling.SampleReporter`).
+    Reports must be closer than half a turn apart."""
 
-    With ``start_force_pN`` and ``start_ns`` set, the member first runs ``start_ns`` at ``start_force_pN`` (same
-    turns and clamp target, so the same linking number) and starts from that pose: past buckling, a lower
-    force grows a longer plectoneme, so the member approaches its equilibrium from the other side than from
-    the straight start (a bracket of the equilibrium).
+    def __init__(self, ref_frame):
+        self.ref = np.asarray(ref_frame, float)
+        self.last_angle, self.turns = 0.0, 0.0
+
+    def update(self, positions, frames, step):
+        from dnarod.workflows.protocols.measure import rotation_about_z
+
+        a = float(rotation_about_z(frames[-1], self.ref))
+        self.turns += ((a - self.last_angle + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
+        self.last_angle = a
+
+    def state(self):
+        return {"last_angle": self.last_angle, "turns": self.turns}
+
+    def restore(self, state):
+        self.last_angle, self.turns = float(state["last_angle"]), float(state["turns"])
+
+
+def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pose_out=None):
+    """Run one member built by :func:`build_member` on the run layer; returns the per-sample observables (dict of
+    arrays) and costs.
+
+    The member's engine runs through the run loop with a :class:`dnarod.run.sampling.SampleReporter`
+    (:func:`dnarod.run.sampling.run_sampling`): equilibration, then one sample every ``sample_ps``; the engine's
+    checkpoint carries the samples so far and the unwrapped end rotation.
 
     Parameters
     ----------
@@ -319,103 +337,50 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     progress : callable, optional
         ``progress(i, n)`` after each sample.
     checkpoint : path, optional
-        Checkpoint file (``.npz``): written every ``checkpoint_wall_s`` wall seconds (default
-        :data:`CHECKPOINT_WALL_S`) with the OpenMM state, the samples so far, the unwrapped end rotation and the
-        cost so far; if it exists at the start (same settings), the member resumes from it (the start run is
-        not repeated), so an interrupted member loses at most that much work. Removed by :func:`run_member` once
-        the member is written.
+        The member's checkpoint (the engine's format, with the samples): written every ``checkpoint_wall_s`` wall
+        seconds (default :data:`dnarod.run.sampling.CHECKPOINT_WALL_S`) and at the end; if it exists at the start
+        (same settings), the member resumes from it, so an interrupted member gives the samples an uninterrupted
+        one would. Removed by :func:`run_member` once the member is written.
     pose_out : path, optional
-        Where to write the last pose (``.npz``, :func:`dnarod.workflows.protocols.sweep.save_pose`): the next member of a
-        turn sweep starts from it.
+        Where to write the last pose (``.npz``, ``positions`` and ``frames``): a following member may start from it.
     """
     from dnarod.physics.nonbonded import member_nonbonded
-    from dnarod.workflows.protocols.measure import detector_distances, rotation_about_z
+    from dnarod.run.sampling import SampleReporter, run_sampling
+    from dnarod.workflows.protocols.measure import detector_distances
 
     s = m["settings"]
-    t0, c0 = time.perf_counter(), time.process_time()
-    resuming = checkpoint is not None and Path(checkpoint).exists()
-    if s["start_force_pN"] is not None and s["start_ns"] and not resuming:
+    if s["start_force_pN"] is not None and s["start_ns"] and not (checkpoint is not None and Path(checkpoint).exists()):
         # start "from above": a longer plectoneme grown at a lower force (same turns, same clamp target)
         m = grown_start(m, s["start_force_pN"], s["start_ns"])
     model = m["model"]
     sim = _member_simulation(m, model)
     dt = sim.dt
     stride = max(1, int(round(m["sample_ps"] / dt)))
-    n_eq = int(round(m["equilibration_ps"] / dt))
+    n_eq = stride * int(math.ceil(m["equilibration_ps"] / dt / stride))  # whole strides: samples on the schedule
     n_samp = max(4, int(round(m["production_ps"] / (stride * dt))))
-    # equilibrate in chunks (end rotation must be followed to unwrap it)
-    f_ref = m["ref_frame"]
-    last_angle = 0.0
-    turns_acc = 0.0
-
-    def end_rotation(frm):
-        nonlocal last_angle, turns_acc
-        a = float(rotation_about_z(frm[-1], f_ref))
-        turns_acc += ((a - last_angle + np.pi) % (2 * np.pi) - np.pi) / (2 * np.pi)
-        last_angle = a
-        return turns_acc
-
-    done, first, t_eq = 0, 0, None
-    out = {c: np.empty(n_samp) for c in COLUMNS}
-    wall0 = cpu0 = 0.0  # cost of the earlier attempts (resumed from a checkpoint)
-    key = json.dumps(_jsonable_settings(s), sort_keys=True)
-    if resuming:
-        meta = sim.load_checkpoint(checkpoint)["extra"]
-        if meta.get("settings") != key or meta.get("n_samples") != n_samp:
-            raise DnarodError(f"{checkpoint}: checkpoint of a member with other settings; delete it or use a new "
-                              f"member folder")
-        done, first = int(meta["eq_steps"]), int(meta["samples_done"])
-        last_angle, turns_acc = float(meta["last_angle"]), float(meta["turns_acc"])
-        wall0, cpu0, t_eq = float(meta["wall_s"]), float(meta["cpu_s"]), meta.get("equilibration_wall_s")
-        for c in COLUMNS:
-            out[c][:first] = meta["samples"][c]
-    last_ckpt = time.perf_counter()
-    every = CHECKPOINT_WALL_S if checkpoint_wall_s is None else float(checkpoint_wall_s)
-
-    def save(i):
-        nonlocal last_ckpt
-        if checkpoint is None:
-            return
-        sim.save_checkpoint(checkpoint, extra=dict(
-            settings=key, n_samples=n_samp, eq_steps=done, samples_done=i, last_angle=last_angle,
-            turns_acc=turns_acc, wall_s=wall0 + time.perf_counter() - t0, cpu_s=cpu0 + time.process_time() - c0,
-            equilibration_wall_s=t_eq, samples={c: out[c][:i].tolist() for c in COLUMNS}))
-        last_ckpt = time.perf_counter()
-
-    while done < n_eq:
-        k = min(stride, n_eq - done)
-        sim.advance(k)
-        done += k
-        end_rotation(sim.node_pose()[1])
-        if time.perf_counter() - last_ckpt >= every:
-            save(0)
-    if t_eq is None:
-        t_eq = wall0 + time.perf_counter() - t0
     k_clamp = float(s["clamp_k_kJ_mol"])
     # the plectoneme detector's distances follow the member's non-bonded terms and salt
     sep_nm, contact_nm = detector_distances(member_nonbonded(s), float(s["temperature_K"]), model.ds)
-    for i in range(first, n_samp):
-        sim.advance(stride)
-        pos, frm = sim.node_pose()
-        out["time_ps"][i] = (n_eq + (i + 1) * stride) * dt
-        # the start frame already carries the turns
-        row = observe(pos, frm, model, m["turns"] + end_rotation(frm), m["clamp_target"], k_clamp, sep_nm, contact_nm)
-        for c in COLUMNS[1:]:
-            out[c][i] = row[c]
-        if progress:
-            progress(i + 1, n_samp)
-        if i + 1 < n_samp and time.perf_counter() - last_ckpt >= every:
-            save(i + 1)
+    end = EndRotation(m["ref_frame"])
+
+    def observe(pos, frm, step):  # the start frame already carries the turns
+        return observe_tweezers(pos, frm, model, m["turns"] + end.turns, m["clamp_target"], k_clamp, sep_nm,
+                                contact_nm)
+
+    sampler = SampleReporter(COLUMNS, stride, observe, start=n_eq, n_samples=n_samp, follow=end)
+    key = json.dumps(_jsonable_settings(s), sort_keys=True)
+    out = run_sampling(sim, sampler, checkpoint, extra={"settings": key}, checkpoint_wall_s=checkpoint_wall_s,
+                       progress=progress)
     if pose_out is not None:
-        from dnarod.workflows.protocols.sweep import save_pose
+        from dnarod.workflows.protocols.poses import save_pose
 
         save_pose(pose_out, *sim.node_pose())
-    wall, cpu = wall0 + time.perf_counter() - t0, cpu0 + time.process_time() - c0
+    wall, cpu = out["wall_s"], out["cpu_s"]
     steps = n_eq + n_samp * stride
-    cost = dict(wall_s=wall, cpu_s=cpu, equilibration_wall_s=t_eq, dt_ps=dt, n_steps=steps, n_samples=n_samp,
+    cost = dict(wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps, n_samples=n_samp,
                 elastic_path=sim.rs.elastic, plectoneme_contact_nm=contact_nm, plectoneme_min_separation_nm=sep_nm,
                 sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0)
-    return out, cost
+    return out["samples"], cost
 
 
 def summarize(samples, m, cost):
@@ -464,7 +429,7 @@ def run_member(settings, member_dir, progress=None, start_pose=None):
     reused only if it started from that very pose.
     """
     from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
-    from dnarod.workflows.protocols.sweep import FINAL_POSE, START_POSE, pose_sha256, save_pose
+    from dnarod.workflows.protocols.poses import FINAL_POSE, START_POSE, pose_sha256, save_pose
 
     member_dir = ensure_dir(Path(member_dir), "member folder")
     if start_pose is not None:
