@@ -677,12 +677,12 @@ def test_protocol_members_take_the_automatic_platform_unless_asked_and_both_host
 
     from dnarod.engines.openmm.platforms import choose_platform
     from dnarod.workflows.protocols import tweezers as tw
-    from dnarod.workflows.protocols.ensemble_hooks import RINGS, TweezersProtocol
+    from dnarod.workflows.protocols.ensemble_hooks import MAGNETIC_TWEEZERS, RINGS
 
     monkeypatch.setenv("OPENMM_CPU_THREADS", "1")
     auto = choose_platform(None, threads=1)[0].getName()
     assert auto != "CPU"  # one thread never picks the CPU platform's worker thread
-    proto = TweezersProtocol("magnetic_tweezers")
+    proto = MAGNETIC_TWEEZERS
     base = dict(source="300", force_pN=1.0, turns=2.0, time_ns=0.01)
     for p in (proto, RINGS):
         got = p.member_settings(base)

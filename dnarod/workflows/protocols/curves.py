@@ -20,27 +20,6 @@ from dnarod.run.spec import MAX_SALT, MAX_TEMPERATURE
 STARTS = ("static", "sweep", "sweep-in", "bracket", "exchange")
 SWEEP_STARTS = ("sweep", "sweep-in", "bracket")
 
-#: x, y columns and labels of each protocol's curve.
-PLOTS = {
-    "force_extension": ("force_pN", ["relative_extension"], "force (pN)", "extension / contour length"),
-    "magnetic_tweezers": ("turns", ["relative_extension"], "turns", "extension / contour length"),
-    "torque_turns": ("turns", ["twist_torque_pN_nm", "clamp_torque_pN_nm"], "turns", "torque (pN nm)"),
-    "rings": ("delta_lk", ["Wr", "Tw_minus_Tw0"], "linking difference", "turns"),
-}
-#: experimental tables (data/experimental/) drawn beside each protocol's curve (see :func:`_draw_experiment`).
-EXPERIMENTS = {
-    "force_extension": ["force_extension_parameters.csv", "force_extension_curves.csv"],
-    # no measured hat-curve points could be read (experiments.MISSING); the zero-turn extension is compared with
-    # the force-extension relation of the measured persistence lengths and with the curve drawn over lambda-DNA data
-    "magnetic_tweezers": ["force_extension_parameters.csv", "force_extension_curves.csv"],
-    # no buckling torque or plateau could be read; the B->P transition torque (45 pN) bounds what B-DNA represents
-    "torque_turns": ["torsional_stiffness.csv", "effective_torsional_stiffness.csv", "structural_transitions.csv",
-                     "buckling.csv"],
-    # a review's "usually ~70%" of dLk as writhe (secondary; the primary measurements are in experiments.MISSING)
-    "rings": ["ring_writhe_fraction.csv"],
-}
-
-
 @dataclass
 class Curve:
     """A protocol's result: ``rows`` (one dict per member, sorted along the x axis) and written ``files``."""
@@ -48,13 +27,6 @@ class Curve:
     kind: str
     rows: list
     files: dict = field(default_factory=dict)
-
-
-def experimental_dir():
-    """``data/experimental`` (:func:`dnarod.physics.experiments.experimental_dir`)."""
-    from dnarod.physics.experiments import experimental_dir as _d
-
-    return _d()
 
 
 def _members(kind, axes, base):
@@ -219,10 +191,7 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     from dnarod.workflows.protocols import ensemble_hooks as hooks
     from dnarod.workflows.protocols.folder import PROTOCOL_MARKERS, check_protocol_folder, write_protocol_record
 
-    proto = {"force_extension": hooks.FORCE_EXTENSION, "magnetic_tweezers": hooks.MAGNETIC_TWEEZERS,
-             "torque_turns": hooks.TORQUE_TURNS, "rings": hooks.RINGS}.get(kind)
-    if proto is None:
-        raise DnarodError(f"unknown protocol {kind!r}; choose force_extension, magnetic_tweezers, torque_turns, rings")
+    proto = hooks.protocol_of(kind)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise DnarodError(f"workers {workers!r}: give a number of dask workers >= 0 (0: one after another in this "
                           f"process)")
@@ -290,7 +259,9 @@ def _run_members(kind, axes, base, members, outdir, workers, progress, client, p
             mdir = outdir / "members" / _member_name(m, axes)
             row = proto.execute(m, mdir)
             rows.append(dict(row, **{k: m[k] for k in axes}))
-    x = PLOTS[kind][0]
+    from dnarod.workflows.protocols.ensemble_hooks import protocol_of
+
+    x = protocol_of(kind).plot.x
     rows.sort(key=lambda r: (r.get(x) if r.get(x) is not None else 0.0))
     for r in rows:
         if kind == "rings" and "Tw" in r:
@@ -478,10 +449,7 @@ def _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client):
     """Run the members through :mod:`dnarod.workflows.ensemble`; returns their observables rows (settings merged)."""
     from dnarod.workflows.ensemble import Ensemble
 
-    protocol_ref = {"force_extension": "dnarod.workflows.protocols:FORCE_EXTENSION",
-                    "magnetic_tweezers": "dnarod.workflows.protocols:MAGNETIC_TWEEZERS",
-                    "torque_turns": "dnarod.workflows.protocols:TORQUE_TURNS", "rings": "dnarod.workflows.protocols:RINGS"}[kind]
-    doc = {"ensemble": {"name": kind, "protocol": protocol_ref},
+    doc = {"ensemble": {"name": kind, "protocol": proto.name},
            "base": {k: v for k, v in base.items()},
            "axes": {k: list(np.atleast_1d(v).tolist()) for k, v in axes.items()}}
     ens = Ensemble.from_dict(doc, outdir / "ensemble", overwrite=False)
@@ -515,32 +483,33 @@ def _write_csv(rows, path):
     return Path(path)
 
 
-def read_experimental(name):
-    """Rows of ``data/experimental/NAME`` (:func:`dnarod.physics.experiments.read_table`)."""
-    from dnarod.physics.experiments import read_table
-
-    return read_table(name)
-
-
 def plot_curve(kind, rows, path):
-    """Plot a protocol's curve (mean +- block standard error per member) with the experimental tables beside."""
+    """Plot a protocol's curve (mean +- block standard error per member) with its measured references beside
+    (the protocol object's ``plot`` and ``references``, :mod:`dnarod.workflows.protocols.references`)."""
     from dnarod.analysis.plots import new_figure, save_figure
+    from dnarod.workflows.protocols.ensemble_hooks import protocol_of
 
-    xk, yks, xl, yl = PLOTS[kind]
+    proto = protocol_of(kind)
+    plot = proto.plot
     fig, ax = new_figure(1, 1, width=6.0, height=5.4)
     a = ax[0, 0]
-    x = np.array([float(r.get(xk) or 0.0) for r in rows])
-    for yk in yks:
+    x = np.array([float(r.get(plot.x) or 0.0) for r in rows])
+    if plot.log_x:
+        a.set_xscale("log")
+    for yk in plot.ys:
         y = np.array([np.nan if r.get(yk) is None else float(r[yk]) for r in rows])
         e = np.array([np.nan if r.get(yk + "_err") is None else float(r[yk + "_err"]) for r in rows])
-        if kind == "force_extension":
-            a.set_xscale("log")
         a.errorbar(x, y, yerr=np.where(np.isfinite(e), e, 0.0), fmt="o-", capsize=3, label=f"dnarod: {yk}")
-    for name in EXPERIMENTS.get(kind, []):
-        _draw_experiment(a, kind, name, rows)
-    _note_missing(a, kind)
-    a.set_xlabel(xl)
-    a.set_ylabel(yl)
+    if rows:
+        for draw in proto.references:
+            draw(a, rows)
+    note = proto.missing_note()
+    if note:
+        # torque-turns legends fill the top left; the note goes bottom right there
+        x0, y0, ha, va = (0.98, 0.03, "right", "bottom") if kind == "torque_turns" else (0.02, 0.97, "left", "top")
+        a.text(x0, y0, note, transform=a.transAxes, fontsize=7, color="0.4", va=va, ha=ha)
+    a.set_xlabel(plot.x_label)
+    a.set_ylabel(plot.y_label)
     if rows:
         r0 = rows[0]
         a.set_title(f"{kind.replace('_', ' ')}: {r0.get('n_bp')} bp"
@@ -551,136 +520,6 @@ def plot_curve(kind, rows, path):
     out = Path(path)
     save_figure(fig, out.parent, out.name)
     return out
-
-
-def _draw_experiment(a, kind, name, rows):
-    """Measured values beside the curve, converted to the curve's axes (:mod:`dnarod.physics.experiments`).
-
-    * force-extension: the worm-like-chain extension (Bouchiat interpolation, inextensible) with each measured
-      persistence length, labelled with its salt, and shaded the band of the persistence lengths that bracket
-      the run's salt (:func:`~dnarod.physics.experiments.persistence_length_band`);
-    * torque-turns: the pre-buckling slope ``kT C_eff 2 pi turns / L`` of this chain for each measured
-      torsional stiffness, labelled with the force it was measured at (not necessarily the run's force);
-    * force-extension, also: the extensible-WLC curve a source draws over its measured lambda-DNA data (lp 50 nm,
-      S 1000 pN at 100 mM Na+; :func:`~dnarod.physics.experiments.force_extension_curves`), labelled with its salt;
-    * torque-turns, also: the torque of the B->P structural transition (34 +- 2 pN nm, measured at 45 pN; Bryant
-      et al. 2003) as a horizontal band, labelled as a limit of B-DNA measured at another force, not a buckling
-      torque (none could be read);
-    * hat curves: no measured hat-curve points could be read (the axes say so); at zero turns a bar spans the
-      relative extension that the measured persistence lengths bracketing the run's salt give at the run's force
-      (long-molecule worm-like chain: a chain of a few persistence lengths with clamped ends extends further),
-      and a diamond marks the x/L of the curve drawn over lambda-DNA data at 100 mM Na+ at the run's force;
-    * rings: the line ``Wr = f dLk`` for the writhe fraction read ("usually ~70%", a review quoting its sources;
-      no superhelical density or salt stated, the label says so beside the run's salt).
-    """
-    from dnarod.core.units import kT
-    from dnarod.core.units import PN
-    from dnarod.physics import experiments as ex
-
-    if not rows:
-        return
-    T = float(rows[0].get("temperature_K") or 300.0)
-    kt_pn = kT(T) / PN
-    if kind == "torque_turns" and name in ("torsional_stiffness.csv", "effective_torsional_stiffness.csv"):
-        L = float(rows[0]["contour_length_nm"])
-        t = np.array([float(r.get("turns") or 0.0) for r in rows])
-        tt = np.linspace(min(t.min(), 0.0), max(t.max(), 0.0), 20)
-        run_f = rows[0].get("force_pN")
-        for m in ex.effective_torsional_persistence(temperature=T):
-            if (name == "torsional_stiffness.csv") == ("rotor-bead" in m.conditions):
-                a.plot(tt, kt_pn * m.value * 2 * np.pi * tt / L, "--", lw=1,
-                       label=f"slope, measured C_eff = {m.value:.0f} nm at {m.force_pN:g} pN "
-                             f"({ex.cite_short(m.source)}; run at {run_f} pN)")
-    if kind == "force_extension" and name == "force_extension_parameters.csv":
-        from dnarod.physics.theory.wlc import extensible_wlc_extension
-
-        F = np.array([float(r["force_pN"]) for r in rows])
-        FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
-        salt = float(rows[0].get("salt_M") or 0.15)
-        for m in ex.persistence_lengths():
-            a.plot(FF, extensible_wlc_extension(FF, m.value, 1e12, kt_pn), ":", lw=1,
-                   label=f"WLC, measured lp {m.value:g} nm at {1000 * m.salt_M:g} mM Na+ ({ex.cite_short(m.source)})")
-        try:
-            lo, hi, _ = ex.persistence_length_band(salt)
-        except ValueError:
-            return
-        a.fill_between(FF, extensible_wlc_extension(FF, lo, 1e12, kt_pn), extensible_wlc_extension(FF, hi, 1e12, kt_pn),
-                       color="0.85", zorder=0, label=f"measured lp {lo:g}-{hi:g} nm bracketing {1000 * salt:g} mM")
-    if kind == "torque_turns" and name == "structural_transitions.csv":
-        run_f = rows[0].get("force_pN")
-        for m in ex.structural_transition_torques():
-            tau, sig = m.value / PN, (m.uncertainty or 0.0) / PN
-            what = "B->P transition" if tau > 0 else "unwinding transition"
-            at = f"at {m.force_pN:g} pN" if m.force_pN is not None else "force not stated"
-            if sig > 0:
-                a.axhspan(tau - sig, tau + sig, color="0.8", alpha=0.6, zorder=0,
-                          label=f"{what} torque {tau:g}+-{sig:g} pN nm {at} ({ex.cite_short(m.source)}; "
-                                f"a limit of B-DNA, not buckling; run at {run_f} pN)")
-            else:
-                a.axhline(tau, color="0.6", ls=":", lw=2, zorder=0,
-                          label=f"{what} torque {'~' if m.approximate else ''}{tau:g} pN nm, {at} "
-                                f"({ex.cite_short(m.source)}, quoted; a limit of B-DNA, not buckling)")
-            lo, hi = a.get_ylim()  # keep each limit in view beside the run's torques
-            a.set_ylim(min(lo, 1.15 * (tau - sig)), max(hi, 1.15 * (tau + sig)))
-    if kind == "torque_turns" and name == "buckling.csv":
-        run_f = float(rows[0].get("force_pN") or 0.0)
-        for q, mk in (("buckling_torque", "v"), ("postbuckling_torque_plateau", "_")):
-            for m in ex.buckling_torque_reference(q, force_pN=run_f):
-                a.errorbar([0.0], [m.value / PN], yerr=[(m.uncertainty or 0.0) / PN], fmt=mk, ms=10, capsize=4,
-                           label=f"measured {q.replace('_', ' ')} {m.value / PN:g} pN nm at {m.force_pN:g} pN"
-                                 + (f", {1000 * m.salt_M:g} mM" if m.salt_M is not None else "")
-                                 + f" ({ex.cite_short(m.source)})")
-    if kind in ("force_extension", "magnetic_tweezers") and name == "force_extension_curves.csv":
-        from dnarod.physics.theory.wlc import extensible_wlc_extension
-
-        F = np.array(sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}))
-        for c in ex.force_extension_curves():
-            lab = (f"eWLC lp {c.persistence_length:g} nm, S {c.stretch_modulus_pN:g} pN drawn over lambda-DNA data "
-                   f"at {1000 * c.salt_M:g} mM Na+ ({c.source.split(',')[0]} Fig. 2)")
-            if kind == "force_extension":
-                FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
-                a.plot(FF, extensible_wlc_extension(FF, c.persistence_length, c.stretch_modulus_pN, kt_pn), "-.",
-                       lw=1, color="0.3", label=lab)
-            else:
-                a.plot(np.zeros_like(F), extensible_wlc_extension(F, c.persistence_length, c.stretch_modulus_pN,
-                                                                  kt_pn), "D", mfc="none", color="0.3",
-                       label=f"x/L at {', '.join(f'{f:g}' for f in F)} pN: " + lab)
-    if kind == "magnetic_tweezers" and name == "force_extension_parameters.csv":
-        salt = float(rows[0].get("salt_M") or 0.15)
-        for f in sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}):
-            try:
-                lo, hi = ex.wlc_extension_band([f], salt, 1e12, T)
-                lp_lo, lp_hi, _ = ex.persistence_length_band(salt)
-            except ValueError:
-                continue
-            a.errorbar([0.0], [0.5 * (lo[0] + hi[0])], yerr=[[0.5 * (hi[0] - lo[0])]], fmt="none", ecolor="k",
-                       capsize=6, lw=2, label=f"x/L at {f:g} pN from measured lp {lp_lo:g}-{lp_hi:g} nm "
-                                           f"({1000 * salt:g} mM; long-molecule WLC)")
-    if kind == "rings" and name == "ring_writhe_fraction.csv":
-        dl = np.array([float(r.get("delta_lk") or 0.0) for r in rows])
-        xx = np.linspace(min(dl.min(), 0.0), max(dl.max(), 0.0), 20)
-        salt = rows[0].get("salt_M")
-        for m in ex.writhe_fraction_reference():
-            cond = ("; " + (f"{1000 * m.salt_M:g} mM" if m.salt_M is not None else "salt not stated")
-                    + ("" if m.uncertainty is None else f"; +-{m.uncertainty:g}"))
-            a.plot(xx, m.value * xx, ":", lw=1,
-                   label=f"Wr = {'~' if m.approximate else ''}{m.value:g} dLk ({ex.cite_short(m.source)}, quoted"
-                         f"{cond}; run at {1000 * float(salt or 0.15):g} mM)")
-
-
-def _note_missing(a, kind):
-    """Say on the axes when no measured value could be drawn for this protocol."""
-    from dnarod.physics import experiments as ex
-
-    if kind in ("magnetic_tweezers", "torque_turns") or (kind == "rings" and not ex.writhe_fraction_reference()):
-        what = {"magnetic_tweezers": "hat-curve points", "rings": "writhe fraction",
-                "torque_turns": "buckling torque or post-buckling plateau"}[kind]
-        if kind == "torque_turns" and ex.buckling_torque_reference():
-            return
-        # torque-turns legends fill the top left; the note goes bottom right there
-        x, y, ha, va = (0.98, 0.03, "right", "bottom") if kind == "torque_turns" else (0.02, 0.97, "left", "top")
-        a.text(x, y, f"no measured {what} could be read (data/README.md)", transform=a.transAxes,
-               fontsize=7, color="0.4", va=va, ha=ha)
 
 
 def force_extension(forces_pN, outdir, source="600", **kw):

@@ -1,6 +1,8 @@
-"""Protocol objects for :mod:`dnarod.workflows.ensemble` (the ``execute`` hook: one member = one equilibrium sample).
+"""The protocol objects: what a protocol is, in one place (its settings schema, how a member runs, its curve's plot
+columns and the measured references drawn beside it), for :mod:`dnarod.workflows.ensemble` (the ``execute`` hook:
+one member = one equilibrium sample) and :mod:`dnarod.workflows.protocols.curves`.
 
-A spec names one as ``protocol = "dnarod.workflows.protocols:MAGNETIC_TWEEZERS"``. Settings read from the
+A spec names one by its name (``protocol = "magnetic-tweezers"``; :data:`PROTOCOLS`). Settings read from the
 ensemble's canonical keys: ``source`` (a node count or a sequence), ``forcefield``, ``force_pN``,
 ``turns``, ``rotation_clamp_kJ_mol`` (clamp stiffness), ``time_ns`` (production), ``temperature_K``,
 ``salt_M``, ``seed``, ``excluded_volume``, ``electrostatics``, ``charge``, ``cutoff_debye``, ``platform``,
@@ -13,6 +15,18 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from dnarod.core.errors import DnarodError
+from dnarod.workflows.protocols import references as ref
+
+
+@dataclass(frozen=True)
+class Plot:
+    """A protocol curve's axes: the x column, the y columns (each with ``<y>_err``), labels, log x."""
+
+    x: str
+    ys: tuple
+    x_label: str
+    y_label: str
+    log_x: bool = False
 
 
 def _source(settings):
@@ -76,9 +90,19 @@ def protocol_keys():
 
 @dataclass(frozen=True)
 class TweezersProtocol:
-    """``kind``: "force_extension" (torsionally free end), "magnetic_tweezers" or "torque_turns" (rotation clamp)."""
+    """A tweezers protocol: ``kind`` "force_extension" (torsionally free end), "magnetic_tweezers" or "torque_turns"
+    (rotation clamp); ``name`` its registered name, ``plot`` its curve's axes, ``references`` the functions drawing
+    measured values beside the curve (:mod:`dnarod.workflows.protocols.references`), ``missing`` what no source
+    gave (said on the plot)."""
 
     kind: str
+    name: str
+    plot: Plot
+    references: tuple = ()
+    missing: str | None = None
+
+    def missing_note(self):
+        return _missing_note(self)
 
     @property
     def keys(self):
@@ -133,9 +157,18 @@ def flat_row(result):
 
 @dataclass(frozen=True)
 class RingProtocol:
-    """Closed rings with a linking difference ``delta_lk``."""
+    """Closed rings with a linking difference ``delta_lk`` (attributes as :class:`TweezersProtocol`)."""
 
     kind: str = "rings"
+    name: str = "rings"
+    plot: Plot = Plot("delta_lk", ("Wr", "Tw_minus_Tw0"), "linking difference", "turns")
+    references: tuple = (ref.writhe_fraction,)
+    missing: str | None = "writhe fraction"
+
+    def missing_note(self):
+        from dnarod.physics import experiments as ex
+
+        return None if ex.writhe_fraction_reference() else _missing_note(self)
 
     @property
     def keys(self):
@@ -167,7 +200,44 @@ class RingProtocol:
         return flat_row(run_ring_member(self.member_settings(settings), member_dir))
 
 
-FORCE_EXTENSION = TweezersProtocol("force_extension")
-MAGNETIC_TWEEZERS = TweezersProtocol("magnetic_tweezers")
-TORQUE_TURNS = TweezersProtocol("torque_turns")
+def _missing_note(proto):
+    """The note a plot carries when no measured value of what the protocol measures could be read."""
+    if proto.missing is None:
+        return None
+    if proto.kind == "torque_turns":
+        from dnarod.physics import experiments as ex
+
+        if ex.buckling_torque_reference():
+            return None
+    return f"no measured {proto.missing} could be read (data/README.md)"
+
+
+FORCE_EXTENSION = TweezersProtocol(
+    "force_extension", "force-extension",
+    Plot("force_pN", ("relative_extension",), "force (pN)", "extension / contour length", log_x=True),
+    (ref.wlc_persistence_lengths, ref.ewlc_curves))
+# no measured hat-curve points could be read; the zero-turn extension is compared with the force-extension relation
+# of the measured persistence lengths and with the curve drawn over lambda-DNA data
+MAGNETIC_TWEEZERS = TweezersProtocol(
+    "magnetic_tweezers", "magnetic-tweezers",
+    Plot("turns", ("relative_extension",), "turns", "extension / contour length"),
+    (ref.persistence_length_bar, ref.ewlc_at_zero_turns), missing="hat-curve points")
+# no buckling torque or plateau could be read; the B->P transition torque bounds what B-DNA represents
+TORQUE_TURNS = TweezersProtocol(
+    "torque_turns", "torque-turns",
+    Plot("turns", ("twist_torque_pN_nm", "clamp_torque_pN_nm"), "turns", "torque (pN nm)"),
+    (ref.rotor_bead_twist_slopes, ref.other_twist_slopes, ref.transition_torques, ref.buckling_torques),
+    missing="buckling torque or post-buckling plateau")
 RINGS = RingProtocol()
+
+#: The protocols by name (the names ensemble specs and the ``dnarod protocol`` commands use).
+PROTOCOLS = {p.name: p for p in (FORCE_EXTENSION, MAGNETIC_TWEEZERS, TORQUE_TURNS, RINGS)}
+
+
+def protocol_of(kind):
+    """The protocol object of ``kind`` ("force_extension", "magnetic_tweezers", "torque_turns", "rings") or of its
+    name ("force-extension", ...); one line naming the known ones otherwise."""
+    for p in PROTOCOLS.values():
+        if kind in (p.kind, p.name):
+            return p
+    raise DnarodError(f"unknown protocol {kind!r}; choose one of {', '.join(PROTOCOLS)}")
