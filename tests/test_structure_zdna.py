@@ -198,3 +198,22 @@ def test_cli_steps_of_z_dna(tmp_path):
     assert all(float(r["Gamma3"]) > 0 for r in rows)  # strains along the helix too
     assert "left-handed (Z-DNA)" in res.output
 
+
+
+def test_run_check_numbers_steps_from_one_without_a_wrong_hint():
+    """The start-pose check of a run names a kinked step as the steps table does (from 1) and does not suggest a
+    longer chain, which would not remove the kink."""
+    from dnarod.errors import ParameterError
+    from dnarod.rotations import rotation_about_axis
+    from dnarod.run.api import check_start_pose
+
+    m = model_from_structure(DATA / "structures" / "355D.pdb")
+    R = rotation_about_axis(m.frames[5][:, 0], np.radians(160.0))
+    p5 = m.positions[5].copy()
+    m.positions[6:] = p5 + (m.positions[6:] - p5) @ R.T
+    m.frames[6:] = R @ m.frames[6:]
+    with pytest.raises(ParameterError) as exc:
+        check_start_pose(m, 300.0)
+    msg = str(exc.value)
+    assert msg.startswith("step 6 of this 12-node chain (steps numbered from 1)")
+    assert "use a longer chain" not in msg and "a longer chain does not help" in msg
