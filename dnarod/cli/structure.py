@@ -4,8 +4,10 @@ CSV contracts (scripts parse them; do not change the columns):
 
 * ``dnarod steps INPUT --csv OUT``: ``step,bp1,bp2,shift_A,slide_A,rise_A,tilt_deg,roll_deg,
   twist_deg,Omega1_per_nm,Omega2_per_nm,Omega3_per_nm,Gamma1,Gamma2,Gamma3,gap``; one row per
-  step, ``step`` counting from 1 along strand I (continuing across duplexes), ``bp1``/``bp2``
-  like ``C-G``. Strains from :func:`dnarod.core.strains.strains` with the force field's ds.
+  step, ``step`` counting from 1 along strand I (continuing across duplexes; with ``--duplex``
+  a step keeps its number, as in every note), ``bp1``/``bp2`` like ``C-G``. Strains from
+  :func:`dnarod.core.strains.strains` of the node frames with the force field's ds (3DNA's
+  reversed frames for left-handed steps, so they reproduce the step parameters).
   ``gap`` is empty for a regular step and lists the residue ids of the unpaired (extruded,
   bulged) nucleotides a step crosses (the step is then computed between the flanking pairs,
   as 3DNA reports it).
@@ -178,21 +180,36 @@ def _titles(ana):
     return out
 
 
-def step_rows(ana, ds):
-    """Rows of the ``steps`` table (lengths in Angstrom, angles in degrees, strains per nm)."""
+def step_rows(ana, ds, notes=None):
+    """Rows of the ``steps`` table (lengths in Angstrom, angles in degrees, strains per nm).
+
+    A step that is not stacked (node frames turning by nearly a half turn) keeps its 3DNA
+    parameters and gets NaN strains; a line naming it is appended to ``notes``.
+    """
     from dnarod.core.stepparams import to_angstrom_degrees
     from dnarod.core.strains import strains
+    from dnarod.structure.analysis import describe_unstacked, unstacked_steps
 
-    rows, k = [], 0
+    rows = []
     for d in ana.duplexes:
         if d.n_bp < 2:
             continue
+        bad = unstacked_steps(d)
         sp = to_angstrom_degrees(d.step_params)
-        Om, Ga = strains(d.bp_origins, d.bp_frames, ds)
+        O, F = d.bp_origins, d.bp_frames
+        Om = np.full((d.n_bp - 1, 3), np.nan)
+        Ga = np.full((d.n_bp - 1, 3), np.nan)
+        good = np.setdiff1d(np.arange(d.n_bp - 1), bad)
+        if good.size:  # each step on its own (the strain map is undefined at the bad ones)
+            o, g = strains(np.stack([O[good], O[good + 1]], axis=1), np.stack([F[good], F[good + 1]], axis=1), ds)
+            Om[good], Ga[good] = o[:, 0], g[:, 0]
+        for k in bad:
+            if notes is not None:
+                notes.append(f"{describe_unstacked(d, k)}: not a stacked step; its strains are left NaN")
         labels = d.bp_labels
         gaps = d.gaps or [""] * (d.n_bp - 1)
         for i in range(d.n_bp - 1):
-            k += 1
+            k = d.first_step + i  # the same number in every table and message, also with --duplex
             rows.append((k, labels[i], labels[i + 1], *map(float, sp[i]), *map(float, Om[i]), *map(float, Ga[i]),
                          gaps[i].replace(" ", ";")))
     return rows
@@ -225,9 +242,10 @@ def steps(input_path, csv_path, forcefield, duplex, model, altloc, pairs_file, m
     _output_path(csv_path, "--csv", (".csv",), "a table", True)
     ff = load_forcefield(forcefield)
     ana = _only_duplex(_analyze(input_path, model, altloc, pairs_file, maps, ignore), duplex)
-    rows = step_rows(ana, ff.ds)
+    extra = []
+    rows = step_rows(ana, ff.ds, extra)
     title = _titles(ana) + [f"strains with ds = {ff.ds:g} nm ({ff.name}); Omega in 1/nm, Gamma dimensionless"]
-    _emit(rows, STEP_COLUMNS, csv_path, title, ana.skipped, (4, 5, 5) + (8,) * 6 + (13,) * 3 + (7,) * 3 + (4,))
+    _emit(rows, STEP_COLUMNS, csv_path, title, ana.skipped + extra, (4, 5, 5) + (8,) * 6 + (13,) * 3 + (7,) * 3 + (4,))
 
 
 @click.command("pairs")
@@ -302,7 +320,7 @@ def rebuild(model_path, output, hydrogens, minimize, overwrite):
     """An all-atom PDB/mmCIF from a dnarod model file (.npz): standard bases in the node frames and a
     backbone closed by restrained Amber14 minimisation (OBC2), checked bond by bond."""
     from dnarod.core.model import RodModel
-    from dnarod.structure.rebuild import rebuild_model
+    from dnarod.structure.rebuild import base_pair_frames, rebuild_model
 
     _output_path(output, "-o", (".pdb", ".cif", ".mmcif"), "an all-atom structure", overwrite)
     m = RodModel.load(model_path)
@@ -318,7 +336,7 @@ def rebuild(model_path, output, hydrogens, minimize, overwrite):
     if not m.sequence:
         raise StructureError("rebuild: the model has no sequence; build it from a sequence or a structure")
     bp = np.asarray(m.metadata["bp_params"], float) if "bp_params" in m.metadata else None
-    res = rebuild_allatom(m.frames, m.positions, m.sequence, bp, m.metadata.get("sequence2"))
+    res = rebuild_allatom(base_pair_frames(m), m.positions, m.sequence, bp, m.metadata.get("sequence2"))
     res.write(output, hydrogens=hydrogens)
     n_atoms = sum(1 for a in res.topology.atoms() if hydrogens or a.element.symbol != "H")
     click.echo(f"wrote {output}: {n_atoms} atoms, {2 * m.n_nodes} nucleotides")

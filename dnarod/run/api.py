@@ -137,9 +137,12 @@ def check_start_pose(model, temperature):
     k = int(np.argmax(ang))
     kind = "ring" if model.closure is not None else "chain"
     if ang[k] > 0.8 * MAX_CAYLEY_ANGLE:
-        raise ParameterError(f"step {k} of this {model.n_nodes}-node {kind} rotates by {np.degrees(ang[k]):.0f} deg, "
-                             f"near the Cayley-chart limit ({np.degrees(MAX_CAYLEY_ANGLE):.0f} deg) of the rod model; "
-                             f"use a longer {kind}")
+        hint = ("use a longer ring" if kind == "ring" else
+                "a longer chain does not help: the step is a kink or not a stacked step (a structure's steps are "
+                "numbered the same way by 'dnarod steps'); fix the pose or build the model from another duplex")
+        raise ParameterError(f"step {k + 1} of this {model.n_nodes}-node {kind} (steps numbered from 1) rotates by "
+                             f"{np.degrees(ang[k]):.0f} deg, near the Cayley-chart limit "
+                             f"({np.degrees(MAX_CAYLEY_ANGLE):.0f} deg) of the rod model; {hint}")
     E = elastic_loads(model.positions, model.frames, model.params, model.ds, model.closure)[0]
     per = E / model.n_steps / kT(temperature if temperature > 0 else 300.0)
     if per > WARN_KT_PER_STEP:

@@ -13,8 +13,11 @@ the default) or the structure's own (``intrinsic="structure"``).
 Both return a :class:`~dnarod.core.model.RodModel`, saved and loaded with ``RodModel.save`` /
 ``RodModel.load`` (``.npz``, format "dnarod-model"). The structure builder records in
 ``metadata``: the source file, model, duplex, residue ids of both strands, strand II
-letters (``sequence2``) and the base-pair parameters (``bp_params``, nm and rad) so that
-:func:`dnarod.structure.rebuild.rebuild_model` puts the bases back where they were.
+letters (``sequence2``) and the base-pair parameters of the fitted bases (``bp_params``, nm
+and rad) so that :func:`dnarod.structure.rebuild.rebuild_model` puts the bases back where
+they were. A left-handed (Z-DNA) pair's node frame is 3DNA's reversed base-pair frame (x and
+z negated, so that d3 runs along the helix and the model's strains reproduce 3DNA's steps);
+``metadata["bp_reversed"]`` lists those nodes for the rebuild.
 """
 from __future__ import annotations
 
@@ -86,17 +89,25 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
         raise StructureError(f"{ana.source}: duplex {k + 1} strand I {seq!r} has bases other than A, C, G, T "
                              f"(RNA or inosine); the DNA force fields cannot parametrise it")
     params = ff.step_parameters(seq)
+    from dnarod.structure.analysis import check_node_steps
+
+    check_node_steps(d)
     if intrinsic == "structure":
         Om, Ga = strains(d.bp_origins, d.bp_frames, ff.ds)
         params = StepParameters(params.stiffness, np.hstack([Om, Ga]), params.names)
     n = d.n_bp
+    from dnarod.structure.conventions import reverse_pair_parameters
+
+    bp_phys = reverse_pair_parameters(d.bp_params) if d.frames_reversed else d.bp_params
     meta = {
         "source": str(ana.source), "model": ana.structure.model, "duplex": k, "forcefield": ff.name,
         "strand1": [nt.rid for nt in d.strand1], "strand2": [nt.rid for nt in d.strand2],
         "sequence2": "".join(nt.base for nt in d.strand2) if all(nt.base in "ACGT" for nt in d.strand2) else None,
-        "bp_params": d.bp_params.tolist(), "pair_names": list(d.names), "intrinsic": intrinsic,
+        "bp_params": bp_phys.tolist(), "pair_names": list(d.names), "intrinsic": intrinsic,
         "selection": sel.report(), "gaps": list(d.gaps),
     }
+    if d.bp_reversed.any():
+        meta["bp_reversed"] = [bool(v) for v in d.bp_reversed]
     return RodModel(d.bp_origins.copy(), d.bp_frames.copy(), params, ff.ds, np.full(n, ff.node_mass),
                     np.tile(ff.node_inertia, (n, 1)), sequence=seq, metadata=meta)
 

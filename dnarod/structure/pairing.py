@@ -1,70 +1,39 @@
-"""Geometric base pairing and ordering of base pairs into duplexes.
+"""Pairing helpers around 3DNA's rules: helix-context pairs, multiplets, explicit pairs, classes.
 
-Pairing follows the criteria of 3DNA's ``find_pair`` (Lu & Olson 2003, defaults of its
-``misc_3dna.par``): two bases pair if their origins are within 1.5 nm, their vertical
-separation along the mean normal is at most 0.25 nm, their normals differ by at most 65
-degrees, the glycosidic N atoms (N9/N1) are at least 0.45 nm apart, and at least one
-N/O...N/O base-base contact is within 0.4 nm. Each base takes its best partner (lowest
-``d_org + 2 d_v + angle/20``, in Angstrom and degrees); pairs are the mutual best choices.
-This is written here because gemmi/MDAnalysis/mdtraj do not detect base pairs with the
-3DNA criteria that the reference tables were made with.
+The pairs themselves and their ordering into helices follow 3DNA's ``find_pair``
+(:mod:`dnarod.structure.findpair`). This module adds what dnarod does beyond those rules, each
+reported in a note naming the residues:
 
-Ordering: pairs are chained through the backbone (O3'(i)-P(i+1) bonds, or consecutive
-residues of a chain when the backbone is missing) along strand I, or along strand II where
-strand I is nicked or bulged. Each chain of pairs is a duplex; strand I is the strand whose
-5' end comes first in the file (3DNA's choice for the reference structures). Unpaired
-nucleotides (overhangs, bulges, loops) are reported, not silently dropped.
+* :func:`fill_helix_gaps`: a base pair inside a helix that misses 3DNA's N/O contact
+  criterion (no base N/O atoms within 4.0 A, e.g. 1KX5 I:53/J:-53 at 4.2 A) but passes all
+  its other criteria and stacks between paired neighbours is kept (3DNA would leave the two
+  bases unpaired and step across them);
+* :func:`multiplets`: base triples and G-tetrads (a G-quadruplex is refused);
+* :func:`check_duplicated`: a base whose best partner has a copy in the same place (a
+  duplicated strand or unresolved altloc) is refused;
+* :func:`explicit_pairs`, :func:`classify_pair`, :func:`backbone_links` (unpaired nucleotides a
+  step crosses, for the gap column).
 
 Units: nm.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 from scipy.spatial import cKDTree
 
 from dnarod.core.errors import StructureError
+from dnarod.structure.findpair import HELIX_BREAK, MAX_DV, check_pair
 from dnarod.structure.reader import BACKBONE
 
-MAX_ORIGIN = 1.5        # nm
-MAX_VERTICAL = 0.25     # nm
-MAX_ANGLE = 65.0        # degrees
-MIN_GLYCOSIDIC = 0.45   # nm
-MAX_HBOND = 0.40        # nm
 LINK = 0.25             # nm, O3'-P bond cut-off
 OVERLAP = 0.10          # nm: two bases with origins this close overlap (atoms closer than 1 A)
-HELIX_BREAK = 0.75      # nm: 3DNA's helix_break, largest origin distance of neighbouring pairs in a helix
 HOOGSTEEN_CONTACT = 0.33  # nm: an N7...N/O hydrogen bond, with no N1 contact, marks a Hoogsteen pair
-MAX_GAP = 3             # unpaired nucleotides a helix may step across on a strand
+MAX_GAP = 3             # unpaired nucleotides a helix-context pair run or a flagged gap may span on a strand
+MAX_HBOND = 0.40        # nm: 3DNA's hb_dist1, the N/O contact the helix-context pairs miss
+MAX_ANGLE = 65.0        # degrees: 3DNA's max_plane_angle, also the stacking test of helix-context pairs
 COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
-
-
-@dataclass
-class Duplex:
-    """An ordered run of base pairs.
-
-    Attributes
-    ----------
-    pairs : list of (int, int)
-        Nucleotide indices (strand I, strand II), 5'->3' along strand I.
-    circular : bool
-        True if the pairs close into a ring (the ring is opened at the first pair).
-    notes : list of str
-    gaps : list of list of int
-        Per step: unpaired nucleotides (indices) between its two pairs (3DNA's helix continues
-        across them); empty for a regular step.
-    """
-
-    pairs: list
-    circular: bool = False
-    notes: list = field(default_factory=list)
-    gaps: list = field(default_factory=list)
-
-
-def _glycosidic(nt):
-    name = "N9" if nt.base in ("A", "G", "I") else "N1"
-    return nt.atoms.get(name)
+__all__ = ["HELIX_BREAK", "MAX_GAP", "backbone_links", "check_duplicated", "classify_pair", "explicit_pairs",
+           "fill_helix_gaps", "is_mismatch", "multiplets"]
 
 
 def _base_polar_atoms(nt):
@@ -72,95 +41,28 @@ def _base_polar_atoms(nt):
                      if name not in BACKBONE and "'" not in name and name[:1] in ("N", "O")]).reshape(-1, 3)
 
 
-def _pair_geometry(ni, nj, Fi, Fj, oi, oj, pi=None, pj=None, max_hbond=MAX_HBOND):
-    """Score of a candidate pair (Angstrom/degrees, lower is better) or None if it fails a criterion."""
-    d = oj - oi
-    if np.linalg.norm(d) > MAX_ORIGIN:
-        return None
-    zi, zj = Fi[:, 2], Fj[:, 2]
-    c = float(zi @ zj)
-    angle = np.degrees(np.arccos(min(1.0, abs(c))))
-    if angle > MAX_ANGLE:
-        return None
-    zm = zi + np.sign(c or 1.0) * zj
-    zm /= np.linalg.norm(zm)
-    dv = abs(float(d @ zm))
-    if dv > MAX_VERTICAL:
-        return None
-    gi, gj = _glycosidic(ni), _glycosidic(nj)
-    if gi is not None and gj is not None and np.linalg.norm(gi - gj) < MIN_GLYCOSIDIC:
-        return None
-    pi = _base_polar_atoms(ni) if pi is None else pi
-    pj = _base_polar_atoms(nj) if pj is None else pj
-    if len(pi) == 0 or len(pj) == 0:
-        return None
-    if not (np.linalg.norm(pi[:, None, :] - pj[None, :, :], axis=-1) <= max_hbond).any():
-        return None
-    return 10 * np.linalg.norm(d) + 20 * dv + angle / 20.0
-
-
-def candidates(nucleotides, frames, origins):
-    """All base pairs passing the geometric criteria.
-
-    Returns
-    -------
-    dict
-        ``(i, j) -> score`` for ``i < j`` (Angstrom/degree units, lower is better).
-    """
-    tree = cKDTree(origins)
-    polar = [_base_polar_atoms(nt) for nt in nucleotides]
-    out = {}
-    for i, j in sorted(tree.query_pairs(MAX_ORIGIN)):
-        score = _pair_geometry(nucleotides[i], nucleotides[j], frames[i], frames[j], origins[i], origins[j],
-                               polar[i], polar[j])
-        if score is not None:
-            out[(i, j)] = score
-    return out
-
-
-def find_pairs(nucleotides, frames, origins, source="<structure>"):
-    """Mutual-best base pairs.
-
-    Parameters
-    ----------
-    nucleotides : list of Nucleotide
-    frames : ndarray, shape (n, 3, 3)
-        Base frames.
-    origins : ndarray, shape (n, 3)
-        Base origins, nm.
-    source : str
-
-    Returns
-    -------
-    list of (int, int)
-        Unordered pairs ``(i, j)``, ``i < j``.
+def check_duplicated(nucleotides, bases, found, candidates, source="<structure>"):
+    """Refuse a base whose chosen partner has a copy in the same place (a duplicated strand or altloc).
 
     Raises
     ------
     StructureError
-        If a base would be paired twice: two candidate partners occupying the same place.
+        Naming the base and its two would-be partners.
     """
-    cand = candidates(nucleotides, frames, origins)
-    best = {}
-    for (i, j), s in cand.items():
-        for a, b in ((i, j), (j, i)):
-            if a not in best or s < best[a][1]:
-                best[a] = (b, s)
-    pairs = sorted((i, j) for i, (j, _) in best.items() if i < j and best.get(j, (None,))[0] == i)
+    origins = np.array([b.origin for b in bases])
     partners = {}
-    for (i, j) in cand:
+    for (i, j) in candidates:
         partners.setdefault(i, []).append(j)
         partners.setdefault(j, []).append(i)
-    for i, j in pairs:
+    for i, j, _ in found:
         for a, b in ((i, j), (j, i)):
-            for k in partners[a]:
+            for k in partners.get(a, ()):
                 if k != b and np.linalg.norm(origins[k] - origins[b]) < OVERLAP:
                     na, nb, nk = nucleotides[a], nucleotides[b], nucleotides[k]
                     raise StructureError(
                         f"{source}: {na.label} is paired twice: with {nb.label} and with {nk.label}, which occupy "
                         f"the same place (a duplicated strand or unresolved altloc?); remove one copy or give the "
                         f"pairs explicitly")
-    return pairs
 
 
 def _pair_axis(frames, origins, a, b):
@@ -186,25 +88,35 @@ def _closest_contact(ni, nj):
     return float(np.linalg.norm(pi[:, None, :] - pj[None, :, :], axis=-1).min())
 
 
-def fill_helix_gaps(nucleotides, frames, origins, pairs, source="<structure>"):
-    """Pair bases that sit between stacked pairs on both strands (3DNA's helix context).
+def fill_helix_gaps(nucleotides, bases, pairs, source="<structure>"):
+    """Pairs of bases that sit between stacked pairs on both strands (helix context).
 
-    A base pair inside a helix sometimes misses the N/O contact criterion (1KX5 I:53/J:-53,
-    0.42 nm; a stretched pair in a distorted or thermal structure). If strand I has a run of
-    ``k`` unpaired nucleotides between the strand-I bases of two pairs and strand II a run of
-    the same length between their strand-II bases (backbone-linked), the runs are paired in
-    order when every new pair passes all the pairing criteria except the N/O contact (origins,
-    vertical separation, normals, glycosidic distance) and stacks on its neighbours (pair
-    origins within 3DNA's ``helix_break`` 0.75 nm, axes within 65 degrees). Iterated until
-    nothing changes.
+    A base pair inside a helix sometimes misses 3DNA's N/O contact criterion (1KX5
+    I:53/J:-53, 4.2 A; a stretched pair in a distorted or thermal structure). If strand I has
+    a run of ``k`` <= ``MAX_GAP`` unpaired nucleotides between the strand-I bases of two pairs
+    and strand II a run of the same length between their strand-II bases (backbone-linked),
+    the runs are paired in order when every new pair passes all of 3DNA's pair criteria
+    except the N/O contact (origins, vertical separation, normals, glycosidic distance, no
+    ring overlap) and stacks on its neighbours (pair origins within 3DNA's ``helix_break``
+    0.75 nm, normals within 65 degrees). Iterated until nothing changes. 3DNA itself would
+    leave these bases unpaired (its helix steps across them); the note says so.
+
+    Parameters
+    ----------
+    nucleotides : list of Nucleotide
+    bases : list of BaseData
+        :func:`dnarod.structure.findpair.base_data`.
+    pairs : list of (int, int)
 
     Returns
     -------
-    pairs : list of (int, int)
-        ``pairs`` plus the added ones.
+    added : list of (int, int)
+        The new pairs, ``i < j``.
     notes : list of str
         One per added pair, naming the residues and their closest N/O contact.
     """
+    frames = np.array([b.frame for b in bases])
+    origins = np.array([b.origin for b in bases])
     next3, prev5 = backbone_links(nucleotides, origins)
     partner = {}
     for i, j in pairs:
@@ -225,15 +137,14 @@ def fill_helix_gaps(nucleotides, frames, origins, pairs, source="<structure>"):
             if x not in partner or next3[x] is None or next3[x] in partner:
                 continue
             run1, x3 = run_after(x)
-            if x3 is None or not run1 or len(run1) > MAX_GAP:
+            if x3 is None or not run1 or len(run1) > MAX_GAP or x3 not in partner:
                 continue
             y, y3 = partner[x], partner[x3]
             run2, end = run_after(y3)
             if end != y or len(run2) != len(run1):
                 continue
             new = list(zip(run1, reversed(run2)))
-            ok = all(_pair_geometry(nucleotides[a], nucleotides[b], frames[a], frames[b], origins[a], origins[b],
-                                    max_hbond=np.inf) is not None for a, b in new)
+            ok = all(check_pair(bases[a], bases[b], need_hbond=False) is not None for a, b in new)
             chain = [(x, y)] + new + [(x3, y3)]
             if not ok or not all(_stacks(frames, origins, p, q) for p, q in zip(chain[:-1], chain[1:])):
                 continue
@@ -243,16 +154,18 @@ def fill_helix_gaps(nucleotides, frames, origins, pairs, source="<structure>"):
                 notes.append(f"paired {nucleotides[a].rid}/{nucleotides[b].rid} by helix context: stacked between "
                              f"paired neighbours, closest N/O contact "
                              f"{10 * _closest_contact(nucleotides[a], nucleotides[b]):.2f} A (cut-off "
-                             f"{10 * MAX_HBOND:.1f} A)")
+                             f"{10 * MAX_HBOND:.1f} A); 3DNA's rules leave it unpaired and step across it")
             changed = True
-    return sorted(pairs + added), notes
+    return added, notes
 
 
-def multiplets(nucleotides, frames, origins, pairs, source="<structure>"):
+def multiplets(nucleotides, bases, cand, pairs, source="<structure>"):
     """Bases that pair with more than one base: base triples, G-tetrads, bifurcated pairs.
 
-    Every candidate pair (all criteria of :func:`candidates`) that involves a base of a chosen
-    pair and a third base is collected; the connected groups of such bases are the multiplets.
+    Every candidate pair (3DNA's criteria, ``cand`` from
+    :func:`dnarod.structure.findpair.candidate_pairs`) that involves a base of a chosen pair
+    and a third base in the plane of that pair is collected; the connected groups of such
+    bases are the multiplets.
 
     Returns
     -------
@@ -265,7 +178,8 @@ def multiplets(nucleotides, frames, origins, pairs, source="<structure>"):
         For a G-tetrad (four guanines each pairing with two others, as in G-quadruplexes):
         dnarod's pairing would build a wrong double helix out of it.
     """
-    cand = candidates(nucleotides, frames, origins)
+    frames = np.array([b.frame for b in bases])
+    origins = np.array([b.origin for b in bases])
     chosen = {frozenset(p) for p in pairs}
     partner = {}
     for i, j in pairs:
@@ -287,7 +201,7 @@ def multiplets(nucleotides, frames, origins, pairs, source="<structure>"):
             if b in near or (b in partner and partner[b] in near):
                 continue  # a cross-strand contact with a stacked neighbour pair, not a multiplet
             o, z = _pair_axis(frames, origins, *pair)
-            if abs(float((origins[b] - o) @ z)) > MAX_VERTICAL / 2:
+            if abs(float((origins[b] - o) @ z)) > MAX_DV / 2:
                 continue  # not in the plane of the pair
             adj.setdefault(a, set()).add(b)
             adj.setdefault(b, set()).add(a)
@@ -377,132 +291,6 @@ def backbone_links(nucleotides, origins):
         if j is not None and prev5[j] is None:
             prev5[j] = i
     return next3, prev5
-
-
-def order_duplexes(nucleotides, origins, pairs, source="<structure>", frames=None):
-    """Chain pairs into duplexes ordered 5'->3' along strand I.
-
-    Parameters
-    ----------
-    nucleotides : list of Nucleotide
-    origins : ndarray, shape (n, 3)
-        Base origins, nm (used for links without backbone atoms).
-    pairs : list of (int, int)
-    source : str
-    frames : ndarray, shape (n, 3, 3), optional
-        Base frames; with them a duplex continues across up to ``MAX_GAP`` unpaired
-        nucleotides on each strand when the flanking pairs stack (3DNA's helix definition).
-
-    Returns
-    -------
-    duplexes : list of Duplex
-        ``Duplex.gaps[k]`` lists the unpaired nucleotides (indices) the step from pair ``k`` to
-        ``k + 1`` steps across (empty for a regular step).
-        Ordered by the file position of strand I's first base.
-    skipped : list of str
-        Unpaired nucleotides and other notes.
-    """
-    next3, prev5 = backbone_links(nucleotides, origins)
-    partner = {}
-    for i, j in pairs:
-        partner[i], partner[j] = j, i
-
-    def path(a, b, links=next3):
-        """Unpaired nucleotides strictly between ``a`` and ``b`` along ``links`` (None if not reached)."""
-        out, k = [], links[a]
-        while k is not None and k != b and k not in partner and len(out) < MAX_GAP:
-            out.append(k)
-            k = links[k]
-        return out if k == b else None
-
-    def across_gap(x, y):
-        # 3DNA's helix continues across extruded or unpaired bases when the flanking pairs stack;
-        # here the strands must also lead there (at most MAX_GAP unpaired nucleotides on each strand).
-        for start, links, strand1 in ((x, next3, True), (y, prev5, False)):
-            k, skipped = links[start], 0
-            while k is not None and k not in partner and skipped < MAX_GAP:
-                k, skipped = links[k], skipped + 1
-            if k is None or k not in partner or skipped == 0:
-                continue
-            nxt = (k, partner[k]) if strand1 else (partner[k], k)
-            if frames is None or nxt[0] in (x, y) or nxt[1] in (x, y):
-                continue
-            other = path(nxt[1], y) if strand1 else path(x, nxt[0])
-            nicked = (prev5[y] is None or next3[nxt[1]] is None) if strand1 else \
-                (next3[x] is None or prev5[nxt[0]] is None)
-            if other is None and not nicked:
-                continue  # the other strand runs elsewhere (not a nick, not a short gap)
-            if _stacks(frames, origins, (x, y), nxt):
-                return nxt
-        return None
-
-    def succ(node):
-        x, y = node
-        x3 = next3[x]
-        if x3 is not None and x3 in partner and partner[x3] != x:
-            return (x3, partner[x3])
-        y5 = prev5[y]
-        if y5 is not None and y5 in partner and partner[y5] != y:
-            return (partner[y5], y5)
-        return across_gap(x, y)
-
-    nodes = [(i, j) for i, j in pairs] + [(j, i) for i, j in pairs]
-    nxt = {nd: succ(nd) for nd in nodes}
-    n_pred = {nd: 0 for nd in nodes}
-    for nd, s in nxt.items():
-        if s is not None:
-            n_pred[s] += 1
-    walks = []
-    visited = set()
-
-    def walk(start):
-        out, nd = [], start
-        while nd is not None and nd not in visited:
-            visited.add(nd)
-            out.append(nd)
-            nd = nxt[nd]
-        return out, nd == start
-
-    for nd in sorted(nodes, key=lambda t: (t[0], t[1])):
-        if n_pred[nd] == 0 and nd not in visited:
-            walks.append(walk(nd))
-    for nd in sorted(nodes, key=lambda t: (t[0], t[1])):
-        if nd not in visited:  # rings of pairs (circular DNA)
-            walks.append(walk(nd))
-    walks.sort(key=lambda w: (w[0][0][0], -len(w[0])))
-    claimed, duplexes = set(), []
-    for w, circular in walks:
-        kept = [nd for nd in w if frozenset(nd) not in claimed]
-        if not kept:
-            continue
-        for nd in kept:
-            claimed.add(frozenset(nd))
-        notes = []
-        if len(kept) < len(w):
-            notes.append("part of this duplex was already assigned (branched pairing)")
-        if circular:
-            notes.append(f"circular: the ring of pairs is opened at {nucleotides[kept[0][0]].rid}")
-        gaps = []
-        for (x, y), (x2, y2) in zip(kept[:-1], kept[1:]):
-            g = (path(x, x2) or []) + (path(y2, y) or [])
-            gaps.append(sorted(g))
-        for k, g in enumerate(gaps):
-            if g:
-                notes.append(f"step {k + 1} ({nucleotides[kept[k][0]].rid}/{nucleotides[kept[k][1]].rid} to "
-                             f"{nucleotides[kept[k + 1][0]].rid}/{nucleotides[kept[k + 1][1]].rid}) steps across "
-                             f"unpaired {' '.join(nucleotides[i].rid for i in g)} (flagged in the gap column)")
-        duplexes.append(Duplex(kept, circular=circular, notes=notes, gaps=gaps))
-    paired = set(partner)
-    unpaired = [nt for k, nt in enumerate(nucleotides) if k not in paired]
-    skipped = []
-    if unpaired:
-        by_chain = {}
-        for nt in unpaired:
-            by_chain.setdefault(nt.chain, []).append(f"{nt.number}{nt.icode}({nt.resname})")
-        for ch, items in by_chain.items():
-            skipped.append(f"unpaired nucleotides (overhang, bulge, loop or single strand) in chain {ch}: "
-                           f"{' '.join(items)}")
-    return duplexes, skipped
 
 
 def _hoogsteen(nt1, nt2):

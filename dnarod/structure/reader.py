@@ -67,6 +67,10 @@ class Nucleotide:
     atom_index : dict
         Atom name -> 0-based index of the atom among all atoms of the model in gemmi's order
         (hydrogens, water and protein included), for matching trajectory coordinates.
+    altlocs : tuple of str
+        Alternate location codes present in the residue (empty if none).
+    altloc : str
+        The one kept ('' if none).
     """
 
     chain: str
@@ -78,6 +82,8 @@ class Nucleotide:
     index: int
     atoms: dict = field(repr=False)
     atom_index: dict = field(repr=False, default_factory=dict)
+    altlocs: tuple = ()
+    altloc: str = ""
 
     @property
     def rid(self):
@@ -330,7 +336,7 @@ def _choose_altloc(res_atoms, altloc, source, label):
         pick = match[0] if match else entries[0]  # an atom present only in another conformer
         atoms[name] = pick[2]
         index[name] = pick[3]
-    return atoms, index
+    return atoms, index, (altloc if alts else "")
 
 
 def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=None, ignore_residues=()):
@@ -426,7 +432,7 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
                     raw.append((aname, atom.altloc.strip("\0 "), float(atom.occ),
                                 (pos.x, pos.y, pos.z), first_index + k))
                 alt_codes.update(r[1] for r in raw if r[1])
-                atoms, index = _choose_altloc(raw, altloc, source, label)
+                atoms, index, kept = _choose_altloc(raw, altloc, source, label)
                 if not atoms:
                     skipped.append(f"{label}: no heavy atoms; skipped")
                     continue
@@ -446,7 +452,7 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
                     prev.atom_index.update(index)
                     continue
                 nt = Nucleotide(chain.name, res.seqid.num, res.seqid.icode.strip(), res.name.strip(), base, modified,
-                                len(nucleotides), xyz_nm, index)
+                                len(nucleotides), xyz_nm, index, tuple(sorted({r[1] for r in raw if r[1]})), kept)
                 seen[key] = nt
                 nucleotides.append(nt)
                 if modified:

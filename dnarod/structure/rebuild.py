@@ -189,6 +189,25 @@ def write_pdb(path, xyz, atoms, remark=None):
             fh.write(text)
 
 
+def base_pair_frames(model):
+    """Base-pair frames of the bases a model's nodes stand for: the node frames, turned back by 180
+    degrees about y where the structure builder reversed them (left-handed pairs,
+    ``metadata["bp_reversed"]``).
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3)
+    """
+    flags = model.metadata.get("bp_reversed") if model.metadata else None
+    F = np.asarray(model.frames, float)
+    if not flags:
+        return F
+    flags = np.asarray(flags, dtype=bool)
+    if flags.shape != (F.shape[0],):
+        raise StructureError(f"model metadata bp_reversed has {flags.size} entries for {F.shape[0]} nodes")
+    return np.where(flags[:, None, None], F @ np.diag([-1.0, 1.0, -1.0]), F)
+
+
 def rebuild_model(model, path=None, bp_params=None):
     """All-atom PDB of a :class:`~dnarod.core.model.RodModel` (its nodes are base-pair frames).
 
@@ -211,7 +230,7 @@ def rebuild_model(model, path=None, bp_params=None):
         raise StructureError("rebuild: the model has no sequence; build it from a sequence or a structure")
     if bp_params is None and "bp_params" in model.metadata:
         bp_params = np.asarray(model.metadata["bp_params"], float)
-    xyz, atoms = rebuild_coordinates(model.frames, model.positions, model.sequence, bp_params,
+    xyz, atoms = rebuild_coordinates(base_pair_frames(model), model.positions, model.sequence, bp_params,
                                      model.metadata.get("sequence2"))
     if path is not None:
         write_pdb(path, xyz, atoms, remark=f"rebuilt by dnarod from {model.n_nodes} base-pair frames")

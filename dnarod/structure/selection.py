@@ -49,6 +49,12 @@ class DuplexSelection:
         d = self.duplex
         mod = [f"{nt.rid} {nt.resname}->{nt.base}" for nt in list(d.strand1) + list(d.strand2) if nt.modified]
         kept = f"; modified nucleotides modelled as their parent base: {', '.join(mod)}" if mod else ""
+        rev = np.asarray(getattr(d, "bp_reversed", np.zeros(0, dtype=bool)), dtype=bool)
+        if rev.any():
+            ids = [f"{d.strand1[k].rid}/{d.strand2[k].rid}" for k in np.flatnonzero(rev)]
+            kept += (f"; left-handed (Z-DNA) pairs {ids[0]}..{ids[-1]} ({rev.sum()} of {d.n_bp}): their node frames "
+                     f"are 3DNA's reversed base-pair frames, so the model runs along the helix with positive rise "
+                     f"and negative twist there")
         return f"{self.source}: took {self.describe()}; dropped: {drop}{kept}"
 
 
