@@ -20,6 +20,7 @@ import uuid
 from pathlib import Path
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.extras import require
 from dnarod.core.io import check_output_folder, write_text_atomic
 from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
 from dnarod.core.io import RESULT
@@ -245,7 +246,7 @@ class Ensemble:
         """
         from concurrent.futures import CancelledError
 
-        from distributed import as_completed
+        as_completed = require("distributed", "ensemble").as_completed
         from tqdm.auto import tqdm
 
         from dnarod.workflows.ensemble.cluster import SchedulerError, client_for

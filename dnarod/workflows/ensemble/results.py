@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dnarod.core.extras import require
 from dnarod.core.io import atomic_path, write_text_atomic
 from dnarod.workflows.ensemble.member import member_dir, read_result
 
@@ -51,8 +52,7 @@ def _columns(rows, setting_keys):
 
 def rows_to_table(rows, setting_keys):
     """A :class:`pyarrow.Table` of the rows (missing values null; types inferred per column)."""
-    import pyarrow as pa
-
+    pa = require("pyarrow", "ensemble")
     cols = _columns(rows, setting_keys)
     data = {}
     for c in cols:
@@ -68,8 +68,8 @@ def rows_to_table(rows, setting_keys):
 
 def write_table(table, outdir):
     """Write ``results.parquet`` and ``results.csv`` atomically; returns their paths."""
-    import pyarrow.csv as pacsv
-    import pyarrow.parquet as pq
+    pacsv = require("pyarrow.csv", "ensemble")
+    pq = require("pyarrow.parquet", "ensemble")
 
     outdir = Path(outdir)
     with atomic_path(outdir / TABLE) as tmp:
