@@ -79,7 +79,7 @@ def single(n, plat, budget, precision):
     out = dict(n_nodes=n, platform=plat, precision=precision)
     for name, nb in (("bonded", False), ("full", True)):
         c0, w0 = time.process_time(), time.perf_counter()
-        sim = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1, platform=plat, precision=precision)
+        sim = RodSimulation.create(model, temperature=300.0, nonbonded=nb, seed=1, platform=plat, precision=precision)
         out[f"{name}_setup_wall_s"] = time.perf_counter() - w0
         out[f"{name}_setup_cpu_s"] = time.process_time() - c0
         out[f"{name}_context_wall_s"] = sim.context_time
@@ -132,7 +132,7 @@ def compare_single(n, plat, budget, precision, elastic):
         if elastic == "plugin-settle":
             sim = _plugin_settle(model, plat, precision)
         else:
-            sim = RodSimulation(model, temperature=300.0, nonbonded=False, seed=1, platform=plat,
+            sim = RodSimulation.create(model, temperature=300.0, nonbonded=False, seed=1, platform=plat,
                                 precision=precision, elastic=elastic)
         sim.context.getState(getEnergy=True)  # the first evaluation (lazy kernel set-up included)
         out[f"{phase}_context_wall_s"] = time.perf_counter() - w0

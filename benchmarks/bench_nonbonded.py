@@ -69,7 +69,7 @@ def single(n, budget, repeats, elastic="fast"):
 
     legacy = NonbondedSettings(charge="manning", cutoff_debye=5.0)
     for name, nb in (("bonded", False), ("full", True), ("manning5", legacy)):
-        sim = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1, elastic=elastic)
+        sim = RodSimulation.create(model, temperature=300.0, nonbonded=nb, seed=1, elastic=elastic)
         if name == "full" and sim.rs.elastic == "fast":
             # time the non-bonded part of the (fused) callback: the list update and the pair loop
             cb = sim.rs.nonbonded_callback

@@ -68,7 +68,7 @@ def single(n, budget, repeats):
     sims = {}
     for name, nb in (("bonded", False), ("full", True)):
         t = time.perf_counter()
-        sims[name] = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1)
+        sims[name] = RodSimulation.create(model, temperature=300.0, nonbonded=nb, seed=1)
         out[f"{name}_setup_s"] = time.perf_counter() - t
         out[f"{name}_context_s"] = sims[name].context_time
     dt = sims["bonded"].dt
@@ -93,7 +93,7 @@ def single(n, budget, repeats):
     runs = {"floor": integ, "bonded": sims["bonded"].integrator, "full": sims["full"].integrator}
     if n in (1000, 10000):
         t = time.perf_counter()
-        sims["portable"] = RodSimulation(model, temperature=300.0, nonbonded=False, seed=1, elastic="portable",
+        sims["portable"] = RodSimulation.create(model, temperature=300.0, nonbonded=False, seed=1, elastic="portable",
                                          dt=dt, platform="CPU")
         out["portable_setup_s"] = time.perf_counter() - t
         out["portable_context_s"] = sims["portable"].context_time
@@ -116,7 +116,7 @@ def kbp(budget, elastic="auto"):
     rng = np.random.default_rng(1)
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))
     t = time.perf_counter()
-    sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic)
+    sim = RodSimulation.create(model, temperature=300.0, seed=2, elastic=elastic)
     setup = time.perf_counter() - t
     fi = max(1, int(round(1.0 / sim.dt)))
     sim.integrator.step(10)

@@ -53,7 +53,7 @@ def _make(model, config, elastic):
     else:
         kw.update(platform=None)
     t = time.perf_counter()
-    sim = RodSimulation(model, **kw)
+    sim = RodSimulation.create(model, **kw)
     return sim, time.perf_counter() - t
 
 

@@ -65,7 +65,7 @@ def sizes(ns, budget, repeats):
         sims = {}
         for path, elastic in (("callback", "fast"), ("plugin", "plugin")):
             for kind, nb in (("bonded", False), ("full", True)):
-                sims[f"{path}_{kind}"] = RodSimulation(model, temperature=300.0, nonbonded=nb, seed=1,
+                sims[f"{path}_{kind}"] = RodSimulation.create(model, temperature=300.0, nonbonded=nb, seed=1,
                                                        elastic=elastic, threads=1)
         rates = {k: [] for k in sims}
         for _ in range(repeats):
@@ -95,7 +95,7 @@ def kbp(budget):
     model = load_forcefield("dna-default").model_from_sequence("".join(rng.choice(list("ACGT"), 1000)))
     out = {}
     for path, elastic in (("callback", "fast"), ("plugin", "plugin")):
-        sim = RodSimulation(model, temperature=300.0, seed=2, elastic=elastic)
+        sim = RodSimulation.create(model, temperature=300.0, seed=2, elastic=elastic)
         fi = max(1, int(round(1.0 / sim.dt)))
         sim.integrator.step(10)
         t, c = time.perf_counter(), time.process_time()
@@ -134,7 +134,7 @@ def threads(ns, budget, repeats):
     for n in ns:
         rng = np.random.default_rng(0)
         model = ff.model_from_sequence("".join(rng.choice(list("ACGT"), n)))
-        dt = RodSimulation(model, temperature=300.0, seed=1, threads=1).dt
+        dt = RodSimulation.create(model, temperature=300.0, seed=1, threads=1).dt
         rs = build_system(model, "CPU", "plugin", True, (), 300.0)
         runs = {}
         for label, nthreads, chunk in (("1", 1, None), ("2_forced", 2, 256), ("2_default", 2, None)):

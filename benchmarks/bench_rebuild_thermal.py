@@ -1,7 +1,7 @@
 """Benchmark: all-atom rebuild of thermal snapshots of the coarse-grained model (300 K).
 
 For each (sequence, length, seed): a dna-default chain run ``--steps`` steps of
-``RodSimulation(m, temperature=300, nonbonded=False, seed=seed)`` (OpenMM engine), then
+``RodSimulation.create(m, temperature=300, nonbonded=False, seed=seed)`` (OpenMM engine), then
 :func:`dnarod.structure.allatom.rebuild_allatom` on the final node frames. Records pass/fail
 (the rebuild's own strict checks: every bond within 0.05 A of Amber14, no heavy-atom pair
 under 2.2 A, frames within 0.05 A and 1 deg), the largest bond deviation, frame errors and the
@@ -34,7 +34,7 @@ def thermal_snapshot(sequence, seed, steps=400):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence(sequence)
-    sim = RodSimulation(m, temperature=300, nonbonded=False, seed=seed)
+    sim = RodSimulation.create(m, temperature=300, nonbonded=False, seed=seed)
     sim.advance(steps)
     c, f, _, _ = sim.node_state()
     return m.with_pose(c, f)

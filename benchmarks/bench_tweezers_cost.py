@@ -185,7 +185,7 @@ def main(argv=None):
     nb = NonbondedSettings(excluded_volume=True, electrostatics=True, salt=0.15)
 
     def make(extra, elastic="auto"):
-        return RodSimulation(model, temperature=300.0, friction=m["friction"], platform=a.platform, nonbonded=nb,
+        return RodSimulation.create(model, temperature=300.0, friction=m["friction"], platform=a.platform, nonbonded=nb,
                              loads=m["loads"], seed=1, threads=1, elastic=elastic, extra_forces=extra)
 
     def rate(sim, steps=None):

@@ -1,6 +1,6 @@
 """One tweezers member on the compiled plugin and on the callback path, one after the other (same settings, seed).
 
-The walls are created with the simulation (``RodSimulation(extra_forces=...)``), so the member can use the plugin.
+The walls are created with the simulation (``RodSimulation.create(extra_forces=...)``), so the member can use the plugin.
 Prints wall and CPU time per path and writes ``benchmarks/results/tweezers_paths.json``.
 
     python benchmarks/bench_tweezers_paths.py [--n-bp 300] [--time 0.5]

@@ -50,7 +50,7 @@ def test_both_engines_give_identical_loads_at_a_configuration(model):
 
     loads = loaded_set(model)[:4]  # the torque callback's energy is path dependent; forces compared below
     pos, frm = perturbed(model)
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
                         elastic="portable", nonbonded=False, loads=loads)
     angle = 0.9
     sim.set_clamp_rotation(angle, 0)
@@ -80,7 +80,7 @@ def _lax_run(model, loads, dt, n_steps, v, w):
 def _openmm_run(model, loads, dt, n_steps, v, w):
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
                         elastic="fast", nonbonded=False, loads=loads, initial_velocities=(v, w),
                         constraint_tolerance=1e-12)
     sim.advance(n_steps)
@@ -145,7 +145,7 @@ def test_bad_loads_are_refused_the_same_way_by_both_engines(model, loads, match)
     with pytest.raises(DnarodError, match=match):
         SplittingIntegrator(model, 0.01, boundary=BoundaryConditions.from_loads(loads), check_stability=False)
     with pytest.raises(DnarodError, match=match):
-        RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
+        RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                       nonbonded=False, loads=loads)
 
 

@@ -103,7 +103,7 @@ def test_engine_energies_and_forces_equal_all_pairs_on_a_coil():
     c = m.positions
     m = m.with_pose(c.mean(0) + 0.5 * (c - c.mean(0)), m.frames)  # denser (strains change; fine here)
     nb = NonbondedSettings(salt=0.05)
-    sim = RodSimulation(m, temperature=300, seed=2, nonbonded=nb, platform="Reference", dt=0.02, elastic="fast")
+    sim = RodSimulation.create(m, temperature=300, seed=2, nonbonded=nb, platform="Reference", dt=0.02, elastic="fast")
     sim.advance(50)
     sim.energies()
     assert sim.rs.elastic_callback.nonbonded is sim.rs.nonbonded_callback  # fused into the elastic callback

@@ -53,7 +53,7 @@ def _sim(model, precision, elastic="portable"):
     from dnarod.physics.modes import omega_max
 
     _require_opencl()
-    return RodSimulation(model, platform="OpenCL", precision=precision, temperature=300, friction=1.0,
+    return RodSimulation.create(model, platform="OpenCL", precision=precision, temperature=300, friction=1.0,
                          nonbonded=False, seed=3, dt=0.2 / omega_max(model), elastic=elastic)
 
 

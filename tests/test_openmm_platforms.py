@@ -64,6 +64,6 @@ def test_simulation_records_the_choice():
     from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence("ACGTACGTAC")
-    sim = RodSimulation(m, temperature=300, seed=1, nonbonded=False)
+    sim = RodSimulation.create(m, temperature=300, seed=1, nonbonded=False)
     assert sim.platform_name == (_expected_gpu() or "Reference")
     assert sim.platform_reason.startswith(sim.platform_name)

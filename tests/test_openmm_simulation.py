@@ -28,7 +28,7 @@ def dna40(ff):
 
 
 def test_default_dt_and_stability_limit(dna40):
-    sim = RodSimulation(dna40, integrator="verlet", temperature=0, nonbonded=False, seed=1)
+    sim = RodSimulation.create(dna40, integrator="verlet", temperature=0, nonbonded=False, seed=1)
     assert sim.dt == pytest.approx(0.4 / sim.omega_max, rel=1e-12)
     # design A4 analytic bound for the optical bend/shear branch of the uniform rod bounds omega_max
     K, th = dna40.params.stiffness[0], 2 * np.arctan(dna40.params.Omega0[0, 2] * dna40.ds / 2)
@@ -36,11 +36,11 @@ def test_default_dt_and_stability_limit(dna40):
     bound = np.sqrt(4 * K[3, 3] / (m * ds) + (4 * K[0, 0] / np.cos(th / 2) ** 2 / ds + ds * K[3, 3]) / J[0])
     assert 0.5 * bound < sim.omega_max <= bound * (1 + 1e-6)
     with pytest.raises(ParameterError, match="above the stability limit"):
-        RodSimulation(dna40, integrator="verlet", dt=2.0 / sim.omega_max, nonbonded=False)
+        RodSimulation.create(dna40, integrator="verlet", dt=2.0 / sim.omega_max, nonbonded=False)
 
 
 def test_nve_conserves_energy(dna40, tmp_path):
-    sim = RodSimulation(dna40, integrator="verlet", temperature=300, nonbonded=True, seed=2)
+    sim = RodSimulation.create(dna40, integrator="verlet", temperature=300, nonbonded=True, seed=2)
     simulate_engine(sim, 3000, tmp_path, frame_interval=100, energy_interval=10, progress=False)
     e = load_energies(tmp_path / "energies.csv")
     kt = kT(300)
@@ -73,7 +73,7 @@ def _langevin_check(m, tmp_path, n_steps, omega_dt, seed, strain_tol, elastic="f
     tens of ns at 100 nodes with gamma = 1/ps (a 100-node run read bend variances 3% low after
     5 ns for that reason) but ~0.1 ns at 20 nodes.
     """
-    sim = RodSimulation(m, temperature=300, friction=1.0, nonbonded=False, seed=seed, dt=omega_dt / omega_max(m),
+    sim = RodSimulation.create(m, temperature=300, friction=1.0, nonbonded=False, seed=seed, dt=omega_dt / omega_max(m),
                         elastic=elastic)
     simulate_engine(sim, n_steps, tmp_path, frame_interval=20, energy_interval=20, checkpoint_interval=0, progress=False)
     T = load_energies(tmp_path / "energies.csv")["temperature_K"][50:]
@@ -109,14 +109,14 @@ def test_checkpoint_resume_gives_the_same_frames(ff, tmp_path, platform):
     m = ff.model_from_sequence("ACGTTGCAAC" * 2)
     kw = dict(temperature=300, nonbonded=True, seed=11, platform=platform, dt=0.08)
     rk = dict(frame_interval=5, checkpoint_interval=20, progress=False, velocities=True)
-    simulate_engine(RodSimulation(m, **kw), 60, tmp_path / "full", **rk)
+    simulate_engine(RodSimulation.create(m, **kw), 60, tmp_path / "full", **rk)
     # interrupted run: checkpoint at 40, frames written up to 50, then a "crash" before the next checkpoint
-    simulate_engine(RodSimulation(m, **kw), 40, tmp_path / "part", **rk)
+    simulate_engine(RodSimulation.create(m, **kw), 40, tmp_path / "part", **rk)
     shutil.copy(tmp_path / "part" / "checkpoint.npz", tmp_path / "at40.npz")
-    simulate_engine(RodSimulation(m, **kw), 50, tmp_path / "part", resume=True, **rk)
+    simulate_engine(RodSimulation.create(m, **kw), 50, tmp_path / "part", resume=True, **rk)
     shutil.copy(tmp_path / "at40.npz", tmp_path / "part" / "checkpoint.npz")
     assert load_trajectory(tmp_path / "part" / "trajectory.dtraj").step[-1] == 50
-    simulate_engine(RodSimulation(m, **kw), 60, tmp_path / "part", resume=True, **rk)
+    simulate_engine(RodSimulation.create(m, **kw), 60, tmp_path / "part", resume=True, **rk)
     a = load_trajectory(tmp_path / "full" / "trajectory.dtraj")
     b = load_trajectory(tmp_path / "part" / "trajectory.dtraj")
     assert list(b.step) == list(range(0, 61, 5))
@@ -127,9 +127,9 @@ def test_checkpoint_resume_gives_the_same_frames(ff, tmp_path, platform):
 
 
 def test_checkpoint_from_another_model_is_rejected(ff, tmp_path):
-    a = RodSimulation(ff.model_from_sequence("ACGTACGTAC"), nonbonded=False, seed=1, dt=0.05)
+    a = RodSimulation.create(ff.model_from_sequence("ACGTACGTAC"), nonbonded=False, seed=1, dt=0.05)
     simulate_engine(a, 10, tmp_path, frame_interval=5, checkpoint_interval=10, progress=False)
-    b = RodSimulation(ff.model_from_sequence("ACGTACGTACG"), nonbonded=False, seed=1, dt=0.05)
+    b = RodSimulation.create(ff.model_from_sequence("ACGTACGTACG"), nonbonded=False, seed=1, dt=0.05)
     with pytest.raises(ParameterError, match="another model"):
         simulate_engine(b, 20, tmp_path, frame_interval=5, resume=True, progress=False)
     assert load_trajectory(tmp_path / "trajectory.dtraj").n_frames == 3  # untouched
@@ -138,7 +138,7 @@ def test_checkpoint_from_another_model_is_rejected(ff, tmp_path):
 def test_blow_up_names_step_node_and_term(ff, tmp_path):
     m = ff.model_from_sequence("ACGTACGTACGTACGTACGT")
     huge = PullingForce(-1, [0.0, 0.0, 5e6])
-    sim = RodSimulation(m, integrator="verlet", temperature=0, nonbonded=False, loads=[huge], dt=0.05)
+    sim = RodSimulation.create(m, integrator="verlet", temperature=0, nonbonded=False, loads=[huge], dt=0.05)
     with pytest.raises(SimulationError) as err:
         simulate_engine(sim, 400, tmp_path, frame_interval=2, progress=False)
     e = err.value
@@ -150,7 +150,7 @@ def test_blow_up_names_step_node_and_term(ff, tmp_path):
 
 def test_bad_inputs(dna40):
     with pytest.raises(ParameterError, match="platform 'CUDA' is not installed"):
-        RodSimulation(dna40, platform="CUDA", nonbonded=False)
+        RodSimulation.create(dna40, platform="CUDA", nonbonded=False)
     with pytest.raises(ParameterError, match=r"expected shape \(3,\)"):
         PullingForce(0, [1.0, 2.0])
     with pytest.raises(ParameterError, match="not compatible"):
@@ -158,7 +158,7 @@ def test_bad_inputs(dna40):
     with pytest.raises(ParameterError, match="not compatible"):
         Torque(0, [0, 0, 1] * unit.piconewton)
     with pytest.raises(ParameterError, match="node 99 does not exist"):
-        RodSimulation(dna40, nonbonded=False, loads=[Trap(99, 10.0)])
+        RodSimulation.create(dna40, nonbonded=False, loads=[Trap(99, 10.0)])
     assert PullingForce(0, [0, 0, 1] * unit.piconewton).force[2] == pytest.approx(0.602214076, rel=1e-9)
 
 
@@ -170,7 +170,7 @@ def test_static_loads(dna40):
     theta = 0.3
     loads = [PullingForce(-1, F), Torque(5, tau), Trap(10, 40.0, centre=m.positions[10] + [0.1, 0, 0]),
              RotationClamp(20, 25.0), Clamp(0)]
-    sim = RodSimulation(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False, loads=loads,
+    sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False, loads=loads,
                         dt=0.05)
     st = sim.context.getState(getForces=True, getPositions=True, getEnergy=True, groups={3})
     f_node, t_node = particle_forces_to_loads(st.getPositions(asNumpy=True)._value, st.getForces(asNumpy=True)._value)
@@ -194,7 +194,7 @@ def test_torque_and_rotation_clamp_twist_the_end(ff):
     m = ff.model_from_sequence("A" * 12)
     axis = np.array([0.0, 0.0, 1.0])
     tau = 20.0  # kJ/mol
-    sim = RodSimulation(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False,
+    sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False,
                         loads=[Clamp(0), Torque(-1, tau * axis)], dt=0.05)
     sim.minimize(tolerance=1e-6)
     c, f = sim.node_pose()
@@ -225,7 +225,7 @@ def test_export_opens_in_mdtraj_and_mdanalysis(dna40, tmp_path):
     from dnarod.structure.export import export_trajectory
     from dnarod.structure.cg_topology import frames_from_beads
 
-    sim = RodSimulation(dna40, temperature=300, nonbonded=False, seed=3)
+    sim = RodSimulation.create(dna40, temperature=300, nonbonded=False, seed=3)
     simulate_engine(sim, 40, tmp_path, frame_interval=10, progress=False, velocities=True)
     tr = load_trajectory(tmp_path / "trajectory.dtraj")
     c, f, v, w = sim.node_state()
@@ -265,7 +265,7 @@ def test_energy_terms_equal_force_group_evaluations(ff):
 
     m = ff.model_from_sequence("ACGT" * 15)
     nb = NonbondedSettings(n_exclude=3, diameter=1.1)  # short exclusion: Debye-Hueckel acts along the chain
-    sim = RodSimulation(m, temperature=300, seed=4, nonbonded=nb, loads=[Trap(3, 10.0, [0, 0, -1.0])], elastic="fast")
+    sim = RodSimulation.create(m, temperature=300, seed=4, nonbonded=nb, loads=[Trap(3, 10.0, [0, 0, -1.0])], elastic="fast")
     sim.advance(5)
     e = sim.energies()
     assert e["nonbonded"] > 0 and e["external"] > 0 and e["elastic"] > 0
@@ -294,7 +294,7 @@ def test_fast_and_portable_paths_give_the_same_dynamics(ff):
     w = rng.normal(size=(m.n_nodes, 3)) * 1.0
     out = []
     for path in ("fast", "portable"):
-        sim = RodSimulation(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False,
+        sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False,
                             elastic=path, dt=0.02, initial_velocities=(v, w))
         assert sim.rs.elastic == path
         sim.advance(20)
@@ -316,7 +316,7 @@ def test_screw_closed_portable_path_carries_the_image_and_matches_the_fast_path(
     w = rng.normal(size=(n, 3)) * 1.0
     out = {}
     for path in ("fast", "portable"):
-        sim = RodSimulation(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=True, dt=0.02,
+        sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=True, dt=0.02,
                             loads=[Torque(3, [0.0, 0.0, 5.0])], elastic=path, initial_velocities=(v, w))
         e0 = sim.energies()
         sim.advance(20)
@@ -353,7 +353,7 @@ def test_screw_closed_portable_path_carries_the_image_and_matches_the_fast_path(
 def test_nve_long_drift(ff, tmp_path):
     """5 ns NVE at the default step: drift below 1e-3 kT per node per ns (issue 7 prototype criterion)."""
     m = ff.model_from_sequence("ACGT" * 25)
-    sim = RodSimulation(m, integrator="verlet", temperature=300, nonbonded=False, seed=9)
+    sim = RodSimulation.create(m, integrator="verlet", temperature=300, nonbonded=False, seed=9)
     n = int(5000 / sim.dt)
     simulate_engine(sim, n, tmp_path, frame_interval=1000, energy_interval=50, checkpoint_interval=0, progress=False)
     e = load_energies(tmp_path / "energies.csv")
@@ -363,12 +363,12 @@ def test_nve_long_drift(ff, tmp_path):
 
 def test_new_run_does_not_overwrite_an_earlier_one(ff, tmp_path):
     m = ff.model_from_sequence("ACGTACGTAC")
-    simulate_engine(RodSimulation(m, nonbonded=False, seed=1, dt=0.05), 10, tmp_path, frame_interval=5, progress=False)
+    simulate_engine(RodSimulation.create(m, nonbonded=False, seed=1, dt=0.05), 10, tmp_path, frame_interval=5, progress=False)
     before = (tmp_path / "trajectory.dtraj").read_bytes()
     with pytest.raises(ParameterError, match="already exists"):
-        simulate_engine(RodSimulation(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5, progress=False)
+        simulate_engine(RodSimulation.create(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5, progress=False)
     assert (tmp_path / "trajectory.dtraj").read_bytes() == before
-    simulate_engine(RodSimulation(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5, progress=False,
+    simulate_engine(RodSimulation.create(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5, progress=False,
                                                            overwrite=True)
     assert (tmp_path / "trajectory.dtraj").read_bytes() != before
 
@@ -385,7 +385,7 @@ def test_nve_converges_to_the_exact_lax_reference(ff):
     ref = simulate_exact(m, 2.0, velocities=v, angular_velocities=w, n_frames=3).trajectory
     errs = []
     for dt in (0.01, 0.005):
-        sim = RodSimulation(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False, dt=dt,
+        sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False, dt=dt,
                             initial_velocities=(v, w))
         sim.advance(int(round(2.0 / dt)))
         c, f, vv, ww = sim.node_state()

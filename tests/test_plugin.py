@@ -136,14 +136,14 @@ def test_simulation_on_plugin_path_has_the_callback_paths_energies(mod):
 
     model = random_model(8, sequence="ACGTACGTACGTACGTACGTACGTACGTACGTACGTACGT", scale=0.03, rot=0.05)
     still = (np.zeros((model.n_nodes, 3)), np.zeros((model.n_nodes, 3)))
-    sims = {el: RodSimulation(model, temperature=300.0, platform="Reference", elastic=el, seed=5,
+    sims = {el: RodSimulation.create(model, temperature=300.0, platform="Reference", elastic=el, seed=5,
                               initial_velocities=still) for el in ("plugin", "fast")}
     assert sims["plugin"].rs.elastic == "plugin" and sims["plugin"].integrator.usesFusedElasticForce()
     e = {el: s.energies() for el, s in sims.items()}
     for term in ("elastic", "nonbonded", "potential"):
         assert abs(e["plugin"][term] - e["fast"][term]) <= 1e-10 * max(1.0, abs(e["fast"][term]))
     assert e["fast"]["elastic"] > 1.0
-    auto = RodSimulation(model, temperature=300.0, platform="CPU", seed=5)
+    auto = RodSimulation.create(model, temperature=300.0, platform="CPU", seed=5)
     assert auto.rs.elastic == "plugin" and auto.integrator.usesFusedPairForce()
 
 
@@ -262,7 +262,7 @@ def test_plugin_force_and_integrator_on_opencl(mod):
     plain = load_forcefield("dna-default").model_from_sequence("ACGTACGTACGT")
     ends = []
     for platform in ("CPU", "OpenCL"):
-        sim = RodSimulation(plain, integrator="verlet", temperature=300.0, elastic="plugin", platform=platform,
+        sim = RodSimulation.create(plain, integrator="verlet", temperature=300.0, elastic="plugin", platform=platform,
                             seed=4, nonbonded=False, dt=0.02)
         sim.advance(50)
         ends.append(sim.node_pose()[0])
@@ -281,7 +281,7 @@ from dnarod.engines.openmm.simulation import RodSimulation
 plain = load_forcefield("dna-default").model_from_sequence("ACGTACGTACGT")
 ends = []
 for platform in ("CPU", "OpenCL"):
-    sim = RodSimulation(plain, integrator="verlet", temperature=300.0, elastic="plugin", platform=platform,
+    sim = RodSimulation.create(plain, integrator="verlet", temperature=300.0, elastic="plugin", platform=platform,
                         seed=4, nonbonded=False, dt=0.02)
     assert not sim.rs.device and not sim.integrator.usesDeviceKernel()
     sim.advance(50)

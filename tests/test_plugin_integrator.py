@@ -37,7 +37,7 @@ def dodecamer():
 def nve_run(model, v, w, dt, t_report):
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference", elastic="plugin",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference", elastic="plugin",
                         nonbonded=False, initial_velocities=(v, w), seed=0)
     assert sim.integrator.usesFusedElasticForce()
     out = []
@@ -119,7 +119,7 @@ def test_checkpoint_resume_is_bit_for_bit(mod):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
-    sim = RodSimulation(model, temperature=300.0, elastic="plugin", nonbonded=True, seed=11, platform="CPU")
+    sim = RodSimulation.create(model, temperature=300.0, elastic="plugin", nonbonded=True, seed=11, platform="CPU")
     sim.advance(30)
     blob = sim.context.createCheckpoint()
     state30 = sim.context.getState(getPositions=True, getVelocities=True, getParameters=True)
@@ -145,7 +145,7 @@ def test_triangles_stay_rigid_and_clamped_nodes_stay_put(mod):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
-    sim = RodSimulation(model, temperature=300.0, elastic="plugin", seed=4, platform="CPU",
+    sim = RodSimulation.create(model, temperature=300.0, elastic="plugin", seed=4, platform="CPU",
                         loads=[Clamp(0), PullingForce(-1, [0.0, 0.0, 5.0])])
     assert sim.integrator.usesFusedElasticForce()
     p0 = sim.context.getState(getPositions=True).getPositions(asNumpy=True)._value.copy()
@@ -166,7 +166,7 @@ def test_nve_with_loads_and_nonbonded_conserves_energy(mod):
 
     model = load_forcefield("dna-default").ring(n_nodes=60)
     energies = []
-    sim = RodSimulation(model, integrator="verlet", temperature=300.0, dt=0.01, elastic="plugin", seed=2,
+    sim = RodSimulation.create(model, integrator="verlet", temperature=300.0, dt=0.01, elastic="plugin", seed=2,
                         platform="CPU", loads=[PullingForce(5, [0.0, 0.0, 2.0])])
     assert sim.integrator.usesFusedElasticForce() and sim.rs.nonbonded is not None
     for _ in range(40):
@@ -189,7 +189,7 @@ def test_node_state_kept_between_calls_matches_particles_and_is_dropped_when_the
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     runs = []
     for chunks in ([40], [1] * 40):
-        sim = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
+        sim = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
                             nonbonded=False)
         for k in chunks:
             sim.integrator.step(k)
@@ -197,7 +197,7 @@ def test_node_state_kept_between_calls_matches_particles_and_is_dropped_when_the
     for get in ("getPositions", "getVelocities"):
         assert np.array_equal(getattr(runs[0], get)(asNumpy=True)._value, getattr(runs[1], get)(asNumpy=True)._value)
     s20 = None
-    sim = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
                         nonbonded=False)
     sim.integrator.step(20)
     s20 = sim.context.getState(getPositions=True, getVelocities=True)
@@ -231,7 +231,7 @@ def test_context_reinitialize_keeps_state_and_continues(mod):
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     ends = []
     for reinit in (False, True):
-        sim = RodSimulation(model, temperature=300.0, elastic="plugin", nonbonded=True, seed=7, platform="CPU")
+        sim = RodSimulation.create(model, temperature=300.0, elastic="plugin", nonbonded=True, seed=7, platform="CPU")
         sim.advance(25)
         if reinit:
             before = sim.context.getState(getPositions=True, getVelocities=True)
@@ -285,7 +285,7 @@ def test_node_report_equals_the_openmm_state_path(mod, integrator):
     for loads in ([], [PullingForce(3, [0.0, 0.0, 5.0])]):
         ends = []
         for report in (True, False):
-            sim = RodSimulation(model, integrator=integrator, temperature=300.0, elastic="plugin", seed=9,
+            sim = RodSimulation.create(model, integrator=integrator, temperature=300.0, elastic="plugin", seed=9,
                                 platform="CPU", loads=loads, nonbonded=NonbondedSettings(cutoff_debye=5.0))
             assert sim._reports_in_plugin()
             for k in (0, 7, 1, 12):

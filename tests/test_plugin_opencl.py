@@ -135,7 +135,7 @@ def test_auto_takes_the_device_kernels_on_opencl(mod, capsys):
     err = capsys.readouterr().err
     assert err.count("OpenCL kernels (SMK force and rigid-body steps on the device") == 1
     model = load_forcefield("dna-default").model_from_sequence("ACGTTGCAAC" * 2)
-    sim = RodSimulation(model, platform="OpenCL", precision="mixed", temperature=300.0, seed=3, nonbonded=False)
+    sim = RodSimulation.create(model, platform="OpenCL", precision="mixed", temperature=300.0, seed=3, nonbonded=False)
     assert sim.rs.elastic == "plugin" and sim.rs.device
     assert isinstance(sim.integrator, mod.RigidBodyIntegrator) and sim.integrator.usesDeviceKernel()
     assert not sim.integrator.usesFusedElasticForce()
@@ -168,7 +168,7 @@ def test_nve_settle_trajectory_equals_callback_path(mod):
     from dnarod.engines.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
-    ref = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="fast", platform="Reference", seed=4,
+    ref = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="fast", platform="Reference", seed=4,
                         nonbonded=False, dt=0.01)
     st = ref.context.getState(getPositions=True, getVelocities=True)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
@@ -195,7 +195,7 @@ def test_rigid_body_steps_on_device_equal_host(mod, precision, tol):
     from dnarod.engines.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
-    ref = RodSimulation(model, integrator="verlet", temperature=300.0, elastic="plugin", platform="Reference", seed=4,
+    ref = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", platform="Reference", seed=4,
                         nonbonded=False, dt=0.01)
     st = ref.context.getState(getPositions=True, getVelocities=True)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
@@ -326,7 +326,7 @@ def test_full_model_on_the_device_path(mod):
     pos = R * np.stack([cos, sin, zero], axis=1)
     d1, d2, d3 = np.stack([-cos, -sin, zero], 1), np.stack([zero, zero, zero + 1], 1), np.stack([-sin, cos, zero], 1)
     model = base.with_pose(pos, np.stack([d1, d2, d3], axis=2))
-    sims = [RodSimulation(model, platform=p, precision=q, temperature=300.0, seed=2, elastic="plugin")
+    sims = [RodSimulation.create(model, platform=p, precision=q, temperature=300.0, seed=2, elastic="plugin")
             for p, q in (("Reference", None), ("OpenCL", "double"))]
     assert sims[1].rs.device and sims[1].integrator.usesDeviceKernel() and not sims[0].rs.device
     e = [s.energies() for s in sims]

@@ -108,7 +108,7 @@ def test_zero_temperature_and_checks_through_the_api(tmp_path):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence(SEQ)
-    sim = RodSimulation(m, temperature=0)  # at rest; non-bonded scales from the reference temperature
+    sim = RodSimulation.create(m, temperature=0)  # at rest; non-bonded scales from the reference temperature
     sim.advance(3)
     e = sim.energies()
     assert e["kinetic"] == pytest.approx(0.0, abs=1e-6) and np.isfinite(e["nonbonded"])

@@ -108,7 +108,7 @@ def test_rebuild_ideal_and_thermal_snapshot(kind):
     if kind == "thermal":
         from dnarod.engines.openmm.simulation import RodSimulation
 
-        sim = RodSimulation(m, temperature=300, nonbonded=False, seed=11)
+        sim = RodSimulation.create(m, temperature=300, nonbonded=False, seed=11)
         sim.advance(400)
         c, f, _, _ = sim.node_state()
         m = m.with_pose(c, f)
@@ -120,7 +120,7 @@ def _thermal(sequence, seed, steps=400):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     m = load_forcefield("dna-default").model_from_sequence(sequence)
-    sim = RodSimulation(m, temperature=300, nonbonded=False, seed=seed)
+    sim = RodSimulation.create(m, temperature=300, nonbonded=False, seed=seed)
     sim.advance(steps)
     c, f, _, _ = sim.node_state()
     return m.with_pose(c, f)

@@ -30,7 +30,7 @@ def test_1cgp_cap_kinks_kept_with_intrinsic_structure(intrinsic, kept):
     assert m.metadata["intrinsic"] == intrinsic and "amino acid" in m.metadata["selection"]
     roll0 = _roll(m)
     assert roll0[9] > 35 and roll0[19] > 25  # the two CAP kinks (3DNA: roll ~39 and ~29 deg)
-    sim = RodSimulation(m, platform="CPU")
+    sim = RodSimulation.create(m, platform="CPU")
     sim.minimize()
     roll = _roll(sim.current_model())
     if kept:

@@ -81,7 +81,7 @@ def test_engines_lax_splitting_and_half_step_openmm_converge_at_second_order(tmp
 
 
 def test_engines_check_passes_through_the_public_openmm_api(tmp_path):
-    """RodSimulation(initial_velocities=...) must start the leapfrog half a step back (order 2, not 1)."""
+    """RodSimulation.create(initial_velocities=...) must start the leapfrog half a step back (order 2, not 1)."""
     r = _check("engines", tmp_path, plots=False)
     assert 1.8 < r["openmm"]["order_positions"] < 2.2
     assert r["openmm"]["max_position_difference_nm"][-1] < 1e-6

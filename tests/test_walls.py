@@ -168,7 +168,7 @@ def _member_sim(elastic, platform="Reference", walls_now=True, form="auto"):
     else:
         extra = walls.wall_forces(N, float(model.positions[0, 2]), 100.0, 3, platform=platform, form=form) \
             if walls_now else ()
-    sim = RodSimulation(model, platform=platform, elastic=elastic, nonbonded=False, loads=loads, seed=1,
+    sim = RodSimulation.create(model, platform=platform, elastic=elastic, nonbonded=False, loads=loads, seed=1,
                         extra_forces=extra)
     return sim, model
 

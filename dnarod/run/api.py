@@ -212,7 +212,7 @@ def make_engine(spec, model, dt, seed, omega):
     from dnarod.engines.openmm.simulation import RodSimulation
 
     nb = spec.nonbonded_settings()
-    return RodSimulation(model, integrator="langevin" if spec.friction > 0 else "verlet",
+    return RodSimulation.create(model, integrator="langevin" if spec.friction > 0 else "verlet",
                          temperature=spec.temperature, dt=dt, friction=spec.friction,
                          platform=spec.platform, elastic=spec.elastic, nonbonded=nb, loads=spec.loads,
                          seed=seed, threads=spec.threads, omega_max=omega)

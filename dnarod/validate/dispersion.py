@@ -44,7 +44,7 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
     from dnarod.engines.openmm.particles import particle_forces_to_loads, particle_positions
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                         elastic=elastic, nonbonded=False, seed=0)
     radius = sim.rs.radius
 

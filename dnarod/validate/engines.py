@@ -75,7 +75,7 @@ def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
     """OpenMM NVE run; positions, frames, energy, momentum, angular momentum at ``t_report``."""
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
                         elastic=elastic, nonbonded=False, initial_velocities=(v, w),
                         constraint_tolerance=1e-12, seed=0)
     if half_step:
@@ -125,7 +125,7 @@ def _conventions(model, v, w):
     """
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
                         nonbonded=False, initial_velocities=(v, w), seed=0)
     r = sim.rs.radius
     J_openmm = model.mass[:, None] * r[:, None] ** 2 * np.array([0.5, 0.5, 1.0])

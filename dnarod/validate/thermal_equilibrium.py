@@ -79,7 +79,7 @@ def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_e
     """The same from the OpenMM engine (LangevinMiddleIntegrator, CPU platform, elastic forces only)."""
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
+    sim = RodSimulation.create(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
                         platform="CPU", nonbonded=False, seed=seed, threads=1)
     return _sample(sim.advance, sim.node_pose, lambda: sim.energies()["temperature"],
                    model.n_nodes, n_samples, stride, n_equil)

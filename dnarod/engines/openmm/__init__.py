@@ -19,7 +19,7 @@ Example::
     from dnarod.physics.loads import PullingForce
     from dnarod.run import run_engine, DtrajReporter
     model = load_forcefield("dna-default").model_from_sequence("ACGT" * 250)
-    sim = RodSimulation(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])])
+    sim = RodSimulation.create(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])])
     rep = DtrajReporter("run1.dtraj", model.n_nodes, interval=10)
     run_engine(sim, 100000, [rep], checkpoint="run1.npz", checkpoint_interval=10000)
     rep.close()

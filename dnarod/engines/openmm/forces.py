@@ -25,13 +25,44 @@ rigid-body constraints absorb, so the constrained dynamics are identical.
 """
 from __future__ import annotations
 
+import gc
+
 import numba
 import numpy as np
+
 import openmm
 
 from dnarod.core.errors import ParameterError
 from dnarod.core.kernels import loads_kernel
 from dnarod.engines.openmm.particles import SQRT3
+
+class _CollectorPaused:
+    """Calls ``callback(state)`` with the cyclic garbage collector paused (picklable, as OpenMM may serialize
+    the force with its System)."""
+
+    def __init__(self, callback):
+        self.callback = callback
+
+    def __call__(self, state):
+        enabled = gc.isenabled()
+        gc.disable()
+        try:
+            return self.callback(state)
+        finally:
+            if enabled:
+                gc.enable()
+
+
+def python_force(callback):
+    """An ``openmm.PythonForce`` calling ``callback(state)`` with Python's cyclic garbage collector paused.
+
+    OpenMM calls the callback from inside a force evaluation; a collection that ran there could destroy another
+    simulation's Context (left in a reference cycle) in the middle of this one's evaluation, which crashes the
+    process. Pausing the collector for the duration of the call (it resumes at once after) removes that class of
+    crash at the cost of two C calls per evaluation.
+    """
+    return openmm.PythonForce(_CollectorPaused(callback))
+
 
 #: Force groups used by the engine (energies are attributed per group on a blow-up).
 GROUPS = {"elastic": 1, "nonbonded": 2, "external": 3}
@@ -441,7 +472,7 @@ def elastic_python_force(model, radius, callback=None):
     """
     if not hasattr(openmm, "PythonForce"):
         raise ParameterError("this OpenMM has no PythonForce (needs OpenMM >= 8.3); use elastic='portable'")
-    f = openmm.PythonForce(callback if callback is not None else ElasticCallback(model, radius))
+    f = python_force(callback if callback is not None else ElasticCallback(model, radius))
     f.setForceGroup(GROUPS["elastic"])
     fused = callback is not None and callback.nonbonded is not None
     f.setName("dnarod elastic + nonbonded (fast)" if fused else "dnarod elastic (fast)")

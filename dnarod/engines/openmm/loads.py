@@ -18,7 +18,7 @@ import openmm
 
 from dnarod.core.errors import ParameterError
 from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, Walls, resolve_node
-from dnarod.engines.openmm.forces import GROUPS
+from dnarod.engines.openmm.forces import GROUPS, python_force
 from dnarod.engines.openmm.particles import SQRT3
 
 __all__ = ["TorqueCallback", "build_load_forces", "set_clamp_rotation"]
@@ -155,7 +155,7 @@ def build_load_forces(loads, model, radius, system, platform="CPU"):
     if torques:
         nodes = [k for k, _ in torques]
         cb = TorqueCallback([t for _, t in torques], model.frames[nodes])
-        f = openmm.PythonForce(cb)
+        f = python_force(cb)
         f.setParticles([3 * k + i for k in nodes for i in range(3)])
         f.setForceGroup(GROUPS["external"])
         f.setName("dnarod torques")

@@ -15,7 +15,7 @@ import numba
 import numpy as np
 import openmm
 
-from dnarod.engines.openmm.forces import GROUPS
+from dnarod.engines.openmm.forces import GROUPS, python_force
 from dnarod.physics.nonbonded import DEFAULT_SKIN, _separation
 
 @numba.njit(cache=True)
@@ -380,7 +380,7 @@ def nonbonded_force(model, settings, temperature):
     if not (settings.excluded_volume or settings.electrostatics):
         return None, numbers
     cb = NonbondedCallback(model.n_nodes, model.closure is not None, numbers)
-    f = openmm.PythonForce(cb)
+    f = python_force(cb)
     f.dnarod_callback = cb  # the engine reads the per-term energies of the last evaluation
     f.setForceGroup(GROUPS["nonbonded"])
     f.setName("dnarod nonbonded (WCA + Debye-Hueckel)")

@@ -49,100 +49,74 @@ from dnarod.engines.openmm.system import build_system
 NONBONDED_REFERENCE_T = 300.0
 
 
+def _checked_dt(dt, omega):
+    """The time step (ps): ``dt`` checked against the stability limit ``MAX_OMEGA_DT / omega``, or the default
+    ``DEFAULT_OMEGA_DT / omega`` (``omega`` the fastest mode, rad/ps)."""
+    limit = MAX_OMEGA_DT / omega
+    dt = DEFAULT_OMEGA_DT / omega if dt is None else float(dt)
+    if not (np.isfinite(dt) and dt > 0):
+        raise ParameterError(f"dt must be a positive time in ps, got {dt}")
+    if dt > limit:
+        raise ParameterError(f"dt = {dt:.4g} ps is above the stability limit {limit:.4g} ps of this model "
+                             f"(fastest mode omega_max = {omega:.4g} rad/ps, limit 1.8/omega_max); "
+                             f"use dt <= {DEFAULT_OMEGA_DT / omega:.3g} ps (the default)")
+    return dt
+
+
 class RodSimulation:
-    """An OpenMM simulation of a :class:`~dnarod.core.model.RodModel`.
+    """The OpenMM engine: a :class:`~dnarod.core.model.RodModel` in an OpenMM Context, advanced by a given integrator.
+
+    Like OpenMM's ``app.Simulation``, it takes the System (a :class:`~dnarod.engines.openmm.system.RodSystem`), the
+    integrator and the platform as given; :meth:`create` is the policy that chooses them (platform, time step,
+    integrator, elastic path) from a model and a few settings.
 
     Parameters
     ----------
     model : RodModel
-        Starting pose (velocities are thermal at ``temperature``, or zero for NVE with
-        ``temperature=0``).
-    integrator : {"langevin", "verlet"}
-        ``LangevinMiddleIntegrator`` at ``temperature`` or ``VerletIntegrator`` (NVE).
+        Starting pose.
+    system : RodSystem
+        From :func:`dnarod.engines.openmm.system.build_system` (forces added before this call are part of it).
+    integrator : openmm.Integrator
+        Its step size is the engine's ``dt`` (ps).
+    platform : openmm.Platform
+    properties : dict, optional
+        Platform properties.
     temperature : float
-        K.
-    dt : float or None
-        ps; default ``DEFAULT_OMEGA_DT / omega_max``. Values above ``MAX_OMEGA_DT / omega_max``
-        raise :class:`~dnarod.core.errors.ParameterError`.
+        K: the thermostat's (for the kinetic temperature and the initial velocities).
     friction : float
-        1/ps (Langevin).
-    platform : str or None
-        OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL", "HIP"); ``None`` for the
-        automatic choice of :func:`dnarod.engines.openmm.platforms.choose_platform` (GPU, else the CPU
-        fast path); the choice and its reason are in ``platform_name``, ``platform_reason``.
-    elastic : {"auto", "fast", "portable"}
-    nonbonded : bool or NonbondedSettings
-    loads : sequence
-        External loads (:mod:`dnarod.engines.openmm.loads`).
-    seed : int or None
-        Seed of initial velocities and of the Langevin noise.
-    threads : int or None
-        CPU platform threads.
-    precision : {"single", "mixed", "double"} or None
-        GPU platforms' precision (default mixed).
-    constraint_tolerance : float
+        1/ps (0: NVE).
+    seed : int
+        Seed of the initial velocities (the integrator carries its own noise seed).
+    omega_max : float
+        Fastest normal mode of the start pose, rad/ps (recorded).
+    kind : {"langevin", "verlet"}
+        What the integrator is (recorded in checkpoints).
     initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
-    extra_forces : sequence of openmm.Force
-        Further forces on the particles (3 per node, :func:`dnarod.engines.openmm.particles.particle_positions`),
-        added to the System before the Context is created (e.g. the tweezers walls of
-        :func:`dnarod.engines.openmm.walls.wall_forces`; the tweezers set-up passes its walls as the load
-        :class:`dnarod.physics.loads.Walls` instead).
+        Default: Maxwell at ``temperature`` (at rest at 0 K).
+    platform_reason : str, optional
+        Why this platform (reported by ``dnarod simulate``).
     """
 
     name = "openmm"
 
-    def __init__(self, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
-                 elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
-                 initial_velocities=None, omega_max=None, precision=None, extra_forces=()):
+    def __init__(self, model, system, integrator, platform, properties=None, *, temperature=300.0, friction=1.0,
+                 seed=0, omega_max=float("nan"), kind="langevin", initial_velocities=None, platform_reason=None):
         self.model = model
+        self.rs = system
+        self.integrator = integrator
+        self.integrator_name = kind
         self.temperature = float(temperature)
-        if not (np.isfinite(self.temperature) and self.temperature >= 0):
-            raise ParameterError(f"temperature must be >= 0 K, got {temperature}")
-        if integrator not in ("langevin", "verlet"):
-            raise ParameterError(f"integrator must be 'langevin' or 'verlet', got {integrator!r}")
-        self.integrator_name = integrator
-        self.loads = tuple(loads)
-        plat, props, self.platform_reason = choose_platform(platform, model.n_nodes, elastic, threads, precision)
-        self.platform_name = platform = plat.getName()
-        self.omega_max = float(omega_max) if omega_max is not None else modes.omega_max(model, loads=tuple(loads))
-        limit = MAX_OMEGA_DT / self.omega_max
-        if dt is None:
-            dt = DEFAULT_OMEGA_DT / self.omega_max
-        dt = float(dt)
-        if not (np.isfinite(dt) and dt > 0):
-            raise ParameterError(f"dt must be a positive time in ps, got {dt}")
-        if dt > limit:
-            raise ParameterError(f"dt = {dt:.4g} ps is above the stability limit {limit:.4g} ps of this model "
-                                 f"(fastest mode omega_max = {self.omega_max:.4g} rad/ps, limit 1.8/omega_max); "
-                                 f"use dt <= {DEFAULT_OMEGA_DT / self.omega_max:.3g} ps (the default)")
-        self.dt = dt
         self.friction = float(friction)
-        if integrator == "langevin" and not (np.isfinite(self.friction) and self.friction >= 0):
-            raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
-        self.seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
-        # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
-        # at rest (0 K) uses the reference one, so the potential does not depend on the start
-        self.rs = build_system(model, platform, elastic, nonbonded, loads,
-                               self.temperature if self.temperature > 0 else NONBONDED_REFERENCE_T)
-        for f in extra_forces:  # added before the Context exists, so every elastic path (plugin included) sees them
-            self.rs.system.addForce(f)
-        if self.rs.elastic == "plugin":
-            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
-            # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
-            from dnarod.engines.openmm.plugin import rigid_body_integrator
-
-            integ = rigid_body_integrator(self.rs.radius, dt, self.temperature,
-                                          self.friction if integrator == "langevin" else 0.0, self.seed)
-        elif integrator == "langevin":
-            integ = openmm.LangevinMiddleIntegrator(self.temperature, self.friction, dt)
-            integ.setRandomNumberSeed(self.seed)
-        else:
-            integ = openmm.VerletIntegrator(dt)
-        integ.setConstraintTolerance(constraint_tolerance)
-        self.integrator = integ
+        self.seed = int(seed)
+        self.omega_max = float(omega_max)
+        self.dt = float(integrator.getStepSize().value_in_unit(openmm.unit.picosecond)) \
+            if hasattr(integrator.getStepSize(), "value_in_unit") else float(integrator.getStepSize())
+        self.platform_name = platform.getName()
+        self.platform_reason = platform_reason
+        self.loads = tuple(system.loads)
         t0 = time.perf_counter()
-        self.context = openmm.Context(self.rs.system, integ, plat, props)
-        self.set_particle_positions(particle_positions(model.positions, model.frames, self.rs.radius))
+        self.context = openmm.Context(system.system, integrator, platform, properties or {})
+        self.set_particle_positions(particle_positions(model.positions, model.frames, system.radius))
         self.context_time = time.perf_counter() - t0
         self._state_cache = None
         self._report_cache = None
@@ -154,6 +128,94 @@ class RodSimulation:
             self.set_node_velocities(np.zeros((model.n_nodes, 3)), np.zeros((model.n_nodes, 3)))
         self.step = 0
         self.fingerprint = model_fingerprint(model, pose=False)
+
+    def __del__(self):
+        # The Context refers to its System and Integrator: it must go first. Left in a reference cycle (an exception's
+        # traceback holding a simulation, say), the collector could otherwise free the Integrator before the
+        # Context, whose destructor then crashes the process.
+        self.__dict__.pop("context", None)
+
+    @classmethod
+    def create(cls, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
+               elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
+               initial_velocities=None, omega_max=None, precision=None, extra_forces=()):
+        """The engine for a model with the default policies: the platform (:func:`~.platforms.choose_platform`),
+        the time step (``DEFAULT_OMEGA_DT / omega_max``, :mod:`dnarod.physics.modes`), the elastic path and the
+        integrator (the compiled rigid-body integrator with the plugin, else OpenMM's LangevinMiddle or Verlet).
+
+        Parameters
+        ----------
+        model : RodModel
+            Starting pose (velocities are thermal at ``temperature``, or zero for NVE with ``temperature=0``).
+        integrator : {"langevin", "verlet"}
+            Langevin at ``temperature`` or velocity Verlet (NVE).
+        temperature : float
+            K.
+        dt : float or None
+            ps; default ``DEFAULT_OMEGA_DT / omega_max``. Values above ``MAX_OMEGA_DT / omega_max``
+            raise :class:`~dnarod.core.errors.ParameterError`.
+        friction : float
+            1/ps (Langevin).
+        platform : str or None
+            OpenMM platform name ("CPU", "Reference", "CUDA", "OpenCL", "HIP"); ``None`` for the
+            automatic choice of :func:`dnarod.engines.openmm.platforms.choose_platform` (GPU, else the CPU
+            fast path); the choice and its reason are in ``platform_name``, ``platform_reason``.
+        elastic : {"auto", "plugin", "fast", "portable"}
+        nonbonded : bool or NonbondedSettings
+        loads : sequence
+            External loads (:mod:`dnarod.physics.loads` dataclasses, the tweezers Walls included).
+        seed : int or None
+            Seed of initial velocities and of the Langevin noise.
+        threads : int or None
+            CPU platform threads.
+        constraint_tolerance : float
+        initial_velocities : tuple (v (n,3) nm/ps lab, omega (n,3) rad/ps body) or None
+        omega_max : float, optional
+            Fastest mode of the start pose under the loads, rad/ps, if known.
+        precision : {"single", "mixed", "double"} or None
+            GPU platforms' precision (default mixed).
+        extra_forces : sequence of openmm.Force
+            Further forces on the particles (3 per node, :func:`dnarod.engines.openmm.particles.particle_positions`),
+            added to the System before the Context is created.
+
+        Returns
+        -------
+        RodSimulation
+        """
+        temperature = float(temperature)
+        if not (np.isfinite(temperature) and temperature >= 0):
+            raise ParameterError(f"temperature must be >= 0 K, got {temperature}")
+        if integrator not in ("langevin", "verlet"):
+            raise ParameterError(f"integrator must be 'langevin' or 'verlet', got {integrator!r}")
+        loads = tuple(loads)
+        plat, props, reason = choose_platform(platform, model.n_nodes, elastic, threads, precision)
+        omega = float(omega_max) if omega_max is not None else modes.omega_max(model, loads=loads)
+        dt = _checked_dt(dt, omega)
+        friction = float(friction)
+        if integrator == "langevin" and not (np.isfinite(friction) and friction >= 0):
+            raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
+        seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
+        # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
+        # at rest (0 K) uses the reference one, so the potential does not depend on the start
+        rs = build_system(model, plat.getName(), elastic, nonbonded, loads,
+                          temperature if temperature > 0 else NONBONDED_REFERENCE_T)
+        for f in extra_forces:  # added before the Context exists, so every elastic path (plugin included) sees them
+            rs.system.addForce(f)
+        if rs.elastic == "plugin":
+            # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
+            # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
+            from dnarod.engines.openmm.plugin import rigid_body_integrator
+
+            integ = rigid_body_integrator(rs.radius, dt, temperature, friction if integrator == "langevin" else 0.0,
+                                          seed)
+        elif integrator == "langevin":
+            integ = openmm.LangevinMiddleIntegrator(temperature, friction, dt)
+            integ.setRandomNumberSeed(seed)
+        else:
+            integ = openmm.VerletIntegrator(dt)
+        integ.setConstraintTolerance(constraint_tolerance)
+        return cls(model, rs, integ, plat, props, temperature=temperature, friction=friction, seed=seed,
+                   omega_max=omega, kind=integrator, initial_velocities=initial_velocities, platform_reason=reason)
 
     # --- node state -------------------------------------------------------------------
     def set_particle_positions(self, particles):
@@ -481,7 +543,7 @@ def static_load_fn(model, loads=(), angles=None):
     :func:`dnarod.physics.statics.solve_static` (Reference platform, double precision, the portable elastic path
     and the OpenMM translation of the loads; rotation clamps at ``angles``, rad), so the solved pose is this
     engine's equilibrium. Forces kJ/mol/nm and torques kJ/mol, (n, 3) each."""
-    sim = RodSimulation(model, integrator="verlet", temperature=0.0, dt=1e-3, platform="Reference",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=1e-3, platform="Reference",
                         elastic="portable", nonbonded=False, loads=loads, omega_max=1.0)
     for i, a in enumerate(() if angles is None else angles):
         sim.set_clamp_rotation(float(a), i)

@@ -81,6 +81,8 @@ class RodSystem:
     device : bool
         ``elastic == "plugin"`` on a GPU platform where the plugin's device kernels are loaded: the SMKForce is
         evaluated there and the rigid-body integrator steps there (no host copies per step).
+    loads : tuple
+        The load dataclasses the system was built with.
     image : int or None
         Portable path of a circular chain: index of the first of the three massless image particles of node 0
         (``3 n``; :func:`dnarod.engines.openmm.forces.add_closure_image`), else ``None`` (also for a plain ring, whose
@@ -98,6 +100,7 @@ class RodSystem:
     residue_names: list = field(default_factory=list)
     device: bool = False
     image: int | None = None
+    loads: tuple = ()
 
     @property
     def topology(self):
@@ -224,7 +227,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
             nb_force.setParticles(list(range(3 * n)))
         system.addForce(nb_force)
     return RodSystem(system, radius, elastic, sorted(clamped), info, nb_numbers, nb_cb, elastic_cb,
-                     residue_names=base_pair_names(model), device=bool(device), image=image)
+                     residue_names=base_pair_names(model), device=bool(device), image=image, loads=tuple(loads))
 
 
 def _check_nonbonded_overlaps(model, numbers):

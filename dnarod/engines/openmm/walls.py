@@ -38,7 +38,7 @@ import numba
 import numpy as np
 import openmm
 
-from dnarod.engines.openmm.forces import GROUPS
+from dnarod.engines.openmm.forces import GROUPS, python_force
 
 #: Platforms on which :func:`wall_forces` takes a host form (compiled, else numba): no copies off a device.
 COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
@@ -210,7 +210,7 @@ def wall_forces_numba(n_nodes, z_surface, k, skip, n_particles=None):
         ``[PythonForce]`` in group ``GROUPS["external"]``.
     """
     n, skip = _check(n_nodes, skip)
-    f = openmm.PythonForce(WallCallback(n, z_surface, k, skip, 3 * n if n_particles is None else n_particles))
+    f = python_force(WallCallback(n, z_surface, k, skip, 3 * n if n_particles is None else n_particles))
     f.setForceGroup(GROUPS["external"])
     f.setName("dnarod tweezers walls (surface + bead plane, numba)")
     return [f]

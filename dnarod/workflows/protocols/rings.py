@@ -127,12 +127,12 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
         # start "from above": run first with the bending stiffness divided by start_bend_softening (plectonemes
         # cost less bending, so the ring writhes more), then continue with the model from that pose
         soft = bend_softened_model(model, float(s["start_bend_softening"]))
-        psim = RodSimulation(soft, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb,
+        psim = RodSimulation.create(soft, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb,
                              seed=int(s["seed"]) + 7919, threads=s["threads"])
         psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
         model = model.with_pose(*psim.node_pose())
         del psim
-    sim = RodSimulation(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
+    sim = RodSimulation.create(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
                         threads=s["threads"])
     dt = sim.dt
     stride = max(1, int(round(sample / dt)))

@@ -245,7 +245,7 @@ def _member_simulation(m, model, dt=None):
     # the walls are loads (dnarod.physics.loads.Walls): the engine builds them before its Context exists, so the
     # automatic elastic path (the compiled plugin where it is built) applies; settings["elastic"] can force another
     # path. The walls' form follows the platform.
-    return RodSimulation(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
+    return RodSimulation.create(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
                          nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
                          elastic=s["elastic"], dt=dt)
 
