@@ -1,8 +1,8 @@
 #!/bin/bash
-# The harness of the long protocol runs (hat_r8, hat_r9, hat_r10): run COMMAND... with its output in
+# The harness of the long hat-curve runs (r8-r12/run.sh): run COMMAND... with its output in
 # ROOT/curve.log, its wall and CPU time in ROOT/time.txt (/usr/bin/time -v), its start and end (with the exit
 # status) in ROOT/times.log and the load average every minute in ROOT/load.log; exits with the command's status.
-# Usage: benchmarks/timed_run.sh ROOT COMMAND...
+# Usage: research/hat_curve/timed_run.sh ROOT COMMAND...
 set -u
 ROOT=$1
 shift

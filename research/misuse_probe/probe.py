@@ -2,11 +2,11 @@
 test runner; flags tracebacks, exit statuses other than 0/2, more than one stderr line, stdout before a refusal,
 files changed, and lists every accepted case for reading.
 
-    python benchmarks/misuse_probe/make_fixtures.py /tmp/mp/fx .venv/bin/dnarod    # bad files, a short run, specs
-    python benchmarks/misuse_probe/probe.py /tmp/mp/fx x "" /tmp/mp/probe.json > /tmp/mp/probe.log
+    python research/misuse_probe/make_fixtures.py /tmp/mp/fx .venv/bin/dnarod    # bad files, a short run, specs
+    python research/misuse_probe/probe.py /tmp/mp/fx x "" /tmp/mp/probe.json > /tmp/mp/probe.log
 
 Cases that would start 10^5 dask workers, allocate 10^9-member axes or write a run into / are left out (they
-were read from the code; tests/test_misuse_r6.py holds their refusals). Needs the structures in
+were read from the code; tests/test_misuse_cli_inputs.py holds their refusals). Needs the structures in
 /work/shared/data/structures. Results of rounds 6 and 7: docs/misuse.md.
 """
 import json, os

@@ -5,7 +5,7 @@ Usage: python run_members.py ROOT NAME
 ``NAME`` picks one member of ``MEMBERS`` below; it runs through :func:`dnarod.workflows.protocols.rings.run_ring_member` or
 :func:`dnarod.workflows.protocols.tweezers.run_member` with exactly those settings into ``ROOT/NAME``, and every pose the
 plectoneme detector sees is kept (float32 positions) in ``ROOT/NAME.poses.npz`` (``plectoneme_state`` is wrapped
-in this process only, as in ``benchmarks/buckling_r6/premembers.py``). ``analyze.py`` reads them.
+in this process only, as in ``research/buckling/r6/premembers.py``). ``analyze.py`` reads them.
 """
 import json
 import sys

@@ -1,4 +1,4 @@
-"""Figure docs/figures/buckling_600bp_1pN.png from the long members and rings (run from runs/)."""
+"""Figure research/buckling/figures/buckling_600bp_1pN.png from the long members and rings (run from runs/)."""
 import json, sys, os
 import numpy as np
 import matplotlib

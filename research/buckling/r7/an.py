@@ -1,7 +1,7 @@
 """Summary of tweezers members: means, blocked SE and quarter means of the observables (torque: twisting moment less
 its zero-torque offset). Usage: python an.py MEMBER_FOLDER... (reads samples.csv, or the checkpoint of a running member)."""
 import sys, numpy as np
-sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[3]))
 from dnarod.validate.buckling import block_standard_error as bse
 from dnarod.core.forcefield import load_forcefield
 from dnarod.workflows.protocols.measure import twisting_moment_offset

@@ -3,7 +3,7 @@
 Usage: python recount_loops.py MEMBER_FOLDER POSES_NPZ [MEMBER_FOLDER POSES_NPZ ...]
 
 The poses are those the detector saw while the member ran (every sample; ``ring_poses.py`` or
-``benchmarks/buckling_r6/premembers.py``). Ring members run before the detector's distances followed the model's
+``research/buckling/r6/premembers.py``). Ring members run before the detector's distances followed the model's
 non-bonded terms (round 7, :func:`dnarod.workflows.protocols.measure.detector_distances`) counted with the fixed 6-nm contact,
 which misses one end loop of a short calibrated-charge plectoneme in a fifth of the samples; the recount uses the
 member's own distances. The old column is kept as ``end_loops_6nm``; samples.csv is replaced atomically.

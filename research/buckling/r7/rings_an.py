@@ -1,7 +1,7 @@
 """Ring members and ring pairs (n and 2n bp at the same sigma): writhe, end loops, the pair's bulk plectoneme torque
 and Marko's plateau torque from the measured plectoneme points. Usage: python rings_an.py RING_FOLDER..."""
 import sys, json, numpy as np
-sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[2]))
+sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[3]))
 from pathlib import Path
 from dnarod.core.forcefield import load_forcefield
 from dnarod.physics.thermal import relaxed_ribbon_twist

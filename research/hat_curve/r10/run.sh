@@ -4,7 +4,7 @@
 # replica made a round trip), 0.8 apart in the straight middle (round 9: 44-46 % there); round 8's 12 turn values
 # are all rungs. Two dask actors on the command's 2-worker LocalCluster, default non-bonded terms; 25 ns
 # equilibration + 140 ns production per rung; wall/CPU of the command from /usr/bin/time, the load every minute.
-# Usage: benchmarks/hat_r10/run.sh [ROOT] [DNAROD]
+# Usage: research/hat_curve/r10/run.sh [ROOT] [DNAROD]
 set -u
 ROOT=${1:-runs/hat_r10}
 DNAROD=${2:-.venv/bin/dnarod}

@@ -6,7 +6,7 @@
 # 0.8 in the straight middle. Two dask actors on the command's 2-worker LocalCluster, default non-bonded terms;
 # 30 ns equilibration + 240 ns production per rung (round 10: 25 + 140 ns); wall/CPU of the command from /usr/bin/time,
 # the load every minute.
-# Usage: benchmarks/hat_r11/run.sh [ROOT] [DNAROD]
+# Usage: research/hat_curve/r11/run.sh [ROOT] [DNAROD]
 set -u
 ROOT=${1:-runs/hat_r11}
 DNAROD=${2:-.venv/bin/dnarod}

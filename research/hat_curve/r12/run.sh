@@ -6,7 +6,7 @@
 # the command's 2-worker LocalCluster, default non-bonded terms; 30 ns equilibration + 210 ns production per rung
 # (round 11: 30 + 240 ns on 22 rungs) to stay within 2 h; wall/CPU of the command from /usr/bin/time, the load every
 # minute.
-# Usage: benchmarks/hat_r12/run.sh [ROOT] [DNAROD]
+# Usage: research/hat_curve/r12/run.sh [ROOT] [DNAROD]
 set -u
 ROOT=${1:-runs/hat_r12}
 DNAROD=${2:-.venv/bin/dnarod}

@@ -1,6 +1,6 @@
 """The two directions of the 1-kbp hat curve at 1 pN (outward and inward turn sweeps) side by side.
 
-For each finished member of ``ROOT/sweep`` and ``ROOT/sweep-in`` (made by ``benchmarks/hat_r6/run.sh``): its
+For each finished member of ``ROOT/sweep`` and ``ROOT/sweep-in`` (made by ``research/hat_curve/r6/run.sh``): its
 statistics from :func:`bench_hat_1kbp.analyse_curve` (x/L, block and tau_int standard errors, tau_int of extension
 and writhe, quarters of the production, drift z, wall and CPU seconds); at every turn value both directions
 finished, the difference ``out - in`` in x/L, relative to their mean and in units of the combined standard error;
@@ -8,8 +8,8 @@ the cost of each command (``/usr/bin/time -v``: wall, user + system CPU of the c
 load average over its run (``load.log``). Draws both directions with Marko's two-phase line (model parameters,
 long-chain extension) in ``--figure`` and writes ``--out`` (JSON).
 
-    python benchmarks/hat_r6/compare.py runs/hat_r6 --out benchmarks/results/hat_1kbp_r6.json \
-        --figure docs/figures/hat_1kbp_1pN_both.png
+    python research/hat_curve/r6/compare.py runs/hat_r6 --out research/hat_curve/results/hat_1kbp_r6.json \
+        --figure research/hat_curve/figures/hat_1kbp_1pN_both.png
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))  # bench_hat_1kbp
 
 
 def command_cost(path):
@@ -87,7 +87,7 @@ def main(argv=None):
 
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", nargs="?", default="runs/hat_r6")
-    ap.add_argument("--out", default="benchmarks/results/hat_1kbp_r6.json")
+    ap.add_argument("--out", default="research/hat_curve/results/hat_1kbp_r6.json")
     ap.add_argument("--figure", default=None)
     a = ap.parse_args(argv)
     root = Path(a.root)

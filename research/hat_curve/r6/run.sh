@@ -1,7 +1,7 @@
 #!/bin/bash
 # The round-6 1-kbp hat curve at 1 pN: both turn-sweep directions, one after the other, each on the command's
 # 2-worker dask LocalCluster, default non-bonded terms (calibrated charge), nice 8; wall/CPU of each command from
-# /usr/bin/time, the load average every minute. Usage: benchmarks/hat_r6/run.sh [ROOT] [DIRECTIONS]
+# /usr/bin/time, the load average every minute. Usage: research/hat_curve/r6/run.sh [ROOT] [DIRECTIONS]
 set -u
 ROOT=${1:-runs/hat_r6}
 DIRS=${2:-"sweep sweep-in"}

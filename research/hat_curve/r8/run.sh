@@ -1,7 +1,7 @@
 #!/bin/bash
 # The round-8 1-kbp hat curve at 1 pN, bracketed: outward and inward turn sweeps at once (four chains) on the
 # command's 2-worker dask LocalCluster, default non-bonded terms (calibrated charge); wall/CPU of the command from
-# /usr/bin/time, the load average every minute. Usage: benchmarks/hat_r8/run.sh [ROOT] [DNAROD]
+# /usr/bin/time, the load average every minute. Usage: research/hat_curve/r8/run.sh [ROOT] [DNAROD]
 set -u
 ROOT=${1:-runs/hat_r8}
 DNAROD=${2:-.venv/bin/dnarod}

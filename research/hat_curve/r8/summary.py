@@ -1,4 +1,4 @@
-"""Summary of a bracketed hat curve (``dnarod protocol hat --start bracket``; ``benchmarks/hat_r8/run.sh``).
+"""Summary of a bracketed hat curve (``dnarod protocol hat --start bracket``; ``research/hat_curve/r8/run.sh``).
 
 Per turn value: the outward and inward members (x/L, block and tau-based standard errors, integrated
 autocorrelation time of the extension, the production's quarters), the bracketed point of ``curve.csv``
@@ -6,8 +6,8 @@ autocorrelation time of the extension, the production's quarters), the bracketed
 issue's target (relative error of the extension <= ``--target``); the command's wall and CPU time from
 ``/usr/bin/time -v`` and the load average during the run. Prints a table, writes JSON.
 
-    python benchmarks/hat_r8/summary.py runs/hat_r8 --out benchmarks/results/hat_1kbp_r8.json \
-        --figure docs/figures/hat_1kbp_1pN_bracket.png
+    python research/hat_curve/r8/summary.py runs/hat_r8 --out research/hat_curve/results/hat_1kbp_r8.json \
+        --figure research/hat_curve/figures/hat_1kbp_1pN_bracket.png
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import json
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parents[3] / "benchmarks"))  # bench_hat_1kbp
 from bench_hat_1kbp import analyse_curve  # noqa: E402
 
 
@@ -54,7 +54,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", help="the run folder of run.sh (curve/, time.txt, load.log)")
     ap.add_argument("--target", type=float, default=0.03)
-    ap.add_argument("--out", default="benchmarks/results/hat_1kbp_r8.json")
+    ap.add_argument("--out", default="research/hat_curve/results/hat_1kbp_r8.json")
     ap.add_argument("--figure", default=None, help="PNG: the bracketed curve, both directions and Marko's line")
     a = ap.parse_args(argv)
     root = Path(a.root)
@@ -100,7 +100,7 @@ def main(argv=None):
 def figure(points, path, target):
     """The bracketed points (midpoint, error covering the gap), the outward and inward members and Marko's
     two-phase line with the model's parameters; below, the relative error and half-gap against the target."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "hat_r6"))
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "r6"))
     from compare import marko_figure
 
     fig, ax, _ = marko_figure()

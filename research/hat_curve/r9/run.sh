@@ -3,7 +3,7 @@
 # where the chain is straight or deep in the plateau, 0.4 across the two buckling transitions, where a first try
 # with 0.8 everywhere accepted no swap), two dask actors on the command's 2-worker LocalCluster, default non-bonded
 # terms (calibrated charge); wall/CPU of the command from /usr/bin/time, the load average every minute.
-# Usage: benchmarks/hat_r9/run.sh [ROOT] [DNAROD]
+# Usage: research/hat_curve/r9/run.sh [ROOT] [DNAROD]
 set -u
 ROOT=${1:-runs/hat_r9}
 DNAROD=${2:-.venv/bin/dnarod}

@@ -1,28 +1,28 @@
-"""Summary of a replica-exchange hat curve (``dnarod protocol hat --start exchange``; ``benchmarks/hat_r9/run.sh``).
+"""Summary of a replica-exchange hat curve (``dnarod protocol hat --start exchange``; ``research/hat_curve/r9/run.sh``).
 
 Per rung: x/L with its block and tau-based standard errors (the larger is the point's error), the integrated
 autocorrelation time of the rung's extension series (swaps included), the production's quarters, how many replicas
 visited the rung, the acceptance of its two exchange pairs, and the round-8 bracketed point at the same turns
-(``benchmarks/results/hat_1kbp_r8.json``) with the difference in combined errors; the ladder's round trips; the
+(``research/hat_curve/results/hat_1kbp_r8.json``) with the difference in combined errors; the ladder's round trips; the
 command's wall and CPU time from ``/usr/bin/time -v`` and the load average during the run. Prints a table, writes
 JSON and, with ``--figure``, the curve beside round 8's and Marko's line.
 
-    python benchmarks/hat_r9/summary.py runs/hat_r9 --out benchmarks/results/hat_1kbp_r9.json \
-        --figure docs/figures/hat_1kbp_1pN_exchange.png
+    python research/hat_curve/r9/summary.py runs/hat_r9 --out research/hat_curve/results/hat_1kbp_r9.json \
+        --figure research/hat_curve/figures/hat_1kbp_1pN_exchange.png
 
-Other runs' points (a results JSON of this script or of ``hat_r8/summary.py``) are compared with
-``--compare LABEL=PATH`` (repeatable; default ``r8=benchmarks/results/hat_1kbp_r8.json``): each point then carries
+Other runs' points (a results JSON of this script or of ``r8/summary.py``) are compared with
+``--compare LABEL=PATH`` (repeatable; default ``r8=research/hat_curve/results/hat_1kbp_r8.json``): each point then carries
 ``LABEL_x_over_L``, ``LABEL_err`` and ``z_vs_LABEL``. Round 10:
 
-    python benchmarks/hat_r9/summary.py runs/hat_r10 --out benchmarks/results/hat_1kbp_r10.json \
-        --compare r8=benchmarks/results/hat_1kbp_r8.json --compare r9=benchmarks/results/hat_1kbp_r9.json \
-        --title "exchange, round 10" --figure docs/figures/hat_1kbp_1pN_exchange_r10.png
+    python research/hat_curve/r9/summary.py runs/hat_r10 --out research/hat_curve/results/hat_1kbp_r10.json \
+        --compare r8=research/hat_curve/results/hat_1kbp_r8.json --compare r9=research/hat_curve/results/hat_1kbp_r9.json \
+        --title "exchange, round 10" --figure research/hat_curve/figures/hat_1kbp_1pN_exchange_r10.png
 
-Round 11 (``benchmarks/hat_r11/run.sh``):
+Round 11 (``research/hat_curve/r11/run.sh``):
 
-    python benchmarks/hat_r9/summary.py runs/hat_r11 --out benchmarks/results/hat_1kbp_r11.json \
-        --compare r8=benchmarks/results/hat_1kbp_r8.json --compare r10=benchmarks/results/hat_1kbp_r10.json \
-        --title "exchange, round 11" --figure docs/figures/hat_1kbp_1pN_exchange_r11.png
+    python research/hat_curve/r9/summary.py runs/hat_r11 --out research/hat_curve/results/hat_1kbp_r11.json \
+        --compare r8=research/hat_curve/results/hat_1kbp_r8.json --compare r10=research/hat_curve/results/hat_1kbp_r10.json \
+        --title "exchange, round 11" --figure research/hat_curve/figures/hat_1kbp_1pN_exchange_r11.png
 """
 from __future__ import annotations
 
@@ -35,19 +35,19 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parent))
-sys.path.insert(0, str(HERE.parent / "hat_r8"))
+sys.path.insert(0, str(HERE.parents[2] / "benchmarks"))  # bench_hat_1kbp
+sys.path.insert(0, str(HERE.parent / "r8"))
 from bench_hat_1kbp import analyse_curve  # noqa: E402
-from summary import run_costs  # noqa: E402  (hat_r8's /usr/bin/time -v and load.log reader)
+from summary import run_costs  # noqa: E402  (r8's /usr/bin/time -v and load.log reader)
 
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("root", help="the run folder of run.sh (curve/, time.txt, load.log)")
     ap.add_argument("--target", type=float, default=0.03)
-    ap.add_argument("--out", default="benchmarks/results/hat_1kbp_r9.json")
+    ap.add_argument("--out", default="research/hat_curve/results/hat_1kbp_r9.json")
     ap.add_argument("--compare", action="append", default=None, metavar="LABEL=PATH",
-                    help="another run's results JSON (default r8=benchmarks/results/hat_1kbp_r8.json)")
+                    help="another run's results JSON (default r8=research/hat_curve/results/hat_1kbp_r8.json)")
     ap.add_argument("--title", default="--start exchange", help="the figure's title after the system")
     ap.add_argument("--figure", default=None)
     a = ap.parse_args(argv)
@@ -56,7 +56,7 @@ def main(argv=None):
     ladder = json.loads(next((root / "curve" / "ladders").glob("*/exchange.json")).read_text())
     ladder.pop("key", None)
     others = {}
-    for spec in a.compare or ["r8=benchmarks/results/hat_1kbp_r8.json"]:
+    for spec in a.compare or ["r8=research/hat_curve/results/hat_1kbp_r8.json"]:
         label, _, path = spec.partition("=")
         if not label or not Path(path).is_file():
             ap.error(f"--compare {spec}: give LABEL=PATH of an existing results JSON")
@@ -119,7 +119,7 @@ LEGEND = {"r8": "round 8: bracketed point (error covers the out/in gap)",
 def figure(points, path, target, labels=("r8",), title="--start exchange"):
     """The exchange curve beside the compared runs' points and Marko's two-phase line; below, error / x and
     each pair's acceptance."""
-    sys.path.insert(0, str(HERE.parent / "hat_r6"))
+    sys.path.insert(0, str(HERE.parent / "r6"))
     from compare import marko_figure
 
     fig, ax, _ = marko_figure()
