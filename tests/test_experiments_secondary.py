@@ -1,5 +1,5 @@
-"""Values read in round 6 (data/experimental/): the worm-like-chain fit to cyclization j-factors (figure caption on
-the PubMed page of PMID 15778443) and the secondary ranges of measured elastic constants in PNAS 114:7049 (2017)
+"""Values read from secondary sources (data/experimental/): the worm-like-chain fit to cyclization j-factors
+(figure caption on the PubMed page of PMID 15778443) and the secondary ranges of measured elastic constants in PNAS 114:7049 (2017)
 Table 1. The loader returns exactly the numbers read (in MD units), and check ``experiment`` reports the model beside
 them (no gating: the sources state no uncertainty)."""
 import pytest
@@ -67,7 +67,7 @@ def test_reported_comparisons_use_the_numbers_read_and_follow_the_model():
     assert [r["inside"] for r in compare_elastic_ranges(1500.0, 98.25, -90.0, 300.0)][:2] == [True, False]
 
 
-def test_experiment_check_reports_the_round6_values(tmp_path):
+def test_experiment_check_reports_the_secondary_values(tmp_path):
     from dnarod.validate.experiment import check_experiment
 
     r = check_experiment(tmp_path, plots=False, d_override=5.0)  # the calibrated diameter (computing it is slow)

@@ -1,6 +1,6 @@
-"""Misuse classes left open by round 6, each fixed in the API that has the concept: a report folder replaced
-without --overwrite, output written into any non-empty folder, protocol and report folders without the lock of
-run folders, the protocol settings check only on the command line, the protocols' clamp stiffness unbounded,
+"""Misuse classes of output folders, locks and bounds, each fixed in the API that has the concept: a report
+folder replaced without --overwrite, output written into any non-empty folder, protocol and report folders without
+the lock of run folders, the protocol settings check only on the command line, the protocols' clamp stiffness unbounded,
 ``simulate`` without ``--charge``/``--cutoff-debye``, and lock files left behind. Refusals use the shared
 ``assert_refused`` (one stderr line, exit status 2, nothing on stdout, no file changed)."""
 import json
