@@ -13,7 +13,8 @@ x/L). Prints a table and writes ``benchmarks/results/hat_1kbp.json``.
 ``--curve DIR`` analyses a finished ``dnarod protocol hat ... -o DIR`` instead (every member): cost, the
 integrated autocorrelation times of extension and writhe, the standard error of the extension (block and
 tau-based) relative to its value, the production in quarters (drift) and the curve's span and total CPU time;
-writes ``benchmarks/results/hat_1kbp_curve.json``.
+writes ``benchmarks/results/hat_1kbp_curve.json`` (the hat-curve study's recorded runs are in
+``research/hat_curve/results/``).
 
     python benchmarks/bench_hat_1kbp.py --curve runs/hat_1kbp_1pN
 

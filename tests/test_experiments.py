@@ -61,7 +61,7 @@ def test_torsional_values_in_md_units():
 
 
 def test_missing_quantities_return_nothing_rather_than_a_remembered_number():
-    assert [m.value for m in ex.supercoiling_free_energy_reference()] == [1150.0]  # Horowitz & Wang 1984 (round 6)
+    assert [m.value for m in ex.supercoiling_free_energy_reference()] == [1150.0]  # Horowitz & Wang 1984
     assert ex.effective_diameter_reference() == []
     assert set(ex.MISSING) >= {"buckling_torque", "writhe_fraction", "supercoiling_free_energy", "effective_diameter"}
     (w,) = ex.writhe_variance_reference()
@@ -70,7 +70,7 @@ def test_missing_quantities_return_nothing_rather_than_a_remembered_number():
     assert b.quantity == "initial_loop_to_per_turn_extension_ratio" and b.value == 2.0
 
 
-def test_round4_values_read_from_the_tables():
+def test_supercoiling_values_read_from_the_tables():
     # Witz & Stasiak 2010 (review, quoting its refs): "Usually ~70% of the dLk are compensated by the acquired writhe"
     (w,) = ex.writhe_fraction_reference()
     assert (w.value, w.unit, w.uncertainty, w.salt_M, w.approximate) == (0.7, "1", None, None, True)
@@ -87,7 +87,7 @@ def test_round4_values_read_from_the_tables():
     (oa,) = ex.plectoneme_geometry_reference("opening_angle")  # "close to 58 degrees", returned in rad
     assert oa.value == pytest.approx(np.radians(58.0), rel=1e-12) and (oa.unit, oa.approximate) == ("rad", True)
     # Rybenkov, Vologodskii & Cozzarelli 1997: "changed >1.5-fold" with ionic conditions (a bound, not K)
-    r = ex.supercoiling_free_energy_ionic_variation()[0]  # the Shurdov & Gruzdev 1989 row follows (round 6)
+    r = ex.supercoiling_free_energy_ionic_variation()[0]  # the Shurdov & Gruzdev 1989 row follows
     assert r.value == 1.5 and r.unit == "1" and "Rybenkov" in r.source
 
 

@@ -123,7 +123,7 @@ def test_detector_distances_follow_the_effective_diameter():
 def test_detector_reads_a_superhelix_of_the_calibrated_charge(separation):
     """Ideal plectonemes (two interwound helices and an end loop, 450 nodes) whose strands sit ``separation``
     effective diameters apart, from just above the model's (strand separation peaking at 1.0-1.2 d_eff, its 25 %
-    quantile up to 1.7 d_eff; benchmarks/detector_r7) to wider: all but the end loop is read with the
+    quantile up to 1.7 d_eff; research/plectoneme_detector) to wider: all but the end loop is read with the
     calibrated charge's distances (the default); the earlier fixed 6 nm reads nothing; the same shape scaled to
     Manning's d_eff reads as it did with 6 nm."""
     ds, n = 0.34, 450

@@ -298,7 +298,7 @@ def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatc
 
     These members decide the comparison's logic only: analysed from their equilibration start (Chodera's rule on
     the extension) the 4.28-turn member still drifts (6 ns is far too short), so the check as a whole fails on
-    them; the round-7 members below pass it.
+    them; the calibrated-charge members below pass it.
     """
     from dnarod.validate.buckling import check_buckling
 
@@ -432,10 +432,10 @@ def test_nicked_ring_check_quick_form(tmp_path):
     assert not bad["passed"]
 
 
-def test_buckling_full_check_passes_on_the_round7_members(tmp_path, monkeypatch):
-    """The full form as run in round 7 (calibrated charge, 600 bp at 1 pN, 300-ns straight and "above" twins at
-    2.57 and 3.59 turns, a 400/800-bp ring pair; benchmarks/buckling_r7): recorded members, reused (nothing is
-    simulated). The check passes; it fails with C halved, and the plain two-phase plateau (without the
+def test_buckling_full_check_passes_on_recorded_calibrated_members(tmp_path, monkeypatch):
+    """The full form with the calibrated charge and the check's defaults (600 bp at 1 pN, 300-ns straight and
+    "above" twins at 2.57 and 3.59 turns, a 400/800-bp ring pair; research/buckling/r7): recorded members, reused
+    (nothing is simulated). The check passes; it fails with C halved, and the plain two-phase plateau (without the
     single-plectoneme position entropy) misses by 1.36 pN nm against a tolerance of 1.09."""
     import dnarod.workflows.protocols.rings as rings
     import dnarod.workflows.protocols.tweezers as tweezers
@@ -446,7 +446,7 @@ def test_buckling_full_check_passes_on_the_round7_members(tmp_path, monkeypatch)
 
     monkeypatch.setattr(tweezers, "sample_member", refuse)
     monkeypatch.setattr(rings, "sample_ring", refuse)
-    root = _recorded(tmp_path, "buckling_r7")
+    root = _recorded(tmp_path, "buckling_calibrated")
     opts = dict(plots=False, member_root=root, ring_seed=7, platform="CPU")  # recorded on the CPU platform
     good = check_buckling(tmp_path, **opts)
     assert good["passed"] and good["drift"]["settled"] and good["ring_pair_premise"]["passed"], good["gates"]

@@ -2,7 +2,7 @@
 and for closed (circular) chains the linking number, twist and writhe.
 
 Tangent correlation ``C(n) = <d3(k) . d3(k+n)>`` is averaged over frames and positions k;
-for an open chain in equilibrium it is exactly ``(<R>^n)_33`` (design A5 iii) and for an
+for an open chain in equilibrium it is exactly ``(<R>^n)_33`` (docs/formulation.md §8) and for an
 axisymmetric step ``c^n``, so the discrete persistence length is ``l_p = -ds / ln c``; it is
 fitted as ``ln C(n) = -n ds / l_p`` by least squares through the origin. Error bars are
 block averages over frames (``n_blocks`` contiguous blocks).
@@ -94,7 +94,7 @@ class TangentCorrelation(AnalysisBase):
         nm (fit), block standard error.
     persistence_length_one_step, persistence_length_one_step_err : float
         ``-ds / ln C(1)``, nm, and its block standard error. This lag-1 estimate is exact for a
-        uniform chain (design A5 iii) and converges with the fast local modes; the long-lag fit
+        uniform chain (docs/formulation.md §8) and converges with the fast local modes; the long-lag fit
         needs runs much longer than the slowest bending relaxation time
         (:func:`bending_relaxation_time`).
     n_fit : int

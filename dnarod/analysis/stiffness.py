@@ -1,7 +1,7 @@
 """Per-step-type strain statistics and stiffness estimates (all-atom MD in, rod parameters out).
 
 The configuration measure of the rod is Haar on SE(3) per node, so in Cayley strains the
-equilibrium density of a step is (design A5 iii)::
+equilibrium density of a step is (docs/formulation.md §8)::
 
     p(xi) ~ exp(-ds H(xi) / kT) (1 + ds^2 |Omega|^2 / 4)^-2,     xi = (Omega, Gamma)
 

@@ -6,7 +6,7 @@ parameters ``p = f(xi)`` are (shift, slide, rise, tilt, roll, twist). Literature
 given in 3DNA coordinates (energy ``1/2 dp^T F dp`` in kT per step, p in Angstrom and
 degrees) become Cayley stiffnesses through the Jacobian ``J = df/dxi`` at the mean step::
 
-    K = kT J^T F J / ds        (kJ/mol units per unit length, design Part C item 6)
+    K = kT J^T F J / ds        (kJ/mol units per unit length, docs/formulation.md §2)
 
 and the intrinsic strains are the exact preimage ``xi0 = f^-1(p0)``, not a linearisation.
 """

@@ -1,4 +1,4 @@
-"""The SMK elastic energy and its exact forces and torques (design A0, A2).
+"""The SMK elastic energy and its exact forces and torques (docs/formulation.md §3-4).
 
 ``E = sum_k ds H(Omega_k, Gamma_k)`` with ``H = 1/2 dOm^T A dOm + 1/2 dGa^T C dGa + dOm^T B dGa``.
 Stresses ``M = dH/dOmega = A dOm + B dGa`` and ``P = dH/dGamma = B^T dOm + C dGa``.
@@ -85,7 +85,7 @@ def _check_counts(Omega, params):
 
 
 def loads(positions, frames, params, ds, closure=None):
-    """Energy, forces and torques on every node (design A2), vectorised over steps.
+    """Energy, forces and torques on every node (docs/formulation.md §4), vectorised over steps.
 
     Parameters
     ----------
@@ -131,7 +131,7 @@ def loads(positions, frames, params, ds, closure=None):
     else:
         F[1:] -= n_lab[:-1]
         tau[1:] -= mu_lab[:-1]
-        # Image node N = S g_0: its loads act on node 0 through Q^T (design A2).
+        # Image node N = S g_0: its loads act on node 0 through Q^T (docs/formulation.md §4).
         QT = closure.Q.T
         F[0] -= QT @ n_lab[-1]
         tau[0] -= QT @ mu_lab[-1]

@@ -1,4 +1,4 @@
-"""Numba kernels of the core maths: the exact loads of one step (design A2) and of a chain.
+"""Numba kernels of the core maths: the exact loads of one step (docs/formulation.md §4) and of a chain.
 
 One compiled home for the A2 loads, shared by both engines' fast paths (the Lax-form splitting
 kernels in :mod:`dnarod.engines.lax.fast` and the OpenMM ``PythonForce`` in
@@ -124,7 +124,7 @@ def step_loads(pos, frm, K, xi0, ds, k, j_is_image, j, Q, tvec, out):
 
 @njit(cache=True)
 def chain_loads(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
-    """Energy and lab loads of every node (design A2), accumulated into ``F`` and ``tau``.
+    """Energy and lab loads of every node (docs/formulation.md §4), accumulated into ``F`` and ``tau``.
 
     Parameters
     ----------

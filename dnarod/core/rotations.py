@@ -1,6 +1,6 @@
 """Rotation kernels: hat/axial maps, the Cayley map and its inverse, frame checks.
 
-This is the one home of the Cayley chart used by the strain map (design A1). All kernels
+This is the one home of the Cayley chart used by the strain map (docs/formulation.md §2). All kernels
 are vectorised over leading axes: a vector argument has shape ``(..., 3)`` and a matrix
 argument ``(..., 3, 3)``. Angles are in radians.
 
@@ -115,7 +115,7 @@ def cayley_T(w):
     """Inverse right-trivialised derivative of the Cayley map, ``T(w) = I - hat(w)/2 + w w^T/4``.
 
     With ``R = cayley(w)``, a body-frame virtual rotation ``dTheta`` of the second frame changes
-    ``w`` by ``T(w)^T dTheta``; ``T^T = R T`` (design A2).
+    ``w`` by ``T(w)^T dTheta``; ``T^T = R T`` (docs/formulation.md §4).
 
     Parameters
     ----------

@@ -1,4 +1,4 @@
-"""The strain map of the discrete rod (design A1): the one place strains are computed.
+"""The strain map of the discrete rod (docs/formulation.md §2): the one place strains are computed.
 
 Step k joins nodes k and k+1. With ``R_k = L_k^T L_{k+1}`` and ``e_k = r_{k+1} - r_k``::
 
@@ -99,7 +99,7 @@ def step_geometry(positions, frames, closure=None):
 
 
 def strains(positions, frames, ds, closure=None):
-    """Exact strains of every step (design A1).
+    """Exact strains of every step (docs/formulation.md §2).
 
     Parameters
     ----------
@@ -134,7 +134,7 @@ def strains(positions, frames, ds, closure=None):
 
 
 def strains_dot_form(positions, frames, ds):
-    """Strains of an open chain from dot products of directors (design A1, the OpenMM expression form).
+    """Strains of an open chain from dot products of directors (docs/formulation.md §2, the OpenMM expression form).
 
     A literal transcription of the dot-product formulas, kept as the slow reference the
     OpenMM energy expression and :func:`strains` are tested against.

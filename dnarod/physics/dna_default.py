@@ -5,9 +5,9 @@ re-derives them. Targets (sources in ``data/physical/dna_elasticity_reference_va
 
 * helical repeat 10.5 bp/turn and rise 0.34 nm per bp;
 * bending persistence length 50 nm **as measured in the discrete model**: ``-ds/ln<R33>``
-  with the exact Haar-weighted step density (design A5 iii), solved for A1;
+  with the exact Haar-weighted step density (docs/formulation.md §8), solved for A1;
 * torsional persistence length 100 nm: effective twist modulus ``A3 sec^4(theta0/2)`` =
-  100 nm kT (the Cayley chart's Jacobian at the intrinsic twist, design A1);
+  100 nm kT (the Cayley chart's Jacobian at the intrinsic twist, docs/formulation.md §2);
 * twist-stretch coupling g = -90 pN nm in angle coordinates: ``B33 = g cos^2(theta0/2)``;
 * stretch modulus 1100 pN with twist free: ``C3 - B33^2/A3 = 1100 pN``;
 * shear stiffness from Olson et al. (1998) PNAS 95:11163: the mean over the 16 step types

@@ -39,11 +39,11 @@ MISSING = {
                        "ring_writhe_fraction.csv)",
     "supercoiling_free_energy": "Depew & Wang's (1975) own value of the coefficient K of dG = (K R T / N) dLk^2 and "
                                 "an uncertainty and ionic conditions for K (Horowitz & Wang 1984's abstract gives "
-                                "N K 'nearly a constant around 1150 RT x bp' above 2000 bp without them, "
+                                "N K 'nearly a constant', about 1150 RT x bp, above 2000 bp without them, "
                                 "supercoiling.csv; Rybenkov et al. 1997 and Shurdov & Gruzdev 1989 give only lower "
                                 "bounds on its change with salt)",
     "effective_diameter": "the measured (knotting) effective diameters of Rybenkov, Cozzarelli & Vologodskii (1993) "
-                          "and Shaw & Wang (1993) and Stigter's (1977) values vs salt (searched again in round 5; "
+                          "and Shaw & Wang (1993) and Stigter's (1977) values vs salt (searched again; "
                           "only the computed Poisson-Boltzmann second-virial diameter of Gebe et al. 1995, 5 nm at "
                           "150 mM, could be read: the model's charge is calibrated to it, so no salt dependence "
                           "is checked)",
@@ -337,7 +337,7 @@ def writhe_variance_reference():
 def supercoiling_free_energy_reference():
     """The coefficient K of ``dG = (K RT / N) dLk^2`` of long rings (``supercoiling.csv`` rows
     ``supercoiling_free_energy_K``; dimensionless, unit ``"1"``, i.e. ``N K`` of ``dG = K dLk^2`` in RT bp): Horowitz
-    & Wang (1984, abstract): for rings longer than 2000 bp "the product NK is nearly a constant around 1150 RT x bp"
+    & Wang (1984, abstract): for rings longer than 2000 bp "the product NK is nearly a constant", about 1150 RT x bp
     (``approximate``; no uncertainty, ionic conditions or temperature stated). Depew & Wang's (1975) own value could
     not be read (:data:`MISSING`)."""
     out = []

@@ -50,7 +50,7 @@ from dnarod.core.rotations import rotation_about_axis
 __all__ = ["hessian", "hessian_blocks", "omega_max", "normal_modes", "mass_matrix", "default_time_step",
            "DEFAULT_OMEGA_DT", "HessianBlocks"]
 
-#: Default time step of both engines: omega_max * dt (design A4: <= 0.25-0.5 for accuracy; the
+#: Default time step of both engines: omega_max * dt (docs/formulation.md §7; <= 0.25-0.5 for accuracy, the
 #: leapfrog/velocity-Verlet stability limit is 2).
 DEFAULT_OMEGA_DT = 0.4
 #: Largest accepted omega_max * dt (90% of the leapfrog limit 2); the default is dnarod.physics.modes.DEFAULT_OMEGA_DT.
@@ -151,7 +151,7 @@ def _rotate_lab(frm, P, node, b, phi):
 
 @njit(cache=True)
 def _step_hessians(pos, frm, K, xi0, ds, Q, t, circular, h_t, h_r, Hd, Ho):
-    """Lab-chart Hessian blocks from central differences of each step's loads (design A2 kernel).
+    """Lab-chart Hessian blocks from central differences of each step's loads (docs/formulation.md §4).
 
     Hd (n, 6, 6) += H[k, k]; Ho (n, 6, 6) += H[k, k+1] (symmetrised, ring closure included).
     Returns -1 or the first step at/beyond the Cayley limit.

@@ -47,7 +47,7 @@ electrostatics, one interaction site per node (its centre).
   solutions with applications to the electrostatic properties of polynucleotides", Q. Rev. Biophys.
   11:179-246, 1978, read 2026-12 at slideorbit.com; the paper itself was not read) and Manning parameter
   ``xi = l_B / b > 1`` a fraction ``1 - 1/xi`` of the counter-ions condenses (checked against secondary
-  sources in round 3), leaving ``2/xi = ds / l_B`` e per bp. Its effective diameter is 2.31 nm at 0.15 M with a
+  sources), leaving ``2/xi = ds / l_B`` e per bp. Its effective diameter is 2.31 nm at 0.15 M with a
   5 Debye-length cutoff (2.52 nm with 12): less than half the Poisson-Boltzmann value. Manning's charge is what
   remains after condensation, not the amplitude of the screened far field of a 2-nm-thick cylinder, which is
   what sets the excluded volume of crossing segments.

@@ -1,4 +1,4 @@
-"""Exact independent samples of the free open chain in thermal equilibrium (design A5 iii).
+"""Exact independent samples of the free open chain in thermal equilibrium (docs/formulation.md §8).
 
 Steps are i.i.d. with density ``exp(-ds H/kT) (1 + ds^2 |Omega|^2 / 4)^-2`` in Cayley strains.
 The Haar factor is at most 1, so rejection sampling from the Gaussian

@@ -1,4 +1,4 @@
-"""Test systems with analytic answers (in the spirit of openmmtools.testsystems), design A5.
+"""Test systems with analytic answers (in the spirit of openmmtools.testsystems), docs/formulation.md §8.
 
 * :class:`UniformHelix` (A5 i): a rod with constant intrinsic strains is a screw orbit; its
   nodes and frames have a closed form, its strains are the intrinsic ones and its loads vanish.
@@ -26,7 +26,7 @@ from dnarod.core.strains import Closure, chain_from_strains
 
 @dataclass
 class UniformHelix:
-    """A uniform rod at its intrinsic shape: a discrete helix with a closed form (design A5 i).
+    """A uniform rod at its intrinsic shape: a discrete helix with a closed form (docs/formulation.md §8).
 
     Parameters
     ----------
@@ -106,7 +106,7 @@ class UniformHelix:
 
 @dataclass
 class TwistedRod:
-    """Periodic uniform isotropic twisted straight rod with its exact dispersion relation (design A5 ii).
+    """Periodic uniform isotropic twisted straight rod with its exact dispersion relation (docs/formulation.md §8).
 
     Parameters
     ----------
@@ -243,7 +243,8 @@ class TwistedRod:
 
 
 def thermal_tangent_correlation(params, ds, temperature, n_max):
-    """Exact ``<d3(k) . d3(k+n)>``, n = 0..n_max, of the free open chain at ``temperature`` (K) (design A5 iii)."""
+    """Exact ``<d3(k) . d3(k+n)>``, n = 0..n_max, of the free open chain at ``temperature`` (K)
+    (docs/formulation.md §8)."""
     from dnarod.physics.thermal import tangent_correlation
     from dnarod.core.units import kT
 
@@ -251,7 +252,7 @@ def thermal_tangent_correlation(params, ds, temperature, n_max):
 
 
 def dna_like_rod(n_nodes=20, seed=0, twist_deg=33.75, bend_noise=0.08, B33=-54.0):
-    """The free open DNA-like rod of design A4 a (reference system of the integrator tests).
+    """The free open DNA-like rod (reference system of the integrator tests).
 
     Twist ``twist_deg`` per step, intrinsic bends drawn uniformly in +-``bend_noise`` 1/nm, the
     dna-default stiffness with twist-stretch coupling ``B33`` (kJ/mol), node mass 650 amu and

@@ -1,4 +1,4 @@
-"""Exact thermal equilibrium of the free open chain (design A5 iii).
+"""Exact thermal equilibrium of the free open chain (docs/formulation.md §8).
 
 The configuration measure is Haar on SE(3)^N, so steps are independent with density
 ``p(Omega, Gamma) ~ exp(-ds H / kT) (1 + ds^2 |Omega|^2 / 4)^-2``. Integrating Gamma out
@@ -107,7 +107,7 @@ def tangent_correlation(params: StepParameters, ds, kt, n_max, order=24):
 
 def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
     """Exact ``<d3(k) . d3(k+n)>`` of a free open chain in equilibrium, averaged over the start node k
-    exactly as :class:`~dnarod.analysis.polymer.TangentCorrelation` averages (design A5 iii:
+    exactly as :class:`~dnarod.analysis.polymer.TangentCorrelation` averages (docs/formulation.md §8:
     ``<d3(k) . d3(k+n)> = (<R_k> ... <R_{k+n-1}>)_33``).
 
     Parameters
@@ -140,7 +140,7 @@ def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
 
 
 def persistence_length(params: StepParameters, ds, kt, order=24):
-    """Bending persistence length of the discrete model, nm: ``-ds / ln c`` (design A5 iii).
+    """Bending persistence length of the discrete model, nm: ``-ds / ln c`` (docs/formulation.md §8).
 
     For a uniform axisymmetric step ``c = <R_33>`` and this is exact. For a sequence the
     tangent correlation is averaged per step over one period of the parameter list:
@@ -158,13 +158,13 @@ def persistence_length(params: StepParameters, ds, kt, order=24):
 
 
 def reweighted_covariance_expected(params: StepParameters, ds, kt):
-    """The exact identity ``<dxi dxi^T W>/<W> = kT (ds K)^-1`` (design A5 iii); shape (n_steps, 6, 6)."""
+    """The exact identity ``<dxi dxi^T W>/<W> = kT (ds K)^-1`` (docs/formulation.md §8); shape (n_steps, 6, 6)."""
     return kt * np.linalg.inv(ds * params.stiffness)
 
 
 # --- exact equilibrium sampling of the free open chain --------------------------------------------------------------
 def sample_step_strains(stiffness, intrinsic, ds, kt, n, rng):
-    """``n`` exact equilibrium samples of one step's strains (design A5 iii).
+    """``n`` exact equilibrium samples of one step's strains (docs/formulation.md §8).
 
     The step density is ``exp(-ds H/kT) (1 + ds^2 |Omega|^2/4)^-2``. The Haar factor is at most 1,
     so drawing from the Gaussian ``N(xi0, kT (ds K)^-1)`` and accepting with probability
@@ -203,7 +203,7 @@ def sample_step_strains(stiffness, intrinsic, ds, kt, n, rng):
 def sample_open_chain_strains(params: StepParameters, ds, kt, rng, n_chains=1):
     """Exact equilibrium strains of ``n_chains`` free open chains, shape (n_chains, n_steps, 6).
 
-    Steps are independent (design A5 iii); steps sharing ``(K, xi0)`` are drawn together.
+    Steps are independent (docs/formulation.md §8); steps sharing ``(K, xi0)`` are drawn together.
     """
     m = params.n_steps
     xi = np.empty((n_chains, m, 6))
@@ -267,7 +267,7 @@ def relaxed_ribbon_twist(model, temperature, n_samples=400, seed=0):
 
 
 def equilibrium_sample(model, temperature, seed=None, align=None):
-    """A pose drawn exactly from the free open chain's thermal equilibrium (design A5 iii).
+    """A pose drawn exactly from the free open chain's thermal equilibrium (docs/formulation.md §8).
 
     Used as ``start="equilibrium"`` of a run: an independent sample of the configuration
     measure ``exp(-E/kT)`` on SE(3)^N of the force-free chain, so no equilibration of the

@@ -133,7 +133,7 @@ def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, see
 def simulate_nve(model, dt, n_steps, state=None, temperature=None, seed=None, boundary=None, out=None,
                  report_interval=100, energy_csv=None, checkpoint=None, checkpoint_interval=None, resume=False,
                  fast=True, allow_unstable=False, check_stability=True, metadata=None, progress=False):
-    """Constant-energy run with the symplectic splitting (design A4 b).
+    """Constant-energy run with the symplectic splitting (docs/formulation.md §7).
 
     Parameters
     ----------
@@ -197,7 +197,7 @@ def simulate_langevin(model, dt, n_steps, temperature, friction=1.0, seed=None, 
 
 def simulate_exact(model, t_end, velocities=None, angular_velocities=None, temperature=None, seed=None,
                    boundary=None, rtol=1e-10, atol=1e-10, n_frames=101, out=None, energy_csv=None):
-    """Reference run of the exact strain-space system with DOP853 (design A3, A4 a).
+    """Reference run of the exact strain-space system with DOP853 (docs/formulation.md §6-7).
 
     Initial velocities: given, or Maxwell at ``temperature`` (K), or at rest. Writes the same
     ``.dtraj`` and energies CSV as the splitting runs. Returns :class:`.exact.ExactResult`.

@@ -21,7 +21,7 @@ ELASTIC = ("auto", "plugin", "fast", "portable")
 MAX_SALT = 6.0
 #: Highest accepted temperature, K: the model's solvent (its Langevin friction, the dielectric constant 78.5 of the
 #: Debye-Hueckel screening) is liquid water, which boils at 373.15 K (100 degC) at 1 atm; far above it the runs blow
-#: up (a member at 1e9 K failed at its first step, the misuse probe of round 7), so more is a typo.
+#: up (a member at 1e9 K failed at its first step), so more is a typo.
 MAX_TEMPERATURE = 373.15
 
 

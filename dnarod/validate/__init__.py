@@ -3,7 +3,7 @@
 Checks (by name; each module states its system, reference and tolerances):
 
 * ``engines`` -- OpenMM and the Lax-form integrator agree in NVE, converging as dt^2 (:mod:`.engines`);
-* ``thermal`` -- Langevin runs of both engines reproduce the exact equilibrium of design A5 iii
+* ``thermal`` -- Langevin runs of both engines reproduce the exact equilibrium of docs/formulation.md §8
   (:mod:`.thermal_equilibrium`);
 * ``dispersion`` -- OpenMM normal modes equal the exact dispersion relation (:mod:`.dispersion`);
 * ``helix`` -- the intrinsic helix is a zero-force state in both engines (:mod:`.helix`);

@@ -1,4 +1,5 @@
-"""Check ``dispersion``: normal modes of the OpenMM engine equal the exact dispersion relation (design A5 ii).
+"""Check ``dispersion``: normal modes of the OpenMM engine equal the exact dispersion relation
+(docs/formulation.md §8).
 
 System: the periodic (screw-closed) twisted straight rod of the ``dna-default`` force field
 (:meth:`dnarod.physics.testsystems.TwistedRod.from_forcefield`; isotropic, with its twist-stretch

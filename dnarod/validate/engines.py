@@ -3,7 +3,7 @@
 From one initial state (the Dickerson dodecamer 355D built from the bundled PDB with the
 ``dna-default`` force field, Maxwell velocities at 300 K with drift removed), the check runs
 
-* the **Lax-form reference**: the exact strain-space system of design A3
+* the **Lax-form reference**: the exact strain-space system of docs/formulation.md §6
   (:func:`dnarod.engines.lax.integrate_exact`, DOP853, rtol = atol = 1e-12), whose time error is
   negligible here;
 * the **OpenMM engine** (:class:`dnarod.engines.openmm.simulation.RodSimulation`, ``VerletIntegrator``,

@@ -25,7 +25,7 @@ ALLOWANCE``. The measured force-extension points themselves could not be read (`
 Convergence: the slow modes of a 340 nm chain at 0.1 pN have periods of tens of ns, longer than
 affordable runs, so every force is run from **two starts** on opposite sides of the answer: the
 straight intrinsic shape (too extended) and a coil drawn from the exact force-free equilibrium
-(i.i.d. steps with the density of design A5 iii, rejection-sampled), rotated so that its
+(i.i.d. steps with the density of docs/formulation.md §8, rejection-sampled), rotated so that its
 end-to-end vector lies along the force (too short at high forces). A force point passes only if
 the two runs agree within ``Z_TOL`` combined standard errors (equilibrated) **and** their mean
 agrees with the WLC.

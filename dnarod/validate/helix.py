@@ -1,4 +1,4 @@
-"""Check ``helix``: the intrinsic helix is a zero-force state in both engines (design A5 i).
+"""Check ``helix``: the intrinsic helix is a zero-force state in both engines (docs/formulation.md §8).
 
 Two intrinsic shapes: the analytic uniform helix (:class:`dnarod.physics.testsystems.UniformHelix`, a
 strongly bent and sheared screw orbit whose closed form is also compared) and the

@@ -9,30 +9,28 @@ steps' Cayley twist angles and ``Wr* = Lk - Tw`` (:func:`dnarod.workflows.protoc
 * ``Wr*`` part, **model**: the variance of ``Wr*`` of the model's ring free to writhe, sampled with OpenMM
   (excluded volume and Debye-Hueckel at the chosen salt) by :func:`dnarod.workflows.protocols.nicked.run_nicked_member`
   (soft twist, exactly reweighted), with a block-jackknife error. ``Wr*`` needs no smoothing and carries no
-  shear wiggles; it is close to the writhe of the curve the frames' tangents d3 trace (200 bp: that curve's
-  ⟨Wr²⟩ on the model's harmonic ring is 0.00171 ± 0.00007, the MD's Var(Wr*) 0.00194 ± 0.00006; the harmonic
-  ring leaves out the anharmonic part).
+  shear wiggles; it is close to the writhe of the curve the frames' tangents d3 trace.
 * Reference: the Vologodskii-type Monte Carlo of a worm-like ring (:mod:`dnarod.validate.wlc_ring_mc`) with the
   model's persistence length A and its effective diameter at this salt
   (:func:`~dnarod.physics.theory.supercoil.effective_diameter`), same length, segments of ``segment_nm``
   (1.7 nm up to 300 bp, else 3.4 nm). Optionally (``harmonic_samples``) the harmonic ensemble of the model's
-  own relaxed ring (:mod:`dnarod.validate.ring_harmonic`), reported, not gating (it is the small-ring limit:
-  13 % below the MD at 200 bp).
+  own relaxed ring (:mod:`dnarod.validate.ring_harmonic`), reported, not gating (it is the small-ring limit and
+  leaves out the anharmonic part).
 
 Pass: model and reference agree within ``Z_TOL`` combined standard errors plus ``DISCRETE_ALLOWANCE`` (relative):
 the reference's own dependence on its segment length, measured at 68 nm (200 bp, 8000-16000 samples):
-0.00161 ± 0.00006, 0.00175 ± 0.00007, 0.00202 ± 0.00010 at 3.4, 1.7, 0.85 nm.
+0.00161 ± 0.00006, 0.00175 ± 0.00007, 0.00202 ± 0.00010 at 3.4, 1.7, 0.85 nm (research/supercoiling_checks/notes.md,
+"The MC's discretisation").
 
-Earlier forms compared the writhe of the axis smoothed over 10-bp blocks (:func:`dnarod.workflows.protocols.nicked.
-smoothed_axis`); that polygon of 20 vertices at 200 bp misses about half of the ring's writhe (harmonic ring,
-shear made stiff: 0.00089 with blocks of 10 nodes, 0.00154 through every node) and read 1.5-1.9x below the
-Monte Carlo. It is still reported (``model_wr2_axis``).
+Why ``Wr*`` and not the writhe of the axis smoothed over 10-bp blocks (:func:`dnarod.workflows.protocols.nicked.
+smoothed_axis`, still reported as ``model_wr2_axis``): that polygon, 20 vertices at 200 bp, misses about half of
+the ring's writhe.
 
 The free energy coefficient K is reported at the sampled size (model) and, from the exact twist part and the
 reference writhe, at ``full_n_bp`` (default 3000 bp), beside the measured Depew-Wang / Horowitz-Wang K when one
 is tabulated (:func:`dnarod.physics.experiments.supercoiling_free_energy_reference`: Horowitz & Wang's (1984)
-N K "nearly a constant around 1150 RT x bp" for rings longer than 2000 bp; ``measured_K`` is None when none is). ``a_override`` gives the reference a wrong persistence length (the
-tests show the check failing).
+N K "nearly a constant", about 1150 RT x bp, for rings longer than 2000 bp; ``measured_K`` is None when none is).
+``a_override`` gives the reference a wrong persistence length (the tests show the check failing).
 """
 from __future__ import annotations
 
@@ -99,7 +97,7 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     K_model = depew_wang_K(n_bp, lk2_model)
     # full size: exact twist + reference writhe (the model's own MD at this size is estimated in cost below)
     full = None
-    if full_n_bp:  # full size: exact twist + reference writhe (the model's own MD there: docs/protocols.md)
+    if full_n_bp:  # full size: exact twist + reference writhe (the model's own MD is out of reach at that size)
         Lf = ring.ds * full_n_bp
         full_ring = ff.ring(n_nodes=full_n_bp, delta_linking_number=0)
         tw_full = twist_variance_exact(full_ring, temperature)

@@ -1,6 +1,6 @@
 """Check ``paper_scheme``: the paper's printed (3.13) is O(ds) from the exact system and linearly unstable.
 
-Uses :mod:`dnarod.engines.lax.paper_scheme` (design A3 "Comparison with the paper's (3.13)", C4):
+Uses :mod:`dnarod.engines.lax.paper_scheme` (docs/lax.md, "s-discrete SMK (3.13)"):
 
 * **consistency**: on smooth random fields on a ring of fixed length (material constants per unit
   length fixed, ds halved three times) the relative distance between the paper's right-hand side
@@ -19,7 +19,7 @@ from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "paper_scheme"
 TOLERANCES = dict(order_min=0.8, order_max=1.25, unstable_rate_min_per_ps=1e-3, exact_rate_max_per_ps=1e-6)
-DESIGN_RATE = 4.38  # design A3: max Re lambda for "the DNA set", N = 32 (parameters of that set may differ)
+DESIGN_RATE = 4.38  # max Re lambda of (3.13) for another DNA parameter set at N = 32 (docs/lax.md); not gated
 
 
 def ring_family(n_ref=32, forcefield="dna-default"):

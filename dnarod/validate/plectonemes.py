@@ -5,9 +5,8 @@ Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0_T)`` with it
 error of Wr (the measured integrated autocorrelation time of Wr is reported). ``Tw0_T`` is the relaxed ring's mean
 twist at the run's temperature (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`), not the T = 0 sum of intrinsic
 twist angles: for 600 bp of dna-default it is 0.27 turns lower (56.885 ± 0.013 vs 57.143), i.e. ΔLk = -2.885,
-not -3.143, for Lk = 54. Using the T = 0 value understated the writhe fraction by 8 % (0.745 instead of 0.812 for
-the same 60-ns run) and fed the reference a linking difference the model does not have; this was the cause of
-the earlier failure of the full form (0.698 vs 0.798).
+not -3.143, for Lk = 54. The T = 0 value would understate the writhe fraction (by 8 % at 600 bp) and feed the
+reference a linking difference the model does not have.
 
 Full form: two 600-bp rings at ΔLk = -3, one from the planar start and one from a start that writhes more than
 the model (10 ns with the bending stiffness divided by 3, :func:`dnarod.workflows.protocols.rings.bend_softened_model`),
@@ -28,21 +27,15 @@ fraction against the "usually ~70%" read in a review (``vs_experiment``, reporte
 
 Pass: ``|f_model - f_ref| <= Z_TOL * SE``, SE the combined standard error of the model's fraction (block error of
 Wr, with the relaxed twist's error) and of the reference's (its measured autocorrelation time). No further
-allowance: the reference has the model's energy, so no diameter mapping enters, and its discretisation is below
-its statistics (soft reference on 1.7-nm segments 0.648 ± 0.008 vs 3.4-nm 0.657 ± 0.009 at 400 bp; hard core
-0.813 ± 0.006 vs 0.809 ± 0.004 at 600 bp with Manning's charge).
+allowance: the reference has the model's energy, so no diameter mapping enters, and its discretisation (halving
+its segments) moves the fraction by less than its standard error.
 
-Earlier the reference had a hard core of the effective diameter and the tolerance added
-``|f_MC(d_eff) - f_MC(d_WCA)|`` (the reference with the WCA core alone), a bound on the hard-core mapping that
-amounts to switching the electrostatics off: 0.006 with Manning's charge (2.31 vs 2.13 nm) but 0.096 with the
-calibrated charge (400 bp, ΔLk -1.923: 0.650 ± 0.007 at 5.00 nm, 0.746 ± 0.011 at 2.13 nm), inside which C halved
-passed the quick form. The mapping itself is good to ~0.015 (soft vs hard core at d_eff: 0.657 ± 0.009 vs
-0.650 ± 0.007 at 400 bp, 0.710 ± 0.003 vs 0.707 ± 0.004 at 600 bp; ``benchmarks/bench_ring_reference.py``).
+Why not the classic hard-core ring at the effective diameter as the reference: its mapping would need an allowance
+such as ``|f_MC(d_eff) - f_MC(d_WCA)|`` (the reference with the WCA core alone, i.e. the electrostatics switched
+off), about 0.1 with the calibrated charge (d_eff 5.00 vs 2.13 nm), wide enough for a reference with C halved to
+pass the quick form (measurements: research/supercoiling_checks/notes.md).
 
-Full form: 0.712 ± 0.006 vs 0.711 ± 0.003, tolerance 0.021, passed (hard core at d_eff 0.700 ± 0.005).
-``c_override`` and ``a_override`` give the reference wrong parameters (the tests show the check failing). Quick
-form on the recorded 400-bp ring (1500 MC samples): 0.627 ± 0.025 vs 0.664 ± 0.011, tolerance 0.082, passed; with
-C halved the reference reads 0.489 (0.138 away, tolerance 0.078: fails), with A doubled 0.511, with C x 0.3 0.238.
+``c_override`` and ``a_override`` give the reference wrong parameters (the tests show the check failing).
 """
 from __future__ import annotations
 

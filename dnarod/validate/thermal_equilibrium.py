@@ -1,4 +1,4 @@
-"""Check ``thermal``: Langevin runs reproduce the exact equilibrium of the free open chain (design A5 iii).
+"""Check ``thermal``: Langevin runs reproduce the exact equilibrium of the free open chain (docs/formulation.md §8).
 
 A free open ``dna-default`` chain is run with Langevin dynamics in the Lax-form engine (BAOAB
 splitting) and in the OpenMM engine (``LangevinMiddleIntegrator``, CPU platform, no non-bonded

@@ -1,8 +1,8 @@
 """The direct Lax-form engine: exact strain-space dynamics and a symplectic Langevin splitting.
 
-* :mod:`.exact`: the exact zero-curvature (Lax) system of design A3 in strain space, integrated
+* :mod:`.exact`: the exact zero-curvature (Lax) system of docs/formulation.md §6 in strain space, integrated
   with scipy's DOP853 (adaptive, 8th order) for reference runs.
-* :mod:`.splitting`: the fixed-step kick-drift-rotor-kick scheme of design A4 b and its BAOAB
+* :mod:`.splitting`: the fixed-step kick-drift-rotor-kick scheme of docs/formulation.md §7 and its BAOAB
   Langevin form, with the stable-step estimate ``dt_crit = 2 / omega_max``.
 * :mod:`.fast`, :mod:`.fast_blocked`: numba kernels of the splitting (loads and update fused in
   one sweep per step; the blocked one is the default), tested equal to the numpy reference.

@@ -1,4 +1,4 @@
-"""The exact Lax-form (zero-curvature) system in strain space, design A3, integrated with DOP853.
+"""The exact Lax-form (zero-curvature) system in strain space (docs/formulation.md §6), integrated with DOP853.
 
 State: strains ``Omega_k, Gamma_k`` of every step (equivalently ``U_k = g_k^-1 g_{k+1}`` in SE(3)),
 body velocities ``omega_k`` (rad/ps) and ``gamma_k = L_k^T dr_k/dt`` (nm/ps) of every node, and the
@@ -45,7 +45,7 @@ def _rot_apply(w, v, transpose=False):
 
 
 def strain_rates(Omega, Gamma, omega, gamma, ds, circular=False):
-    """Exact time derivatives of the Cayley strains (design A3).
+    """Exact time derivatives of the Cayley strains (docs/formulation.md §6).
 
     Parameters
     ----------
@@ -78,7 +78,7 @@ def strain_rates(Omega, Gamma, omega, gamma, ds, circular=False):
 
 
 def body_loads(Omega, Gamma, params, ds, n_nodes, circular=False):
-    """Body-frame force and torque on every node from the step stresses (design A3).
+    """Body-frame force and torque on every node from the step stresses (docs/formulation.md §6).
 
     Returns
     -------
@@ -142,7 +142,7 @@ def lax_matrices(positions, frames, velocities_body, angular_velocities_body, cl
 
 
 class ExactSystem:
-    """The strain-space ODE of a model (design A3), packed for :func:`scipy.integrate.solve_ivp`.
+    """The strain-space ODE of a model (docs/formulation.md §6), packed for :func:`scipy.integrate.solve_ivp`.
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 """Numba kernel of the splitting integrator: loads and update fused into one sweep per time step.
 
 Why our own kernel: no maintained library integrates SE(3)^N rods with the exact Cayley-strain
-loads of design A2, and per-step numpy (many small temporaries) runs an order of magnitude
+loads of docs/formulation.md §4, and per-step numpy (many small temporaries) runs an order of magnitude
 slower than the target. Each time step is one pass over the chain: step k's stresses are
 computed from the current pose, node k's loads are then complete, so its momenta are kicked
 (second half of the previous step, first half of this one) and it is drifted and rotated at

@@ -1,9 +1,9 @@
-"""The paper's printed s-discrete SMK equations (3.13) as an ODE, for comparison only (design C4).
+"""The paper's printed s-discrete SMK equations (3.13) as an ODE, for comparison only (docs/lax.md).
 
 The right-hand side is :func:`dnarod.physics.lax.smk_rhs` (reading ``"R1"``: the printed (3.13) with the
 index misprint of (3.13a) fixed). Its variables are densities per unit length, all indexed by k:
 strains ``Gamma_k, Omega_k`` of step k, momenta ``p_k = rho gamma_k`` and ``m_k = I omega_k`` of
-node k (``rho = m_node/ds``, ``I = J/ds``), velocities and stresses. The exact system of design A3
+node k (``rho = m_node/ds``, ``I = J/ds``), velocities and stresses. The exact system of docs/formulation.md §6
 (:mod:`.exact`) is written in the same variables by :func:`exact_density_rhs`, so the two can be
 compared term by term:
 
@@ -14,7 +14,7 @@ compared term by term:
   forward differences in both kinematics and balance laws), zero for the exact system.
 * :func:`integrate_paper` integrates the paper's system for a short time (energy grows).
 
-Never use the paper's scheme as an integrator (design A6 item 9).
+Never use the paper's scheme as an integrator (docs/lax.md).
 """
 from __future__ import annotations
 
@@ -93,7 +93,7 @@ class DensitySystem:
 
 
 def exact_density_rhs(Gamma, Omega, p, m, params, ds, rho, I):
-    """The exact system of design A3 (periodic) in the density variables of (3.13).
+    """The exact system of docs/formulation.md §6 (periodic) in the density variables of (3.13).
 
     ``dp = rho (dgamma) = f/ds - omega x p``, ``dm = I (domega) = tau/ds + m x omega`` with the exact body
     loads ``f, tau`` of :func:`.exact.body_loads` and the exact strain rates of :func:`.exact.strain_rates`.

@@ -1,4 +1,4 @@
-"""Fixed-step symplectic splitting of the node dynamics (design A4 b) and its BAOAB Langevin form.
+"""Fixed-step symplectic splitting of the node dynamics (docs/formulation.md §7) and its BAOAB Langevin form.
 
 Kick-drift-kick on SE(3)^N (the RATTLE / NO_SQUISH family)::
 

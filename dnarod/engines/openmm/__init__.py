@@ -1,4 +1,4 @@
-"""The OpenMM engine (design Part C item 5, issue 7).
+"""The OpenMM engine (docs/formulation.md §7).
 
 Each base pair is a rigid body carried by three particles of mass ``m/3`` on an equilateral
 triangle of circumradius ``l = sqrt(J3/m)`` in its d1-d2 plane, held by constraints: node

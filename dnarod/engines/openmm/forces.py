@@ -1,4 +1,4 @@
-"""The SMK step energy as OpenMM forces (design A1, A2, Part C item 5).
+"""The SMK step energy as OpenMM forces (docs/formulation.md §2-4, §7).
 
 Two interchangeable implementations of ``E = sum_k ds H(Omega_k, Gamma_k)`` on the
 three-particle nodes of :mod:`dnarod.engines.openmm.particles`:
@@ -87,7 +87,7 @@ def elastic_expression(used, uniform=False):
     rotation strains (the largest subexpressions, first in the order) are copied 1, 2 and 3 times
     instead of 6 in the expanded quadratic form, and Lepton (OpenMM's expression compiler, which
     substitutes every ';' definition and differentiates the whole tree with respect to the 18
-    coordinates) has several times fewer operations to build (``benchmarks/bench_portable.py``).
+    coordinates) has several times fewer operations to build (docs/platforms.md).
 
     The strains are written in the unnormalised node vectors ``p = 2 x1 - x2 - x3 = 3 l d1``,
     ``q = x2 - x3 = sqrt(3) l d2`` (node a; ``r``, ``s`` for node b) and the centre difference
@@ -206,8 +206,8 @@ def used_stiffness_pairs(stiffness, steps=None):
 
 #: Strain order of the Cholesky factorisation: the rotations first (their subexpressions, with the
 #: denominator ``Dt``, are the largest, and a strain enters only the factor rows up to its position),
-#: then Gamma3 (a triple product) before the two dot-product strains Gamma1, Gamma2 (5% fewer Lepton
-#: operations than the natural order for a full K; ``benchmarks/bench_portable.py``).
+#: then Gamma3 (a triple product) before the two dot-product strains Gamma1, Gamma2 (fewer Lepton
+#: operations than the natural order for a full K).
 STRAIN_ORDER = (0, 1, 2, 5, 3, 4)
 #: A force whose factor has more entries than this is split into one force per factor row (see
 #: :func:`elastic_compound_forces`); dna-default-like stiffness (7 entries) stays in one force.
@@ -225,8 +225,8 @@ def elastic_compound_forces(model, radius, split=None, order=None, image=None):
     the Reference/CPU platforms (on GPU platforms OpenMM runs all bonded forces in one kernel).
     The closing step of a circular chain is one more bond of the same forces, from node
     ``n - 1`` to the three massless image particles of node 0 (:func:`add_closure_image`), so a
-    circular chain compiles the same expressions as an open one. Measured in
-    ``benchmarks/bench_portable.py`` and ``docs/platforms.md``.
+    circular chain compiles the same expressions as an open one. Compile times and costs:
+    ``docs/platforms.md``.
 
     Parameters
     ----------
@@ -331,7 +331,7 @@ def add_closure_image(system, model):
 
 
 # ----------------------------------------------------------------------------------------
-# Fast path: numba kernel of the analytic loads (design A2)
+# Fast path: numba kernel of the analytic loads (docs/formulation.md §4)
 # ----------------------------------------------------------------------------------------
 @numba.njit(cache=True)
 def _frames_from_particles(p, radius, centres, frames):

@@ -5,7 +5,7 @@ The kernel is a numba Verlet neighbour list with a skin (:class:`VerletList`: pa
 extent, no box needed -- only when a node has moved half the skin), run through
 ``openmm.PythonForce``: a ``CustomNonbondedForce`` needs a box and, on the CPU
 platform, a per-particle flag to act on one site per node, which the prototype measured 50x
-slower than the bonded terms at 10^4 nodes (issue 7).
+slower than the bonded terms at 10^4 nodes.
 """
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Rigid base-pair nodes as three massive particles (design Part C item 5).
+"""Rigid base-pair nodes as three massive particles (docs/formulation.md §7).
 
 Node k (centre ``c``, frame ``L`` with directors d1, d2, d3 as columns) is carried by three
 particles of mass ``m/3`` at the vertices of an equilateral triangle of circumradius ``l``
@@ -29,7 +29,7 @@ Reverse map (exact for a rigid triangle, and well defined for any slightly defor
 
 Velocity convention: a node moves with centre velocity ``v`` (lab, nm/ps) and angular
 velocity ``omega`` given in the **body frame** (rad/ps, components on d1, d2, d3, as in
-design A0 and the ``.dtraj`` format); particle i has velocity ``v + (L omega) x (p_i - c)``.
+docs/formulation.md §6 and the ``.dtraj`` format); particle i has velocity ``v + (L omega) x (p_i - c)``.
 
 Particle order: node k owns particles ``3k, 3k+1, 3k+2``. With the portable elastic path a
 circular chain's System holds three more, massless particles ``3n, 3n+1, 3n+2``: the closure

@@ -9,19 +9,17 @@ Automatic choice (``requested=None``), in order:
 2. **OpenCL** when an OpenCL platform offers a *GPU* device (queried through the OpenCL ICD
    loader, without creating an OpenMM Context), with the same elastic choice. A CPU-only OpenCL
    implementation such as pocl is never chosen automatically: it runs several times slower than
-   the CPU paths (``benchmarks/bench_platforms.py``, ``bench_gpu.py``);
+   the CPU paths (docs/platforms.md, "The automatic platform choice");
 3. **the CPU fast path**: the numba/``PythonForce`` callbacks (or the compiled plugin's kernel) on
    the **Reference** platform, or on the **CPU** platform when more than one thread is asked for
    (``threads`` > 1). The CPU platform runs its integrator on a worker thread even with
    ``Threads=1``, so every step (and every Python callback) is handed between the Python thread
    and the worker; one thread therefore means the Reference platform (a Dask worker's
-   ``OPENMM_CPU_THREADS=1`` included). Measured per CPU-second on one core
-   (``benchmarks/bench_platforms.py``, two runs, README table), the Reference platform is
-   1.1-3.2x faster at 10^2-10^4 nodes and tied within the runs' noise at 10^5-10^6, where the
-   CPU platform's threaded integrator may still gain wall-clock time from idle cores
-   (``--threads``; not measurable on this loaded 2-core machine). A 1-kbp tweezers member with the
-   compiled plugin, stepped in 20-ps rounds, took 1.9-2.1x the CPU time and 2.3-2.5x the wall
-   time on the CPU platform with one thread (``benchmarks/bench_exchange_platform.py``).
+   ``OPENMM_CPU_THREADS=1`` included). Per CPU-second on one core the Reference platform is
+   faster at 10^2-10^3 nodes and tied at 10^4-10^6, where the CPU platform's threaded integrator
+   may still gain wall-clock time from idle cores (``--threads``); a 1-kbp tweezers member with the
+   compiled plugin, stepped in 20-ps rounds, takes about twice the CPU time on the CPU platform with
+   one thread (measurements: docs/platforms.md, "The automatic platform choice").
 
 ``requested`` (``--platform``) overrides the choice; the reason of the choice is returned so
 the caller can print it.
@@ -37,7 +35,7 @@ import openmm
 from dnarod.core.errors import ParameterError
 
 #: Largest node count run on the Reference platform by the automatic choice (CPU platform above);
-#: None: no limit (measured faster per CPU-second at 10^2-10^6 nodes).
+#: None: no limit (Reference is as fast or faster per CPU-second at 10^2-10^6 nodes; docs/platforms.md).
 REFERENCE_MAX_NODES = None
 #: Platforms that run the numba PythonForce (fast) elastic path without copying off a device.
 CALLBACK_PLATFORMS = ("CPU", "Reference")
@@ -123,8 +121,8 @@ def member_platform(platform=None, threads=None, elastic="auto"):
     platform : str or None
         Platform asked for; ``None`` for the automatic choice of :func:`choose_platform` (with ``threads`` and
         ``elastic``): without a GPU and with one thread, the Reference platform. For a 1-kbp tweezers member in the
-        exchange loop's pattern the CPU platform with one thread took 1.9-2.1x the CPU time and 2.3-2.5x the wall
-        time of Reference (``benchmarks/bench_exchange_platform.py``).
+        exchange loop's pattern the CPU platform with one thread takes about twice the CPU time of Reference
+        (docs/platforms.md).
     threads : int or None
         CPU platform threads; default :func:`env_threads` (a Dask worker sets 1), else 1.
     elastic : str

@@ -289,7 +289,7 @@ class RodSimulation:
         OpenMM's Verlet and LangevinMiddle integrators store leapfrog velocities, half a step
         behind the positions. With ``on_step=True`` (default; used for the trajectory) they are
         completed to the positions' time by the half kick of velocity Verlet/RATTLE on each rigid
-        node, ``v += dt/2 F/m`` and ``omega += dt/2 J^-1 L^T tau`` (design A4 b), which is what
+        node, ``v += dt/2 F/m`` and ``omega += dt/2 J^-1 L^T tau`` (docs/formulation.md §7), which is what
         the Lax-form engine reports; ``on_step=False`` gives OpenMM's raw half-step velocities.
         """
         if state is None and on_step:

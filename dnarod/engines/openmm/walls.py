@@ -22,9 +22,7 @@ Three implementations of the same energy and forces (tested equal to 1e-10 relat
   On the host platforms they were the expensive part of a member's step: OpenMM's CPU platform has no kernel of its
   own for either force and runs the Reference kernels, single-threaded, which for every particle (every bond) load
   the variables of a compiled Lepton expression and evaluate the energy and its derivatives. The surface acts on
-  all three particles of each node (2 991 particles at 1 kbp): about 30 ns per particle, 90 us per evaluation at
-  1 kbp, growing with the particle count (0 / 1 / 3 particles per node measured in
-  ``benchmarks/bench_tweezers_cost.py``, which also times both forms per force and per step).
+  all three particles of each node (2 991 particles at 1 kbp), so their cost grows with the particle count.
 
 :func:`wall_forces` picks, on the host platforms (CPU, Reference), the compiled form when the plugin is usable and
 the numba form when it is not; on GPU platforms the Custom forces (a host force would copy positions off the device

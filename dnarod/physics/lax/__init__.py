@@ -1,4 +1,4 @@
-"""The Lax pair of Shi, McClain & Hearst (2001) as a library, with the corrections of design Part B.
+"""The Lax pair of Shi, McClain & Hearst (2001) as a library, with the corrections listed in docs/lax.md.
 
 * :mod:`.generators` -- SO(4) generators J_a, K_a (3.1), X^+/- decomposition, so(4) projections;
 * :mod:`.pair` -- the 4x4 complex pair U~ = 1 + ds U, V~ = V (3.3)-(3.7), the exact residual of

@@ -1,10 +1,10 @@
 """The 12 component equations (3.9) for any real lam, and their lam -> 0 limit, the s-discrete SMK (3.13).
 
-Both readings of design B3/B4 are provided as right-hand sides ``d/dt (Gamma, Omega, p, m)``
+Both readings (docs/lax.md) are provided as right-hand sides ``d/dt (Gamma, Omega, p, m)``
 given the V-fields ``(gamma, omega, P, M)``:
 
 * ``reading="R1"``: the paper's entrywise reading (entries (a+1, a+2) and (a, 4) of the Lax
-  residual set to zero), with the misprints of design B9 (#4-#7) corrected::
+  residual set to zero), with the misprints #4-#7 of the table in docs/lax.md corrected::
 
     dGamma = (gamma1-gamma)/ds + Gamma x omega1 + Omega x gamma + lam^2 (M x p - m x P1)
     dOmega_a = (omega1-omega)_a/ds + (Omega_{a+1} omega1_{a+2} - omega_{a+1} Omega_{a+2})
@@ -152,8 +152,8 @@ def smk_rhs(Gamma, Omega, p, m, gamma, omega, P, M, ds, reading="R1", periodic=T
 
     Notes
     -----
-    These are the paper's equations, not the exact rod (design A3): paired forward differences
-    make the R1 system linearly unstable for a physical rod (design C4); use it for comparison.
+    These are the paper's equations, not the exact rod (docs/formulation.md §6): paired forward differences
+    make the R1 system linearly unstable for a physical rod (docs/lax.md); use it for comparison.
     """
     return component_rhs(Gamma, Omega, p, m, gamma, omega, P, M, 0.0, ds, reading=reading, periodic=periodic)
 
@@ -162,8 +162,8 @@ def appendix_rhs(Gamma, Omega, p, m, gamma, omega, P, M, zeta, ds, reading="R1",
     """Corrected (A.4) of Appendix A for real zeta: identical to :func:`component_rhs` at lam = zeta.
 
     The 8x8 pair (A.2) with real zeta is the real form of the 4x4 pair conjugated by
-    diag(1,1,1,-1) (design B5), so its component equations are those of (3.9); the printed (A.4)
-    carries the sign misprints #9-#11 of design B9. Reading "R1" uses entries (a+1, a+2) and
+    diag(1,1,1,-1) (docs/lax.md), so its component equations are those of (3.9); the printed (A.4)
+    carries the sign misprints #9-#11 of the table in docs/lax.md. Reading "R1" uses entries (a+1, a+2) and
     (a, 4) of the upper-left block as for (3.9).
     """
     return component_rhs(Gamma, Omega, p, m, gamma, omega, P, M, zeta, ds, reading=reading, periodic=periodic)

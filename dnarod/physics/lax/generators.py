@@ -1,6 +1,6 @@
 """The SO(4) generators J_a, K_a of the paper's (3.1), their algebra and projections.
 
-The printed matrices (3.1a,b) are correct as printed (design B2); closed forms:
+The printed matrices (3.1a,b) are correct as printed (docs/lax.md); closed forms:
 
 * ``(J_a)_jk = -eps_ajk`` for ``j, k <= 3`` (zero in row/column 4), so ``(Omega . J) v = Omega x v``
   on the first three components, i.e. ``Omega . J`` is ``hat(Omega)`` padded to 4x4;
@@ -56,7 +56,7 @@ XMINUS = 0.5 * (J - K)
 XPLUS.setflags(write=False)
 XMINUS.setflags(write=False)
 
-#: diag(1, 1, 1, -1): conjugation by it fixes J_a and sends K_a to -K_a (design B2, B5).
+#: diag(1, 1, 1, -1): conjugation by it fixes J_a and sends K_a to -K_a (docs/lax.md).
 D_FLIP = np.diag([1.0, 1.0, 1.0, -1.0])
 D_FLIP.setflags(write=False)
 

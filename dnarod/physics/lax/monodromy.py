@@ -1,4 +1,4 @@
-"""Monodromy T(lam) = U~_{N-1} ... U~_0 of a periodic chain and its spectral invariants tr T^n (design B8).
+"""Monodromy T(lam) = U~_{N-1} ... U~_0 of a periodic chain and its spectral invariants tr T^n (docs/lax.md, monodromy).
 
 If every U~_k obeys the Lax equation dU~_k/dt = V~_{k+1} U~_k - U~_k V~_k exactly, with periodic V
 (V~_N = V~_0), then dT/dt = [V~_0, T] and tr T^n is constant, whatever V is. Fields that solve

@@ -7,7 +7,7 @@ Field conventions (all arrays shape (n_nodes, 3), body-frame components, one row
 * V-fields (nodes k and k+1): ``gamma`` (linear velocity, nm/ps), ``omega`` (angular velocity,
   1/ps), ``P`` (force), ``M`` (moment).
 
-The Lax pair (paper (3.3)-(3.7), checked in design B3; no misprint in the matrices)::
+The Lax pair (paper (3.3)-(3.7), checked in docs/lax.md; no misprint in the matrices)::
 
     U = -(Omega.J + lam^2 Gamma.K) - i lam (p.J + lam^2 m.K),     U~ = 1 + ds U
     V = -(omega.J + lam^2 gamma.K) - i lam (P.J + lam^2 M.K),     V~ = V
@@ -121,7 +121,7 @@ def lax_residual(Gamma, Omega, p, m, gamma, omega, P, M, dGamma, dOmega, dp, dm,
     Returns
     -------
     ndarray, shape (n, 4, 4), complex
-        Zero iff (3.8) holds exactly. Equals ``ds * Res`` of design B3.
+        Zero iff (3.8) holds exactly. Equals ``ds * Res`` (docs/lax.md).
     """
     names = U_NAMES + V_NAMES + ("dGamma", "dOmega", "dp", "dm")
     f = as_fields(names, (Gamma, Omega, p, m, gamma, omega, P, M, dGamma, dOmega, dp, dm))
@@ -135,7 +135,7 @@ def lax_residual(Gamma, Omega, p, m, gamma, omega, P, M, dGamma, dOmega, dp, dm,
 
 
 def symmetric_obstruction(Gamma, Omega, p, m, gamma, omega, P, M, lam, ds, periodic=True):
-    """The anticommutator ``{V_{k+1} - V_k, U_k}`` (complex symmetric), design B3 and B8(a).
+    """The anticommutator ``{V_{k+1} - V_k, U_k}`` (complex symmetric; docs/lax.md).
 
     The symmetric part of the Lax residual is ``-(ds/2)`` times this, whatever the time derivatives;
     (3.8) therefore needs it to vanish in addition to the 12 component equations (3.9).
@@ -227,7 +227,7 @@ def appendix_pair(Gamma, Omega, p, m, gamma, omega, P, M, zeta, ds):
     """The 8x8 Lax pair of Appendix A: X~ = 1 + ds X, Y~ = Y with X = [[A, -B], [B, A]] (A.2).
 
     For real ``zeta`` both are real. With ``zeta = lam`` they are the real form of the 4x4 pair
-    conjugated by diag(1,1,1,-1) (design B5): ``X~ = realify(D U~ D)``; see :func:`appendix_to_paper`.
+    conjugated by diag(1,1,1,-1) (docs/lax.md): ``X~ = realify(D U~ D)``; see :func:`appendix_to_paper`.
     A complex ``zeta`` is accepted (complex 8x8 result), e.g. to show that ``zeta = i lam`` does not
     reproduce (3.9) (misprint 12).
 

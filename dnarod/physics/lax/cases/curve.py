@@ -8,7 +8,7 @@ the corrected (8.1a,b) (misprints 21-22)::
 
 whose 3x3 block has rows (0, O3, -O2), (-O3, 0, O1), (O2, -O1, 0) (antisymmetric; the printed
 (8.1a) has the wrong sign at entries (2,3), (3,1), (3,2)). This is U~ of (3.3a) at p = m = 0
-conjugated by diag(1,1,1,-1) (a harmless convention, design B6 Case 5).
+conjugated by diag(1,1,1,-1) (a harmless convention, docs/lax.md, special cases: Case 5).
 
 Curvature and torsion (misprint 23): for the right-handed frame d3 = t, d2 = n, d1 = n x t = -b
 (with Omega2 = Gamma1 = Gamma2 = 0)::

@@ -1,7 +1,7 @@
 """Case 2 of the paper: a rigid body in an ideal fluid (Kirchhoff's equations), (5.1), and its lam-deformation.
 
 With M = P = Omega = Gamma = 0 and no k-dependence, V^1 = V, both readings coincide and the Lax
-equation is exactly dU/dt = [V, U]. The component equations (3.9) at fixed lam give (design B6)::
+equation is exactly dU/dt = [V, U]. The component equations (3.9) at fixed lam give (docs/lax.md, special cases)::
 
     dp/dt = p x omega + lam^4 m x gamma,      dm/dt = m x omega + p x gamma
 

@@ -1,7 +1,7 @@
 """Case 3 of the paper: the discrete Kirchhoff (unshearable, inextensible) rod, (6.2), with its constraint.
 
 With Gamma = chi = (0, 0, 1) fixed, (3.13a) does not disappear as (6.2) suggests (misprint 17): it
-becomes the constraint (design B6, Case 3)::
+becomes the constraint (docs/lax.md, special cases: Case 3)::
 
     R1:       0 = (gamma1 - gamma)/ds + chi x omega1 + Omega x gamma
     midpoint: 0 = (gamma1 - gamma)/ds + chi x omegabar + Omega x gammabar
@@ -13,7 +13,7 @@ Unknowns: Omega, omega, gamma, M, P, m, p (21 per node) = 9 evolution equations 
 
 Here P is found at every instant from d/dt(constraint) = 0 (index reduction), a linear system of
 size 3n. The evolution equations are those of :func:`dnarod.physics.lax.smk_rhs` (same code), so the
-R1 reading inherits the linear instability of the paper's forward-forward pairing (design C4):
+R1 reading inherits the linear instability of the paper's forward-forward pairing (docs/lax.md):
 integrate it over short times only.
 """
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """Case 4 of the paper: the rod moving in a plane, (7.1a-f).
 
 Only Omega3, Gamma1, Gamma2, omega3, gamma1, gamma2, M3, P1, P2, m3, p1, p2 are nonzero; the
-six discarded components of (3.13) then vanish identically (both readings). R1 (design B6)::
+six discarded components of (3.13) then vanish identically (both readings). R1 (docs/lax.md, special cases)::
 
     dOmega3 = (omega3^1 - omega3)/ds                                         (7.1a)
     dGamma1 = (gamma1^1 - gamma1)/ds + Gamma2 omega3^1 - gamma2 Omega3           (7.1b)

@@ -1,7 +1,7 @@
 """Case 1 of the paper: the static discrete rod (4.1) with linear constitutive law (4.2)/(4.3).
 
 With omega = gamma = m = p = 0 and no t-dependence, (3.13a,b) vanish and (3.13c,d) become the
-difference equations (design B6, Case 1)::
+difference equations (docs/lax.md, special cases: Case 1)::
 
     R1 (printed (4.1a,b), correct):   (M1-M)/ds + Gamma x P1 + Omega x M = 0
                                       (P1-P)_a/ds - (P_{a+1} Omega_{a+2} - Omega_{a+1} P1_{a+2}) = 0

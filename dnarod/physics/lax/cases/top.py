@@ -1,7 +1,7 @@
 """Subcase 1.2 of the paper: the static Kirchhoff rod (4.5) read as the heavy top.
 
 With Gamma = chi fixed (no shear or extension) and M = A (Omega - Omega0), the continuum limit of
-(4.5a,b), with s read as time, is the Euler-Poisson system (design B6)::
+(4.5a,b), with s read as time, is the Euler-Poisson system (docs/lax.md, special cases)::
 
     M' = M x Omega + P x chi,      P' = P x Omega,      Omega = A^{-1} M + Omega0
 
