@@ -120,7 +120,7 @@ CASES = [
     ("ignore-and-map", ["pairs", str(PDB), "--ignore", "SPM", "--map", "SPM=A"], ["--ignore SPM", "--map"], None),
     # analyze: a refusal found while analysing used to follow a line already printed on stdout
     ("analyze-single-structure", ["analyze", str(PDB), "-o", "{w}/n", "--no-plots"],
-     ["355D.pdb", "1 frame(s) x 9 steps", "dnarod steps"], None),
+     ["355D.pdb", "a single frame (one structure)", "dnarod steps"], None),
     ("analyze-truncated-trajectory", ["analyze", "{w}/t.dtraj", "-o", "{w}/n", "--no-plots"],
      ["t.dtraj", "no complete frame", "truncated"], None),
     ("analyze-rna", ["analyze", "{w}/rna.pdb", "-o", "{w}/n", "--no-plots"], ["rna.pdb", "other than A, C, G, T"],

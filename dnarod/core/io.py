@@ -307,8 +307,13 @@ def remove_stale_stages(folder):
             shutil.rmtree(p, ignore_errors=True)
 
 
+#: Hidden folders in which a long ``--overwrite`` (an ensemble, a protocol) builds its new output, kept when it
+#: stops early so that running the command again continues it (:func:`staged_folder` with ``resume_name``).
+REPLACEMENT_PREFIX = ".dnarod-replacement-"
+
+
 @contextlib.contextmanager
-def staged_folder(folder, names, what="output"):
+def staged_folder(folder, names, what="output", resume_name=None):
     """Build a replacement of the files ``names`` of ``folder`` beside them, and put it in place only when it
     is complete (the atomic ``--overwrite``).
 
@@ -328,22 +333,35 @@ def staged_folder(folder, names, what="output"):
         The file names an output of this kind consists of (an old one the new output lacks is removed).
     what : str
         The output in words, for messages ("run", "analysis report").
+    resume_name : str, optional
+        A stage that outlives a failure: ``folder/.dnarod-replacement-<resume_name>`` is kept when the body
+        raises, and the same call (the command run again) continues in it (for outputs made of resumable parts:
+        a protocol's members). Without it the stage is a fresh hidden folder, removed on failure.
     """
     import shutil
 
     folder = ensure_dir(folder)
     remove_stale_stages(folder)
     try:
-        stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=folder))
+        if resume_name is None:
+            stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=folder))
+        else:
+            stage = folder / f"{REPLACEMENT_PREFIX}{resume_name}"
+            stage.mkdir(exist_ok=True)
     except OSError as exc:
         err = write_failure(folder / f"{STAGE_PREFIX}...", exc)
         raise (err or DnarodError(f"cannot create a folder in {folder} ({exc.strerror or exc})")) from None
     try:
         yield stage
     except BaseException as exc:
-        shutil.rmtree(stage, ignore_errors=True)
+        if resume_name is None:
+            shutil.rmtree(stage, ignore_errors=True)
+            tail = f" (the earlier {what} in {folder} is unchanged)"
+        else:
+            tail = (f" (the earlier {what} in {folder} is unchanged; the same command with --overwrite continues the "
+                    f"replacement kept in {stage.name})")
         if isinstance(exc, DnarodError):
-            _rewrite_message(exc, stage, folder, f" (the earlier {what} in {folder} is unchanged)")
+            _rewrite_message(exc, stage, folder, tail)
         raise
     try:
         new = sorted(stage.iterdir())
@@ -361,6 +379,9 @@ def staged_folder(folder, names, what="output"):
                 old.unlink()
     finally:
         shutil.rmtree(stage, ignore_errors=True)
+        if resume_name is not None:  # replacements begun with other settings and never finished
+            for p in folder.glob(f"{REPLACEMENT_PREFIX}*"):
+                shutil.rmtree(p, ignore_errors=True)
 
 
 def _first_file_component(path):
@@ -573,7 +594,7 @@ def check_output_folder(folder, mine, kind, what="output folder"):
         return False
     if any((folder / m).exists() for m in mine):
         return True
-    entries = sorted(p.name for p in folder.iterdir() if p.name != LOCK_NAME and not p.name.startswith(STAGE_PREFIX))
+    entries = sorted(p.name for p in folder.iterdir() if p.name != LOCK_NAME and not p.name.startswith(".dnarod-"))
     if not entries:
         return False
     shown = ", ".join(entries[:4]) + (f", ... ({len(entries)} entries)" if len(entries) > 4 else "")

@@ -174,12 +174,3 @@ def xtc_bytes(n_frames, n_atoms):
     """Upper estimate of an XTC file's size (``n_frames`` frames, ``n_atoms`` atoms), bytes: the compressed
     coordinates take at most the 12 bytes of three float32 per atom, plus a 92-byte frame header."""
     return n_frames * (92 + 12 * n_atoms)
-
-
-def export_bytes(n_frames, n_nodes, xtc=True):
-    """Bytes of the exported PDB + DCD (+ XTC) of ``n_frames`` frames of ``n_nodes`` nodes (estimate)."""
-    from dnarod.structure.cg_topology import BEADS
-
-    n_atoms = len(BEADS) * n_nodes
-    return 162 * n_atoms + dcd_bytes(n_frames, n_atoms) + (xtc_bytes(n_frames, n_atoms) if xtc else 0)
-    return t
