@@ -78,7 +78,7 @@ def disk_free(path):
     return None
 
 
-def write_failure(path, exc, needed=None, needed_bound=False):
+def write_failure(path, exc, needed=None, needed_bound=False, free_at_failure=None, written=None):
     """The one-line :class:`WriteError` for a failed write of ``path`` (or None if ``exc`` is not about writing).
 
     ``exc`` is an :class:`OSError` (a full disk, a quota, a read-only folder, ... see :data:`WRITE_ERRNOS`), a
@@ -95,18 +95,25 @@ def write_failure(path, exc, needed=None, needed_bound=False):
         Bytes the write needed, where known.
     needed_bound : bool
         ``needed`` is an upper bound (a compressed format), said so in the message.
+    free_at_failure : int, optional
+        Bytes free when the write failed (before its temporary file was removed), for a C writer's error.
+    written : int, optional
+        Bytes the failed write had written (its temporary file's size): without ``needed``, the message says
+        it needed more.
     """
     path = Path(path)
     if isinstance(exc, WriteError):
         return exc
     free = disk_free(path.parent)
+    if free_at_failure is None:
+        free_at_failure = free
     code = exc.errno if isinstance(exc, OSError) else None
     if isinstance(exc, UnicodeError):
         why = (f"a writer could not take the characters of the path ({type(exc).__name__}); choose a path of "
                f"ASCII characters")
         return WriteError(f"cannot write {path}: {why}", path, None, free, needed)
     if code not in WRITE_ERRNOS:
-        nearly_full = free is not None and free < max(_NEARLY_FULL, needed or 0)
+        nearly_full = free_at_failure is not None and free_at_failure < max(_NEARLY_FULL, needed or 0)
         if isinstance(exc, OSError) and code is not None:
             return None
         if not nearly_full:
@@ -117,6 +124,8 @@ def write_failure(path, exc, needed=None, needed_bound=False):
         space = [] if free is None else [f"{human_bytes(free)} free"]
         if needed:
             space.append(f"{'up to' if needed_bound else 'about'} {human_bytes(needed)} needed")
+        elif written:
+            space.append(f"more than {human_bytes(written)} needed")
         why += f" ({', '.join(space)})" if space else ""
         todo = "free some space or write elsewhere (-o); the files written before are kept"
     elif code in (errno.EROFS, errno.EACCES, errno.EPERM):
@@ -240,10 +249,13 @@ def atomic_path(path, needed=None, ascii=False, suffix="", needed_bound=False):
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
     except BaseException as exc:
+        written = free_then = None
+        with contextlib.suppress(OSError):
+            written, free_then = os.path.getsize(tmp), disk_free(path.parent)
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(exc, Exception) and not isinstance(exc, DnarodError):
-            err = write_failure(path, exc, needed, needed_bound)
+            err = write_failure(path, exc, needed, needed_bound, free_then, written)
             if err is not None:
                 raise err from None
         if isinstance(exc, WriteError) and exc.path is not None and Path(exc.path) == tmp:

@@ -174,9 +174,13 @@ def preflight(spec, model=None):
     ParameterError
         The first refusal, with the message :func:`run` would give.
     """
+    from dnarod.run.resources import check_memory, node_count_hint
+
     spec.check()
     if model is None:
+        check_memory(node_count_hint(spec.source), spec.engine)
         model = source_model(spec)
+    check_memory(model.n_nodes, spec.engine)
     check_start_pose(model, spec.temperature)
     if spec.start == "equilibrium" and model.closure is not None:
         raise ParameterError("start 'equilibrium' samples the free open chain exactly; this model is circular "
@@ -334,10 +338,15 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     if present and not overwrite:
         raise ParameterError(f"{outdir} already holds a run ({present[0].name}); continue it with --resume, "
                              f"replace it with --overwrite, or choose another folder with -o")
+    stage = _setup_start(spec, progress)
     model = source_model(spec)
+    stage = _setup_model(spec, model, stage, progress)
     check_start_pose(model, spec.temperature)
     seed = int(np.random.SeedSequence().entropy % 2**31) if spec.seed is None else int(spec.seed)
+    if spec.start != "intrinsic":
+        stage(f"the {spec.start} start pose")
     start = start_model(spec, model, seed)
+    stage("the fastest normal mode (time step)")
     omega = default_omega_max(start if start is not None else model, spec.loads)
     check_load_stiffness(spec, model)
     dt = choose_dt(spec, model, omega)
@@ -345,6 +354,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     check_free_space(outdir, estimate_run_bytes(spec, model.n_nodes, dt), "this run")
     fp = fingerprint(spec, model, dt, seed)
     run_id = _run_id(fp)
+    stage(f"the {spec.engine} engine")
     engine = make_engine(spec, start if start is not None else model, dt, seed, omega)
     if start is None:  # OpenMM energy minimisation of the context (no static solver available)
         engine.minimize()
@@ -367,6 +377,36 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
         return RunResult(outdir, run_files(outdir), result.summary, result.resumed_from)
 
 
+def _setup_start(spec, progress):
+    """Before the model is built: refuse a node count this machine's memory cannot hold, say that the kernels
+    compile (a first run after install), and return the set-up's stage printer (:class:`SetupStages`)."""
+    import sys
+
+    from dnarod.core.jit import compile_notice
+    from dnarod.run.resources import SetupStages, check_memory, node_count_hint
+
+    n = node_count_hint(spec.source)
+    check_memory(n, spec.engine)
+    if progress:
+        notice = compile_notice(spec.engine)
+        if notice:
+            sys.stderr.write(f"dnarod: {notice}\n")
+            sys.stderr.flush()
+    stage = SetupStages(n, progress)
+    stage("building the model")
+    return stage
+
+
+def _setup_model(spec, model, stage, progress):
+    """Once the model is built: the memory check of a source whose size was not known before (a file)."""
+    from dnarod.run.resources import SetupStages, check_memory
+
+    if not stage.on:
+        check_memory(model.n_nodes, spec.engine)
+        stage = SetupStages(model.n_nodes, progress)
+    return stage
+
+
 def _resume(spec, outdir, paths, progress):
     if not paths["run_json"].exists():
         raise ParameterError(f"cannot resume: {paths['run_json']} does not exist (no run was started in {outdir}); "
@@ -378,7 +418,9 @@ def _resume(spec, outdir, paths, progress):
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ParameterError(f"{paths['run_json']}: not a readable dnarod run file ({type(exc).__name__}); "
                              f"start a new run with --overwrite") from None
+    stage = _setup_start(spec, progress)
     model = source_model(spec)
+    stage = _setup_model(spec, model, stage, progress)
     spec_dt = dt if spec.dt is None else float(spec.dt)
     spec_seed = seed if spec.seed is None else int(spec.seed)
     compare_fingerprints(old_fp, fingerprint(spec, model, spec_dt, spec_seed), paths["run_json"])
@@ -413,6 +455,7 @@ def _resume(spec, outdir, paths, progress):
     have = sum(p.stat().st_size for p in run_files(outdir).values())
     check_free_space(outdir, estimate_run_bytes(spec, model.n_nodes, dt) - have, "the rest of this run")
     start = start_model(spec, model, seed)
+    stage(f"the {spec.engine} engine")
     engine = make_engine(spec, start if start is not None else model, dt, seed, meta.get("omega_max"))
     with folder_lock(outdir):  # not while another process still runs (or resumes) in outdir
         if paths["run_json"].read_text() != run_json_text:
@@ -466,8 +509,7 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
     temps = out["temperatures"]
     summary = dict(engine=spec.engine, n_nodes=model.n_nodes, steps=out["steps"], steps_this_run=done,
                    simulated_ps=out["steps"] * dt, dt_ps=dt, omega_max=getattr(engine, "omega_max", None),
-                   frame_interval_steps=fi, wall_s=wall, cpu_s=out["cpu_s"],
-                   ns_per_day=done * dt * 1e-3 / wall * 86400 if wall > 0 else float("nan"),
+                   frame_interval_steps=fi, wall_s=wall, cpu_s=out["cpu_s"], ns_per_day=_ns_per_day(out, dt),
                    mean_temperature_K=float(np.mean(temps)) if temps else float("nan"), seed=meta["seed"],
                    already_done=False, message=None, selection=(model.metadata or {}).get("selection"))
     if spec.engine == "openmm":
@@ -491,6 +533,15 @@ def _run_write_error(exc, spec, n_nodes, dt, outdir, staged):
     if not staged:
         err.args = (str(err) + "; the run continues from its last checkpoint with --resume",)
     return err
+
+
+def _ns_per_day(out, dt):
+    """Speed of the run loop, ns/day, over the steps after its first advance (:func:`dnarod.run.loop.run_engine`:
+    the kernels' first-call compile and the first report are not in it); over the whole loop if it had one advance."""
+    steps, wall = out.get("timed_steps"), out.get("timed_wall_s")
+    if not steps or not wall or wall <= 0:
+        steps, wall = out["steps_this_run"], out["wall_s"]
+    return steps * dt * 1e-3 / wall * 86400 if wall > 0 and steps else float("nan")
 
 
 def _write_meta(paths, meta):
