@@ -95,8 +95,8 @@ CASES = [
                                                                              "process", "pid"], _hold_lock),
     ("overwrite-folder-in-use", ["lax-run", SEQ, "-o", "{w}/busy", "--overwrite", *LAX[2:]], ["in use"], _hold_lock),
     # duplicate list entries
-    ("trap-twice-on-one-node", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--trap", "0:5", "--trap", "-10:3"],
-     ["--trap '-10:3'", "node 0 already has a trap"], None),
+    ("trap-twice-on-one-node", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--trap", "1:5", "--trap", "-10:3"],
+     ["--trap '-10:3'", "base pair 1 already has a trap"], None),
     ("protocol-turns-repeated", ["protocol", "hat", "--source", "40", "--turns", "0,0", *PROTO],
      ["--turns", "repeated values"], None),
     ("protocol-forces-repeated", ["protocol", "force-extension", "--source", "40", "--force", "1,1.0", *PROTO],

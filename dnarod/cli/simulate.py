@@ -60,9 +60,10 @@ _OPTIONS = [
                  help="Clamp the last node's orientation, stiffness kJ/mol."),
     click.option("--turns", type=float, default=0.0,
                  help="Turn the rotation clamp by this many turns, at a constant rate over the run."),
-    click.option("--clamp-first", is_flag=True, help="Fix node 0 in space (position and orientation)."),
+    click.option("--clamp-first", is_flag=True, help="Fix the first base pair in space (position and orientation)."),
     click.option("--trap", multiple=True,
-                 help="Harmonic trap NODE:K (node from 0, K in pN/nm) at the node's start position; repeatable."),
+                 help="Harmonic trap NODE:K (NODE a base pair numbered from 1 as `dnarod steps` does, -1 the last; "
+                      "K in pN/nm) at its start position; repeatable."),
     click.option("--minimize", is_flag=True, help="Start from the static minimum under the loads."),
     click.option("--equilibrium", is_flag=True,
                  help="Start from an exact thermal-equilibrium sample of the free chain (open chains)."),

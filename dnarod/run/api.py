@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.core.errors import ParameterError
+from dnarod.core.errors import ParameterError, step_name
 from dnarod.core.io import (FULL_DISK_ERRNOS, STAGE_PREFIX, WriteError, check_dir_path, check_free_space,
                             check_output_folder, folder_lock, jsonable, staged_folder, write_failure,
                             write_text_atomic)
@@ -139,9 +139,18 @@ def check_start_pose(model, temperature):
     k = int(np.argmax(ang))
     kind = "ring" if model.closure is not None else "chain"
     if ang[k] > 0.8 * MAX_CAYLEY_ANGLE:
-        raise ParameterError(f"step {k} of this {model.n_nodes}-node {kind} rotates by {np.degrees(ang[k]):.0f} deg, "
-                             f"near the Cayley-chart limit ({np.degrees(MAX_CAYLEY_ANGLE):.0f} deg) of the rod model; "
-                             f"use a longer {kind}")
+        head = (f"{step_name(k, model.n_nodes)} of this {model.n_nodes}-node {kind} rotates by "
+                f"{np.degrees(ang[k]):.0f} deg, near the Cayley-chart limit ({np.degrees(MAX_CAYLEY_ANGLE):.0f} deg) "
+                f"of the rod model")
+        if np.median(ang) > 0.5 * MAX_CAYLEY_ANGLE:  # every step turns far: the whole chain is too short for its shape
+            raise ParameterError(f"{head}: every step turns by {np.degrees(np.median(ang)):.0f} deg or more (a ring "
+                                 f"or a supercoil too tight for so few base pairs); use a longer {kind}")
+        n_bad = int(np.sum(ang > 0.8 * MAX_CAYLEY_ANGLE))
+        raise ParameterError(f"{head}, while its median step turns by {np.degrees(np.median(ang)):.0f} deg: "
+                             f"{'a local feature' if n_bad == 1 else f'{n_bad} local features'} of the input the "
+                             f"rod model cannot represent (a B-Z junction, a kink, a flipped base pair or a break in "
+                             f"the pairing), not cured by a longer {kind}; simulate the sequence (its intrinsic "
+                             f"shape) instead, or a duplex or stretch of the structure without it")
     E = elastic_loads(model.positions, model.frames, model.params, model.ds, model.closure)[0]
     per = E / model.n_steps / kT(temperature if temperature > 0 else 300.0)
     if per > WARN_KT_PER_STEP:

@@ -52,7 +52,9 @@ def check_memory(n_nodes, engine, available=None):
     ParameterError
         One line naming the node count, the estimate and the memory available.
     """
-    if n_nodes is None:
+    from dnarod.structure.inputs import MAX_NODES
+
+    if n_nodes is None or not 2 <= n_nodes <= MAX_NODES:  # outside: refused by the model's own check, in its words
         return
     need = estimate_memory(n_nodes, engine)
     have = available_memory() if available is None else available

@@ -19,14 +19,20 @@ def pull_axis(model):
 
 
 def parse_trap(text, n_nodes):
-    """``"NODE:K"`` (K in pN/nm) -> (node, K); node 0-based, negative counts from the end."""
+    """``"NODE:K"`` (K in pN/nm) -> (node index from 0, K). NODE is a base pair numbered from 1, as `dnarod steps`
+    and every message number them; a negative NODE counts from the end (-1: the last)."""
     try:
         node, k = text.split(":")
         node, k = int(node), float(k)
     except ValueError:
-        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (stiffness in pN/nm), e.g. 0:50") from None
-    if not -n_nodes <= node < n_nodes:
-        raise ParameterError(f"--trap {text!r}: node {node} does not exist (the chain has {n_nodes} nodes)")
+        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (a base pair numbered from 1, stiffness in "
+                             f"pN/nm), e.g. 1:50") from None
+    if node == 0:
+        raise ParameterError(f"--trap {text!r}: base pairs are numbered from 1 (1 to {n_nodes}, or -1 for the last)")
+    if not -n_nodes <= node <= n_nodes:
+        raise ParameterError(f"--trap {text!r}: base pair {node} does not exist (the chain has {n_nodes} nodes, "
+                             f"numbered from 1)")
+    node = node - 1 if node > 0 else node
     if not (np.isfinite(k) and k > 0):
         raise ParameterError(f"--trap {text!r}: the stiffness must be positive (pN/nm)")
     return node, k
@@ -106,8 +112,8 @@ def tweezers_loads(model, pull=None, torque=None, rotation_clamp=None, turns=0.0
     for t in traps:
         node, k = parse_trap(t, n)
         if node % n in trapped:  # two traps on one node add up silently: say so
-            raise ParameterError(f"--trap {t!r}: node {node % n} already has a trap ({trapped[node % n]!r}); give "
-                                 f"one --trap per node with the stiffness you want")
+            raise ParameterError(f"--trap {t!r}: base pair {node % n + 1} already has a trap ({trapped[node % n]!r}); "
+                                 f"give one --trap per base pair with the stiffness you want")
         trapped[node % n] = t
         loads.append(Trap(node, k * PN))
     return tuple(loads)
