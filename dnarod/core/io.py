@@ -200,6 +200,32 @@ def _ascii_folder(folder):
 
 
 @contextlib.contextmanager
+def ascii_alias(*paths):
+    """ASCII paths (str) naming the existing files ``paths``, for a C reader that cannot take others (mdtraj's
+    XTC and DCD readers): a path that is ASCII already is given as is; others are reached through symbolic links,
+    with the same extension, in a temporary folder removed afterwards. ``None`` stays ``None``."""
+    if all(p is None or str(p).isascii() for p in paths):
+        yield [None if p is None else str(p) for p in paths]
+        return
+    import shutil
+
+    folder = Path(tempfile.mkdtemp(prefix="dnarod-"))
+    try:
+        out = []
+        for i, p in enumerate(paths):
+            if p is None or str(p).isascii():
+                out.append(None if p is None else str(p))
+                continue
+            suffix = "".join(c for c in Path(p).suffix if c.isascii())
+            link = folder / f"f{i}{suffix}"
+            os.symlink(Path(p).absolute(), link)
+            out.append(str(link))
+        yield out
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
 def atomic_path(path, needed=None, ascii=False, suffix="", needed_bound=False):
     """Yield a temporary path beside ``path``; on success rename it onto ``path``.
 
@@ -514,7 +540,8 @@ def folder_lock(folder, what="output folder"):
             if _same_file(fh, path):  # ours still: remove it while holding the lock (see _take_lock)
                 path.unlink()
         fcntl.flock(fh, fcntl.LOCK_UN)
-        fh.close()
+        with contextlib.suppress(OSError):  # a pid that could not be written (a full disk) fails again here
+            fh.close()
 
 
 def _take_lock(path):

@@ -174,7 +174,10 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
 
     from dnarod.core.trajectory import Trajectory
 
-    t = md.load(str(trajectory_path), top=str(pdb_path)) if trajectory_path else md.load(str(pdb_path))
+    from dnarod.core.io import ascii_alias
+
+    with ascii_alias(pdb_path, trajectory_path) as (pdb, trj):  # mdtraj's C readers take only ASCII paths
+        t = md.load(trj, top=pdb) if trj else md.load(pdb)
     if t.n_atoms % 3:
         raise DnarodError(f"{pdb_path}: {t.n_atoms} atoms is not three beads per node; not a dnarod export")
     c, f = frames_from_beads(t.xyz.astype(float))

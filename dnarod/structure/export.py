@@ -109,14 +109,42 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc
         # mdtraj's XTC writer takes only ASCII paths: an ASCII temporary name, reached by an ASCII path
         needed = xtc_bytes(traj.n_frames, n_atoms)
         with atomic_path(Path(xtc_path), needed=needed, needed_bound=True, ascii=True, suffix=".xtc") as tmp:
-            t.save_xtc(tmp, force_overwrite=True)
+            with _c_writer(xtc_path, "xtc", needed):
+                t.save_xtc(tmp, force_overwrite=True)
             _check_written(xtc_path, tmp, traj.n_frames, "xtc", needed)
     if dcd_path is not None:
         needed = dcd_bytes(traj.n_frames, n_atoms)
         with atomic_path(Path(dcd_path), needed=needed) as tmp:
-            write_dcd(tmp, xyz, traj.time)
+            with _c_writer(dcd_path, "dcd", needed):
+                write_dcd(tmp, xyz, traj.time)
             _check_written(dcd_path, tmp, traj.n_frames, "dcd", needed)
     return t
+
+
+class _c_writer:
+    """A C writer's error (mdtraj's ``XTC write error: 7``, with no errno) as one line naming ``path``: a full disk
+    with its free space, else the writer's words and the free space (a quota or a file-size limit?)."""
+
+    def __init__(self, path, kind, needed):
+        self.path, self.kind, self.needed = Path(path), kind, needed
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, exc, tb):
+        from dnarod.core.io import WriteError, disk_free, human_bytes, write_failure
+
+        if exc is None or isinstance(exc, DnarodError) or not isinstance(exc, (OSError, RuntimeError, IOError)):
+            return False
+        err = write_failure(self.path, exc, self.needed, needed_bound=self.kind == "xtc")
+        if err is None:
+            free = disk_free(self.path.parent)
+            what = " ".join(str(exc).split())[:120] or type(exc).__name__
+            err = WriteError(f"cannot write {self.path}: the {self.kind.upper()} writer failed ({what}; "
+                             f"{human_bytes(free) if free is not None else 'unknown space'} free on its disk: a quota "
+                             f"or a file-size limit?); the files written before are kept", self.path, None, free,
+                             self.needed)
+        raise err from None
 
 
 def _frames_in(tmp, kind):

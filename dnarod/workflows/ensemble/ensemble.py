@@ -353,6 +353,19 @@ class Ensemble:
 
     def write_results(self, **extra):
         """Write the table, the plots and ``summary.json`` from the members' results; returns the summary."""
+        if getattr(self, "_replaces", None) is None:
+            return self._write_results(**extra)
+        try:
+            return self._write_results(**extra)
+        except DnarodError as exc:  # name the files by their place in the ensemble folder; the old one is kept
+            from dnarod.core.io import _rewrite_message
+
+            _rewrite_message(exc, self.outdir, self._replaces,
+                             f" (the earlier ensemble in {self._replaces} is unchanged; the same command with "
+                             f"--overwrite continues the replacement kept in {self.outdir.name})")
+            raise
+
+    def _write_results(self, **extra):
         rows = collect_rows(self.outdir, self.members)
         table = rows_to_table(rows, self._setting_keys())
         tpath, cpath = write_table(table, self.outdir)
