@@ -28,7 +28,7 @@ from click.testing import CliRunner
 
 import dnarod.core.io as dio
 from dnarod.cli.main import main
-from dnarod.core.errors import DnarodError, ParameterError
+from dnarod.core.errors import ParameterError
 
 SEQ = "ACGTACGTACGTACGTACGT"
 #: A 20-node Lax-form run of ~190 steps, 40 frames, a checkpoint every 10 frames (bit-exact resume).
@@ -723,7 +723,22 @@ def test_compile_notice_sees_numba_s_disk_cache(tmp_path, monkeypatch):
     assert is_cached(mod.f) is False
     mod.f(1)
     assert is_cached(mod.f) is True
-    from dnarod.core.jit import compile_notice
+    from dnarod.run.resources import compile_notice
 
     msg = compile_notice("lax")
     assert msg is None or msg.startswith("compiling kernels (first run after install")
+
+
+def test_numba_cache_falls_back_to_a_writable_folder(tmp_path, monkeypatch):
+    from dnarod.core.jit import ensure_numba_cache
+
+    import numba.core.config as cfg
+
+    blocked = tmp_path / "a file"
+    blocked.write_text("not a folder")
+    monkeypatch.setattr(cfg, "CACHE_DIR", cfg.CACHE_DIR)  # restored afterwards, as is the environment
+    monkeypatch.setenv("NUMBA_CACHE_DIR", "")
+    assert ensure_numba_cache(tmp_path / "pkg", tmp_path / "home-cache") is None  # writable: numba's own choice
+    folder = ensure_numba_cache(blocked / "pkg", blocked / "home-cache")  # neither can be written
+    assert folder is not None and os.environ["NUMBA_CACHE_DIR"] == folder and Path(folder).is_dir()
+    assert cfg.CACHE_DIR == folder

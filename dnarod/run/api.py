@@ -391,7 +391,7 @@ def _setup_start(spec, progress):
     compile (a first run after install), and return the set-up's stage printer (:class:`SetupStages`)."""
     import sys
 
-    from dnarod.core.jit import compile_notice
+    from dnarod.run.resources import compile_notice
     from dnarod.run.resources import SetupStages, check_memory, node_count_hint
 
     n = node_count_hint(spec.source)

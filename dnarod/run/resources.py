@@ -14,6 +14,7 @@ import time
 
 from dnarod.core.errors import ParameterError
 from dnarod.core.io import human_bytes
+from dnarod.core.jit import is_cached
 
 #: Bytes per node of a run's set-up and run (model, normal-mode estimate, engine state, reporters), by engine.
 MEMORY_PER_NODE = {"lax": 3500, "openmm": 4500}
@@ -106,3 +107,41 @@ class SetupStages:
         out = self.stream or sys.stderr
         out.write(f"dnarod: set-up of {self.n} nodes, {now - self.t:.0f} s: {stage}...\n")
         out.flush()
+
+
+#: The entry kernels each engine compiles on its first run (module, function): the inlined helpers are compiled
+#: into them.
+KERNELS = {
+    "common": [("dnarod.physics.modes", "_block_cholesky_ok"), ("dnarod.physics.modes", "_step_hessians"),
+               ("dnarod.physics.modes", "_rotate_lab"), ("dnarod.core.strains", "_chain_kernel")],
+    "lax": [("dnarod.engines.lax.fast_blocked", "run_steps_blocked"), ("dnarod.engines.lax.fast_blocked", "_scatter"),
+            ("dnarod.engines.lax.fast", "compute_loads"), ("dnarod.core.kernels", "chain_loads")],
+    "openmm": [],
+}
+#: Rough first-compile time of each engine's kernels, s (measured as :mod:`dnarod.core.jit` says).
+COMPILE_S = {"lax": 70, "openmm": 15}
+
+
+def uncompiled(engine):
+    """Names of the kernels ``engine`` ("lax" or "openmm") would compile on its first call (not in the cache)."""
+    out = []
+    for mod, name in KERNELS["common"] + KERNELS.get(engine, []):
+        try:
+            import importlib
+
+            disp = getattr(importlib.import_module(mod), name)
+        except (ImportError, AttributeError):
+            continue
+        if is_cached(disp) is False:
+            out.append(f"{mod.rsplit('.', 1)[-1]}.{name}")
+    return out
+
+
+def compile_notice(engine):
+    """The one-line notice before a first compile, or None when the kernels are cached."""
+    missing = uncompiled(engine)
+    if not missing:
+        return None
+    n = COMPILE_S.get(engine, 30)
+    return (f"compiling kernels (first run after install, ~{n} s on 2 cores; cached for later runs: "
+            f"{len(missing)} kernel{'s' if len(missing) > 1 else ''})...")
