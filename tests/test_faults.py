@@ -742,3 +742,28 @@ def test_numba_cache_falls_back_to_a_writable_folder(tmp_path, monkeypatch):
     folder = ensure_numba_cache(blocked / "pkg", blocked / "home-cache")  # neither can be written
     assert folder is not None and os.environ["NUMBA_CACHE_DIR"] == folder and Path(folder).is_dir()
     assert cfg.CACHE_DIR == folder
+
+
+def test_member_log_on_a_full_disk_prints_no_traceback(tmp_path, capsys):
+    import logging
+
+    from dnarod.workflows.ensemble.member import _LogFile
+
+    h = _LogFile(tmp_path / "member.log")
+
+    class Full:
+        def write(self, text):
+            raise OSError(errno.ENOSPC, "No space left on device")
+
+        def flush(self):
+            pass
+
+    h.stream = Full()
+    log = logging.getLogger("dnarod.test.fulldisk")
+    log.addHandler(h)
+    log.propagate = False
+    try:
+        log.error("a record the disk cannot take")
+    finally:
+        log.removeHandler(h)
+    assert capsys.readouterr().err == ""
