@@ -148,8 +148,9 @@ class _c_writer:
 
 
 def _frames_in(tmp, kind):
-    """Frames a written XTC or DCD file holds (read back whole, so a truncated last frame counts as missing);
-    what the C readers print on fd 2 is dropped."""
+    """Frames a written XTC or DCD file holds, -1 if its last frame cannot be read (a file cut short); what the C
+    readers print on fd 2 is dropped. XTC: the frame count from the frame headers, then the last frame decoded
+    (one frame in memory); DCD: fixed-size records, the count from the file size."""
     import os
 
     saved = os.dup(2)
@@ -161,7 +162,12 @@ def _frames_in(tmp, kind):
                 from mdtraj.formats import XTCTrajectoryFile
 
                 with XTCTrajectoryFile(str(tmp)) as f:
-                    return len(f.read()[0])
+                    n = len(f)
+                    if n:
+                        f.seek(n - 1)
+                        if len(f.read(1)[0]) != 1:
+                            return -1
+                    return n
             from MDAnalysis.lib.formats.libdcd import DCDFile
 
             with DCDFile(str(tmp)) as f:
