@@ -563,6 +563,7 @@ def _unshare_ok():
     return r.returncode == 0
 
 
+@pytest.mark.slow  # three dnarod processes (8 s idle, 13-23 s on the shared machine); the fast versions are in-process
 def test_real_full_disk_then_resume(tmp_path):
     """On a real 160 kB tmpfs: a filler takes the space the export needs; one line, exit 2, and once it is removed
     `--resume` remakes the exports."""
