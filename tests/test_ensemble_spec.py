@@ -134,8 +134,11 @@ def test_folder_of_another_spec_is_refused_unless_overwrite(tmp_path):
     assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before      # nothing changed
     Ensemble.from_dict(spec(axes={"force_pN": [1, 2]}), out, protocol="null").prepare()   # same spec: resume
     assert keep.exists()
-    Ensemble.from_dict(spec(axes={"force_pN": [1, 3]}), out, protocol="null", overwrite=True).prepare()
-    assert not keep.exists()
+    c = Ensemble.from_dict(spec(axes={"force_pN": [1, 3]}), out, protocol="null", overwrite=True).prepare()
+    assert keep.exists() and c.outdir.parent == out  # built beside the old one, which stays until it is complete
+    c.run(workers=0, progress=False)
+    assert c.outdir == out and not list(out.glob(".dnarod-*"))
+    assert json.loads(keep.read_text()).get("settings") is not None  # member force 1 of the new ensemble, not the old
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("mine")

@@ -95,8 +95,8 @@ CASES = [
                                                                              "process", "pid"], _hold_lock),
     ("overwrite-folder-in-use", ["lax-run", SEQ, "-o", "{w}/busy", "--overwrite", *LAX[2:]], ["in use"], _hold_lock),
     # duplicate list entries
-    ("trap-twice-on-one-node", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--trap", "0:5", "--trap", "-10:3"],
-     ["--trap '-10:3'", "node 0 already has a trap"], None),
+    ("trap-twice-on-one-node", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--trap", "1:5", "--trap", "-10:3"],
+     ["--trap '-10:3'", "base pair 1 already has a trap"], None),
     ("protocol-turns-repeated", ["protocol", "hat", "--source", "40", "--turns", "0,0", *PROTO],
      ["--turns", "repeated values"], None),
     ("protocol-forces-repeated", ["protocol", "force-extension", "--source", "40", "--force", "1,1.0", *PROTO],
@@ -120,7 +120,7 @@ CASES = [
     ("ignore-and-map", ["pairs", str(PDB), "--ignore", "SPM", "--map", "SPM=A"], ["--ignore SPM", "--map"], None),
     # analyze: a refusal found while analysing used to follow a line already printed on stdout
     ("analyze-single-structure", ["analyze", str(PDB), "-o", "{w}/n", "--no-plots"],
-     ["355D.pdb", "1 frame(s) x 9 steps", "dnarod steps"], None),
+     ["355D.pdb", "a single frame (one structure)", "dnarod steps"], None),
     ("analyze-truncated-trajectory", ["analyze", "{w}/t.dtraj", "-o", "{w}/n", "--no-plots"],
      ["t.dtraj", "no complete frame", "truncated"], None),
     ("analyze-rna", ["analyze", "{w}/rna.pdb", "-o", "{w}/n", "--no-plots"], ["rna.pdb", "other than A, C, G, T"],

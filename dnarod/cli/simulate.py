@@ -62,11 +62,13 @@ _OPTIONS = [
     click.option("--turns", type=float, default=0.0,
                  help="Turn the rotation clamp by this many turns, at a constant rate over the run."),
     click.option("--clamp-first", is_flag=True,
-                 help="Fix node 0 in space (position and orientation): the surface of a magnetic-tweezers cell."),
+                 help="Fix the first base pair in space (position and orientation): the surface of a magnetic-tweezers "
+                      "cell."),
     click.option("--axis", type=click.Choice(["end-to-end", "z"]), default="end-to-end", show_default=True,
                  help="Axis of --pull, --torque and --rotation-clamp: the source's end-to-end direction or lab z."),
     click.option("--trap", multiple=True,
-                 help="Harmonic trap NODE:K (node from 0, K in pN/nm) at the node's start position; repeatable."),
+                 help="Harmonic trap NODE:K (NODE a base pair numbered from 1 as `dnarod steps` does, -1 the last; "
+                      "K in pN/nm) at its start position; repeatable."),
     click.option("--minimize", is_flag=True, help="Start from the static minimum under the loads."),
     click.option("--equilibrium", is_flag=True,
                  help="Start from an exact thermal-equilibrium sample of the free chain (open chains)."),
@@ -99,14 +101,20 @@ def _simulate_options(f):
 
 
 def parse_trap(text, n_nodes):
-    """``"NODE:K"`` (K in pN/nm) -> (node, K); node 0-based, negative counts from the end."""
+    """``"NODE:K"`` (K in pN/nm) -> (node index from 0, K). NODE is a base pair numbered from 1, as `dnarod steps`
+    and every message number them; a negative NODE counts from the end (-1: the last)."""
     try:
         node, k = text.split(":")
         node, k = int(node), float(k)
     except ValueError:
-        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (stiffness in pN/nm), e.g. 0:50") from None
-    if not -n_nodes <= node < n_nodes:
-        raise ParameterError(f"--trap {text!r}: node {node} does not exist (the chain has {n_nodes} nodes)")
+        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (a base pair numbered from 1, stiffness in "
+                             f"pN/nm), e.g. 1:50") from None
+    if node == 0:
+        raise ParameterError(f"--trap {text!r}: base pairs are numbered from 1 (1 to {n_nodes}, or -1 for the last)")
+    if not -n_nodes <= node <= n_nodes:
+        raise ParameterError(f"--trap {text!r}: base pair {node} does not exist (the chain has {n_nodes} nodes, "
+                             f"numbered from 1)")
+    node = node - 1 if node > 0 else node
     if not (np.isfinite(k) and k > 0):
         raise ParameterError(f"--trap {text!r}: the stiffness must be positive (pN/nm)")
     return node, k
@@ -147,6 +155,14 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
     if pull is not None or torque is not None or rotation_clamp is not None or clamp_first or trap or turns:
         model = source_model(spec)
         traps = tuple(parse_trap(t, model.n_nodes) for t in trap)
+        if len({node % model.n_nodes for node, _ in traps}) < len(traps):  # two traps on one base pair add up silently
+            seen = {}
+            for t, (node, _) in zip(trap, traps):
+                if node % model.n_nodes in seen:
+                    raise ParameterError(f"--trap {t!r}: base pair {node % model.n_nodes + 1} already has a trap "
+                                         f"({seen[node % model.n_nodes]!r}); give one --trap per base pair with the "
+                                         f"stiffness you want")
+                seen[node % model.n_nodes] = t
         spec = spec.replace(loads=tweezers(model, pull, torque, rotation_clamp, turns,
                                            anchor="surface" if clamp_first else "ends", axis=axis, traps=traps))
     return spec

@@ -35,7 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.core.io import atomic_path
+from dnarod.core.io import atomic_path, writing
 
 HEADER_SIZE = 4096
 MAGIC = b"DTRAJ1 "
@@ -178,6 +178,12 @@ def load_trajectory(path):
                       header.get("metadata", {}))
 
 
+def _quiet():
+    import contextlib
+
+    return contextlib.suppress(OSError)
+
+
 class TrajectoryWriter:
     """Append frames to a ``.dtraj`` file (version 2), one flushed record per frame.
 
@@ -227,9 +233,10 @@ class TrajectoryWriter:
             text = MAGIC + json.dumps(self.header).encode("ascii")
             if len(text) >= HEADER_SIZE:
                 raise DnarodError("trajectory metadata too large for the .dtraj header (4 kB)")
-            self._fh = open(self.path, "wb")
-            self._fh.write(text.ljust(HEADER_SIZE - 1) + b"\n")
-            self._fh.flush()
+            with writing(self.path, HEADER_SIZE):
+                self._fh = open(self.path, "wb")
+                self._fh.write(text.ljust(HEADER_SIZE - 1) + b"\n")
+                self._fh.flush()
         self._rec = np.zeros(1, self._dtype)
 
     def write(self, step, time, positions, frames, velocities=None, angular_velocities=None):
@@ -249,19 +256,34 @@ class TrajectoryWriter:
             if isinstance(exc, DnarodError):
                 raise
             raise DnarodError(f"frame does not fit a {n}-node trajectory ({exc})") from None
-        self._fh.write(r.tobytes())
-        self._fh.flush()
+        self._failed = True  # until the record is on its way (see close)
+        with writing(self.path, r.nbytes):  # a full disk: one line naming the file; the frames before are kept
+            self._fh.write(r.tobytes())
+            self._fh.flush()
+        self._failed = False
 
     def flush(self, sync=False):
         """Flush buffered frames (and ``fsync`` them with ``sync``)."""
         if not self._fh.closed:
-            self._fh.flush()
-            if sync:
-                os.fsync(self._fh.fileno())
+            self._failed = True
+            with writing(self.path):
+                self._fh.flush()
+                if sync:
+                    os.fsync(self._fh.fileno())
+            self._failed = False
 
     def close(self):
-        if not self._fh.closed:
-            self.flush(sync=True)
+        """Flush and close; after a failed write (already reported) only close, saying nothing more."""
+        if self._fh.closed:
+            return
+        if not getattr(self, "_failed", False):
+            try:
+                self.flush(sync=True)
+            except BaseException:
+                with _quiet():
+                    self._fh.close()
+                raise
+        with _quiet():  # a failed flush leaves its bytes buffered: closing tries them again and fails again
             self._fh.close()
 
     def __enter__(self):

@@ -86,7 +86,7 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc
     """
     import mdtraj as md
 
-    from dnarod.core.io import atomic_path
+    from dnarod.core.io import atomic_path, write_text_atomic
 
     if not isinstance(traj, Trajectory):
         traj = load_trajectory(traj)
@@ -99,18 +99,112 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc
     top = mdtraj_topology(n, sequence=seq)
     xyz = bead_positions(traj.positions, traj.frames, arm).astype(np.float32)
     t = md.Trajectory(xyz, top, time=traj.time)
+    n_atoms = xyz.shape[1]
     if pdb_path is not None:
-        with atomic_path(Path(pdb_path)) as tmp:
-            Path(tmp).write_text(cg_pdb_text(traj.positions[0], traj.frames[0], seq, arm))
-    for path, sl in ((xtc_path, slice(None)),):
-        if path is None:
-            continue
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            tmp_ext = str(tmp) + path.suffix
-            t[sl].save(tmp_ext, force_overwrite=True)
-            Path(tmp_ext).replace(tmp)
+        text = cg_pdb_text(traj.positions[0], traj.frames[0], seq, arm)
+        write_text_atomic(Path(pdb_path), text)
+    # The C writers (mdtraj's XTC, MDAnalysis's DCD) may stop early on a full disk without an error: each file is
+    # read back (its frame count) before it replaces the old one.
+    if xtc_path is not None:
+        # mdtraj's XTC writer takes only ASCII paths: an ASCII temporary name, reached by an ASCII path
+        needed = xtc_bytes(traj.n_frames, n_atoms)
+        with atomic_path(Path(xtc_path), needed=needed, needed_bound=True, ascii=True, suffix=".xtc") as tmp:
+            with _c_writer(xtc_path, "xtc", needed):
+                t.save_xtc(tmp, force_overwrite=True)
+            _check_written(xtc_path, tmp, traj.n_frames, "xtc", needed)
     if dcd_path is not None:
-        with atomic_path(dcd_path) as tmp:
-            write_dcd(tmp, xyz, traj.time)
+        needed = dcd_bytes(traj.n_frames, n_atoms)
+        with atomic_path(Path(dcd_path), needed=needed) as tmp:
+            with _c_writer(dcd_path, "dcd", needed):
+                write_dcd(tmp, xyz, traj.time)
+            _check_written(dcd_path, tmp, traj.n_frames, "dcd", needed)
     return t
+
+
+class _c_writer:
+    """A C writer's error (mdtraj's ``XTC write error: 7``, with no errno) as one line naming ``path``: a full disk
+    with its free space, else the writer's words and the free space (a quota or a file-size limit?)."""
+
+    def __init__(self, path, kind, needed):
+        self.path, self.kind, self.needed = Path(path), kind, needed
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, typ, exc, tb):
+        from dnarod.core.io import WriteError, disk_free, human_bytes, write_failure
+
+        if exc is None or isinstance(exc, DnarodError) or not isinstance(exc, (OSError, RuntimeError, IOError)):
+            return False
+        err = write_failure(self.path, exc, self.needed, needed_bound=self.kind == "xtc")
+        if err is None:
+            free = disk_free(self.path.parent)
+            what = " ".join(str(exc).split())[:120] or type(exc).__name__
+            err = WriteError(f"cannot write {self.path}: the {self.kind.upper()} writer failed ({what}; "
+                             f"{human_bytes(free) if free is not None else 'unknown space'} free on its disk: a quota "
+                             f"or a file-size limit?); the files written before are kept", self.path, None, free,
+                             self.needed)
+        raise err from None
+
+
+def _frames_in(tmp, kind):
+    """Frames a written XTC or DCD file holds, -1 if its last frame cannot be read (a file cut short); what the C
+    readers print on fd 2 is dropped. XTC: the frame count from the frame headers, then the last frame decoded
+    (one frame in memory); DCD: fixed-size records, the count from the file size."""
+    import os
+
+    saved = os.dup(2)
+    try:
+        with open(os.devnull, "w") as null:
+            os.dup2(null.fileno(), 2)
+        try:
+            if kind == "xtc":
+                from mdtraj.formats import XTCTrajectoryFile
+
+                with XTCTrajectoryFile(str(tmp)) as f:
+                    n = len(f)
+                    if n:
+                        f.seek(n - 1)
+                        if len(f.read(1)[0]) != 1:
+                            return -1
+                    return n
+            from MDAnalysis.lib.formats.libdcd import DCDFile
+
+            with DCDFile(str(tmp)) as f:
+                return int(f.n_frames)
+        except Exception:  # noqa: BLE001 - a truncated or unreadable file holds no complete frame set
+            return -1
+    finally:
+        os.dup2(saved, 2)
+        os.close(saved)
+
+
+def _check_written(path, tmp, n_frames, kind, needed):
+    """Refuse a file its C writer left short (one line naming ``path``: a full disk with the free space, else
+    the frames it holds)."""
+    from dnarod.core.io import WriteError, disk_free, human_bytes, write_failure
+
+    got = _frames_in(tmp, kind)
+    if got == n_frames:
+        return
+    free = disk_free(Path(path).parent)
+    if free is not None and free < needed:
+        import errno
+
+        raise write_failure(path, OSError(errno.ENOSPC, "No space left on device"), needed, needed_bound=kind == "xtc")
+    held = f"{got} of its {n_frames} frames" if got >= 0 else f"none of its {n_frames} frames readably"
+    raise WriteError(f"cannot write {path}: the {kind.upper()} writer stopped early (the file held {held}; "
+                     f"{human_bytes(free) if free is not None else 'unknown space'} free on its disk; a quota or a "
+                     f"file-size limit?); the files written before are kept", Path(path), None, free, needed)
+
+
+def dcd_bytes(n_frames, n_atoms):
+    """Size of the DCD file :func:`write_dcd` writes (``n_frames`` frames of ``n_atoms`` atoms), bytes: a 356-byte
+    header, then per frame a unit-cell record (56 bytes) and three float32 records of x, y, z."""
+    return 356 + n_frames * (56 + 3 * (4 * n_atoms + 8))
+
+
+def xtc_bytes(n_frames, n_atoms):
+    """Upper estimate of an XTC file's size (``n_frames`` frames, ``n_atoms`` atoms), bytes: the compressed
+    coordinates take at most the 12 bytes of three float32 per atom, plus a 92-byte frame header."""
+    return n_frames * (92 + 12 * n_atoms)

@@ -99,7 +99,7 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     DnarodError
         An unknown check, a folder holding a report (without ``overwrite``) or anything else, a folder in use.
     """
-    from dnarod.core.io import check_output_folder, folder_lock
+    from dnarod.core.io import check_output_folder, folder_lock, staged_folder
     from dnarod.validate.buckling import MEMBER_FOLDER
     from dnarod.validate.report import REPORT_FILES, old_report
 
@@ -111,11 +111,16 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     _refuse_old_report(out_dir, overwrite)
     with folder_lock(out_dir, what="report folder"):
         _refuse_old_report(out_dir, overwrite)  # again: another process may have finished a report here since
-        old_plots = old_report(out_dir)[1]
-        results = _run_checks(out_dir, names, quick, options, echo)
-        for p in set(old_plots) - {q for r in results["checks"].values() for q in (r.get("plots") or [])}:
-            if Path(p).name == p and p.endswith(".png"):  # the earlier report's own plots, by name, only
-                (out_dir / p).unlink(missing_ok=True)
+        # the earlier report's own plots, by name only (removed when the new report has no plot of that name)
+        old_plots = [p for p in old_report(out_dir)[1] if Path(p).name == p and p.endswith(".png")]
+        # the report is made beside the old one (a hidden folder in out_dir) and put in place when complete: an
+        # interrupted or failed validation leaves the earlier report as it was; the members of check buckling
+        # stay in out_dir (reused by the next run)
+        options = {k: dict(v) for k, v in (options or {}).items()}
+        if "buckling" in names:
+            options.setdefault("buckling", {}).setdefault("member_root", out_dir / MEMBER_FOLDER)
+        with staged_folder(out_dir, (*REPORT_FILES, *old_plots), what="validation report") as stage:
+            results = _run_checks(stage, names, quick, options, echo)
         return results
 
 

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 
-from dnarod.core.errors import ParameterError, SimulationError
+from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path, read_checkpoint
 from dnarod.core.model import model_fingerprint
 from dnarod.engines.lax.boundary import BoundaryConditions
@@ -94,7 +94,7 @@ class LaxEngine:
             st = self.integ.state
             ke = (np.sum(st.momenta**2, 1) / self.model.mass + np.sum(st.angular_momenta**2 / self.model.inertia, 1))
             node = int(np.argmax(np.where(np.isfinite(ke), ke, np.inf)))
-            raise SimulationError(f"simulation blew up at step {self.step}: node {node}, term 'elastic' (energy "
+            raise SimulationError(f"simulation blew up at step {self.step}: {base_pair(node)}, term 'elastic' (energy "
                                   f"not finite); reduce dt or check the loads/model", step=self.step, node=node,
                                   term="elastic")
 

@@ -29,7 +29,7 @@ import time
 import numpy as np
 import openmm
 
-from dnarod.core.errors import ParameterError, SimulationError
+from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path
 from dnarod.physics import modes
 from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
@@ -471,7 +471,7 @@ class RodSimulation:
             mag[~np.isfinite(mag)] = np.inf
             node = int(np.argmax(mag))
         txt = ", ".join(f"{k} {v:.4g}" for k, v in terms.items())
-        return SimulationError(f"simulation blew up at step {step}: node {node}, term '{term}' "
+        return SimulationError(f"simulation blew up at step {step}: {base_pair(node)}, term '{term}' "
                                f"(energies kJ/mol: {txt}); reduce dt or check the loads/model",
                                step=step, node=node, term=term)
 

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.extras import require
-from dnarod.core.io import check_output_folder, write_text_atomic
+from dnarod.core.io import REPLACEMENT_PREFIX, check_output_folder, write_text_atomic
 from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
 from dnarod.core.io import RESULT
 from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol
@@ -179,27 +179,28 @@ class Ensemble:
         """Create or check the folder: same spec resumes, another spec is refused unless ``overwrite``."""
         out = self.outdir
         man = out / MANIFEST
-        if man.exists():
+        if man.exists() and getattr(self, "_replaces", None) is None:
             try:
                 old = json.loads(man.read_text())
             except ValueError:
                 old = {}
             if old.get("fingerprint") != self.fingerprint:
+                stage = out / f"{REPLACEMENT_PREFIX}{self.fingerprint[:16]}"
                 if not self.overwrite:
                     n_done = sum(1 for d in (out / "members").glob("*") if (d / RESULT).exists()) \
                         if (out / "members").is_dir() else 0
+                    going = (f"; a replacement by this spec was begun in {stage.name}: --overwrite continues it"
+                             if stage.is_dir() else "")
                     raise SpecError(f"{out}: holds ensemble {old.get('name', '?')!r} made by another spec "
                                     f"({old.get('n_members', '?')} members, {n_done} with results); use another -o "
-                                    f"folder, or --overwrite to replace it")
-                for name in _OURS:
-                    p = out / name
-                    if p.is_dir():
-                        shutil.rmtree(p)
-                    elif p.exists():
-                        p.unlink()
-                for p in out.glob("plot_*.png"):
-                    p.unlink()
-        else:
+                                    f"folder, or --overwrite to replace it{going}")
+                # overwrite: the new ensemble is made beside the old one (a hidden folder in out, named by the new
+                # spec, so that running the command again continues it) and replaces it when every member has
+                # finished (write_results); until then the old ensemble stays as it was
+                self._replaces = out
+                self.outdir = out = stage
+                man = out / MANIFEST
+        elif getattr(self, "_replaces", None) is None:
             try:
                 check_output_folder(out, (MANIFEST,), "ensemble")
             except DnarodError as exc:
@@ -353,6 +354,19 @@ class Ensemble:
 
     def write_results(self, **extra):
         """Write the table, the plots and ``summary.json`` from the members' results; returns the summary."""
+        if getattr(self, "_replaces", None) is None:
+            return self._write_results(**extra)
+        try:
+            return self._write_results(**extra)
+        except DnarodError as exc:  # name the files by their place in the ensemble folder; the old one is kept
+            from dnarod.core.io import _rewrite_message
+
+            _rewrite_message(exc, self.outdir, self._replaces,
+                             f" (the earlier ensemble in {self._replaces} is unchanged; the same command with "
+                             f"--overwrite continues the replacement kept in {self.outdir.name})")
+            raise
+
+    def _write_results(self, **extra):
         rows = collect_rows(self.outdir, self.members)
         table = rows_to_table(rows, self._setting_keys())
         tpath, cpath = write_table(table, self.outdir)
@@ -373,6 +387,32 @@ class Ensemble:
                 "member_wall_s_total": wall, "member_cpu_s_total": cpu, **extra,
                 "files": {"table": str(tpath), "csv": str(cpath), "plots": [str(p) for p in plots]}}
         write_summary(self.outdir, info)
+        if getattr(self, "_replaces", None) is not None and not self.pending():
+            info = self._replace_old(info)
+        return info
+
+    def _replace_old(self, info):
+        """Put the finished replacement (``--overwrite``) in place of the old ensemble: the old ensemble's files go
+        to a hidden folder, the new ones are renamed into the ensemble folder (renames: no data is written), the
+        hidden folders are removed."""
+        import os
+        import tempfile
+
+        final, stage = self._replaces, self.outdir
+        trash = Path(tempfile.mkdtemp(prefix=".dnarod-replaced-", dir=final))
+        for p in [*(final / n for n in _OURS), *final.glob("plot_*.png")]:
+            if p.exists() or p.is_symlink():
+                os.replace(p, trash / p.name)
+        for p in stage.iterdir():
+            os.replace(p, final / p.name)
+        shutil.rmtree(trash, ignore_errors=True)
+        for p in [stage, *final.glob(f"{REPLACEMENT_PREFIX}*")]:  # this one and any left by replacements not finished
+            shutil.rmtree(p, ignore_errors=True)
+        self.outdir, self._replaces = final, None
+        fix = lambda x: str(x).replace(str(stage), str(final))  # noqa: E731
+        info["files"] = {"table": fix(info["files"]["table"]), "csv": fix(info["files"]["csv"]),
+                         "plots": [fix(x) for x in info["files"]["plots"]]}
+        write_summary(final, info)
         return info
 
 

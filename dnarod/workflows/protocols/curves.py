@@ -187,9 +187,12 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         Bad settings, a folder of another protocol run or of something else, a folder in use (before any member
         runs), or a failed member.
     """
-    from dnarod.core.io import check_output_folder, folder_lock, jsonable
+    import json
+
+    from dnarod.core.io import check_output_folder, folder_lock, jsonable, staged_folder
     from dnarod.workflows.protocols import ensemble_hooks as hooks
-    from dnarod.workflows.protocols.folder import PROTOCOL_MARKERS, check_protocol_folder, write_protocol_record
+    from dnarod.workflows.protocols.folder import (PROTOCOL_FILES, PROTOCOL_MARKERS, check_protocol_folder,
+                                                   replaces_other_settings, write_protocol_record)
 
     proto = hooks.protocol_of(kind)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
@@ -228,6 +231,18 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     check_protocol_folder(outdir, kind, shared, overwrite)
     with folder_lock(outdir):
         check_protocol_folder(outdir, kind, shared, overwrite)  # again: another process may have written it since
+        if overwrite and replaces_other_settings(outdir, kind, shared):
+            # made beside the old run (kept there if stopped: the same command continues it) and put in place when
+            # its curve is written: until then the old run stays as it was
+            import hashlib
+
+            tag = hashlib.sha256(json.dumps([kind, shared], sort_keys=True).encode()).hexdigest()[:16]
+            with staged_folder(outdir, PROTOCOL_FILES, what="protocol run", resume_name=tag) as work:
+                curve = _run_members(kind, axes, base, members, work, workers, progress, client, plots, start,
+                                     settle_ns, settle_buckled_ns, proto, exchange_ps)
+                write_protocol_record(work, kind, shared)
+            curve.files = {k: outdir / Path(v).name for k, v in curve.files.items()}
+            return curve
         curve = _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
                              settle_buckled_ns, proto, exchange_ps)
         write_protocol_record(outdir, kind, shared)

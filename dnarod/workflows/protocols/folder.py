@@ -53,3 +53,20 @@ def write_protocol_record(out, kind, settings):
 
     write_text_atomic(Path(out) / MANIFEST, json.dumps({"format": "dnarod-protocol", "kind": kind,
                                                         "settings": settings}, indent=1, sort_keys=True) + "\n")
+
+
+def replaces_other_settings(out, kind, settings):
+    """True if ``out`` holds a protocol record of another ``kind`` or other ``settings`` (an ``--overwrite``
+    then makes the new run beside it: :func:`dnarod.workflows.protocols.run_protocol`)."""
+    p = Path(out) / MANIFEST
+    if not p.is_file():
+        return False
+    try:
+        old = json.loads(p.read_text())
+        return (old["kind"], old["settings"]) != (kind, settings)
+    except (OSError, ValueError, KeyError, TypeError):
+        return True
+
+
+#: What a protocol writes into its folder (an ``--overwrite`` with other settings replaces exactly these).
+PROTOCOL_FILES = (MANIFEST, "curve.csv", "curve.png", "members.csv", "members", "ensemble", "ladders")
