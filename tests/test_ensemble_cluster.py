@@ -26,6 +26,7 @@ NULL_SPEC = '[ensemble]\nprotocol = "null"\n[base]\nsource = "ACGTACGTAC"\ntime_
 # An installed package that declares a protocol as an entry point (group dnarod.protocols): members that sleep,
 # so a test can interrupt them; "started" marks a member that has begun.
 TESTPROTO = '''
+import sys
 import time
 from pathlib import Path
 
@@ -35,6 +36,7 @@ class Sleepy:
 
     def execute(self, settings, member_dir, analysis=None):
         Path(member_dir, "started").write_text("")
+        print("a sleepy member started", file=sys.stderr, flush=True)
         time.sleep(settings["sleep_s"])
         return {"slept_s": settings["sleep_s"]}
 
@@ -230,34 +232,32 @@ def test_dask_dashboard_port_is_named(tmp_path):
 # ------------------------------------------------------------------------------------------------------------
 # private local clusters
 
-def test_local_cluster_listens_on_localhost_only_and_serves_no_http(tmp_path):
+def test_dashboard_only_when_asked_and_on_localhost(monkeypatch):
+    """``--dashboard`` (here without bokeh, which only changes the page served): the dashboard's HTTP server
+    listens, on 127.0.0.1 only."""
+    import types
+
     import psutil
 
+    monkeypatch.setitem(sys.modules, "bokeh", types.ModuleType("bokeh"))    # passes the "needs bokeh" check
     me = psutil.Process()
     before = {p.pid for p in me.children(recursive=True)}
     old = set(_listening([me.pid]))
-    log = tmp_path / "ensemble.log"
-    with client_for(workers=2, log=log) as c:
+    with client_for(workers=1, dashboard=True) as c:
         kids = [p.pid for p in me.children(recursive=True) if p.pid not in before]
         socks = [s for s in _listening([me.pid]) if s not in old] + _listening(kids)
-        workers = c.scheduler_info()["workers"]
-        ignored = c.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN)
-        c.run(lambda: print("worker stderr marker", file=sys.stderr, flush=True))
-        scheduler_port = int(c.scheduler.address.rsplit(":", 1)[1])
-        assert {ip for _, ip, _ in socks} == {"127.0.0.1"}, socks
-        ports = {port for _, _, port in socks}
-        # the scheduler, each worker and its nanny; no HTTP server (no dashboard, no worker metrics)
-        assert scheduler_port in ports and {int(a.rsplit(":", 1)[1]) for a in workers} <= ports
-        assert len(socks) == 1 + 2 * len(workers) == 5, socks
-        assert not [p for p in ports if _speaks_http(p)]
-    assert all(ignored.values()) and len(ignored) == 2       # Ctrl-C is this process's to handle
-    assert "worker stderr marker" in log.read_text()         # workers' stderr: the ensemble's log
+        link = c.dashboard_link
+        port = int(link.split("//", 1)[1].split("/", 1)[0].rsplit(":", 1)[1])
+        assert link.startswith("http://127.0.0.1:") and _speaks_http(port)
+    assert {ip for _, ip, _ in socks} == {"127.0.0.1"}, socks
+    assert port in {p for _, _, p in socks}
 
 
 def test_ctrl_c_is_one_line_exit_130_and_the_cluster_is_private(tmp_path, pkgs):
     """Ctrl-C (SIGINT to the command's process group, as a terminal sends it) while members run: one line, exit
-    130, no traceback from the command or its workers; while running, every listening socket of the command and
-    its worker processes is on 127.0.0.1 and none serves HTTP (the ``ss -ltnp`` check of issue 33)."""
+    130, no traceback from the command or its workers. While it runs, the local cluster is private: every listening
+    socket of the command and its worker processes is on 127.0.0.1 (the ``ss -ltnp`` check of issue 33), none
+    serves HTTP (no dashboard, no worker metrics), and the workers' stderr goes to OUT/ensemble.log."""
     import psutil
 
     spec = tmp_path / "s.toml"
@@ -268,6 +268,7 @@ def test_ctrl_c_is_one_line_exit_130_and_the_cluster_is_private(tmp_path, pkgs):
         assert _wait_for(out, "members/*/started", p), p.communicate(timeout=30)
         procs = [p.pid] + [c.pid for c in psutil.Process(p.pid).children(recursive=True)]
         socks = _listening(procs)
+        http = [port for _, _, port in socks if _speaks_http(port)]
         os.killpg(p.pid, signal.SIGINT)
         t0 = time.perf_counter()
         stdout, stderr = p.communicate(timeout=60)
@@ -281,8 +282,10 @@ def test_ctrl_c_is_one_line_exit_130_and_the_cluster_is_private(tmp_path, pkgs):
     assert len(said) == 1 and said[0].startswith("dnarod: interrupted;"), stderr
     assert took < 30, took
     assert socks and {ip for _, ip, _ in socks} == {"127.0.0.1"}, socks
-    assert len(socks) == 3, socks                           # scheduler, nanny, worker: no dashboard
-    assert (out / "ensemble.log").stat().st_size > 0         # dask's log went there
+    assert len(socks) == 3 and not http, socks              # scheduler, nanny, worker: no dashboard
+    log = (out / "ensemble.log").read_text()
+    assert "a sleepy member started" in log and "a sleepy member started" not in stderr    # the worker's stderr
+    assert "distributed." in log                              # dask's log went there
     assert not list(out.glob("members/*/result.json"))      # nothing finished; the rerun resumes
 
 
@@ -397,6 +400,14 @@ def test_tls_scheduler_with_and_without_certificates(tmp_path, certs, tls_schedu
 
     rows = pq.read_table(tmp_path / "ok" / "results.parquet").to_pylist()
     assert [(row["status"], row["echo_force_pN"]) for row in rows] == [("ok", 1.0), ("ok", 2.0)]
+    import dask                                       # the same certificates from dask's own configuration
+
+    with dask.config.set({"distributed.comm.tls.ca-file": str(certs / "ca.pem"),
+                          "distributed.comm.tls.client.cert": str(certs / "client.pem"),
+                          "distributed.comm.tls.client.key": str(certs / "client.key")}):
+        r = run("ok-config")
+    assert r.exit_code == 0, r.output
+    assert pq.read_table(tmp_path / "ok-config" / "results.parquet").to_pylist() == rows
 
     refused = {
         "none": ([], "a tls:// scheduler needs certificates"),
