@@ -91,7 +91,8 @@ def _run(spec, outdir, scheduler, workers, timeout, tls, overwrite, dashboard, p
     from dnarod.workflows.ensemble.ensemble import LOG_FILE, Ensemble
 
     ens = Ensemble.from_toml(spec, outdir, overwrite=overwrite)
-    security = tls_security(*tls) if scheduler else None
+    # certificates given here (the rest from dask's configuration); a tls:// address without them looks there only
+    security = tls_security(*tls) if any(t is not None for t in tls) else None
     client = connect(scheduler, timeout, security) if scheduler else None    # a wrong address fails here, in one line
     try:
         ens.prepare()
