@@ -176,7 +176,7 @@ CASES = [
     ("ensemble-binary-fasta", ["ensemble", "{w}/fasta_binary.toml", "-o", "{w}/n", "--workers", "0"],
      ["binary.fa", "not a FASTA text file"], None),
     ("ensemble-protocol-without-hooks", ["ensemble", "{w}/not_a_protocol.toml", "-o", "{w}/n", "--workers", "0"],
-     ["os:getcwd", "none of build, reduce, execute"], None),
+     ["os:getcwd", "not a registered name", "known protocols"], None),
 ]
 
 

@@ -6,12 +6,14 @@ Folder layout (``outdir``)::
     spec.toml               # the spec file as given (from_toml)
     members/<id>/           # one run directory per member (see dnarod.workflows.ensemble.member)
     results.parquet, results.csv, plot_<axis>.png, summary.json
+    ensemble.log            # dask's own log records (and a local cluster's worker processes' stderr)
 
 Running again with the same spec resumes: finished members are skipped, partial ones resume
 from their checkpoints. A folder made by another spec is refused unless ``overwrite``.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import shutil
@@ -30,8 +32,10 @@ from dnarod.workflows.ensemble.schema import SpecError
 from dnarod.workflows.ensemble.spec import EnsembleSpec, check_members, load_spec, parse_spec
 
 MANIFEST = "ensemble.json"
+#: Where dask's log records go while the ensemble runs (never to the terminal).
+LOG_FILE = "ensemble.log"
 #: What an overwrite removes (only what an ensemble writes).
-_OURS = ("members", MANIFEST, "spec.toml", TABLE, CSV, SUMMARY)
+_OURS = ("members", MANIFEST, "spec.toml", TABLE, CSV, SUMMARY, LOG_FILE)
 
 
 class Ensemble:
@@ -222,7 +226,7 @@ class Ensemble:
 
     # ---------------------------------------------------------------------------------------
     def run(self, client=None, scheduler=None, workers=None, progress=True, timeout=10.0, window=None,
-            dashboard=False):
+            dashboard=False, security=None):
         """Run every unfinished member on dask and write the results; returns ``self``.
 
         Parameters
@@ -230,7 +234,8 @@ class Ensemble:
         client : distributed.Client, optional
             Use this client (left open). Default: ``scheduler`` or a new ``LocalCluster``.
         scheduler : str, optional
-            Address of a running dask scheduler (``tcp://HOST:PORT``).
+            Address of a running dask scheduler (``tcp://HOST:PORT``, or ``tls://HOST:PORT`` with
+            ``security``).
         workers : int, optional
             Local cluster size (default: the cores); ``0`` runs the members one after another in
             this process, without dask (debugging, or machines where worker processes cannot start).
@@ -242,17 +247,27 @@ class Ensemble:
             Members in flight at once (default ``max(32, 4 x worker threads)``); keeps the
             client's memory independent of the ensemble's size.
         dashboard : bool
-            Serve the local cluster's dask dashboard (needs bokeh); each member is a task
-            ``dnarod-member-<id>-...`` there.
+            Serve the local cluster's dask dashboard on 127.0.0.1 (needs bokeh); each member is a task
+            ``dnarod-member-<id>-...`` there. Without it a local cluster serves nothing over HTTP.
+        security : distributed.security.Security, optional
+            TLS certificates for ``scheduler``
+            (:func:`dnarod.workflows.ensemble.cluster.tls_security`).
+
+        Dask's own log records go to ``OUT/ensemble.log`` while the ensemble runs, not to the terminal;
+        a lost scheduler raises :class:`~dnarod.workflows.ensemble.cluster.SchedulerError` (one line).
         """
         from concurrent.futures import CancelledError
 
         as_completed = require("distributed", "ensemble").as_completed
         from tqdm.auto import tqdm
 
-        from dnarod.workflows.ensemble.cluster import SchedulerError, client_for
+        from distributed.comm.core import CommClosedError
+
+        from dnarod.workflows.ensemble.cluster import SchedulerError, client_for, dask_logs
 
         self.prepare()
+        logs = contextlib.ExitStack()
+        logs.enter_context(dask_logs(self.outdir / LOG_FILE))
         t0 = time.perf_counter()
         todo = self.pending()
         n_total = len(self.members)
@@ -260,7 +275,7 @@ class Ensemble:
                    disable=not progress, dynamic_ncols=True)
         failed = []
         info = {}
-        proto = self.protocol_arg
+        proto = self.protocol       # the object: workers need no registry
 
         def finished(m, rec):
             if rec.get("status") != "ok":
@@ -278,7 +293,7 @@ class Ensemble:
                     finished(m, run_member(m.id, m.settings, str(self.outdir.resolve()), proto, self.spec.analysis))
                 self.summary = self.write_results(wall_s=time.perf_counter() - t0, scheduler=None, workers=0)
                 return self
-            with client_for(client, scheduler, workers, timeout, dashboard) as c:
+            with client_for(client, scheduler, workers, timeout, dashboard, security, self.outdir / LOG_FILE) as c:
                 if dashboard or scheduler:
                     bar.write(f"dask dashboard: {c.dashboard_link}")
                 info = {"scheduler": c.scheduler.address, "workers": len(c.scheduler_info().get("workers", {}))}
@@ -303,7 +318,7 @@ class Ensemble:
                     m = by_future.pop(fut.key)
                     try:
                         rec = fut.result()
-                    except CancelledError as exc:     # the scheduler went away: stop, members stay resumable
+                    except (CancelledError, CommClosedError) as exc:   # the scheduler went away: stop, resumable
                         raise SchedulerError(f"lost the connection to the dask scheduler {info['scheduler']} "
                                              f"({type(exc).__name__}); run the same command again: finished "
                                              f"members are kept and partial ones resume") from None
@@ -313,8 +328,13 @@ class Ensemble:
                     finished(m, rec)
                     for f in submit((window or self._window(c)) - len(by_future)):
                         ac.add(f)
+        except CommClosedError as exc:        # the scheduler went away outside a result (submitting, closing)
+            raise SchedulerError(f"lost the connection to the dask scheduler {info.get('scheduler', scheduler)} "
+                                 f"({_one_line(exc)}); run the same command again: finished members are kept and "
+                                 f"partial ones resume") from None
         finally:
             bar.close()
+            logs.close()
         self.summary = self.write_results(wall_s=time.perf_counter() - t0, **info)
         return self
 
@@ -414,6 +434,11 @@ class Ensemble:
                          "plots": [fix(x) for x in info["files"]["plots"]]}
         write_summary(final, info)
         return info
+
+
+def _one_line(exc):
+    msg = " ".join(str(exc).split()) or type(exc).__name__
+    return msg if len(msg) <= 200 else msg[:200] + "..."
 
 
 def _protocol_name(p):

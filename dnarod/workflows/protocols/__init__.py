@@ -25,6 +25,13 @@ from __future__ import annotations
 from dnarod.workflows.protocols.curves import (Curve, force_extension, hat_curve, ring_supercoiling, run_protocol, torque_turns)  # noqa: F401
 from dnarod.workflows.protocols.ensemble_hooks import FORCE_EXTENSION, MAGNETIC_TWEEZERS, RINGS, TORQUE_TURNS  # noqa: F401
 from dnarod.workflows.protocols.nicked import run_nicked_member  # noqa: F401
+from dnarod.workflows.ensemble.protocol import register_protocol
+
+# the names ensemble specs give (also entry points of dnarod in pyproject.toml), and their import paths
+for _name, _attr, _obj in (("force-extension", "FORCE_EXTENSION", FORCE_EXTENSION),
+                           ("magnetic-tweezers", "MAGNETIC_TWEEZERS", MAGNETIC_TWEEZERS),
+                           ("torque-turns", "TORQUE_TURNS", TORQUE_TURNS), ("rings", "RINGS", RINGS)):
+    register_protocol(_name, _obj, aliases=(f"{__name__}:{_attr}",))
 
 __all__ = ["Curve", "force_extension", "hat_curve", "torque_turns", "ring_supercoiling", "run_protocol",
            "FORCE_EXTENSION", "MAGNETIC_TWEEZERS", "TORQUE_TURNS", "RINGS", "run_nicked_member"]
