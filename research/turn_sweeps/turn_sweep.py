@@ -67,7 +67,7 @@ GROW_FORCE_FRACTION = 0.3
 #: ... for this long (ns), before its equilibration at the member's force.
 GROW_NS = 20.0
 #: Plectoneme twist stiffness P (nm) that places the buckling point (:func:`buckling_turns`): the model's own,
-#: from its plectonemic 600-bp ring at Delta Lk = -5 (``dna-default``, 0.15 M, 300 K, Manning's charge; the
+#: from its plectonemic 600-bp ring at Delta Lk = -5 (``dna-default``, 0.15 M, 300 K; the
 #: buckling check, research/buckling/notes.md): 17.3 +- 0.3 nm (19.7 nm at Delta Lk = -3, 14.5 nm from the
 #: measured plateau torque).
 PLECTONEME_P_NM = 17.3

@@ -196,7 +196,7 @@ def twist_ramp_mismatch(params, angle=0.7):
     in-plane strains coupled to twist or extension, an intrinsic bend or shear), the rungs are not images of each
     other under the map and swaps cost energy in proportion to the turn squared, so few swaps between rungs far
     apart are accepted (on ``olson1998``, 40 bp, far fewer at 0.1 turns than on ``dna-default``; the acceptance
-    measured on two-rung ladders: research/hat_curve/notes.md). The rule stays exact; only the acceptance falls.
+    measured on two-rung ladders: docs/misuse.md). The rule stays exact; only the acceptance falls.
 
     Parameters
     ----------
