@@ -5,7 +5,7 @@ Research code (``research/buckling/check``; until 2026-12-07 it was ``dnarod.val
 of ``dnarod validate``). It runs on the product's public API: tweezers members
 (:func:`dnarod.workflows.protocols.tweezers.run_member`, from the static pose or from a given pose), ring members
 (:func:`dnarod.workflows.protocols.rings.run_ring_member`) and the theory of
-:mod:`dnarod.physics.theory.supercoil`. Command: ``python research/buckling/check/run.py OUT [--quick] [KEY=VALUE
+:mod:`dnarod.physics.theory.supercoil`. Command: ``python research/buckling/check/run_buckling.py OUT [--quick] [KEY=VALUE
 ...]``.
 
 System: an open ``dna-default`` chain in magnetic tweezers at constant force (node 0 clamped, rotation clamp and
@@ -113,7 +113,7 @@ for the grown start), 1200-bp ring 1012 CPU-s per 200 ns, 600-bp ring 168 CPU-s 
 Members: :func:`member_plan` lists the members the check runs with given options (folders, settings, seeds);
 members run in advance with exactly those settings (e.g. in two processes, ``research/buckling/r6/premembers.py``)
 into the member root are reused. Without ``member_root`` the members live in ``<report folder>/buckling_members``
-(:data:`MEMBER_FOLDER`), so running the check again into the same report folder (``run.py SAME``) reuses the
+(:data:`MEMBER_FOLDER`), so running the check again into the same report folder (``run_buckling.py SAME``) reuses the
 finished members and resumes an interrupted one from its checkpoint. The pre-buckling member has no plectoneme
 and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending relaxation times) in the full form.
 

@@ -1,5 +1,5 @@
 """Run the buckling check on a member root filled by premembers.py (same options), so the report folder holds
-report.md, results.json and buckling.png (through ``research/buckling/check/run.py``; until 2026-12-07 through
+report.md, results.json and buckling.png (through ``research/buckling/check/run_buckling.py``; until 2026-12-07 through
 ``dnarod.validate.run_validation``, check ``buckling``).
 
 Usage: python run_check.py ROOT REPORT_DIR [key=value ...]   (the premembers.py options, without claims=)
@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "check"))  # research/buckling/check
-from run import main as run_check  # noqa: E402
+from run_buckling import main as run_check  # noqa: E402
 
 
 def _value(v):

@@ -1,7 +1,7 @@
 """Run the buckling check into a report folder: ``results.json`` (the check's result), ``report.md`` (its headline)
 and ``buckling.png``.
 
-    python research/buckling/check/run.py OUT [--quick] [KEY=VALUE ...]
+    python research/buckling/check/run_buckling.py OUT [--quick] [KEY=VALUE ...]
 
 KEY=VALUE are keywords of :func:`buckling_check.check_buckling` (values read as Python literals, e.g.
 ``time_ns=300 ring_seed=7 bracket=True post_turns=(2.567,3.594) nonbonded={'charge':'manning'}``). The members
@@ -25,7 +25,7 @@ def parse_options(items):
     for item in items:
         key, sep, value = item.partition("=")
         if not sep or not key.isidentifier():
-            raise SystemExit(f"run.py: error: {item!r}: give options as KEY=VALUE")
+            raise SystemExit(f"run_buckling.py: error: {item!r}: give options as KEY=VALUE")
         try:
             opts[key] = ast.literal_eval(value)
         except (ValueError, SyntaxError):
@@ -51,7 +51,7 @@ def main(argv=None):
     try:
         res = check_buckling(out, quick=a.quick, **parse_options(a.options))
     except (DnarodError, TypeError) as exc:
-        print(f"run.py: error: {exc}", file=sys.stderr)
+        print(f"run_buckling.py: error: {exc}", file=sys.stderr)
         return 2
     measured, tolerance = headline(res)
     write_text_atomic(out / "results.json", json.dumps(jsonable(res), indent=1) + "\n")
