@@ -137,8 +137,9 @@ CASES = [
      ["--time (time_ns)", "more than 10000 ns"], None),
     ("protocol-equilibration-huge", ["protocol", "rings", "--delta-lk", "0", "--source", "40", *PROTO,
                                      "--equilibration", "1e12"], ["--equilibration", "more than 10000 ns"], None),
-    ("protocol-settle-huge", ["protocol", "hat", "--turns", "0", "--source", "40", "--start", "sweep", "--settle",
-                              "1e9", *PROTO], ["--settle 1e+09", "10000 ns"], None),
+    # the turn-sweep starts left the product (research/turn_sweeps): refused as an unknown choice
+    ("protocol-start-sweep-unknown", ["protocol", "hat", "--turns", "0", "--source", "40", "--start", "sweep", *PROTO],
+     ["--start", "'sweep' is not one of 'static', 'exchange'"], None),
     # a load so stiff it sets the time step (it used to be blamed on --time/--dt)
     ("rotation-clamp-huge", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--clamp-first", "--rotation-clamp", "1e300"],
      ["--rotation-clamp 1e+300", "use at most"], None),

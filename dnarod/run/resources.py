@@ -1,10 +1,9 @@
 """What a run needs of the machine, checked before any work: memory for the model, words while a large one is set up.
 
-Memory per node: peak resident memory of ``dnarod simulate N --time 0.001 --no-export`` on this code, measured
-with ``benchmarks/bench_memory.py`` (GNU time's maximum RSS): 217 MB / 509 MB at N = 10^4 / 10^5 with the lax
-engine and 257 MB / 625 MB with the OpenMM engine (CPU platform), 2.74 GB at N = 10^6 (lax). The estimate is a
-fixed part (the Python process with numpy, numba, OpenMM) plus a per-node part from the 10^4 -> 10^5 difference
-(3.3 kB per node lax, 4.1 kB OpenMM, rounded up to 3.5 and 4.5 kB), which over-estimates 10^6 nodes by ~30 %.
+Memory per node: from the peak resident memory of ``dnarod simulate N --time 0.001 --no-export`` at N = 10^4 and
+10^5 (the repository's memory benchmark, ``bench_memory``, with its measured table in the benchmark results): a
+fixed part (the Python process with numpy, numba, OpenMM) plus a per-node part from the difference, rounded up
+(:data:`MEMORY_PER_NODE`), so the estimate errs on the safe side for larger models.
 """
 from __future__ import annotations
 
