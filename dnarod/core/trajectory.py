@@ -231,25 +231,27 @@ class TrajectoryWriter:
             self._fh.write(text.ljust(HEADER_SIZE - 1) + b"\n")
             self._fh.flush()
         self._rec = np.zeros(1, self._dtype)
+        # views of the record's fields, made once (a structured field lookup per frame costs more than the copy)
+        self._fields = {name: self._rec[name][0] for name in self._dtype.names}
 
     def write(self, step, time, positions, frames, velocities=None, angular_velocities=None):
         """Append one frame (shapes (n_nodes, 3), (n_nodes, 3, 3); nm, ps)."""
-        r = self._rec
+        r, f = self._rec, self._fields
         n = self.n_nodes
         try:
             r["step"], r["time"] = step, time
-            r["positions"][0] = np.reshape(positions, (n, 3))
-            r["frames"][0] = np.reshape(frames, (n, 3, 3))
+            f["positions"][...] = np.reshape(positions, (n, 3))
+            f["frames"][...] = np.reshape(frames, (n, 3, 3))
             if self.velocities:
                 if velocities is None or angular_velocities is None:
                     raise DnarodError("this trajectory stores velocities: pass velocities and angular_velocities")
-                r["velocities"][0] = np.reshape(velocities, (n, 3))
-                r["angular_velocities"][0] = np.reshape(angular_velocities, (n, 3))
+                f["velocities"][...] = np.reshape(velocities, (n, 3))
+                f["angular_velocities"][...] = np.reshape(angular_velocities, (n, 3))
         except ValueError as exc:
             if isinstance(exc, DnarodError):
                 raise
             raise DnarodError(f"frame does not fit a {n}-node trajectory ({exc})") from None
-        self._fh.write(r.tobytes())
+        self._fh.write(r.data)
         self._fh.flush()
 
     def flush(self, sync=False):

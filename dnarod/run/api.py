@@ -221,14 +221,15 @@ MAX_STEPS = 10**12
 
 
 def intervals(spec, dt):
-    """(n_steps, frame interval, checkpoint interval) in steps."""
+    """(n_steps, frame interval, checkpoint interval) in steps; the checkpoint interval is 0 (none on a step
+    schedule: by wall time, ``spec.checkpoint_wall_s``) unless ``spec.checkpoint_interval_ps`` is given."""
     steps = spec.time_ns * 1000.0 / dt
     if not steps <= MAX_STEPS:
         raise ParameterError(f"--time {spec.time_ns:g} ns at --dt {dt:g} ps is {steps:.3g} steps, more than "
                              f"{MAX_STEPS:.0e}; give a shorter --time (ns) or a larger --dt (ps)")
     n_steps = max(1, int(round(steps)))
     fi = max(1, int(round(spec.frame_interval_ps / dt)))
-    ci = 10 * fi if spec.checkpoint_interval_ps is None else int(round(spec.checkpoint_interval_ps / dt))
+    ci = 0 if spec.checkpoint_interval_ps is None else int(round(spec.checkpoint_interval_ps / dt))
     return n_steps, fi, ci
 
 
@@ -398,10 +399,12 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
     if spec.engine == "openmm":
         traj_meta.update(platform=engine.platform_name, elastic=engine.rs.elastic)
     # the checkpoint was already loaded (resume) or the folder emptied (new run)
-    out = simulate_engine(engine, n_steps, outdir, fi, fi, ci, resume=resume_step is not None, overwrite=True,
+    out = simulate_engine(engine, n_steps, outdir, fi, fi, None if spec.checkpoint_interval_ps is None else ci,
+                          resume=resume_step is not None, overwrite=True,
                           velocities=spec.velocities, metadata=traj_meta, observables=_observables(spec, engine.model),
                           progress=progress, duration_ps=spec.time_ns * 1000.0,
-                          checkpoint_extra=dict(run=meta["run_id"]), restored=True)
+                          checkpoint_extra=dict(run=meta["run_id"]), restored=True,
+                          checkpoint_wall_s=spec.checkpoint_wall_s)
     if spec.export:
         from dnarod.structure.export import export_trajectory
 
