@@ -60,7 +60,7 @@ def _use_tree(tree):
         exec(_TREE_PRELUDE.format(tree=tree), {})
 
 
-def single(tree, time_ns, pairs, n_bp, profile=None):
+def single(tree, time_ns, pairs, n_bp, profile=None, frame_interval_ps=None):
     """One child: ``pairs`` interleaved (bare, run) measurements; returns a JSON-able dict."""
     _use_tree(tree)
     import dnarod
@@ -81,11 +81,14 @@ def single(tree, time_ns, pairs, n_bp, profile=None):
     ex.export_trajectory = timed_export
     seq = "ACGT" * (n_bp // 4)
     spec = RunSpec(source=seq, time_ns=time_ns, seed=1)
+    if frame_interval_ps is not None:
+        spec = spec.replace(frame_interval_ps=frame_interval_ps)
     model = source_model(spec)
     omega = default_omega_max(model, spec.loads)
     dt = choose_dt(spec, model, omega)
     n_steps, fi, ci = intervals(spec, dt)
     out = dict(tree=tree or str(ROOT), dnarod=str(Path(dnarod.__file__).parent), n_bp=n_bp, time_ns=time_ns,
+               frame_interval_ps=spec.frame_interval_ps,
                steps=n_steps, dt_ps=dt, frame_interval_steps=fi, checkpoint_interval_steps=ci, pairs=[])
     workdir = tempfile.mkdtemp(prefix="bench_run_overhead_")
     for i in range(pairs):
@@ -141,6 +144,8 @@ def single(tree, time_ns, pairs, n_bp, profile=None):
 def _child(tree, args):
     cmd = [sys.executable, str(Path(__file__).resolve()), "--single", "--time-ns", str(args.time_ns),
            "--pairs", str(args.pairs), "--n-bp", str(args.n_bp)]
+    if args.frame_interval_ps is not None:
+        cmd += ["--frame-interval-ps", str(args.frame_interval_ps)]
     if tree:
         cmd += ["--tree", tree]
     p = subprocess.run(cmd, capture_output=True, text=True)
@@ -188,6 +193,8 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--time-ns", type=float, default=2.0)
     ap.add_argument("--n-bp", type=int, default=1000)
+    ap.add_argument("--frame-interval-ps", type=float, default=None,
+                    help="frame (and energies-row) interval, ps (default: simulate's, 1 ps)")
     ap.add_argument("--pairs", type=int, default=2, help="interleaved (bare, run) pairs per child process")
     ap.add_argument("--repeats", type=int, default=2, help="child processes per tree (trees alternate)")
     ap.add_argument("--old-tree", default=None, help="a checkout of an older commit to compare (same plugin build)")
@@ -199,7 +206,8 @@ def main():
     ap.add_argument("--profile", default=None, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.single:
-        print(json.dumps(single(args.tree, args.time_ns, args.pairs, args.n_bp, args.profile)))
+        print(json.dumps(single(args.tree, args.time_ns, args.pairs, args.n_bp, args.profile,
+                                args.frame_interval_ps)))
         return
     trees = [None] + ([str(Path(args.old_tree).resolve())] if args.old_tree else [])
     load0 = os.getloadavg()

@@ -147,6 +147,7 @@ class RodSimulation:
         self._report_cache = None
         self._rollback = None
         self._plugin_reports = None
+        self._limit = None
         if initial_velocities is not None:
             self.set_node_velocities(*initial_velocities)
         elif self.temperature > 0:
@@ -238,9 +239,7 @@ class RodSimulation:
             rep = self._node_report()
             if rep is not None:
                 rows = rep[0]
-                if not copy:
-                    rows = rows.view()
-                    rows.flags.writeable = False
+                if not copy:  # the report's rows are read-only
                     return rows[:, 0:3], rows[:, 3:12].reshape(-1, 3, 3), rows[:, 12:15], rows[:, 15:18]
                 return (rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy(), rows[:, 12:15].copy(),
                         rows[:, 15:18].copy())
@@ -296,6 +295,7 @@ class RodSimulation:
                 return None
             rows = np.empty((self.model.n_nodes, 18))
             energies = self.integrator.getNodeReport(rows)
+            rows.flags.writeable = False  # node_state(copy=False) hands out views of it
             self._report_cache = (rows, energies)
         return self._report_cache
 
@@ -379,18 +379,22 @@ class RodSimulation:
         self.invalidate()
 
     # --- checks -----------------------------------------------------------------------
+    def _energy_limit(self):
+        """Potential plus kinetic energy above which a state counts as blown up, kJ/mol."""
+        return 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
+
     def _report_healthy(self):
         e = self._node_report()[1]
         E, K = e[0] + e[1] + e[2] + e[3], e[4]
-        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
-        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < limit
+        if self._limit is None:
+            self._limit = self._energy_limit()
+        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < self._limit
 
     def _healthy(self, st):
         E = md_value(st.getPotentialEnergy())
         K = md_value(st.getKineticEnergy())
         p = md_value(st.getPositions(asNumpy=True))
-        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
-        return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < limit
+        return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < self._energy_limit()
 
     def _diagnose(self, step):
         """Build the SimulationError for a bad current state: term, node, energies."""
