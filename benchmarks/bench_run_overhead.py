@@ -30,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import statistics
 import subprocess
 import sys
@@ -135,9 +136,11 @@ def single(tree, time_ns, pairs, n_bp, profile=None, frame_interval_ps=None):
                                                              else (0.0, 0.0))
                 rec["checkpoints"] = len(saves)
                 rec["files"] = sorted(p.name for p in res.files.values())
+                shutil.rmtree(folder, ignore_errors=True)  # a 10-ns run's trajectory is 0.5 GB
         rec["ratio_wall"] = rec["loop_wall_s"] / rec["bare_wall_s"]
         rec["ratio_cpu"] = rec["loop_cpu_s"] / rec["bare_cpu_s"]
         out["pairs"].append(rec)
+    shutil.rmtree(workdir, ignore_errors=True)
     return out
 
 
@@ -155,16 +158,21 @@ def _child(tree, args):
 
 
 def _plugin_child(tree, budget):
-    code = _TREE_PRELUDE.format(tree=tree) + (
-        "import runpy, sys\n"
-        f"sys.path.insert(0, {str(ROOT / 'benchmarks')!r})\n"
-        f"sys.argv = ['bench_plugin.py', '--sizes', '10000', '--budget', '{budget}', '--repeats', '1', '--json', "
-        f"{os.devnull!r}]\n"
-        f"runpy.run_path({str(ROOT / 'benchmarks' / 'bench_plugin.py')!r}, run_name='__main__')\n")
-    t = time.perf_counter()
-    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    """``benchmarks/bench_plugin.py --sizes 10000`` (no thread scan) under ``tree``; its JSON record."""
+    with tempfile.TemporaryDirectory() as d:
+        out = Path(d) / "bench_plugin.json"
+        code = _TREE_PRELUDE.format(tree=tree) + (
+            "import runpy, sys\n"
+            f"sys.path.insert(0, {str(ROOT / 'benchmarks')!r})\n"
+            f"sys.argv = ['bench_plugin.py', '--sizes', '10000', '--budget', '{budget}', '--repeats', '1', "
+            f"'--thread-sizes', '', '--kbp-budget', '10', '--json', {str(out)!r}]\n"
+            f"runpy.run_path({str(ROOT / 'benchmarks' / 'bench_plugin.py')!r}, run_name='__main__')\n")
+        t = time.perf_counter()
+        p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        rec = json.loads(out.read_text()) if out.exists() else {}
     return dict(tree=tree or str(ROOT), wall_s=time.perf_counter() - t, returncode=p.returncode,
-                stdout=p.stdout.strip().splitlines()[-12:], stderr_tail=p.stderr.strip().splitlines()[-3:])
+                sizes=rec.get("sizes"), kbp=rec.get("kbp"), stdout=p.stdout.strip().splitlines()[-10:],
+                stderr_tail=p.stderr.strip().splitlines()[-3:])
 
 
 def _summary(children):
@@ -229,7 +237,7 @@ def main():
         for r in range(args.repeats):
             for tree in (trees if r % 2 == 0 else trees[::-1]):
                 plugin.append(_plugin_child(tree, args.plugin_budget))
-                print(f"plugin benchmark ({tree or 'this tree'}): " + " | ".join(plugin[-1]["stdout"][-6:]),
+                print(f"plugin benchmark ({tree or 'this tree'}): " + " | ".join(plugin[-1]["stdout"][-8:]),
                       file=sys.stderr)
     summary = _summary(children)
     print(f"{args.n_bp} bp, {args.time_ns:g} ns per run ({children[0].get('steps')} steps), medians of "
