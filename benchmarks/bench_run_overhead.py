@@ -22,8 +22,8 @@ Usage::
     python benchmarks/bench_run_overhead.py [--time-ns 2] [--pairs 2] [--repeats 2] [--old-tree DIR]
         [--plugin] [--json benchmarks/results/run_layer_overhead.json]
 
-``--plugin`` also runs ``benchmarks/bench_plugin.py --sizes 10000`` (the 10^4-node plugin benchmark)
-under each tree, interleaved, and records its rates.
+``--plugin`` also runs the 10^4-node plugin benchmark (``bench_plugin.sizes([10000], ...)``: the callback and
+plugin paths, elastic only and full model) ``--plugin-repeats`` times under each tree, interleaved.
 """
 from __future__ import annotations
 
@@ -158,21 +158,29 @@ def _child(tree, args):
 
 
 def _plugin_child(tree, budget):
-    """``benchmarks/bench_plugin.py --sizes 10000`` (no thread scan) under ``tree``; its JSON record."""
-    with tempfile.TemporaryDirectory() as d:
-        out = Path(d) / "bench_plugin.json"
-        code = _TREE_PRELUDE.format(tree=tree) + (
-            "import runpy, sys\n"
-            f"sys.path.insert(0, {str(ROOT / 'benchmarks')!r})\n"
-            f"sys.argv = ['bench_plugin.py', '--sizes', '10000', '--budget', '{budget}', '--repeats', '1', "
-            f"'--thread-sizes', '', '--kbp-budget', '10', '--json', {str(out)!r}]\n"
-            f"runpy.run_path({str(ROOT / 'benchmarks' / 'bench_plugin.py')!r}, run_name='__main__')\n")
-        t = time.perf_counter()
-        p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
-        rec = json.loads(out.read_text()) if out.exists() else {}
-    return dict(tree=tree or str(ROOT), wall_s=time.perf_counter() - t, returncode=p.returncode,
-                sizes=rec.get("sizes"), kbp=rec.get("kbp"), stdout=p.stdout.strip().splitlines()[-10:],
-                stderr_tail=p.stderr.strip().splitlines()[-3:])
+    """The 10^4-node plugin benchmark (:func:`bench_plugin.sizes` at 10^4 nodes: the callback and plugin paths,
+    elastic only and full model, node-steps per CPU-second and per wall second) under ``tree``."""
+    code = _TREE_PRELUDE.format(tree=tree) + (
+        "import json, sys\n"
+        f"sys.path.insert(0, {str(ROOT / 'benchmarks')!r})\n"
+        "import bench_plugin\n"
+        f"print(json.dumps(bench_plugin.sizes([10000], {float(budget)!r}, 1)[0]))\n")
+    t = time.perf_counter()
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    if p.returncode != 0:
+        return dict(tree=tree or str(ROOT), error=(p.stderr.strip().splitlines() or ["failed"])[-1])
+    return dict(tree=tree or str(ROOT), wall_s=time.perf_counter() - t, **json.loads(p.stdout.strip().splitlines()[-1]))
+
+
+def _plugin_summary(plugin):
+    out = {}
+    for tree in dict.fromkeys(p["tree"] for p in plugin):
+        rows = [p for p in plugin if p["tree"] == tree and "error" not in p]
+        out[tree] = {k: statistics.median(r[k] for r in rows) for k in
+                     ("plugin_full_per_cpu_s", "plugin_bonded_per_cpu_s", "plugin_full_per_wall_s",
+                      "callback_full_per_cpu_s")} if rows else {}
+        out[tree]["n"] = len(rows)
+    return out
 
 
 def _summary(children):
@@ -207,7 +215,8 @@ def main():
     ap.add_argument("--repeats", type=int, default=2, help="child processes per tree (trees alternate)")
     ap.add_argument("--old-tree", default=None, help="a checkout of an older commit to compare (same plugin build)")
     ap.add_argument("--plugin", action="store_true", help="also the 10^4-node plugin benchmark under each tree")
-    ap.add_argument("--plugin-budget", type=float, default=3.0)
+    ap.add_argument("--plugin-budget", type=float, default=3.0, help="seconds per plugin rate measurement")
+    ap.add_argument("--plugin-repeats", type=int, default=4, help="child processes per tree for the plugin benchmark")
     ap.add_argument("--json", default=str(H.RESULTS / "run_layer_overhead.json"))
     ap.add_argument("--single", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--tree", default=None, help=argparse.SUPPRESS)
@@ -234,10 +243,12 @@ def main():
                       f"{p['ratio_cpu']:.3f}; export {p['export_wall_s']:.2f} s wall / {p['export_cpu_s']:.2f} s CPU; "
                       f"{p['checkpoints']} checkpoints; {p['platform']}/{p['elastic']}", file=sys.stderr)
     if args.plugin:
-        for r in range(args.repeats):
+        for r in range(args.plugin_repeats):
             for tree in (trees if r % 2 == 0 else trees[::-1]):
-                plugin.append(_plugin_child(tree, args.plugin_budget))
-                print(f"plugin benchmark ({tree or 'this tree'}): " + " | ".join(plugin[-1]["stdout"][-8:]),
+                plugin.append(p := _plugin_child(tree, args.plugin_budget))
+                print(f"plugin benchmark, 10^4 nodes ({tree or 'this tree'}): " + (
+                    p["error"] if "error" in p else f"plugin full {p['plugin_full_per_cpu_s']:.4g} node-steps per "
+                    f"CPU-s ({p['plugin_full_per_wall_s']:.4g} per wall s), bonded {p['plugin_bonded_per_cpu_s']:.4g}"),
                       file=sys.stderr)
     summary = _summary(children)
     print(f"{args.n_bp} bp, {args.time_ns:g} ns per run ({children[0].get('steps')} steps), medians of "
@@ -248,8 +259,16 @@ def main():
         print(f"{tree:>40} {s['bare_wall_ms_per_step']:>6.4f}/{s['bare_cpu_ms_per_step']:.4f} "
               f"{s['loop_wall_ms_per_step']:>6.4f}/{s['loop_cpu_ms_per_step']:.4f} {s['ratio_wall_median']:>10.3f} "
               f"{s['ratio_cpu_median']:>9.3f} {s['export_wall_s']:>9.2f} {s['checkpoints']:>6g}")
+    plugin_summary = _plugin_summary(plugin) if plugin else None
+    if plugin:
+        print("10^4-node plugin benchmark, medians (node-steps per CPU-second):")
+        for tree, s in plugin_summary.items():
+            if s.get("n"):
+                print(f"{tree:>40} plugin full {s['plugin_full_per_cpu_s']:.4g}, bonded {s['plugin_bonded_per_cpu_s']:.4g} "
+                      f"({s['n']} runs)")
     H.write_results(args.json, "run_layer_overhead", command=" ".join(sys.argv), load_average_start=load0,
-                    summary=summary, children=children, plugin=plugin)
+                    summary=summary, children=children, plugin=plugin,
+                    plugin_summary=plugin_summary)
 
 
 if __name__ == "__main__":
