@@ -231,15 +231,18 @@ def test_check_free_space_refuses_before_work(tmp_path, monkeypatch):
 # ----------------------------------------------------------------------------------------------------------
 # simulate: the run stream, checkpoints, exports, --overwrite
 # ----------------------------------------------------------------------------------------------------------
-def test_full_disk_mid_run_then_resume_is_bit_exact(tmp_path, monkeypatch, reference):
+@pytest.mark.parametrize("checkpoints", [["--checkpoint-interval", "2"], []], ids=["after-a-checkpoint", "before-any"])
+def test_full_disk_mid_run_then_resume_is_bit_exact(tmp_path, monkeypatch, reference, checkpoints):
+    """A full disk in the middle of a run: one line naming the file; --resume then finishes the run bit for bit, from
+    its last checkpoint or, stopped before the first one (checkpoints by wall time), from its start."""
     out = tmp_path / ODD
-    disk = DiskFull(monkeypatch, tmp_path, budget=60_000)
-    r = cli(["simulate", SEQ, *RUN, "-o", out])
+    disk = DiskFull(monkeypatch, tmp_path, budget=60_000 if checkpoints else 20_000)
+    r = cli(["simulate", SEQ, *RUN, *checkpoints, "-o", out])
     err = refused(r, "cannot write", "no space left on its disk (0 B free", "needed", "--resume")
     assert str(out) in err and disk.state.tripped
     assert leftovers(tmp_path) == []
     monkeypatch.undo()
-    r = cli(["simulate", SEQ, *RUN, "-o", out, "--resume"])
+    r = cli(["simulate", SEQ, *RUN, *checkpoints, "-o", out, "--resume"])
     assert r.exit_code == 0, r.output
     _same_run(out, reference)
     assert {p.name for p in out.iterdir()} >= {"trajectory.xtc", "trajectory.dcd", "trajectory.pdb"}
@@ -249,7 +252,7 @@ def test_full_disk_at_a_checkpoint_keeps_the_previous_one(tmp_path, monkeypatch,
     out = tmp_path / "run"
     size = (reference / "checkpoint.npz").stat().st_size
     DiskFull(monkeypatch, tmp_path, budget=int(1.5 * size), match="checkpoint.npz")  # the 2nd checkpoint fails
-    r = cli(["simulate", SEQ, *RUN, "-o", out])
+    r = cli(["simulate", SEQ, *RUN, "--checkpoint-interval", "2", "-o", out])
     refused(r, f"cannot write {out}/checkpoint.npz: no space left", "--resume")
     assert leftovers(tmp_path) == []
     monkeypatch.undo()
@@ -257,7 +260,7 @@ def test_full_disk_at_a_checkpoint_keeps_the_previous_one(tmp_path, monkeypatch,
 
     meta, _ = read_checkpoint(out / "checkpoint.npz", "dnarod-lax-checkpoint", ())
     assert meta["step"] > 0  # the first checkpoint, intact
-    assert cli(["simulate", SEQ, *RUN, "-o", out, "--resume"]).exit_code == 0
+    assert cli(["simulate", SEQ, *RUN, "--checkpoint-interval", "2", "-o", out, "--resume"]).exit_code == 0
     _same_run(out, reference)
 
 
@@ -289,33 +292,38 @@ def _xtc_frames(path):
 
 
 def test_c_writers_that_fail_or_stop_short_on_a_full_disk(tmp_path, monkeypatch, reference):
-    import mdtraj as md
+    import mdtraj.formats
+    from mdtraj.formats import XTCTrajectoryFile
 
     import dnarod.structure.export as ex
 
     run = tmp_path / "run"
     shutil.copytree(reference, run)
     before = checksums(run)
-    real_save = md.Trajectory.save_xtc
+    real_write = XTCTrajectoryFile.write
     monkeypatch.setattr(dio, "disk_free", lambda p: 0)
 
-    def error_7(self, filename, force_overwrite=True):  # mdtraj on a full disk: part of the file, then an error
-        Path(filename).write_bytes(b"\0" * 100)
+    def writer(write):  # mdtraj's XTC writer, its write replaced
+        return type("XTC", (XTCTrajectoryFile,), {"write": write})
+
+    def error_7(self, xyz, *a, **k):  # mdtraj on a full disk: part of the file, then an error
+        real_write(self, xyz[:1], *a, **{kk: v[:1] for kk, v in k.items()})
         raise RuntimeError("XTC write error: 7")
 
-    monkeypatch.setattr(md.Trajectory, "save_xtc", error_7)
+    monkeypatch.setattr(mdtraj.formats, "XTCTrajectoryFile", writer(error_7))
     refused(cli(["export", run]), f"cannot write {run}/trajectory.xtc: no space left on its disk (0 B free")
     assert checksums(run) == before and leftovers(tmp_path) == []
 
-    def short(self, filename, force_overwrite=True):  # ... or a short file and no error at all
-        real_save(self[: len(self) // 2], filename, force_overwrite=True)
+    def short(self, xyz, *a, **k):  # ... or a short file and no error at all
+        h = len(xyz) // 2
+        real_write(self, xyz[:h], *a, **{kk: v[:h] for kk, v in k.items()})
 
-    monkeypatch.setattr(md.Trajectory, "save_xtc", short)
+    monkeypatch.setattr(mdtraj.formats, "XTCTrajectoryFile", writer(short))
     refused(cli(["export", run]), "trajectory.xtc: no space left", "up to")
     assert checksums(run) == before and leftovers(tmp_path) == []
-    monkeypatch.setattr(md.Trajectory, "save_xtc", real_save)
-    real_dcd = ex.write_dcd
-    monkeypatch.setattr(ex, "write_dcd", lambda path, xyz, t: real_dcd(path, xyz[:3], t[:3]))
+    monkeypatch.setattr(mdtraj.formats, "XTCTrajectoryFile", XTCTrajectoryFile)
+    real_dcd = ex._DCDFrames.write
+    monkeypatch.setattr(ex._DCDFrames, "write", lambda self, xyz: real_dcd(self, xyz[:3]))
     monkeypatch.setattr(dio, "disk_free", lambda p: 10**12)  # room left: a quota or a file-size limit
     refused(cli(["export", run]), f"cannot write {run}/trajectory.dcd: the DCD writer stopped early", "3 of its")
     assert leftovers(tmp_path) == []
@@ -341,7 +349,7 @@ def test_simulate_overwrite_is_atomic(tmp_path, monkeypatch, reference):
     out = tmp_path / ODD
     shutil.copytree(reference, out)
     before = checksums(out)
-    DiskFull(monkeypatch, tmp_path, budget=40_000)
+    DiskFull(monkeypatch, tmp_path, budget=20_000)
     r = cli(["simulate", SEQ, *RUN[:-3], "--seed", "8", "--no-progress", "-o", out, "--overwrite"])
     err = refused(r, f"cannot write {out}/", f"the earlier run in {out} is unchanged")
     assert dio.STAGE_PREFIX not in err

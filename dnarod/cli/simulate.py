@@ -79,7 +79,11 @@ _OPTIONS = [
     click.option("--frame-interval", type=float, default=1.0, show_default=True,
                  help="Time between trajectory frames and energy rows, ps."),
     click.option("--checkpoint-interval", type=float, default=None,
-                 help="Time between checkpoints, ps [default: 10 frames]; one is always written at the end."),
+                 help="Simulated time between checkpoints, ps [default: by wall time, --checkpoint-wall]; one is "
+                      "always written at the end and on Ctrl-C."),
+    click.option("--checkpoint-wall", type=float, default=None,
+                 help="Wall-clock seconds between checkpoints when --checkpoint-interval is not given "
+                      "[default: 120]."),
     click.option("--resume", is_flag=True, help="Continue the run in --out from its checkpoint up to --time."),
     click.option("--overwrite", is_flag=True, help="Replace an earlier run in --out (its run files are removed)."),
     click.option("--seed", type=int, default=None,
@@ -124,7 +128,7 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                       friction, integrator, platform, threads, elastic, excluded_volume, electrostatics, salt, pull,
                       torque, rotation_clamp, turns, clamp_first, trap, minimize, equilibrium, frame_interval,
                       checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None,
-                      axis="end-to-end"):
+                      axis="end-to-end", checkpoint_wall=None):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
     from dnarod.physics.nonbonded import nonbonded_options
     from dnarod.run.api import source_model
@@ -149,7 +153,8 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                    circular=circular, ring=ring, delta_lk=delta_lk, duplex=duplex, intrinsic=intrinsic,
                    start="minimized" if minimize else "equilibrium" if equilibrium else "intrinsic",
                    frame_interval_ps=frame_interval, checkpoint_interval_ps=checkpoint_interval, velocities=velocities,
-                   export=export, xtc=xtc, elastic=elastic, threads=threads)
+                   export=export, xtc=xtc, elastic=elastic, threads=threads,
+                   **({} if checkpoint_wall is None else dict(checkpoint_wall_s=checkpoint_wall)))
     spec.check()
     _refuse_ignored_options(spec, xtc, export)
     if pull is not None or torque is not None or rotation_clamp is not None or clamp_first or trap or turns:

@@ -37,6 +37,8 @@ def node_kinetic_energy(mass, inertia, velocities, angular_velocities):
 
 def kinetic_temperature(kinetic_energy, n_dof):
     """Temperature (K) of ``n_dof`` degrees of freedom holding ``kinetic_energy`` (kJ/mol); 0 if none."""
+    if type(kinetic_energy) is float:  # one value per report of a run: the same arithmetic without numpy's overhead
+        return 2.0 * kinetic_energy / (n_dof * BOLTZMANN) if n_dof > 0 else 0.0
     return 2.0 * np.asarray(kinetic_energy) / (n_dof * BOLTZMANN) if n_dof > 0 else 0.0 * np.asarray(kinetic_energy)
 
 

@@ -236,14 +236,15 @@ MAX_STEPS = 10**12
 
 
 def intervals(spec, dt):
-    """(n_steps, frame interval, checkpoint interval) in steps."""
+    """(n_steps, frame interval, checkpoint interval) in steps; the checkpoint interval is 0 (none on a step
+    schedule: by wall time, ``spec.checkpoint_wall_s``) unless ``spec.checkpoint_interval_ps`` is given."""
     steps = spec.time_ns * 1000.0 / dt
     if not steps <= MAX_STEPS:
         raise ParameterError(f"--time {spec.time_ns:g} ns at --dt {dt:g} ps is {steps:.3g} steps, more than "
                              f"{MAX_STEPS:.0e}; give a shorter --time (ns) or a larger --dt (ps)")
     n_steps = max(1, int(round(steps)))
     fi = max(1, int(round(spec.frame_interval_ps / dt)))
-    ci = 10 * fi if spec.checkpoint_interval_ps is None else int(round(spec.checkpoint_interval_ps / dt))
+    ci = 0 if spec.checkpoint_interval_ps is None else int(round(spec.checkpoint_interval_ps / dt))
     return n_steps, fi, ci
 
 
@@ -433,6 +434,9 @@ def _resume(spec, outdir, paths, progress):
     spec_dt = dt if spec.dt is None else float(spec.dt)
     spec_seed = seed if spec.seed is None else int(spec.seed)
     compare_fingerprints(old_fp, fingerprint(spec, model, spec_dt, spec_seed), paths["run_json"])
+    if not paths["checkpoint"].exists() and not meta.get("segments"):
+        # stopped before its first checkpoint (no segment ever finished): nothing to lose, start it again
+        return _restart(spec, outdir, paths, model, meta, run_json_text, seed, dt, progress)
     # read the checkpoint before anything is touched: a corrupt or foreign file changes nothing
     ck_meta, _ = read_checkpoint(paths["checkpoint"], CHECKPOINT_FORMATS[spec.engine], ())
     if (ck_meta.get("extra") or {}).get("run") != meta.get("run_id"):
@@ -476,6 +480,25 @@ def _resume(spec, outdir, paths, progress):
         return _execute(spec, outdir, paths, engine, model, meta, resume_step=engine.step, progress=progress)
 
 
+def _restart(spec, outdir, paths, model, meta, run_json_text, seed, dt, progress):
+    """Resume a run stopped before its first checkpoint (a crash, a full disk, Ctrl-C early on): it starts again
+    from its start pose with its own seed, so it is the run that was begun (its partial frames are replaced)."""
+    start = start_model(spec, model, seed)
+    engine = make_engine(spec, start if start is not None else model, dt, seed, meta.get("omega_max"))
+    if start is None:  # OpenMM energy minimisation of the context (no static solver available)
+        engine.minimize()
+    with folder_lock(outdir):
+        if paths["run_json"].read_text() != run_json_text:
+            raise ParameterError(f"cannot resume: {paths['run_json']} changed while this resume was set up (another "
+                                 f"process wrote the run); run the command again")
+        for key in ("trajectory", "energies", "final_model"):
+            paths[key].unlink(missing_ok=True)
+        meta["spec"] = spec.to_json()
+        meta["segments"] = []
+        write_text_atomic(paths["run_json"], json.dumps(jsonable(meta), indent=1) + "\n")
+        return _execute(spec, outdir, paths, engine, model, meta, resume_step=None, progress=progress)
+
+
 def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
     from dnarod.run.loop import simulate_engine
 
@@ -493,11 +516,11 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
         traj_meta.update(platform=engine.platform_name, elastic=engine.rs.elastic)
     # the checkpoint was already loaded (resume) or the folder emptied (new run)
     try:
-        out = simulate_engine(engine, n_steps, outdir, fi, fi, ci, resume=resume_step is not None, overwrite=True,
-                              velocities=spec.velocities, metadata=traj_meta,
-                              observables=_observables(spec, engine.model), progress=progress,
+        out = simulate_engine(engine, n_steps, outdir, fi, fi, None if spec.checkpoint_interval_ps is None else ci,
+                              resume=resume_step is not None, overwrite=True, velocities=spec.velocities,
+                              metadata=traj_meta, observables=_observables(spec, engine.model), progress=progress,
                               duration_ps=spec.time_ns * 1000.0, checkpoint_extra=dict(run=meta["run_id"]),
-                              restored=True)
+                              restored=True, checkpoint_wall_s=spec.checkpoint_wall_s)
     except WriteError as exc:  # a full disk mid-run: say what the rest of the run needs and how to go on
         raise _run_write_error(exc, spec, model.n_nodes, dt, outdir, staged=resume_step is None and
                                outdir.name.startswith(STAGE_PREFIX)) from None

@@ -42,9 +42,10 @@ class Snapshot:
 
     @property
     def state(self):
-        """``(positions, frames, velocities, angular_velocities)`` (on-step; see the engine protocol)."""
+        """``(positions, frames, velocities, angular_velocities)`` (on-step; see the engine protocol): the engine's
+        arrays or read-only views, valid for this report only."""
         if self._state is None:
-            self._state = self.engine.node_state()
+            self._state = self.engine.node_state(copy=False)
         return self._state
 
     @property
@@ -129,8 +130,9 @@ class EnergyReporter(_Interval):
     def __init__(self, path, interval, observables=None, resume_step=None):
         self.path = Path(path)
         self.interval = int(interval)
-        self.observables = observables
-        self.columns = ENERGY_COLUMNS + list(getattr(observables, "columns", []) if observables else [])
+        extra = list(getattr(observables, "columns", []) if observables else [])
+        self.observables = observables if extra else None  # no columns to fill: not called
+        self.columns = ENERGY_COLUMNS + extra
         rows = []
         if resume_step is not None and self.path.exists():
             with open(self.path, newline="") as fh:

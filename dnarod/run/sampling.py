@@ -17,10 +17,7 @@ from typing import Any
 import numpy as np
 
 from dnarod.core.errors import ParameterError
-from dnarod.run.loop import run_engine
-
-#: Wall seconds between a sampling run's checkpoints (an interrupted member loses at most this much work).
-CHECKPOINT_WALL_S = 120.0
+from dnarod.run.loop import CHECKPOINT_WALL_S, run_engine
 
 
 class SampleReporter:

@@ -98,9 +98,14 @@ class LaxEngine:
                                   f"not finite); reduce dt or check the loads/model", step=self.step, node=node,
                                   term="elastic")
 
-    def node_state(self):
+    def node_state(self, copy=True):
+        """On-step ``(positions (n, 3) nm, frames (n, 3, 3), velocities (n, 3) nm/ps lab, angular velocities
+        (n, 3) rad/ps body)``; ``copy=False``: positions and frames are the integrator's own arrays (valid until
+        it advances; the run layer's reports)."""
         s = self.integ.state
         v, w = s.velocities(self.model.mass, self.model.inertia)
+        if copy:
+            return s.positions.copy(), s.frames.copy(), v, w
         return s.positions, s.frames, v, w
 
     def energies(self):
