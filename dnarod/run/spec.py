@@ -13,6 +13,7 @@ import numpy as np
 
 from dnarod.core.errors import ParameterError
 from dnarod.core.model import model_fingerprint
+from dnarod.physics.nonbonded import scales_temperature
 from dnarod.run.loop import CHECKPOINT_WALL_S
 
 ENGINES = ("openmm", "lax")
@@ -259,7 +260,7 @@ class RunSpec:
         extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
         if check:
             return member_nonbonded(dict(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
-                                         salt_M=self.salt, temperature_K=self.temperature or 300.0, **extra))
+                                         salt_M=self.salt, temperature_K=scales_temperature(self.temperature), **extra))
         return NonbondedSettings(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
                                  salt=self.salt, **extra)
 
@@ -328,7 +329,7 @@ def _nonbonded_fingerprint(spec, model):
     if spec.engine == "openmm" and spec.electrostatics:
         from dnarod.physics.nonbonded import nonbonded_record
 
-        rec = nonbonded_record(spec.nonbonded_settings(), model.ds, spec.temperature or 300.0)
+        rec = nonbonded_record(spec.nonbonded_settings(), model.ds, scales_temperature(spec.temperature))
         fp.update({k: rec[k] for k in CHARGE_ENTRIES})
     return fp
 

@@ -44,9 +44,8 @@ from dnarod.engines.openmm.particles import (closure_image_positions, node_poses
                         particle_positions, particle_velocities)
 from dnarod.engines.openmm.platforms import choose_platform
 from dnarod.engines.openmm.system import build_system
+from dnarod.physics.nonbonded import scales_temperature
 
-#: Temperature (K) that sets the non-bonded energy scales (WCA kT, Bjerrum length) of a run started at 0 K.
-NONBONDED_REFERENCE_T = 300.0
 
 
 def _checked_dt(dt, omega):
@@ -201,7 +200,7 @@ class RodSimulation:
         # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         rs = build_system(model, plat.getName(), elastic, nonbonded, loads,
-                          temperature if temperature > 0 else NONBONDED_REFERENCE_T)
+                          scales_temperature(temperature))
         for f in extra_forces:  # added before the Context exists, so every elastic path (plugin included) sees them
             rs.system.addForce(f)
         if rs.elastic == "plugin":

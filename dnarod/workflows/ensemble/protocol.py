@@ -70,13 +70,6 @@ def _run_api():
     return RunSpec, run
 
 
-def _loads_module():
-    try:
-        return importlib.import_module("dnarod.physics.loads")
-    except ImportError:
-        return importlib.import_module("dnarod.engines.openmm.loads")
-
-
 def build_runspec(settings, model_cache=None):
     """The :class:`dnarod.run.RunSpec` of a member's settings (keys with units -> MD units).
 
