@@ -1,0 +1,103 @@
+"""Sphinx configuration of dnarod's documentation: the user guide (Markdown pages, MyST) and the API reference
+(autodoc of the numpydoc docstrings, one autosummary page per layer).
+
+Build (the docs test runs the same command; every warning is an error)::
+
+    .venv/bin/sphinx-build -W -n -b html docs docs/_build/html
+"""
+from __future__ import annotations
+
+import importlib.metadata
+import re
+import warnings
+
+project = "dnarod"
+author = "the dnarod developers"
+copyright = "the dnarod developers"  # noqa: A001 (Sphinx's name)
+release = importlib.metadata.version("dnarod")
+version = release
+
+extensions = [
+    "myst_parser",
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.mathjax",
+    "numpydoc",
+]
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+root_doc = "index"
+exclude_patterns = ["_build", "api/generated/*.rst.tmp", "**/.ipynb_checkpoints"]
+templates_path = ["_templates"]
+
+# MyST: GitHub-style tables, $math$, anchors for "#section" links within and across pages
+myst_enable_extensions = ["dollarmath", "colon_fence"]
+myst_heading_anchors = 4
+
+# autodoc / autosummary: one stub page per module, generated at build time (api/generated, not committed)
+autosummary_generate = True
+autosummary_imported_members = False
+# members defined in each module (a package's re-exports are documented in their own module, once); scipy's cKDTree,
+# imported by dnarod.structure.findpair, is a Cython class that autodoc would otherwise try to describe there
+autodoc_default_options = {"members": True, "undoc-members": False, "show-inheritance": True,
+                           "ignore-module-all": True, "exclude-members": "cKDTree"}
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"  # numpydoc states the types in the Parameters sections
+
+# numpydoc: members are listed by autodoc, not by numpydoc's own autosummary tables
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+numpydoc_validation_checks: set[str] = set()
+# numpydoc also reads the raw class docstring for the signature and says it does not know "Results" (the rendered
+# page gets the section, as "Attributes", from _results_section below)
+warnings.filterwarnings("ignore", message="Unknown section Results", category=UserWarning)
+
+html_theme = "alabaster"
+html_static_path: list[str] = []
+html_title = f"dnarod {release}"
+
+
+_LITERAL = re.compile(r"(``.+?``|`[^`]+`)")
+
+
+def _escape_bars(app, what, name, obj, options, lines):
+    """Docstrings write absolute values and norms as plain text (``|x|``, ``|sigma|``); reStructuredText would read
+    ``|...|`` as a substitution. Escape every ``|`` outside inline literals and interpreted text (the package's
+    docstrings hold no reStructuredText tables or line blocks)."""
+    for i, line in enumerate(lines):
+        if "|" in line:
+            parts = _LITERAL.split(line)
+            lines[i] = "".join(p if k % 2 else p.replace("|", "\\|") for k, p in enumerate(parts))
+
+
+def _results_section(lines):
+    """The analyses document ``.results`` (the MDAnalysis pattern) in a "Results" section, which numpydoc does not
+    know (it would drop it): render it as "Attributes" with the names prefixed ``results.``."""
+    i = 0
+    while i + 1 < len(lines):
+        head, rule = lines[i], lines[i + 1]
+        if head.strip() == "Results" and rule.strip() and set(rule.strip()) == {"-"}:
+            indent = head[: len(head) - len(head.lstrip())]
+            lines[i], lines[i + 1] = indent + "Attributes", indent + "-" * len("Attributes")
+            j = i + 2
+            while j < len(lines):
+                line = lines[j]
+                nxt = lines[j + 1] if j + 1 < len(lines) else ""
+                if line.strip() and nxt.strip() and set(nxt.strip()) == {"-"}:
+                    break  # the next section
+                if line.strip() and line[: len(indent) + 1].strip() and line.startswith(indent):
+                    names, sep, rest = line[len(indent):].partition(" : ")
+                    names = ", ".join("results." + n.strip() for n in names.split(","))
+                    lines[j] = indent + names + sep + rest
+                j += 1
+            i = j
+        else:
+            i += 1
+
+
+def _process(app, what, name, obj, options, lines):
+    _results_section(lines)
+    _escape_bars(app, what, name, obj, options, lines)
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _process, priority=400)
