@@ -74,7 +74,7 @@ def test_python_blocks(path, workdir):
         if skipped:
             continue
         try:
-            exec(compile(code, f"{path.name}:{line}", "exec"), namespace)
+            exec(compile(code, f"{path.name}:{line}", "exec"), namespace)  # noqa: S102 (running the examples is the test)
         except Exception as exc:  # name the block that failed
             raise AssertionError(f"{path.relative_to(ROOT)}, python block at line {line}: "
                                  f"{type(exc).__name__}: {exc}") from exc
@@ -160,7 +160,7 @@ def test_docstring_examples_are_doctests():
     offenders = []
     for py in Path(dnarod.__file__).parent.rglob("*.py"):
         text = py.read_text(encoding="utf-8")
-        for m in re.finditer(r"^\s*(Example|Examples|Python|Usage)::\s*$", text, flags=re.M):
+        for m in re.finditer(r"^\s*(Example|Examples|Python|Usage)::\s*$", text, flags=re.MULTILINE):
             offenders.append(f"{py.relative_to(ROOT)}:{text[:m.start()].count(chr(10)) + 1}")
     assert not offenders, f"literal Python examples that no test runs (write them as doctests): {offenders}"
 

@@ -131,7 +131,8 @@ def slurm_cluster(cores=1, processes=None, memory="4GB", walltime="04:00:00", qu
     Each SLURM job gets ``cores`` CPUs and starts ``processes`` worker processes (default one
     per core) of one thread each, with :data:`WORKER_ENV` exported in the job script. Scale it
     with ``cluster.scale(jobs=N)`` or ``cluster.adapt(maximum_jobs=N)`` and pass
-    ``distributed.Client(cluster)`` to :meth:`Ensemble.run`. The ensemble folder must be on a
+    ``distributed.Client(cluster)`` to :meth:`~dnarod.workflows.ensemble.ensemble.Ensemble.run`. The ensemble folder
+    must be on a
     file system the compute nodes share.
 
     Parameters

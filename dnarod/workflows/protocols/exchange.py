@@ -12,7 +12,7 @@ rotation-clamp target turned by ``n_i`` about z). Every ``exchange_ps`` all repl
 pairs ``(i, i+1)`` with ``i`` of the round's parity (even, odd, even, ...) attempt a swap.
 
 Move. A swap carries the configuration ``X`` of rung ``i`` to rung ``i+1`` with ``delta = n_{i+1} - n_i``
-turns added as twist spread along the chain (:func:`dnarod.workflows.protocols.sweep.add_turns`: node ``k`` of ``n``
+turns added as twist spread along the chain (:func:`dnarod.workflows.protocols.poses.add_turns`: node ``k`` of ``n``
 turned about its own d3 by ``2 pi delta k/(n-1)``; centres, so the non-bonded and wall terms, are unchanged), and
 the configuration ``Y`` of rung ``i+1`` to rung ``i`` with ``-delta``. The body angular velocities turn with
 the frames (``Omega' = Q^T Omega``; centre velocities unchanged), so the map is the cotangent lift of a fixed
@@ -30,7 +30,8 @@ post-buckling plateau the extra turns go into writhe, so the twist added by the 
 accepted almost always. Each pair's measured acceptance is reported.
 
 Observables are sampled per rung (whichever replica holds it), as a member's are
-(:func:`dnarod.workflows.protocols.tweezers.observe`), and each rung is written as a member folder (``samples.csv``,
+(the member's ``observe`` in :mod:`dnarod.workflows.protocols.tweezers`), and each rung is written as a member
+folder (``samples.csv``,
 ``protocol_result.json``, ``final_pose.npz``) beside ``exchange.json`` (acceptance per pair, replica round
 trips, labels). Runs checkpoint every :data:`CHECKPOINT_WALL_S` wall seconds and resume from the last complete
 checkpoint (same settings); a finished ladder is reused.
@@ -76,7 +77,7 @@ def twist_move(frames, omega_body, delta_turns):
     -------
     frames, omega_body : ndarray
         Node ``k`` turned about its own d3 by ``phi_k = 2 pi delta k / (n - 1)``
-        (:func:`dnarod.workflows.protocols.sweep.add_turns`), ``Omega'_k = Q(phi_k)^T Omega_k`` so that the lab angular
+        (:func:`dnarod.workflows.protocols.poses.add_turns`), ``Omega'_k = Q(phi_k)^T Omega_k`` so that the lab angular
         velocity is unchanged. ``twist_move(*twist_move(F, W, d), -d)`` returns ``(F, W)``.
     """
     from dnarod.workflows.protocols.poses import add_turns
@@ -312,7 +313,8 @@ class ReplicaGroup:
         return self._timed(go)
 
     def sample(self):
-        """One sample per replica: ``{label: row}`` (:func:`dnarod.workflows.protocols.tweezers.observe`)."""
+        """One sample per replica: ``{label: row}`` (the member's ``observe`` in
+        :mod:`dnarod.workflows.protocols.tweezers`)."""
         from dnarod.workflows.protocols.tweezers import observe_tweezers as observe
 
         def go():

@@ -3,7 +3,8 @@
 Past buckling a member started from the straight (static) pose has to grow its plectoneme from nothing, which
 takes longer than the production itself at 1 kbp. In a sweep, the members of one force run one after the other
 in order of |turns| away from zero: each starts from the previous turn value's final pose with the turn
-increment added (:func:`add_turns`: the clamp target and the linking number follow) and settles for
+increment added (:func:`~dnarod.workflows.protocols.poses.add_turns`: the clamp target and the linking number follow)
+and settles for
 ``settle_ns`` before its production. Only the first member of a chain starts from the static pose, with the
 full equilibration. Turns >= 0 form one chain (ascending), turns < 0 another (descending), so a two-worker
 cluster runs the two sides of a hat curve at once (:func:`sweep_chains`).

@@ -162,7 +162,8 @@ def build_member(settings, start_pose=None):
     start_pose : tuple of ndarray, optional
         ``(positions (n, 3) nm, frames (n, 3, 3))``: the final pose of the member at ``settings["previous_turns"]``
         (a turn sweep, :mod:`dnarod.workflows.protocols.sweep`). The member starts from it with ``turns - previous_turns``
-        added as twist (:func:`dnarod.workflows.protocols.sweep.add_turns`) instead of from the static pose; equilibration
+        added as twist (:func:`dnarod.workflows.protocols.poses.add_turns`) instead of from the static pose;
+        equilibration
         then defaults to two slowest bending relaxation times.
 
     Returns
