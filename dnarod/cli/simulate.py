@@ -12,7 +12,7 @@ import numpy as np
 from dnarod.core.errors import ParameterError
 
 #: ``--charge`` and ``--cutoff-debye``, shared by ``dnarod simulate`` and ``dnarod protocol`` (checked by
-#: :func:`dnarod.engines.openmm.nonbonded.nonbonded_options`).
+#: :func:`dnarod.physics.nonbonded.nonbonded_options`).
 CHARGE_OPTIONS = [
     click.option("--charge", default=None,
                  help="Non-bonded charge model: calibrated (Poisson-Boltzmann far-field charge, effective diameter "

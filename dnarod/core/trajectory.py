@@ -1,4 +1,5 @@
-"""Trajectories of rod nodes: the in-memory :class:`Trajectory` and the ``.dtraj`` stream format.
+"""Trajectories of rod nodes: the in-memory :class:`~dnarod.core.trajectory.Trajectory` and the ``.dtraj`` stream
+format.
 
 Both engines (OpenMM and the Lax-form integrator) write the same format, so every analysis
 runs on both.

@@ -432,7 +432,8 @@ def _separation(i, j, n, circular):
 
 def pair_energy(r, numbers):
     """WCA + shifted Debye-Hueckel energy (kJ/mol) of node pairs at distances ``r`` (nm, any shape), with the
-    numbers of :meth:`NonbondedSettings.resolve` (the same terms as :func:`pair_kernel`)."""
+    numbers of :meth:`NonbondedSettings.resolve` (the same terms as
+    :func:`dnarod.engines.openmm.nonbonded.pair_kernel`)."""
     r = np.asarray(r, float)
     eps, sig, kap, rc = numbers["eps"], numbers["sigma"], numbers["kappa"], numbers["rc_dh"]
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):

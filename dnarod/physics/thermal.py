@@ -91,7 +91,7 @@ def mean_rotation(params: StepParameters, ds, kt, order=24):
 
 
 def tangent_correlation(params: StepParameters, ds, kt, n_max, order=24):
-    """Exact ``<d3(0) . d3(n)>`` for n = 0..n_max along an open chain starting at step 0.
+    """Exact ``<d3(0)·d3(n)>`` for n = 0..n_max along an open chain starting at step 0.
 
     Returns
     -------
@@ -108,9 +108,9 @@ def tangent_correlation(params: StepParameters, ds, kt, n_max, order=24):
 
 
 def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
-    """Exact ``<d3(k) . d3(k+n)>`` of a free open chain in equilibrium, averaged over the start node k
+    """Exact ``<d3(k)·d3(k+n)>`` of a free open chain in equilibrium, averaged over the start node k
     exactly as :class:`~dnarod.analysis.polymer.TangentCorrelation` averages (docs/formulation.md §8:
-    ``<d3(k) . d3(k+n)> = (<R_k> ... <R_{k+n-1}>)_33``).
+    ``<d3(k)·d3(k+n)> = (<R_k> <R_{k+1}> ⋯ <R_{k+n-1}>)_33``).
 
     Parameters
     ----------

@@ -207,7 +207,8 @@ def _default_dt(omega):
 
 
 def check_load_stiffness(spec, model, omega=None):
-    """:func:`dnarod.physics.loads.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode with
+    """:func:`dnarod.physics.modes.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode
+    with
     the loads, rad/ps, if known), naming the ``simulate`` options."""
     from dnarod.physics.modes import check_load_stiffness as check
 

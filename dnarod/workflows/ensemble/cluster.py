@@ -187,7 +187,7 @@ DASK_LOGGERS = ("distributed", "tornado", "bokeh", "asyncio")
 
 
 class DaskLog(logging.Handler):
-    """Dask's log records, held in memory until :meth:`open` names a file and appended there from then on.
+    """Dask's log records, held in memory until ``open`` names a file and appended there from then on.
 
     A record that cannot be written (a full disk) is dropped without a word: the command reports the fault
     itself, in one line.
@@ -226,7 +226,7 @@ class DaskLog(logging.Handler):
             self._write(msg)
 
     def unraisable(self, unraisable):
-        """A :data:`sys.unraisablehook`: exceptions Python cannot raise (dask's exit hooks, ``__del__``) go to the
+        """A ``sys.unraisablehook``: exceptions Python cannot raise (dask's exit hooks, ``__del__``) go to the
         log too."""
         import traceback
 
@@ -667,7 +667,8 @@ def slurm_cluster(cores=1, processes=None, memory="4GB", walltime="04:00:00", qu
     Each SLURM job gets ``cores`` CPUs and starts ``processes`` worker processes (default one
     per core) of one thread each, with :data:`WORKER_ENV` exported in the job script. Scale it
     with ``cluster.scale(jobs=N)`` or ``cluster.adapt(maximum_jobs=N)`` and pass
-    ``distributed.Client(cluster)`` to :meth:`Ensemble.run`. The ensemble folder must be on a
+    ``distributed.Client(cluster)`` to :meth:`~dnarod.workflows.ensemble.ensemble.Ensemble.run`. The ensemble folder
+    must be on a
     file system the compute nodes share.
 
     Parameters

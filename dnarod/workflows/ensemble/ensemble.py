@@ -57,9 +57,12 @@ class Ensemble:
 
     Examples
     --------
-    >>> ens = Ensemble.from_toml("examples/force_extension.toml", "fx")   # doctest: +SKIP
-    >>> ens.run()                  # doctest: +SKIP
-    >>> table = ens.results()      # doctest: +SKIP
+    The small spec beside ``examples/force_extension.toml``, its members run one after another in this process:
+
+    >>> ens = Ensemble.from_toml("examples/quick_ensemble.toml", "quick_fx")
+    >>> _ = ens.run(workers=0, progress=False)     # .run(): a LocalCluster, one worker per core
+    >>> ens.results().num_rows                     # a pyarrow.Table, one row per member
+    2
     """
 
     def __init__(self, spec: EnsembleSpec, outdir, protocol=None, overwrite=False, spec_text=None, check=True):

@@ -180,7 +180,8 @@ def _as_keys(keys):
 
 
 def protocol_keys(protocol):
-    """Extra keys a protocol accepts: ``{"run": {...}, "analysis": {...}}`` of :class:`Key`.
+    """Extra keys a protocol accepts: ``{"run": {...}, "analysis": {...}}`` of
+    :class:`~dnarod.workflows.ensemble.schema.Key`.
 
     A protocol's ``keys`` / ``analysis_keys`` map names to :class:`~dnarod.workflows.ensemble.schema.Key`
     or simply to a type (float, int, bool, str).

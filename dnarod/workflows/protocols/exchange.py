@@ -31,7 +31,8 @@ post-buckling plateau the extra turns go into writhe, so the twist added by the 
 accepted almost always. Each pair's measured acceptance is reported.
 
 Observables are sampled per rung (whichever replica holds it), as a member's are
-(:func:`dnarod.workflows.protocols.tweezers.observe`), and each rung is written as a member folder (``samples.csv``,
+(the member's ``observe`` in :mod:`dnarod.workflows.protocols.tweezers`), and each rung is written as a member
+folder (``samples.csv``,
 ``protocol_result.json``, ``final_pose.npz``) beside ``exchange.json`` (acceptance per pair, replica round
 trips, labels). Runs checkpoint every :data:`CHECKPOINT_WALL_S` wall seconds and resume from the last complete
 checkpoint (same settings); a finished ladder is reused.
@@ -303,7 +304,8 @@ class ReplicaGroup:
         return self._timed(go)
 
     def sample(self):
-        """One sample per replica: ``{label: row}`` (:func:`dnarod.workflows.protocols.tweezers.observe`)."""
+        """One sample per replica: ``{label: row}`` (the member's ``observe`` in
+        :mod:`dnarod.workflows.protocols.tweezers`)."""
         from dnarod.workflows.protocols.tweezers import observe_tweezers as observe
 
         def go():

@@ -325,7 +325,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
         ``progress(i, n)`` after each sample.
     checkpoint : path, optional
         The member's checkpoint (the engine's format, with the samples): written every ``checkpoint_wall_s`` wall
-        seconds (default :data:`dnarod.run.sampling.CHECKPOINT_WALL_S`) and at the end; if it exists at the start
+        seconds (default :data:`dnarod.run.loop.CHECKPOINT_WALL_S`) and at the end; if it exists at the start
         (same settings), the member resumes from it, so an interrupted member gives the samples an uninterrupted
         one would. Removed by :func:`run_member` once the member is written.
     pose_out : path, optional

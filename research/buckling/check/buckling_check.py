@@ -286,7 +286,8 @@ def ring_series(member_dir, column):
 
 
 def ring_pair_premise(short_dir, long_dir, loop_tol=None, z_tol=Z_TOL):
-    """Whether two ring members can give the bulk P (:func:`plectoneme_P_from_ring_pair`): both settled (the
+    """Whether two ring members can give the bulk P
+    (:func:`~dnarod.physics.theory.supercoil.plectoneme_P_from_ring_pair`): both settled (the
     means of Wr over the halves of each production agree within ``z_tol`` blocked SE) and with the same
     number of plectoneme end loops on average (``|<n_long> - <n_short>| <= loop_tol``, :data:`LOOP_TOL`; the
     per-sample count :func:`dnarod.workflows.protocols.measure.plectoneme_end_loops`, column ``end_loops``). A ring
