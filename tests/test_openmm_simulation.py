@@ -403,7 +403,7 @@ def test_blow_up_located_at_the_same_step_over_short_advances(ff):
     strong = PullingForce(-1, [0.0, 0.0, 2e3])  # kJ/mol/nm: blows up after some hundred steps (NVE: deterministic)
     found = []
     for chunk in (1, 7):
-        sim = RodSimulation(m, integrator="verlet", temperature=0, nonbonded=False, loads=[strong], dt=0.05)
+        sim = RodSimulation.create(m, integrator="verlet", temperature=0, nonbonded=False, loads=[strong], dt=0.05)
         with pytest.raises(SimulationError) as err:
             for _ in range(3000 // chunk):
                 sim.advance(chunk)

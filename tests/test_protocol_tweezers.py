@@ -340,7 +340,7 @@ def test_tweezers_member_resumes_from_its_checkpoint(tmp_path):
 
     ck = tmp_path / "ck.npz"
     with pytest.raises(Stop):
-        tw.sample_member(tw.build_member(settings), stop_at, checkpoint=ck, checkpoint_wall_s=0.0)
+        tw.sample_member(tw.build_member(settings), stop_at, checkpoint=ck, checkpoint_wall_s=1e-9)
     assert ck.exists()
     # one checkpoint format: the engine's own (as for `dnarod simulate`), the samples in its metadata
     with np.load(ck) as z:
@@ -489,7 +489,7 @@ def test_ring_member_interrupted_and_resumed_gives_the_uninterrupted_samples(tmp
         if i == 7:
             raise Stop
 
-    monkeypatch.setattr(sampling, "CHECKPOINT_WALL_S", 0.0)  # a checkpoint at every sample
+    monkeypatch.setattr(sampling, "CHECKPOINT_WALL_S", 1e-9)  # a checkpoint at every sample
     with pytest.raises(Stop):
         run_ring_member(settings, tmp_path / "cut", progress=stop_at)
     assert (tmp_path / "cut" / "member_checkpoint.npz").exists()
