@@ -32,11 +32,16 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import platform as pyplatform
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import _harness as H
+from _harness import ROOT
 
 
 def _default_platform():

@@ -88,7 +88,8 @@ def main():
         blk, _ = measure(model, state, "blocked", args.seconds)
         ela = elastica_rate(args.elastica_python, n, args.seconds)
         rows.append(dict(nodes=n, numpy_reference=ref, numba_scalar=sca, numba_blocked=blk, pyelastica_position_verlet=ela))
-        fmt = lambda x: f"{x:.3g}" if x else "n/a"
+        def fmt(x):
+            return f"{x:.3g}" if x else "n/a"
         print(f"{n:>8} {ref:>12.3g} {sca:>13.3g} {blk:>14.3g} {fmt(ela):>11} {blk / ref:>11.1f} "
               f"{(blk / ela if ela else float('nan')):>16.2f}")
     meta = dict(benchmark="lax splitting throughput", unit="node-steps per CPU-second (time.process_time)",

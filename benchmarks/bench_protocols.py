@@ -33,8 +33,6 @@ def main():
     for n in [int(x) for x in a.lengths.split(",")]:
         for turns in (0.0, round(0.04 * n / 10.5, 2)):
             r = run_member(dict(n_bp=n, force_pN=a.force, turns=turns, time_ns=a.time_ns, seed=1), root / f"{n}_{turns}")
-            L = r["contour_length_nm"]
-            sd = None
             d = np.genfromtxt(root / f"{n}_{turns}" / "samples.csv", delimiter=",", names=True)
             sd = float(np.std(d["extension_nm"], ddof=1))
             tau = r["extension_nm_tau_ps"] or float("nan")

@@ -90,7 +90,6 @@ def wall_form_costs(n_nodes, repeats):
     """CPU microseconds per evaluation of the walls alone in each form (Custom forces, compiled WallForce, the numba
     kernel in its ``PythonForce``) on the CPU (one thread) and Reference platforms, net of an empty group, on
     random positions (about half the surface particles under the plane)."""
-    import openmm
 
     from dnarod.engines.openmm import walls as wl
 

@@ -1,5 +1,4 @@
 """Parameter sets: schema checks, dna-default derivation, Olson conversion, exact persistence length."""
-import textwrap
 
 import numpy as np
 import pytest

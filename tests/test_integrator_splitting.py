@@ -124,15 +124,18 @@ def test_single_mode_frequency_is_leapfrog_frequency(branch):
         pos = model.positions.copy()
         pos[:, 2] += amp * shape
         st = RigidState(pos, model.frames.copy(), np.zeros((16, 3)), np.zeros((16, 3)))
-        coord = lambda state: (state.positions[:, 2] - model.positions[:, 2] - (state.positions[:, 2] - model.positions[:, 2]).mean()) @ shape
+        def coord(state):
+            dz = state.positions[:, 2] - model.positions[:, 2]
+            return (dz - dz.mean()) @ shape
     else:
         from dnarod.core.rotations import rotation_about_axis
         R = rotation_about_axis(np.tile([0, 0, 1.0], (16, 1)), amp * shape)
         st = RigidState(model.positions.copy(), R @ model.frames, v, om)
         ref = model.frames
         # rotation angle of each frame about the rod axis, relative to the intrinsic frames
-        coord = lambda state: np.arctan2(np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 1]),
-                                         np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 0])) @ shape
+        def coord(state):
+            return np.arctan2(np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 1]),
+                              np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 0])) @ shape
     integ = SplittingIntegrator(model, dt, st)
     x = [coord(integ.state)]
     for _ in range(400):

@@ -153,8 +153,13 @@ main.add_command(_structure_rebuild)
 from dnarod.cli.simulate import lax_run as _lax_run, simulate_cmd as _simulate_cmd  # noqa: E402
 main.add_command(_simulate_cmd)
 main.add_command(_lax_run)
-from dnarod.cli.analyze import analyze_cmd as _analyze_cmd; main.add_command(_analyze_cmd)  # noqa: E402
-from dnarod.cli.export import export_cmd as _export_cmd; main.add_command(_export_cmd)  # noqa: E402
-from dnarod.cli.validate import validate as _validate; main.add_command(_validate)  # noqa: E402
-from dnarod.cli.ensemble import ensemble_cmd as _ensemble_cmd; main.add_command(_ensemble_cmd)  # noqa: E402
-from dnarod.cli.protocol import protocol as _protocol_cmd; main.add_command(_protocol_cmd)  # noqa: E402
+from dnarod.cli.analyze import analyze_cmd as _analyze_cmd  # noqa: E402
+main.add_command(_analyze_cmd)
+from dnarod.cli.export import export_cmd as _export_cmd  # noqa: E402
+main.add_command(_export_cmd)
+from dnarod.cli.validate import validate as _validate  # noqa: E402
+main.add_command(_validate)
+from dnarod.cli.ensemble import ensemble_cmd as _ensemble_cmd  # noqa: E402
+main.add_command(_ensemble_cmd)
+from dnarod.cli.protocol import protocol as _protocol_cmd  # noqa: E402
+main.add_command(_protocol_cmd)

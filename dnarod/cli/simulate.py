@@ -4,7 +4,6 @@ Results go to stdout, diagnostics (progress bar, warnings) to stderr.
 """
 from __future__ import annotations
 
-import functools
 
 import click
 import numpy as np

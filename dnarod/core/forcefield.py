@@ -474,9 +474,12 @@ def write_forcefield(path, name, table, ds, node_mass, node_inertia, temperature
     """
     from dnarod.core.io import write_text_atomic
 
-    num = lambda v: f"{float(v):.12g}"
-    vec = lambda v: "[" + ", ".join(num(x) for x in v) + "]"
-    mat = lambda M: "[" + ", ".join(vec(r) for r in M) + "]"
+    def num(v):
+        return f"{float(v):.12g}"
+    def vec(v):
+        return "[" + ", ".join(num(x) for x in v) + "]"
+    def mat(M):
+        return "[" + ", ".join(vec(r) for r in M) + "]"
 
     def block(K, xi0):
         K, xi0 = check_stiffness(K, name=f"{name}"), np.asarray(xi0, float)

@@ -100,7 +100,6 @@ class Trajectory:
         return self.n_frames
 
     def __getitem__(self, index):
-        sel = lambda a: None if a is None else a[index]
         idx = np.arange(self.n_frames)[index]
         if np.ndim(idx) == 0:
             idx = [int(idx)]

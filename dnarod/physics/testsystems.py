@@ -227,7 +227,8 @@ class TwistedRod:
         c = self.C1 * A1p * sb**2 / ds**2
         disc = np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))
         bl, bh = (-b - disc) / (2 * a), (-b + disc) / (2 * a)
-        f = lambda w2: np.sqrt(np.maximum(w2, 0.0))
+        def f(w2):
+            return np.sqrt(np.maximum(w2, 0.0))
         return dict(stretch=f(st), twist=f(tw), bend_shear_low=f(bl), bend_shear_high=f(bh), q_axial=qa, q_bend=qb)
 
     def all_frequencies(self):

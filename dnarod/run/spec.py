@@ -4,7 +4,6 @@ Units: time ns (``time_ns``) or ps (``dt``, intervals), temperature K, friction 
 """
 from __future__ import annotations
 
-import hashlib
 import math
 from pathlib import Path
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace

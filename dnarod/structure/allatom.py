@@ -732,7 +732,6 @@ def _close(F, O, seq1, seq2, p_in, restraint_k, bond_tolerance, max_iterations, 
     ``F`` (m, 3, 3), ``O`` (m, 3) nm, ``p_in`` (m, 6) pair parameters. Returns ``(topology, positions nm,
     Amber14 system (restraints in force group 31), placement on the input frames nm)``; no checks.
     """
-    import openmm
 
     xyz, atoms = rebuild_coordinates(F, O, seq1, p_in, seq2)
     # placements along the path from the fibre (backbone nearly closed) to the input frames and pair parameters

@@ -137,7 +137,8 @@ def bz_step_flips(frames, origins):
         The step joins a right- and a left-handed pair (B-Z junction).
     """
     F1, F2 = frames[..., :-1, :, :], frames[..., 1:, :, :]
-    dot = lambda a, b: np.einsum("...i,...i->...", a, b)
+    def dot(a, b):
+        return np.einsum("...i,...i->...", a, b)
     x1, y1, z1 = F1[..., :, 0], F1[..., :, 1], F1[..., :, 2]
     x2, y2, z2 = F2[..., :, 0], F2[..., :, 1], F2[..., :, 2]
     dorg = origins[..., 1:, :] - origins[..., :-1, :]

@@ -758,14 +758,16 @@ def _check_others(P, m, n):
         return False
     m1, m2 = P.axes_of(m)
     n1, n2 = P.axes_of(n)
-    dots = lambda A, B: np.einsum("ij,ij->j", A, B)  # x, y, z axis dots
+    def dots(A, B):
+        return np.einsum("ij,ij->j", A, B)  # x, y, z axis dots
     a1, a2, r1, r2 = dots(m1, n1), dots(m2, n2), dots(m1, n2), dots(m2, n1)
     i1ok, i2ok, j1ok, j2ok = (bool((v > 0).all()) for v in (a1, a2, r1, r2))
     if i1ok and i2ok:
         return False
     if not i1ok and not i2ok:
         return j1ok or j2ok
-    ang = lambda v: float(np.degrees(np.arccos(np.clip(v, -1, 1))).sum())
+    def ang(v):
+        return float(np.degrees(np.arccos(np.clip(v, -1, 1))).sum())
     d = [ang(a1), ang(a2), ang(r1), ang(r2)]
     if i1ok and j1ok:
         return d[0] > d[2]

@@ -30,7 +30,6 @@ from scipy.spatial.transform import Rotation
 
 from dnarod.core.energy import stresses
 from dnarod.core.errors import DnarodError, SimulationError
-from dnarod.core.rotations import cayley
 from dnarod.core.strains import chain_from_strains
 from dnarod.physics.thermal import node_kinetic_energy
 from dnarod.core.trajectory import Trajectory

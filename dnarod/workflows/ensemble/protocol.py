@@ -25,7 +25,6 @@ Python code may pass a protocol object itself (``Ensemble(..., protocol=obj)``).
 """
 from __future__ import annotations
 
-import importlib
 from types import SimpleNamespace
 
 
