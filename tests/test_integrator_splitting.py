@@ -204,7 +204,8 @@ def test_blocked_kernel_large_rotor_angles(spin):
 def test_langevin_kinetic_temperature():
     """BAOAB thermostat: mean kinetic energy (3 kT per node) within 5% (fast statistical check)."""
     model = dna_like_rod(20, seed=3)
-    integ = SplittingIntegrator(model, 0.05, maxwell_state(model, 300.0, seed=1), temperature=300.0, friction=2.0, seed=9)
+    integ = SplittingIntegrator(model, 0.05, maxwell_state(model, 300.0, seed=1), temperature=300.0, friction=2.0,
+                                seed=9)
     integ.step(1000)
     ke = []
     for _ in range(400):

@@ -12,8 +12,8 @@ import click
 @click.option("--forcefield", "-f", default=None,
               help="Force field (bundled name or .toml): ds and node mass for the fitted stiffness file, and the "
                    "exact tangent correlation to compare with. Default dna-default.")
-@click.option("--out", "-o", type=click.Path(file_okay=False), help="Output folder (default INPUT_analysis/): new, empty or an earlier report's (any other "
-                   "non-empty folder is refused).")
+@click.option("--out", "-o", type=click.Path(file_okay=False), help="Output folder (default INPUT_analysis/): new, "
+                   "empty or an earlier report's (any other non-empty folder is refused).")
 @click.option("--circular", is_flag=True, help="The chain is a ring: the last node joins the first; "
                                                "reports Lk, Tw and Wr.")
 @click.option("--temperature", type=float, default=None,

@@ -1,4 +1,5 @@
-"""``dnarod export RUN``: (re)make a run's PDB + DCD (+ XTC) exports, a thin shell over :func:`dnarod.run.api.export_run`."""
+"""``dnarod export RUN``: (re)make a run's PDB + DCD (+ XTC) exports, a thin shell over
+:func:`dnarod.run.api.export_run`."""
 from __future__ import annotations
 
 import click

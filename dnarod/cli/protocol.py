@@ -39,8 +39,9 @@ _OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "t
 
 
 def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
-    """:func:`dnarod.workflows.protocols.curves.run_protocol` (which refuses a folder of other settings unless ``overwrite``,
-    any other non-empty folder, and a folder in use), its settings errors named by the command's options."""
+    """:func:`dnarod.workflows.protocols.curves.run_protocol` (which refuses a folder of other settings unless
+    ``overwrite``, any other non-empty folder, and a folder in use), its settings errors named by the command's
+    options."""
     import re
 
     from dnarod.workflows.protocols.curves import run_protocol

@@ -42,10 +42,14 @@ _OPTIONS = [
                       "[default: 1.0]."),
     click.option("--integrator", type=click.Choice(["langevin", "verlet"]), default="langevin", show_default=True,
                  help="verlet: NVE (the same as --friction 0)."),
-    click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU platform "
-                      "if a GPU is present, else the CPU fast path; the choice and its reason are printed]."),
-    click.option("--threads", type=int, default=None, help="OpenMM CPU platform threads (without --platform: more than 1 selects the CPU platform, 1 the single-threaded Reference platform)."),
-    click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto", show_default=True,
+    click.option("--platform", default=None,
+                 help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU "
+                      "platform if a GPU is present, else the CPU fast path; the choice and its reason are printed]."),
+    click.option("--threads", type=int, default=None,
+                 help="OpenMM CPU platform threads (without --platform: more than 1 selects the CPU platform, 1 the "
+                      "single-threaded Reference platform)."),
+    click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto",
+                 show_default=True,
                  help="OpenMM elastic path."),
     click.option("--excluded-volume/--no-excluded-volume", default=None,
                  help="WCA excluded volume [default: on with --engine openmm; the lax engine has none]."),
@@ -92,7 +96,8 @@ _OPTIONS = [
     click.option("--export/--no-export", default=True, show_default=True,
                  help="Also write trajectory.pdb + trajectory.dcd for VMD, mdtraj and MDAnalysis."),
     click.option("--xtc/--no-xtc", default=True, show_default=True,
-                 help="With --export, also write trajectory.xtc (frame times that mdtraj reads; its DCD reader has none)."),
+                 help="With --export, also write trajectory.xtc (frame times that mdtraj reads; its DCD reader has "
+                      "none)."),
     click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on stderr."),
 ]
 
@@ -145,7 +150,8 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
         friction = 1.0
     nb_default = engine == "openmm"
     charge_options = nonbonded_options(charge, cutoff_debye, salt, temperature)
-    spec = RunSpec(**charge_options, source=source, forcefield=forcefield, engine=engine, time_ns=time_ns, temperature=temperature,
+    spec = RunSpec(**charge_options, source=source, forcefield=forcefield, engine=engine, time_ns=time_ns,
+                   temperature=temperature,
                    friction=friction, dt=dt, seed=seed, salt=salt,
                    excluded_volume=nb_default if excluded_volume is None else excluded_volume,
                    electrostatics=nb_default if electrostatics is None else electrostatics, platform=platform,

@@ -63,7 +63,8 @@ def _parse_map(items):
             raise StructureError(f"--map {it!r}: the parent base must be A, C, G, T or U")
         key = name.strip().upper()
         if key in out and out[key] != letter.strip().upper():
-            raise StructureError(f"--map {it!r}: {key} is already mapped to {out[key]}; give one --map per residue name")
+            raise StructureError(f"--map {it!r}: {key} is already mapped to {out[key]}; "
+                                 f"give one --map per residue name")
         out[key] = letter.strip().upper()
     return out
 

@@ -36,5 +36,6 @@ def validate(quick, out_dir, only, overwrite):
     wall = time.perf_counter() - t0
     click.echo(summary_table(res))
     ok = all(r["passed"] for r in res["checks"].values())
-    click.echo(f"{'all checks passed' if ok else 'SOME CHECKS FAILED'}; runtime {wall:.1f} s; report: {out_dir}/report.md")
+    click.echo(f"{'all checks passed' if ok else 'SOME CHECKS FAILED'}; runtime {wall:.1f} s; "
+               f"report: {out_dir}/report.md")
     sys.exit(0 if ok else 1)

@@ -30,8 +30,8 @@ import numpy as np
 from dnarod.core.errors import ParameterError
 
 __all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
-           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls", "tweezers",
-           "pull_axis", "ANCHORS", "AXES"]
+           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls",
+           "tweezers", "pull_axis", "ANCHORS", "AXES"]
 
 
 def _md_units():

@@ -17,8 +17,8 @@ times the load scale. Each iteration:
 
 Converged when ``max(|g_F|, |g_tau| / ds) <= gtol * load_scale`` over the free nodes, with
 ``load_scale = max(|applied forces|, |applied torques| / ds, |trap and clamp loads|)`` at the start
-or at the current pose, whichever is larger (1 kJ/mol/nm if there is no load). Near the solution Newton converges quadratically; the
-finite-difference Hessian (relative error ~1e-10) only affects the rate, not the fixed point.
+or at the current pose, whichever is larger (1 kJ/mol/nm if there is no load). Near the solution Newton converges
+quadratically; the finite-difference Hessian (relative error ~1e-10) only affects the rate, not the fixed point.
 """
 from __future__ import annotations
 

@@ -88,8 +88,8 @@ def start_model(spec, model, seed):
         from dnarod.physics.statics import solve_static
     except ImportError:
         if spec.engine != "openmm":
-            raise ParameterError("--minimize needs dnarod.physics.statics.solve_static (not in this version) for the lax "
-                                 "engine") from None
+            raise ParameterError("--minimize needs dnarod.physics.statics.solve_static (not in this version) for the "
+                                 "lax engine") from None
         return None  # the OpenMM engine minimises its context
     solved, _ = solve_static(model, tuple(spec.loads))
     return solved
@@ -529,7 +529,8 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                                  cpu_s=out["cpu_s"]))
     meta.pop("export", None)  # the trajectory changed: the exports are stale until remade
     _write_meta(paths, meta)
-    if spec.export:  # after run.json: a failed export leaves a finished run whose --resume (or `dnarod export`) remakes it
+    # after run.json: a failed export leaves a finished run whose --resume (or `dnarod export`) remakes it
+    if spec.export:
         try:
             _export(paths, meta, spec.xtc, model.sequence)
         except WriteError as exc:

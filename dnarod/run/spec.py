@@ -176,7 +176,8 @@ class RunSpec:
         if self.checkpoint_interval_ps is not None:
             finite("checkpoint_interval_ps", self.checkpoint_interval_ps, lambda x: x >= 0,
                    ">= 0 ps (0: only at the end)", "--checkpoint-interval")
-        finite("checkpoint_wall_s", self.checkpoint_wall_s, lambda x: x >= 0, ">= 0 s of wall time (0: only at the end)",
+        finite("checkpoint_wall_s", self.checkpoint_wall_s, lambda x: x >= 0,
+               ">= 0 s of wall time (0: only at the end)",
                "--checkpoint-wall")
         finite("salt", self.salt, lambda x: 0 < x <= MAX_SALT,
                f"a salt concentration in mol/L above 0 and at most {MAX_SALT:g} (Debye-Hueckel screening is "
@@ -243,8 +244,8 @@ class RunSpec:
             raise ParameterError(f"loads {self.loads!r}: give a tuple of dnarod.physics.loads objects")
         for ld in self.loads:
             if not is_dataclass(ld) or isinstance(ld, type):
-                raise ParameterError(f"loads: {ld!r} is not a dnarod.physics.loads object (PullingForce, Torque, Clamp, "
-                                     f"RotationClamp, Trap, ...)")
+                raise ParameterError(f"loads: {ld!r} is not a dnarod.physics.loads object (PullingForce, Torque, "
+                                     f"Clamp, RotationClamp, Trap, ...)")
         if not isinstance(self.extra, dict):
             raise ParameterError(f"extra {self.extra!r}: must be a dict")
         return self

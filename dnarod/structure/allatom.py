@@ -25,9 +25,10 @@ Three stages:
    overlapping windows, each a core of ``WINDOW_CORE`` bp with ``WINDOW_FLANK`` bp on each side,
    every window built and closed as a duplex of its own (its own fibre-to-input path); each atom is
    taken from the window whose core holds its base pair, and the whole duplex is then polished as in
-   the closure's last step (covalent terms, stiffened bonds, firm restraints) with a capped iteration count, which brings the links where two cores meet to Amber14's
-   lengths. Each window costs the same whatever the length, so the rebuild is linear in length (one
-   closure of the whole grew faster: 0.6 s CPU per bp at 12 bp, 1.0 at 24, over 11 at 147).
+   the closure's last step (covalent terms, stiffened bonds, firm restraints) with a capped iteration count, which
+   brings the links where two cores meet to Amber14's lengths. Each window costs the same whatever the length, so the
+   rebuild is linear in length (one closure of the whole grew faster: 0.6 s CPU per bp at 12 bp, 1.0 at 24, over 11 at
+   147).
 
 Before the closure, frames that put ring atoms of two bases closer than any placement within the
 frame tolerance could separate to 2.2 A are refused at once (:func:`_placed_clash`), naming the
@@ -648,8 +649,8 @@ def _homotopy(F, O, fractions):
     Step i is ``(R_i, d_i)`` in the frame of pair i (``R_i = F_i^T F_{i+1}``, ``d_i = F_i^T (O_{i+1} - O_i)``);
     at fraction t the rotation is ``R_fib exp(t log(R_fib^T R_i))`` and the offset ``(1 - t) d_fib + t d_i``.
     Each chain is superposed on the input origins (least squares) so that successive stages move the
-    atoms locally only (origins and frame axes fitted); at t = 1 it is the input itself. Why: the rigid placement nearly closes the
-    backbone on the fibre (the nucleotide template is the fibre's), so the backbone can follow the
+    atoms locally only (origins and frame axes fitted); at t = 1 it is the input itself. Why: the rigid placement nearly
+    closes the backbone on the fibre (the nucleotide template is the fibre's), so the backbone can follow the
     frames continuously from there instead of being untangled from a far-off start.
     """
     from scipy.spatial.transform import Rotation
@@ -956,7 +957,8 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
             f"; worst bond there {_atom_name(atoms_list[bonds[w, 0]])}-{atoms_list[bonds[w, 1]].name} "
             f"{10 * lengths[w]:.2f} A, off by {10 * dev[w]:.2f} A")
         raise StructureError(
-            f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
+            f"rebuild: cannot close the backbone at step {step}-{step + 1} "
+            f"(strand {'I' if r1.chain.id == 'A' else 'II'}, "
             f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
             f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A{worst_there}); "
             f"the two base-pair frames are too far apart or too distorted for a DNA backbone")
@@ -998,8 +1000,8 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     if len(bad):
         k = int(bad[np.argmax(shift[bad] / FRAME_ORIGIN_TOL + turn[bad] / FRAME_ANGLE_TOL)])
         raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg while "
-                             f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} deg); "
-                             f"the frames are too distorted for an Amber14 backbone{gap_near([k + 1])}")
+                             f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} "
+                             f"deg); the frames are too distorted for an Amber14 backbone{gap_near([k + 1])}")
     ang_dev, worst_angle = _angle_deviation(system, pos, atoms_list)
     report = RebuildReport(
         max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"

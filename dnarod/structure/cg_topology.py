@@ -57,8 +57,8 @@ def chain_and_number(k):
     """(chain ID, residue number) of node ``k`` (0-based)."""
     c = k // PER_CHAIN
     if c >= len(CHAIN_IDS):
-        raise DnarodError(f"base pair {k + 1}: more than {PER_CHAIN * len(CHAIN_IDS)} base pairs do not fit PDB chain IDs; "
-                          f"export the frames with the .dtraj trajectory instead")
+        raise DnarodError(f"base pair {k + 1}: more than {PER_CHAIN * len(CHAIN_IDS)} base pairs do not fit PDB chain "
+                          f"IDs; export the frames with the .dtraj trajectory instead")
     return CHAIN_IDS[c], k % PER_CHAIN + 1
 
 

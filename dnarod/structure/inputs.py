@@ -72,8 +72,8 @@ def _check_ring_twist(relaxed, delta_lk):
     per_step = 2 * np.pi * abs(lk0 + delta_lk) / n
     if per_step > 0.8 * MAX_CAYLEY_ANGLE:
         most = int(0.8 * MAX_CAYLEY_ANGLE * n / (2 * np.pi) - abs(lk0))
-        raise ParameterError(f"--delta-lk {delta_lk}: sigma = {delta_lk / lk0:+.3g} (Lk0 = {lk0:.1f}) twists each of the "
-                             f"{n} steps by {np.degrees(per_step):.0f} deg, beyond the rod model's range "
+        raise ParameterError(f"--delta-lk {delta_lk}: sigma = {delta_lk / lk0:+.3g} (Lk0 = {lk0:.1f}) twists each of "
+                             f"the {n} steps by {np.degrees(per_step):.0f} deg, beyond the rod model's range "
                              f"({np.degrees(0.8 * MAX_CAYLEY_ANGLE):.0f} deg); use |delta-lk| <= {max(most, 0)} "
                              f"(real DNA denatures beyond |sigma| ~ 0.1)")
 

@@ -184,7 +184,8 @@ def _plot(out_dir, rows, lp, S, kt, salt_M=0.15, temperature=300.0):
 
     fig, ax = new_figure(1, 1, width=6.0, height=4.2)
     a = ax[0, 0]
-    F = np.logspace(np.log10(min(r["force_pN"] for r in rows)) - 0.2, np.log10(max(r["force_pN"] for r in rows)) + 0.1, 80)
+    F = np.logspace(np.log10(min(r["force_pN"] for r in rows)) - 0.2, np.log10(max(r["force_pN"] for r in rows)) + 0.1,
+                    80)
     lo, hi = wlc_extension_band(F, salt_M, S, temperature)
     lp_lo, lp_hi, _ = persistence_length_band(salt_M)
     a.fill_between(F, lo, hi, color="0.85", zorder=0,

@@ -49,7 +49,8 @@ def _openmm_loads(model, elastic):
     from dnarod.engines.openmm.particles import particle_forces_to_loads
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference", elastic=elastic,
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
+                               elastic=elastic,
                         nonbonded=False, constraint_tolerance=1e-12, seed=0)
     st = sim.context.getState(getPositions=True, getForces=True)
     x = sim.node_particles(st.getPositions(asNumpy=True))

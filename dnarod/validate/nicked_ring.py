@@ -56,7 +56,8 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     the ring with other non-bonded terms than the defaults (the recorded test member was run with Manning's charge
     and 5 Debye lengths)."""
     from dnarod.workflows.protocols.nicked import run_nicked_member
-    from dnarod.physics.theory.supercoil import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
+    from dnarod.physics.theory.supercoil import (depew_wang_K, ring_constants, twist_variance_exact,
+                                                 twist_variance_linear)
     from dnarod.validate.wlc_ring_mc import sample_ring_writhe
 
     t0 = time.perf_counter()

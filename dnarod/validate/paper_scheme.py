@@ -87,7 +87,8 @@ def check_paper_scheme(out_dir, quick=False, scheme="paper", n_nodes=32, t_run=2
                observed_orders_pairwise=dict(zip(names, orders.T)),
                growth_rate_per_ps=rate, exact_growth_rate_per_ps=rate_exact, design_growth_rate_per_ps=DESIGN_RATE,
                growth_system=f"dna-default ring, {n_nodes} nodes, ds = {model.ds} nm, at rest",
-               energy_growth_factor=float(E_p[-1] / E_p[0]), exact_energy_relative_change=float(abs(E_e[-1] / E_e[0] - 1)),
+               energy_growth_factor=float(E_p[-1] / E_p[0]),
+               exact_energy_relative_change=float(abs(E_e[-1] / E_e[0] - 1)),
                energy_run_ps=t_run)
     consistent = bool(np.all((final >= TOLERANCES["order_min"]) & (final <= TOLERANCES["order_max"])))
     unstable = bool(rate > TOLERANCES["unstable_rate_min_per_ps"] and rate_exact < TOLERANCES["exact_rate_max_per_ps"])

@@ -1,7 +1,7 @@
 """Check ``plectonemes``: the fraction of the linking difference taken up as writhe in closed rings at sigma ~ -0.05.
 
-Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.workflows.protocols.rings`; OpenMM engine, WCA +
-Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0_T)`` with its standard error from the block
+Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.workflows.protocols.rings`; OpenMM engine,
+WCA + Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0_T)`` with its standard error from the block
 error of Wr (the measured integrated autocorrelation time of Wr is reported). ``Tw0_T`` is the relaxed ring's mean
 twist at the run's temperature (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`), not the T = 0 sum of intrinsic
 twist angles: for 600 bp of dna-default it is 0.27 turns lower (56.885 ± 0.013 vs 57.143), i.e. ΔLk = -2.885,
@@ -182,7 +182,8 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                delta_lk=dlk, sigma=dlk / tw0_T, relaxed_twist_T0=tw0, relaxed_twist_thermal=tw0_T,
                relaxed_twist_thermal_err=tw0_T_se, model_writhe_fraction_vs_T0_twist=row["Wr"] / (row["Lk"] - tw0),
                model_writhe=row["Wr"], model_writhe_err=row["Wr_err"],
-               model_writhe_tau_ps=row["Wr_tau_ps"], model_writhe_fraction=f_model, model_writhe_fraction_err=f_model_se,
+               model_writhe_tau_ps=row["Wr_tau_ps"], model_writhe_fraction=f_model,
+               model_writhe_fraction_err=f_model_se,
                model_plectoneme_fraction=row["plectoneme_fraction"], model_production_ns=row["production_ps"] / 1000.0,
                model_wall_s=row["wall_s"], model_cpu_s=row["cpu_s"],
                reference_writhe_fraction=f_ref, reference_writhe_fraction_err=f_ref_se,

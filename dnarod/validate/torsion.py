@@ -9,8 +9,9 @@ System: an open ``dna-default`` chain in magnetic tweezers (node 0 clamped, forc
    difference the measured ``Lk - Lk0`` (``Tw + Wr`` with the vertical closure). ``C_slope =
    L d(torque) / (kT 2 pi d(Lk))``.
 2. **Twist fluctuations of an (almost) torque-free end**: one member with a weak rotation clamp k_w at zero
-   turns, friction critically damping the slowest twist mode (:func:`twist_friction`); the end rotation phi about z has ``<dphi^2> = kT / (k_w + kT C_eff / L)``, so ``C_fluct = L (kT /
-   <dphi^2> - k_w) / kT``. Its error comes from the measured integrated autocorrelation time of phi^2.
+   turns, friction critically damping the slowest twist mode (:func:`twist_friction`); the end rotation phi about z has
+   ``<dphi^2> = kT / (k_w + kT C_eff / L)``, so ``C_fluct = L (kT / <dphi^2> - k_w) / kT``. Its error comes from the
+   measured integrated autocorrelation time of phi^2.
 3. **Theory** (the model's own parameters): Moroz & Nelson's high-force expansion (PNAS 94:14418, 1997;
    Macromolecules 31:6333, 1998; third-order form as summarised by Lipfert et al., Nat. Commun. 2:439,
    2011): ``C_eff = C (1 - M/(4 K0) + (M^2 - 2M)/(16 K0^2) - (4M^3 - 16M^2 + 21M)/(256 K0^3))`` with

@@ -323,7 +323,8 @@ def sample_ring_writhe(length_nm, A_nm, diameter_nm, b_nm=3.4, n_samples=2000, s
     Returns
     -------
     dict
-        ``wr`` (n_samples,), ``radius_of_gyration_nm`` (n_samples,, of the vertices), ``segments``, ``bending_coefficient``, ``acceptance``.
+        ``wr`` (n_samples,), ``radius_of_gyration_nm`` (n_samples,, of the vertices), ``segments``,
+        ``bending_coefficient``, ``acceptance``.
     """
     global _SWEEP, _KNOT, _CROSS
     from dnarod.physics.writhe import writhe

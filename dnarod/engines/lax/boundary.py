@@ -50,7 +50,8 @@ class BoundaryConditions:
         ----------
         loads : sequence
             :class:`~dnarod.physics.loads.PullingForce`, :class:`~dnarod.physics.loads.Torque`,
-            :class:`~dnarod.physics.loads.Clamp`, :class:`~dnarod.physics.loads.RotationClamp`, :class:`~dnarod.physics.loads.Trap`.
+            :class:`~dnarod.physics.loads.Clamp`, :class:`~dnarod.physics.loads.RotationClamp`,
+            :class:`~dnarod.physics.loads.Trap`.
         duration_ps : float, optional
             Run length, ps, over which ``turns`` of each :class:`~dnarod.physics.loads.RotationClamp` are spread.
         """

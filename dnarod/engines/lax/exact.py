@@ -187,11 +187,13 @@ class ExactSystem:
         v = np.zeros((self.n, 3)) if velocities is None else np.asarray(velocities, float)
         om = np.zeros((self.n, 3)) if angular_velocities is None else np.asarray(angular_velocities, float)
         if v.shape != (self.n, 3) or om.shape != (self.n, 3):
-            raise DnarodError(f"velocities and angular velocities must have shape ({self.n}, 3), got {v.shape}, {om.shape}")
+            raise DnarodError(f"velocities and angular velocities must have shape ({self.n}, 3), "
+                              f"got {v.shape}, {om.shape}")
         moving = (np.abs(v).sum(1) + np.abs(om).sum(1)) > 0
         if np.any(moving & self.clamp):
             k = int(np.flatnonzero(moving & self.clamp)[0])
-            raise DnarodError(f"node {k} is clamped but was given a nonzero initial velocity; a clamped node is at rest")
+            raise DnarodError(f"node {k} is clamped but was given a nonzero initial velocity; "
+                              f"a clamped node is at rest")
         Omega, Gamma = model.strains()
         gamma = np.einsum("kji,kj->ki", model.frames, v)
         return self.pack(Omega, Gamma, om, gamma, model.positions[0], model.frames[0])

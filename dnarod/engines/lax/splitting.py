@@ -412,8 +412,8 @@ class SplittingIntegrator:
                     term = "momentum"
                     what = f"the momentum of {base_pair(node)} is not finite or above {MOMENTUM_LIMIT:g}"
                 raise SimulationError(
-                    f"time step {step}: the run blew up at {base_pair(node)}: {what} (t = {step * self.dt:g} ps); reduce dt "
-                    f"(stability limit 2/omega_max) or check the initial state",
+                    f"time step {step}: the run blew up at {base_pair(node)}: {what} (t = {step * self.dt:g} ps); "
+                    f"reduce dt (stability limit 2/omega_max) or check the initial state",
                     step=step, node=node, term=term)
             self.potential_energy = E
             done += chunk

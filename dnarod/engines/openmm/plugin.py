@@ -16,7 +16,8 @@ on the host on every platform (OpenMM's CustomCPPForceImpl), and on the device o
 CUDA) whose Common-compute kernel library was built (:func:`device_kernel`; the build records which ones in
 ``_build_info.DEVICE_KERNELS`` and why the others were not built); that library also runs the rigid-body
 integrator's steps on the device. Host code only: ``dnarod.NodePairForce`` (:func:`node_pair_force`, the
-non-local terms) and ``dnarod.WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the tweezers walls).
+non-local terms) and ``dnarod.WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the tweezers
+walls).
 """
 from __future__ import annotations
 
@@ -81,7 +82,8 @@ def _installed_openmm():
 
 
 def _load():
-    """Load the extension; returns ``(PluginStatus, module or None)``. Never raises, except ParameterError for a misspelt DNAROD_PLUGIN switch."""
+    """Load the extension; returns ``(PluginStatus, module or None)``. Never raises, except ParameterError for a
+    misspelt DNAROD_PLUGIN switch."""
     installed = _installed_openmm()
     _check_switch("DNAROD_PLUGIN")
     if os.environ.get("DNAROD_PLUGIN", "").strip() == "0":
@@ -356,8 +358,8 @@ def node_pair_force(model, numbers, particles=None):
 
 class ElasticEnergy:
     """Per-term energy of the last evaluation of an ``SMKForce`` (the interface of
-    :class:`dnarod.engines.openmm.forces.ElasticCallback` that :class:`~dnarod.engines.openmm.simulation.RodSimulation` reads, so
-    its per-term energies need no extra force evaluations)."""
+    :class:`dnarod.engines.openmm.forces.ElasticCallback` that :class:`~dnarod.engines.openmm.simulation.RodSimulation`
+    reads, so its per-term energies need no extra force evaluations)."""
 
     def __init__(self, force):
         self.force = force

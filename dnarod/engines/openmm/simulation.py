@@ -40,7 +40,8 @@ from dnarod.core.units import kT as kT_of
 from dnarod.core.units import md_value
 from dnarod.core.kernels import loads_kernel
 from dnarod.engines.openmm.forces import GROUPS
-from dnarod.engines.openmm.particles import (closure_image_positions, node_poses, node_velocities, particle_forces_to_loads,
+from dnarod.engines.openmm.particles import (closure_image_positions, node_poses, node_velocities,
+                                             particle_forces_to_loads,
                         particle_positions, particle_velocities)
 from dnarod.engines.openmm.platforms import choose_platform
 from dnarod.engines.openmm.system import build_system
@@ -467,7 +468,8 @@ class RodSimulation:
             except Exception:  # noqa: BLE001 - a NaN can make OpenMM raise
                 terms[name] = float("nan")
         el, nb = self.rs.elastic_callback, self.rs.nonbonded_callback
-        if el is not None and nb is not None and getattr(el, "nonbonded", None) is nb:  # fused fast path: split by the callbacks
+        # fused fast path: split by the callbacks
+        if el is not None and nb is not None and getattr(el, "nonbonded", None) is nb:
             terms["elastic"], terms["nonbonded"] = el.last_energy, sum(nb.last)
         bad = [k for k, v in terms.items() if not np.isfinite(v)]
         term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))

@@ -6,7 +6,8 @@ triangle of circumradius ``l_k = sqrt(J3_k/m_k)`` held by three constraints; see
 
 Forces (force groups in :data:`dnarod.engines.openmm.forces.GROUPS`):
 
-* elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.engines.openmm.plugin`), ``"fast"`` (numba analytic loads through ``PythonForce``) or
+* elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.engines.openmm.plugin`), ``"fast"`` (numba
+analytic loads through ``PythonForce``) or
   ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the plugin, else the fast path, on the CPU and
   Reference platforms; on GPU platforms (CUDA, OpenCL, HIP), where a Python callback would copy positions
   off the device every step, it picks the plugin where its device kernel is loaded for that platform
@@ -28,7 +29,8 @@ from openmm import app
 
 from dnarod.core.errors import GeometryError, ParameterError
 from dnarod.engines.openmm import plugin
-from dnarod.engines.openmm.forces import ElasticCallback, add_closure_image, elastic_compound_forces, elastic_python_force
+from dnarod.engines.openmm.forces import (ElasticCallback, add_closure_image, elastic_compound_forces,
+                                          elastic_python_force)
 from dnarod.engines.openmm.loads import build_load_forces
 from dnarod.engines.openmm.nonbonded import nonbonded_force
 from dnarod.physics.nonbonded import NonbondedSettings

@@ -1,7 +1,7 @@
 """The planar walls of a magnetic-tweezers member: the surface under the anchored end, the bead above the pulled one.
 
-Node ``k`` owns particles ``3k, 3k+1, 3k+2`` (:mod:`dnarod.engines.openmm.particles`); node 0 is anchored at the surface,
-node ``n-1`` is pulled along +z. With ``z`` the particles' z coordinates (nm) and ``k`` the stiffness
+Node ``k`` owns particles ``3k, 3k+1, 3k+2`` (:mod:`dnarod.engines.openmm.particles`); node 0 is anchored at the
+surface, node ``n-1`` is pulled along +z. With ``z`` the particles' z coordinates (nm) and ``k`` the stiffness
 (kJ/mol/nm^2), the energy (kJ/mol) is
 
 * surface (a fixed plane at ``z_0``, node 0's z at the start): ``E_s = k/2 sum_p min(0, z_p - z_0)^2`` over the

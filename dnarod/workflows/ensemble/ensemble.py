@@ -27,7 +27,8 @@ from dnarod.core.io import REPLACEMENT_PREFIX, check_output_folder, write_text_a
 from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
 from dnarod.core.io import RESULT
 from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol
-from dnarod.workflows.ensemble.results import CSV, SUMMARY, TABLE, collect_rows, plot_axes, rows_to_table, write_summary, write_table
+from dnarod.workflows.ensemble.results import (CSV, SUMMARY, TABLE, collect_rows, plot_axes, rows_to_table,
+                                               write_summary, write_table)
 from dnarod.workflows.ensemble.schema import SpecError
 from dnarod.workflows.ensemble.spec import EnsembleSpec, check_members, load_spec, parse_spec
 

@@ -38,7 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.workflows.ensemble.schema import ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, check_distinct, coerce, unknown_key
+from dnarod.workflows.ensemble.schema import (ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, check_distinct,
+                                              coerce, unknown_key)
 
 #: Seed of the first replica when the spec gives none (members must be reproducible to resume).
 DEFAULT_SEED = 1

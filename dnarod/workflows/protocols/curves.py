@@ -289,8 +289,8 @@ def _thermal_corrections(kind, base, rows):
     """Put the curve's torques and linking differences on the model's zero at its temperature, in place.
 
     ``twist_torque_pN_nm`` becomes the twisting moment less what it reads on a chain under no torque
-    (:func:`dnarod.workflows.protocols.measure.twisting_moment_offset`, about -1.2 pN nm for ``dna-default`` at 300 K; the
-    raw mean stays in ``twist_torque_pN_nm_raw``), and ``delta_lk_thermal`` is ``Lk`` less the relaxed linking
+    (:func:`dnarod.workflows.protocols.measure.twisting_moment_offset`, about -1.2 pN nm for ``dna-default`` at 300 K;
+    the raw mean stays in ``twist_torque_pN_nm_raw``), and ``delta_lk_thermal`` is ``Lk`` less the relaxed linking
     number at T (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`; ``delta_lk`` stays relative to the T = 0 sum of
     intrinsic twist angles). The clamp torque needs no correction. Members keep their own raw results.
     """

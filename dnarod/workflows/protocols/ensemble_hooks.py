@@ -51,9 +51,9 @@ def member_seed(seed, *key):
 
     Members of one curve share the base seed; run with it unchanged, members that continue each other's poses
     (:func:`dnarod.workflows.protocols.tweezers.run_member` with ``start_pose``) would restart the same noise
-    stream, and two members of a static curve would draw the same noise. The member's seed is the first four bytes of the SHA-256 of
-    ``[seed, *key]`` (JSON; floats as ``repr``) in [1, 2^31 - 1]: the same base seed and key always give the
-    same seed (so a member's cache key and resume are reproducible), different keys different streams.
+    stream, and two members of a static curve would draw the same noise. The member's seed is the first four bytes of
+    the SHA-256 of ``[seed, *key]`` (JSON; floats as ``repr``) in [1, 2^31 - 1]: the same base seed and key always give
+    the same seed (so a member's cache key and resume are reproducible), different keys different streams.
 
     Parameters
     ----------

@@ -236,7 +236,8 @@ class ReplicaGroup:
     Parameters
     ----------
     settings : list of dict
-        Tweezers member settings of every rung (:func:`dnarod.workflows.protocols.tweezers.build_member`), in rung order.
+        Tweezers member settings of every rung (:func:`dnarod.workflows.protocols.tweezers.build_member`), in rung
+        order.
     rids : list of int
         The replicas of this group; replica ``r`` starts on rung ``r``, from that rung's static pose.
     """

@@ -46,7 +46,8 @@ def check_protocol_folder(out, kind, settings, overwrite=False):
         what = f"a {old_kind} run, not {kind}"
     else:
         keys = sorted(set(old_settings) | set(settings))
-        what = f"a {kind} run made with other settings (" + "; ".join(_describe(k, old_settings.get(k), settings.get(k)) for k in keys
+        what = f"a {kind} run made with other settings (" + "; ".join(_describe(k, old_settings.get(k),
+                                                                                settings.get(k)) for k in keys
                                              if old_settings.get(k) != settings.get(k)) + ")"
     raise DnarodError(f"{out}: holds {what}; choose another -o folder, or pass --overwrite to run its members "
                       f"again with these settings")
