@@ -10,8 +10,11 @@ import sys
 import warnings
 
 import click
+import numpy as np
 
 from dnarod.core.errors import DnarodError, RunWarning
+from dnarod.core.forcefield import available_forcefields, load_forcefield
+from dnarod.core.units import kT
 
 
 #: File-system errors that are the user's to fix (a path under a regular file, a folder where a
@@ -121,11 +124,7 @@ def main():
 @click.argument("name", required=False)
 def forcefields_cmd(name):
     """List the bundled force fields, or describe NAME (a bundled name or a .toml path)."""
-    import numpy as np
-
-    from dnarod.core.forcefield import available_forcefields, load_forcefield
     from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
 
     if name is None:
         for n in available_forcefields():

@@ -4,11 +4,18 @@ Results go to stdout, diagnostics (progress bar, warnings) to stderr.
 """
 from __future__ import annotations
 
+import warnings
+
 
 import click
 import numpy as np
+from click.core import ParameterSource
 
 from dnarod.core.errors import ParameterError
+from dnarod.physics.nonbonded import nonbonded_options
+from dnarod.run.api import source_model, run
+from dnarod.physics.loads import tweezers
+from dnarod.run.spec import RunSpec
 
 #: ``--charge`` and ``--cutoff-debye``, shared by ``dnarod simulate`` and ``dnarod protocol`` (checked by
 #: :func:`dnarod.physics.nonbonded.nonbonded_options`).
@@ -134,11 +141,6 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                       checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None,
                       axis="end-to-end", checkpoint_wall=None):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
-    from dnarod.physics.nonbonded import nonbonded_options
-    from dnarod.run.api import source_model
-    from dnarod.physics.loads import tweezers
-    from dnarod.run.spec import RunSpec
-
     if minimize and equilibrium:
         raise ParameterError("choose --minimize or --equilibrium, not both")
     if integrator == "verlet":
@@ -180,8 +182,6 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
 
 def _given(name):
     """True if option ``name`` (the parameter name) was given on the command line (not its default)."""
-    from click.core import ParameterSource
-
     ctx = click.get_current_context(silent=True)
     return ctx is not None and ctx.get_parameter_source(name) in (ParameterSource.COMMANDLINE,
                                                                   ParameterSource.ENVIRONMENT)
@@ -229,9 +229,6 @@ def _report(result, spec):
 
 
 def _run_command(engine, kw):
-    import warnings
-
-    from dnarod.run.api import run
 
     resume, overwrite, progress, outdir = kw.pop("resume"), kw.pop("overwrite"), kw.pop("progress"), kw.pop("outdir")
     spec = spec_from_options(engine, **kw)

@@ -6,7 +6,8 @@ import time
 
 import click
 
-from dnarod.validate import CHECKS
+from dnarod.validate import CHECKS, run_validation
+from dnarod.core.io import check_dir_path
 
 
 @click.command("validate")
@@ -25,8 +26,6 @@ def validate(quick, out_dir, only, overwrite):
     OUT must be new, empty, or a report folder: a folder holding a report is refused unless --overwrite. Exit
     status 0 if every check passed, 1 otherwise.
     """
-    from dnarod.core.io import check_dir_path
-    from dnarod.validate import run_validation
     from dnarod.validate.report import summary_table
 
     check_dir_path(out_dir, what="report folder")  # before the checks run, not after

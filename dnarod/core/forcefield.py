@@ -36,6 +36,7 @@ from dnarod.core.parameters import StepParameters, check_stiffness
 from dnarod.core.strains import Closure, chain_from_strains
 from dnarod.core.units import kT
 from dnarod.core.units import KG_PER_M3, PA, PN
+from dnarod.core.io import write_text_atomic
 
 
 #: unit string -> (dimension, factor to dnarod's internal unit)
@@ -472,8 +473,6 @@ def write_forcefield(path, name, table, ds, node_mass, node_inertia, temperature
     header : str
         Comment lines put at the top of the file.
     """
-    from dnarod.core.io import write_text_atomic
-
     def num(v):
         return f"{float(v):.12g}"
     def vec(v):

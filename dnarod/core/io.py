@@ -7,6 +7,10 @@ import json
 import os
 import tempfile
 from pathlib import Path
+import secrets
+import shutil
+import socket
+import math
 
 import numpy as np
 
@@ -156,8 +160,6 @@ def writing(path, needed=None):
 def _temp_name(name, ascii_only=False, suffix=""):
     """Name of a temporary file beside ``name``: hidden, at most 255 bytes (a long ``name`` is cut), ASCII with
     ``ascii_only``. ``suffix`` ends it (a writer that picks its format by the extension)."""
-    import secrets
-
     tag = secrets.token_hex(4)
     if ascii_only:
         stem = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name)
@@ -207,7 +209,6 @@ def ascii_alias(*paths):
     if all(p is None or str(p).isascii() for p in paths):
         yield [None if p is None else str(p) for p in paths]
         return
-    import shutil
 
     folder = Path(tempfile.mkdtemp(prefix="dnarod-"))
     try:
@@ -335,8 +336,6 @@ def remove_stale_stages(folder):
     """Remove the hidden folders (:data:`STAGE_PREFIX`) left in ``folder`` by an ``--overwrite`` that was killed
     before it finished. Call it while holding ``folder``'s lock (:func:`folder_lock`): a stage of a live writer
     would be removed too."""
-    import shutil
-
     folder = Path(folder)
     if not folder.is_dir():
         return
@@ -376,8 +375,6 @@ def staged_folder(folder, names, what="output", resume_name=None):
         raises, and the same call (the command run again) continues in it (for outputs made of resumable parts:
         a protocol's members). Without it the stage is a fresh hidden folder, removed on failure.
     """
-    import shutil
-
     folder = ensure_dir(folder)
     remove_stale_stages(folder)
     try:
@@ -577,8 +574,6 @@ def _same_file(fh, path):
 
 
 def _hostname():
-    import socket
-
     return socket.gethostname()
 
 
@@ -667,9 +662,6 @@ def jsonable(obj, nonfinite=None):
     nonfinite : None or "repr"
         What NaN and infinities become: ``None`` (JSON null) or their ``repr`` string.
     """
-    import math
-
-    import numpy as np
 
     if isinstance(obj, dict):
         return {str(k): jsonable(v, nonfinite) for k, v in obj.items()}

@@ -22,6 +22,7 @@ from dnarod.core.errors import GeometryError, ParameterError, base_pair
 from dnarod.core.parameters import StepParameters
 from dnarod.core.rotations import check_frames
 from dnarod.core.strains import Closure, chain_from_strains, strains
+from dnarod.core.io import atomic_path, file_kind
 
 
 @dataclass
@@ -195,8 +196,6 @@ class RodModel:
         string with ``ds``, ``sequence``, ``step_names``, ``format`` and ``metadata``.
         The file is written atomically (temporary file, then rename).
         """
-        from dnarod.core.io import atomic_path
-
         meta = dict(format="dnarod-model", version=1, ds=self.ds, sequence=self.sequence,
                     step_names=list(self.params.names), metadata=self.metadata)
         arrays = dict(positions=self.positions, frames=self.frames, stiffness=self.params.stiffness,
@@ -211,8 +210,6 @@ class RodModel:
     @classmethod
     def load(cls, path):
         """Read a model written by :meth:`save`."""
-        from dnarod.core.io import file_kind
-
         kind = file_kind(path)
         if kind is not None and kind not in ("a zip/.npz archive", "an empty file"):
             # numpy would try to unpickle it and suggest allow_pickle=True: say what the file is instead

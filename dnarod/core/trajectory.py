@@ -34,6 +34,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+import contextlib
 
 import numpy as np
 
@@ -183,8 +184,6 @@ def load_trajectory(path):
 
 
 def _quiet():
-    import contextlib
-
     return contextlib.suppress(OSError)
 
 

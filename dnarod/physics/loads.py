@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dnarod.core.errors import ParameterError
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.units import PN
 
 __all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
            "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls",
@@ -253,8 +255,6 @@ class ResolvedClamp:
 
     def target(self, angle):
         """Target frame (3, 3) turned by ``angle`` rad about the axis."""
-        from dnarod.core.rotations import rotation_about_axis
-
         return rotation_about_axis(self.axis, float(angle)) @ self.frame0
 
 
@@ -500,8 +500,6 @@ def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns
         clamp or beyond the chain's helical turns, a torque on a free chain with no force, a non-positive
         stiffness, two traps on one node, an unknown anchor or axis.
     """
-    from dnarod.core.units import PN
-
     n = model.n_nodes
     if anchor not in ANCHORS:
         raise ParameterError(f"anchor {anchor!r}: choose one of {', '.join(ANCHORS)}")

@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 
 from dnarod.core.errors import DnarodError
-from dnarod.core.kernels import step_loads
+from dnarod.core.kernels import step_loads, loads_kernel
 from dnarod.core.errors import ParameterError
 from dnarod.core.units import PN
 from dnarod.physics.loads import RotationClamp, Trap, resolve_loads, rotation_clamp_load
@@ -276,8 +276,6 @@ def _colours(n, circular):
 
 
 def _elastic_load_fn(model):
-    from dnarod.core.kernels import loads_kernel
-
     K = np.ascontiguousarray(model.params.stiffness, float)
     xi0 = np.ascontiguousarray(model.params.intrinsic, float)
     circ = model.closure is not None

@@ -68,7 +68,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from dnarod.core.errors import ParameterError
+from dnarod.core.errors import ParameterError, DnarodError
 from dnarod.core.units import kT as kT_of
 
 ONE_4PI_EPS0 = 138.935457833  # kJ/mol nm / e^2
@@ -252,8 +252,6 @@ def nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
     ------
     DnarodError
     """
-    from dnarod.core.errors import DnarodError
-
     out = {}
     if charge is not None:
         name = str(charge).strip().lower()

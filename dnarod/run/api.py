@@ -19,16 +19,26 @@ import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+import hashlib
+import sys
 
 import numpy as np
 
 from dnarod.core.errors import ParameterError, step_name
 from dnarod.core.io import (FULL_DISK_ERRNOS, STAGE_PREFIX, WriteError, check_dir_path, check_free_space,
-                            check_output_folder, folder_lock, jsonable, staged_folder, write_failure,
-                            write_text_atomic)
+                            check_output_folder, folder_lock, jsonable, staged_folder, write_failure, write_text_atomic,
+                            LOG, MEMBER, RESULT)
 from dnarod.run.spec import RunSpec, compare_fingerprints, fingerprint
 from dnarod.core.io import read_checkpoint
-from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
+from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT, omega_max
+from dnarod.physics.modes import check_load_stiffness as _check_load_stiffness
+from dnarod.physics.loads import PullingForce
+from dnarod.core.energy import loads as elastic_loads
+from dnarod.core.rotations import MAX_CAYLEY_ANGLE
+from dnarod.core.units import kT
+from dnarod.core.trajectory import HEADER_SIZE, bytes_per_node_frame
+from dnarod.run.loop import simulate_engine
+from dnarod.core.model import RodModel
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
 RUN_FILES = {"run_json": "run.json", "trajectory": "trajectory.dtraj", "energies": "energies.csv",
@@ -99,8 +109,6 @@ def _pull_direction(loads, n_nodes):
     """Net pulling force on the last node (kJ/mol/nm, (3,)) or None: an equilibrium start of a pulled
     chain is turned so that its end-to-end vector points along it (else a long chain may start
     pointing away from the force)."""
-    from dnarod.physics.loads import PullingForce
-
     f = sum((np.asarray(ld.force, float) for ld in loads
              if isinstance(ld, PullingForce) and int(ld.node) % n_nodes == n_nodes - 1), np.zeros(3))
     return f if np.linalg.norm(f) > 0 else None
@@ -108,8 +116,6 @@ def _pull_direction(loads, n_nodes):
 
 def default_omega_max(model, loads=()):
     """Fastest normal-mode frequency of a pose under its loads, rad/ps (:func:`dnarod.physics.modes.omega_max`)."""
-    from dnarod.physics.modes import omega_max
-
     return float(omega_max(model, loads=tuple(loads)))
 
 
@@ -128,10 +134,6 @@ def choose_dt(spec, model, omega):
 def check_start_pose(model, temperature):
     """Refuse (or warn about) a start pose the rod model cannot run: steps near the Cayley limit or
     storing far more elastic energy than equipartition (a tiny ring), which heats the run up."""
-    from dnarod.core.energy import loads as elastic_loads
-    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
-    from dnarod.core.units import kT
-
     if model.n_steps == 0:
         raise ParameterError("the model has a single node: a chain needs at least 2")
     Om, _ = model.strains()
@@ -210,9 +212,7 @@ def check_load_stiffness(spec, model, omega=None):
     """:func:`dnarod.physics.modes.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode
     with
     the loads, rad/ps, if known), naming the ``simulate`` options."""
-    from dnarod.physics.modes import check_load_stiffness as check
-
-    check(model, spec.loads, omega=omega)
+    _check_load_stiffness(model, spec.loads, omega=omega)
 
 
 def make_engine(spec, model, dt, seed, omega):
@@ -254,8 +254,6 @@ def estimate_run_bytes(spec, n_nodes, dt):
     the ``.dtraj`` frames (:func:`dnarod.core.trajectory.bytes_per_node_frame`), ``energies.csv`` rows, two
     checkpoints and the final model (a checkpoint is replaced atomically, so the old and the new one exist at
     once), and the exports."""
-    from dnarod.core.trajectory import HEADER_SIZE, bytes_per_node_frame
-
     n_steps, fi, _ = intervals(spec, dt)
     frames = n_steps // fi + 1
     total = HEADER_SIZE + frames * (16 + n_nodes * bytes_per_node_frame(spec.velocities))
@@ -276,8 +274,6 @@ def run_folder_markers():
     """Names that mark a folder as a run's (any of them): the run files, and the record of an ensemble member
     (:data:`dnarod.core.io.RESULT`, ``MEMBER``, ``LOG``), whose folder is a run folder. A new run refuses any other
     non-empty folder (:func:`dnarod.core.io.check_output_folder`)."""
-    from dnarod.core.io import LOG, MEMBER, RESULT
-
     return (*RUN_FILES.values(), MEMBER, LOG, RESULT)
 
 
@@ -297,8 +293,6 @@ def _observables(spec, model):
 
 
 def _run_id(fp):
-    import hashlib
-
     return hashlib.sha256(json.dumps(jsonable(fp), sort_keys=True).encode()).hexdigest()[:20]
 
 
@@ -391,8 +385,6 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
 def _setup_start(spec, progress):
     """Before the model is built: refuse a node count this machine's memory cannot hold, say that the kernels
     compile (a first run after install), and return the set-up's stage printer (:class:`SetupStages`)."""
-    import sys
-
     from dnarod.run.resources import compile_notice
     from dnarod.run.resources import SetupStages, check_memory, node_count_hint
 
@@ -501,8 +493,6 @@ def _restart(spec, outdir, paths, model, meta, run_json_text, seed, dt, progress
 
 
 def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
-    from dnarod.run.loop import simulate_engine
-
     dt = engine.dt
     n_steps, fi, ci = intervals(spec, dt)
     if fi > n_steps:
@@ -621,8 +611,6 @@ def export_status(outdir, meta=None, xtc=True):
 
 def _sequence_of(paths):
     """Strand I of the run's model (``final_model.npz``, else the trajectory's metadata), or None."""
-    from dnarod.core.model import RodModel
-
     if paths["final_model"].exists():
         try:
             return RodModel.load(paths["final_model"]).sequence

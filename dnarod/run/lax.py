@@ -30,6 +30,7 @@ from dnarod.engines.lax.engine import LaxEngine
 from dnarod.engines.lax.splitting import RigidState, SplittingIntegrator, maxwell_state
 from dnarod.run.loop import run_engine
 from dnarod.run.reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter
+from dnarod.engines.lax.exact import integrate_exact
 
 
 @dataclass
@@ -202,8 +203,6 @@ def simulate_exact(model, t_end, velocities=None, angular_velocities=None, tempe
     Initial velocities: given, or Maxwell at ``temperature`` (K), or at rest. Writes the same
     ``.dtraj`` and energies CSV as the splitting runs. Returns :class:`.exact.ExactResult`.
     """
-    from dnarod.engines.lax.exact import integrate_exact
-
     if velocities is None and angular_velocities is None and temperature is not None:
         st = maxwell_state(model, temperature, seed, boundary)
         velocities, angular_velocities = st.velocities(model.mass, model.inertia)

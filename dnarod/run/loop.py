@@ -14,7 +14,8 @@ import threading
 import time
 
 from dnarod.core.errors import ParameterError
-from dnarod.run.reporters import Snapshot
+from dnarod.run.reporters import Snapshot, DtrajReporter, EnergyReporter, ProgressReporter
+from dnarod.core.io import ensure_dir
 
 #: Default wall time between checkpoints, s (a checkpoint is always written at the end and on Ctrl-C): the
 #: protocol samplers' interval. A checkpoint of a 1,000-node OpenMM run takes about a millisecond, so
@@ -205,9 +206,6 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
         The loop's summary (:func:`run_engine`) plus ``temperatures`` (K, one per energy row) and
         ``resumed_from``.
     """
-    from dnarod.core.io import ensure_dir
-    from dnarod.run.reporters import DtrajReporter, EnergyReporter, ProgressReporter
-
     outdir = ensure_dir(outdir)
     fi = int(frame_interval)
     ei = int(energy_interval or fi)

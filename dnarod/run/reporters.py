@@ -24,6 +24,7 @@ import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.io import atomic_path, writing
+from dnarod.core.trajectory import TrajectoryWriter
 
 #: Columns of ``energies.csv`` (both engines); observables follow when the loads define them.
 ENERGY_COLUMNS = ["step", "time_ps", "potential_kJ_mol", "kinetic_kJ_mol", "total_kJ_mol", "temperature_K",
@@ -91,8 +92,6 @@ class DtrajReporter(_Interval):
 
     def __init__(self, path, n_nodes, interval, velocities=False, metadata=None, resume_step=None,
                  precision="float32"):
-        from dnarod.core.trajectory import TrajectoryWriter
-
         self.path = Path(path)
         self.interval = int(interval)
         self.velocities = bool(velocities)

@@ -14,6 +14,8 @@ import time
 from dnarod.core.errors import ParameterError
 from dnarod.core.io import human_bytes
 from dnarod.core.jit import is_cached
+from dnarod.structure.inputs import MAX_NODES
+from dnarod.core.model import RodModel
 
 #: Bytes per node of a run's set-up and run (model, normal-mode estimate, engine state, reporters), by engine.
 MEMORY_PER_NODE = {"lax": 3500, "openmm": 4500}
@@ -52,8 +54,6 @@ def check_memory(n_nodes, engine, available=None):
     ParameterError
         One line naming the node count, the estimate and the memory available.
     """
-    from dnarod.structure.inputs import MAX_NODES
-
     if n_nodes is None or not 2 <= n_nodes <= MAX_NODES:  # outside: refused by the model's own check, in its words
         return
     need = estimate_memory(n_nodes, engine)
@@ -71,8 +71,6 @@ def check_memory(n_nodes, engine, available=None):
 def node_count_hint(source):
     """The node count of a run's SOURCE when it is cheap to know before the model is built (a node count, a
     sequence, a model), else None (a file: its size is checked once the model is built)."""
-    from dnarod.core.model import RodModel
-
     if isinstance(source, RodModel):
         return source.n_nodes
     if isinstance(source, bool):

@@ -11,9 +11,10 @@ from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 import numpy as np
 
 from dnarod.core.errors import ParameterError
-from dnarod.core.model import model_fingerprint
-from dnarod.physics.nonbonded import scales_temperature
+from dnarod.core.model import model_fingerprint, RodModel
+from dnarod.physics.nonbonded import scales_temperature, NonbondedSettings, member_nonbonded
 from dnarod.run.loop import CHECKPOINT_WALL_S
+from dnarod.core.io import jsonable
 
 ENGINES = ("openmm", "lax")
 STARTS = ("intrinsic", "equilibrium", "minimized")
@@ -255,7 +256,6 @@ class RunSpec:
         (``check``: refuse a bad charge or cutoff with one line, :class:`ParameterError`)."""
         if not self.nonbonded:
             return False
-        from dnarod.physics.nonbonded import NonbondedSettings, member_nonbonded
 
         extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
         if check:
@@ -266,8 +266,6 @@ class RunSpec:
 
     def to_json(self):
         """JSON-safe dict of the spec (loads as ``{"type": ..., fields...}``; a model source as its name)."""
-        from dnarod.core.io import jsonable
-
         d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("loads", "extra", "source")}
         d["source"] = _source_text(self.source)
         d["loads"] = [load_json(x) for x in self.loads]
@@ -276,8 +274,6 @@ class RunSpec:
 
 
 def _source_text(source):
-    from dnarod.core.model import RodModel
-
     if isinstance(source, RodModel):
         return f"<RodModel {source.n_nodes} nodes>"
     return str(source)
@@ -285,8 +281,6 @@ def _source_text(source):
 
 def load_json(load):
     """A load dataclass as a JSON-safe dict ``{"type": class name, field: value}``."""
-    from dnarod.core.io import jsonable
-
     try:
         d = asdict(load)
     except TypeError:

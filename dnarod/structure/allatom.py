@@ -50,12 +50,15 @@ import logging
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 from dnarod.core.errors import StructureError
-from dnarod.structure.frames import standard_bases
-from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates
+from dnarod.structure.frames import standard_bases, kabsch
+from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates, nucleotide_template
+from dnarod.structure.bpparams import pair_parameters
+from dnarod.core.io import atomic_path
 
 _log = logging.getLogger(__name__)
 
@@ -343,8 +346,6 @@ def _retarget(force, context, groups, pos, placed):
     while their internal geometry is the force field's, so firm restraints hold the frame without
     straining the ring bonds toward the standard base's lengths.
     """
-    from dnarod.structure.frames import kabsch
-
     k = 0
     for ids, ref in groups:
         Rb, ob, _ = kabsch(ref, pos[ids])
@@ -477,8 +478,6 @@ def _placed_gap(xyz, atoms, O, n, bond_tolerance):
     sum of those lengths apart. If the frames put them further apart even after both moves, no closure
     can pass the checks: raise before minimising, naming the step, the distance and the shortfall.
     """
-    from dnarod.structure.rebuild import nucleotide_template
-
     def path_length(letter, names):
         tn, tx = nucleotide_template(letter)
         ix = {a: i for i, a in enumerate(tn)}
@@ -622,9 +621,6 @@ def _links(topology):
 
 def _pair_frames_of(topology, xyz, n, sequence, sequence2):
     """Base-pair frames refitted from the rebuilt atoms (nm, as the analysis computes them)."""
-    from dnarod.structure.bpparams import pair_parameters
-    from dnarod.structure.frames import kabsch
-
     std, ring = standard_bases()
     res = list(topology.residues())
     F, O = np.zeros((2, n, 3, 3)), np.zeros((2, n, 3))
@@ -655,7 +651,6 @@ def _homotopy(F, O, fractions):
     """
     from scipy.spatial.transform import Rotation
 
-    from dnarod.structure.frames import kabsch
 
     n = len(F)
     c, s_ = np.cos(FIBRE_TWIST), np.sin(FIBRE_TWIST)
@@ -1030,12 +1025,9 @@ def write_allatom(path, topology, positions, hydrogens=True, remarks=()):
     hydrogens : bool
         Keep hydrogens (default) or write heavy atoms only.
     """
-    from pathlib import Path
-
     import openmm.app as app
     import openmm.unit as u
 
-    from dnarod.core.io import atomic_path
 
     path = Path(path)
     top, pos = topology, np.asarray(positions, float)

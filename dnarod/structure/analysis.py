@@ -36,6 +36,7 @@ from dnarod.structure.pairing import (MAX_GAP, backbone_links, check_duplicated,
                                       fill_helix_gaps,
                       is_mismatch, multiplets)
 from dnarod.structure.reader import read_structure
+from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 
 
 @dataclass
@@ -149,8 +150,6 @@ class StructureAnalysis:
 def unstacked_steps(duplex):
     """Steps (0-based in the duplex) whose node frames turn by 80 % of a half turn or more: not a stacked
     step (a pair with parallel base normals, a helix turning back), beyond what the rod's strains describe."""
-    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
-
     F = duplex.bp_frames
     if len(F) < 2:
         return []

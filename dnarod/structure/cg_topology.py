@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.trajectory import Trajectory
+from dnarod.core.io import ascii_alias
 
 BEADS = ("BPC", "BPX", "BPZ")
 ELEMENT = "VS"
@@ -172,9 +174,7 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
     """
     import mdtraj as md
 
-    from dnarod.core.trajectory import Trajectory
 
-    from dnarod.core.io import ascii_alias
 
     with ascii_alias(pdb_path, trajectory_path) as (pdb, trj):  # mdtraj's C readers take only ASCII paths
         t = md.load(trj, top=pdb) if trj else md.load(pdb)

@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.stepparams import step_parameters_with_midframe
+from dnarod.structure.findpair import check_wc_wobble
 
 #: Rotation by 180 degrees about y, applied on the right of a frame: x and z reversed.
 REVERSE = np.diag([-1.0, 1.0, -1.0])
@@ -77,8 +78,6 @@ def wc_info(bp_params, frames1, frames2f, antiparallel, letters):
     -------
     ndarray of int, shape (n,)
     """
-    from dnarod.structure.findpair import check_wc_wobble
-
     out = np.zeros(len(letters), dtype=int)
     for k, lt in enumerate(letters):
         if (antiparallel[k] and frames1[k][:, 0] @ frames2f[k][:, 0] > 0

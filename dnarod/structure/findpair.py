@@ -42,6 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from dnarod.core.stepparams import step_parameters
+
 MAX_DORG = 1.5          # nm (15 A)
 MAX_DV = 0.25           # nm (2.5 A)
 MAX_PLANE_ANGLE = 65.0  # degrees
@@ -404,8 +406,6 @@ def check_wc_wobble(letters, shear_A, stretch_A, opening_deg):
 
 def _pair_params_A(bi, bj):
     """Base-pair parameters (A, deg) with base i as strand I, base j as strand II."""
-    from dnarod.core.stepparams import step_parameters
-
     L2 = bj.frame.copy()
     if bi.frame[:, 2] @ bj.frame[:, 2] < 0:
         L2[:, 1:] *= -1

@@ -4,7 +4,14 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+
 from dnarod.core.errors import ParameterError
+from dnarod.physics.loads import intrinsic_turns
+from dnarod.core.rotations import MAX_CAYLEY_ANGLE
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.structure.trajectory import is_structure_file
 
 #: Letters of a DNA sequence given on the command line or in a sequence file (strand I, 5'->3').
 SEQUENCE_RE = re.compile(r"[ACGTacgt]+")
@@ -62,10 +69,6 @@ def _is_file(p):
 def _check_ring_twist(relaxed, delta_lk):
     """Refuse a linking difference whose twist per step leaves the rod model's Cayley chart (beyond it the
     twist would wrap around by whole turns and the ring would silently hold another linking number)."""
-    import numpy as np
-
-    from dnarod.physics.loads import intrinsic_turns
-    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 
     lk0 = float(intrinsic_turns(relaxed))
     n = relaxed.n_nodes
@@ -108,10 +111,6 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
     ParameterError
         A missing file, an unreadable source or options that do not apply to the source.
     """
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.core.model import RodModel
-    from dnarod.structure.trajectory import is_structure_file
-
     if isinstance(source, RodModel):
         return source
     if isinstance(source, int) and not isinstance(source, bool):

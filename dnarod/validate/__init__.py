@@ -32,6 +32,7 @@ import traceback
 from pathlib import Path
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import check_output_folder, folder_lock, staged_folder
 
 #: name -> (module, function)
 CHECKS = {
@@ -94,7 +95,6 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     DnarodError
         An unknown check, a folder holding a report (without ``overwrite``) or anything else, a folder in use.
     """
-    from dnarod.core.io import check_output_folder, folder_lock, staged_folder
     from dnarod.validate.report import REPORT_FILES, old_report
 
     out_dir = Path(out_dir)

@@ -36,9 +36,17 @@ import time
 
 import numpy as np
 
-from dnarod.core.units import PN
+from dnarod.core.units import PN, kT
 from dnarod.analysis.plots import new_figure, save_figure
 from dnarod.analysis.statistics import jackknife, split_blocks
+from dnarod.physics.thermal import persistence_length, equilibrium_sample
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
+from dnarod.engines.lax.engine import LaxEngine
+from dnarod.engines.lax.splitting import maxwell_state
+from dnarod.run.sampling import SampleReporter, run_sampling
+from dnarod.physics.theory.wlc import extensible_wlc_extension
+from dnarod.physics.experiments import wlc_extension_band, persistence_length_band
 
 NAME = "force_extension"
 Z_TOL = 3.0
@@ -48,9 +56,6 @@ DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)
 
 def model_constants(model, temperature):
     """``(lp nm, S pN, kT pN nm, L0 nm)`` of a uniform model at ``temperature`` K."""
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
-
     kt = kT(temperature)
     lp = persistence_length(model.params, model.ds, kt)
     K = model.params.stiffness[0]
@@ -64,19 +69,11 @@ def equilibrium_coil(model, temperature, seed):
 
     :func:`dnarod.physics.thermal.equilibrium_sample` (the one home of the sampler) with ``align = z``.
     """
-    from dnarod.physics.thermal import equilibrium_sample
-
     return equilibrium_sample(model, temperature, seed, align=(0.0, 0.0, 1.0))
 
 
 def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_every, seed, start="straight"):
     """One pulling run along z from ``start`` ("straight" or "coil"); returns the projected extension (nm) series."""
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
-    from dnarod.engines.lax.engine import LaxEngine
-    from dnarod.engines.lax.splitting import maxwell_state
-    from dnarod.run.sampling import SampleReporter, run_sampling
-
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     if start == "coil":
         model = equilibrium_coil(model, temperature, seed + 1000)
@@ -122,8 +119,6 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
     """
     from concurrent.futures import ProcessPoolExecutor
 
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
 
     t0 = time.perf_counter()
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
@@ -140,7 +135,6 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
             series = list(ex.map(_pull_star, jobs))
     else:
         series = [pull(*j) for j in jobs]
-    from dnarod.physics.experiments import wlc_extension_band
 
     x_lo, x_hi = wlc_extension_band(forces_pn, experiment_salt_M, S, temperature)
     rows = []
@@ -179,9 +173,6 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
 
 
 def _plot(out_dir, rows, lp, S, kt, salt_M=0.15, temperature=300.0):
-    from dnarod.physics.experiments import persistence_length_band, wlc_extension_band
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
-
     fig, ax = new_figure(1, 1, width=6.0, height=4.2)
     a = ax[0, 0]
     F = np.logspace(np.log10(min(r["force_pN"] for r in rows)) - 0.2, np.log10(max(r["force_pN"] for r in rows)) + 0.1,

@@ -11,6 +11,8 @@ import json
 import os
 import platform
 
+import numpy as np
+
 from dnarod.core.io import write_text_atomic
 from dnarod.validate._common import jsonable
 
@@ -162,8 +164,6 @@ def summary_table(results):
 
 def write_report(out_dir, results, quick=False, runtime_s=None):
     """Write ``results.json`` and ``report.md`` into ``out_dir``; returns the JSON-safe results."""
-    import numpy as np
-
     try:
         import openmm
 

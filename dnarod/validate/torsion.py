@@ -27,11 +27,18 @@ model's C in the theory (the tests feed a wrong value to show the check fails).
 from __future__ import annotations
 
 import time
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
 from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson, twist_friction
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.core.forcefield import load_forcefield
+from dnarod.workflows.protocols.tweezers import run_member
+from dnarod.physics.thermal import persistence_length
+from dnarod.core.units import kT, PN
+from dnarod.analysis.polymer import integrated_autocorrelation_time
 
 NAME = "torsion"
 Z_TOL = 3.0
@@ -42,14 +49,6 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
                   weak_clamp_kJ_mol=1.0, fluct_friction=None, temperature=300.0, seed=21, c_override=None, plots=True,
                   member_root=None):
     """Run the check (see the module docstring); ``quick`` uses a 100 bp chain and short runs."""
-    import tempfile
-    from pathlib import Path
-
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.workflows.protocols.tweezers import run_member
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
-    from dnarod.core.units import PN
 
     t0 = time.perf_counter()
     n_bp = n_bp or (100 if quick else 300)
@@ -76,7 +75,6 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
     fl = run_member(dict(base, turns=0.0, clamp_k_kJ_mol=weak_clamp_kJ_mol, friction_per_ps=fluct_friction,
                          time_ns=fluct_ns, sample_ps=5.0, seed=seed + 2), root / "fluct")
     d = np.genfromtxt(root / "fluct" / "samples.csv", delimiter=",", names=True)
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     phi = (d["end_turns"] - d["end_turns"].mean()) * 2 * np.pi
     var = float(np.mean(phi ** 2))

@@ -34,6 +34,7 @@ from dnarod.core.strains import chain_from_strains
 from dnarod.physics.thermal import node_kinetic_energy
 from dnarod.core.trajectory import Trajectory
 from dnarod.engines.lax.boundary import BoundaryConditions
+from dnarod.core.rotations import hat
 
 
 def _rot_apply(w, v, transpose=False):
@@ -126,8 +127,6 @@ def lax_matrices(positions, frames, velocities_body, angular_velocities_body, cl
     U : ndarray, shape (n_steps, 4, 4)
     V : ndarray, shape (n_nodes, 4, 4)
     """
-    from dnarod.core.rotations import hat
-
     n = positions.shape[0]
     g = np.zeros((n + 1, 4, 4))
     g[:n, :3, :3], g[:n, :3, 3], g[:, 3, 3] = frames, positions, 1.0

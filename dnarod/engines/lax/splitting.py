@@ -31,6 +31,7 @@ from dnarod.core.strains import step_geometry
 from dnarod.core.units import kT as _kT
 from dnarod.engines.lax.boundary import BoundaryConditions
 from dnarod.engines.lax.splitting_limits import MOMENTUM_LIMIT
+from dnarod.physics.modes import omega_max as _omega_max
 
 
 @dataclass
@@ -220,8 +221,6 @@ def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-9):
     float
         rad/ps.
     """
-    from dnarod.physics.modes import omega_max as _omega_max
-
     loads = () if boundary is None else boundary
     return _omega_max(model, loads, positions, frames, rtol=tol)
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import functools
+import os
 
 import openmm
 
@@ -102,8 +103,6 @@ def env_threads():
     ParameterError
         If it is set to anything but a whole number >= 1 (one line, not a traceback).
     """
-    import os
-
     t = os.environ.get("OPENMM_CPU_THREADS", "").strip()
     if not t:
         return None

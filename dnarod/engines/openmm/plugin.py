@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dnarod.core.errors import ParameterError
+from dnarod._plugin import _build_info
 
 #: Host platforms on which ``elastic="auto"`` takes the plugin (SMKForce as host code, rigid-body integrator).
 PLUGIN_PLATFORMS = ("CPU", "Reference")
@@ -175,7 +176,6 @@ def _load_device_kernel(platform):
     st = status()
     if not st.available:
         return False, f"the compiled plugin is not usable ({st.reason})"
-    from dnarod._plugin import _build_info
 
     built = getattr(_build_info, "DEVICE_KERNELS", {})
     if platform not in built:

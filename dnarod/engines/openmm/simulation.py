@@ -46,6 +46,7 @@ from dnarod.engines.openmm.particles import (closure_image_positions, node_poses
 from dnarod.engines.openmm.platforms import choose_platform
 from dnarod.engines.openmm.system import build_system
 from dnarod.physics.nonbonded import scales_temperature
+from dnarod.physics.loads import RotationClamp, clamp_angle
 
 
 
@@ -432,7 +433,6 @@ class RodSimulation:
         clamps = self.rs.load_info.get("rotation_clamps") or []
         if not clamps:
             return
-        from dnarod.physics.loads import RotationClamp, clamp_angle
         from dnarod.engines.openmm.loads import set_clamp_rotation
 
         # build_load_forces lists the rotation clamps in the order of the loads

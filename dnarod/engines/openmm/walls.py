@@ -37,6 +37,8 @@ import numpy as np
 import openmm
 
 from dnarod.engines.openmm.forces import GROUPS, python_force
+from dnarod.engines.openmm import plugin
+from dnarod.core.errors import ParameterError
 
 #: Platforms on which :func:`wall_forces` takes a host form (compiled, else numba): no copies off a device.
 COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
@@ -91,8 +93,6 @@ def wall_forces_reference(n_nodes, z_surface, k, skip):
 
 def compiled_walls_available():
     """Whether the compiled plugin is usable here and has ``WallForce`` (a plugin built before it has not)."""
-    from dnarod.engines.openmm import plugin
-
     mod = plugin.module()
     return mod is not None and hasattr(mod, "WallForce")
 
@@ -113,8 +113,6 @@ def wall_forces_compiled(n_nodes, z_surface, k, skip):
     ParameterError
         If the compiled plugin (with ``WallForce``) is not usable here.
     """
-    from dnarod.engines.openmm import plugin
-
     n, skip = _check(n_nodes, skip)
     if not compiled_walls_available():
         from dnarod.core.errors import ParameterError
@@ -242,7 +240,6 @@ def wall_forces(n_nodes, z_surface, k, skip, platform="CPU", form="auto"):
         return wall_forces_numba(n_nodes, z_surface, k, skip)
     if form == "reference":
         return wall_forces_reference(n_nodes, z_surface, k, skip)
-    from dnarod.core.errors import ParameterError
 
     raise ParameterError(f"wall form must be 'auto', 'compiled', 'numba' or 'reference', got {form!r}")
 

@@ -17,6 +17,8 @@ import struct
 import sys
 import time
 from pathlib import Path
+import traceback
+import gc
 
 from dnarod.core.extras import require
 from dnarod.core.errors import DnarodError
@@ -228,8 +230,6 @@ class DaskLog(logging.Handler):
     def unraisable(self, unraisable):
         """A ``sys.unraisablehook``: exceptions Python cannot raise (dask's exit hooks, ``__del__``) go to the
         log too."""
-        import traceback
-
         exc = unraisable.exc_value
         text = "".join(traceback.format_exception(type(exc), exc, unraisable.exc_traceback)) if exc else ""
         self.emit(logging.makeLogRecord({"name": "unraisable", "levelno": logging.WARNING, "levelname": "WARNING",
@@ -608,8 +608,6 @@ def connect(address, timeout=10.0, security=None):
 
 
 def _collect_quietly():
-    import gc
-
     hook = sys.unraisablehook
     sys.unraisablehook = lambda u: logging.getLogger("distributed.client").debug(
         "%s: %r", u.err_msg, u.exc_value)
@@ -699,7 +697,6 @@ def slurm_cluster(cores=1, processes=None, memory="4GB", walltime="04:00:00", qu
         SLURMCluster = require("dask_jobqueue", "cluster").SLURMCluster
     except ImportError:
         raise SchedulerError("SLURM clusters need dask-jobqueue: pip install 'dnarod[cluster]'") from None
-    import sys
 
     processes = int(processes or cores)
     prologue = [f"export {k}={v}" for k, v in WORKER_ENV.items()]

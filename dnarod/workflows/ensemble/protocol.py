@@ -26,9 +26,13 @@ Python code may pass a protocol object itself (``Ensemble(..., protocol=obj)``).
 from __future__ import annotations
 
 from types import SimpleNamespace
+import inspect
+from importlib.metadata import entry_points
 
 
-from dnarod.workflows.ensemble.schema import SpecError
+from dnarod.workflows.ensemble.schema import SpecError, Key
+from dnarod.run import RunSpec, run
+from dnarod.workflows.ensemble.reduce import reduce_run
 
 #: Protocols registered in this process: name -> object.
 PROTOCOLS = {}
@@ -49,8 +53,6 @@ def register_protocol(name, protocol, aliases=()):
 
 def _entry_points():
     """The entry points of :data:`ENTRY_POINT_GROUP` (none if the package metadata cannot be read)."""
-    from importlib.metadata import entry_points
-
     try:
         return list(entry_points(group=ENTRY_POINT_GROUP))
     except Exception:  # noqa: BLE001 -- broken metadata of some installed package: no entry points
@@ -64,8 +66,6 @@ def known_protocols():
 
 def _run_api():
     """``(RunSpec, run)`` of the run layer."""
-    from dnarod.run import RunSpec, run
-
     return RunSpec, run
 
 
@@ -113,8 +113,6 @@ def build_runspec(settings, model_cache=None):
 
 
 def _default_reduce(member_dir, settings, analysis):
-    from dnarod.workflows.ensemble.reduce import reduce_run
-
     return reduce_run(member_dir, settings, analysis)
 
 
@@ -170,8 +168,6 @@ def _check_hooks(obj, name):
 
 
 def _as_keys(keys):
-    from dnarod.workflows.ensemble.schema import Key
-
     out = {}
     for name, k in dict(keys or {}).items():
         out[name] = k if isinstance(k, Key) else Key(name, k, None, "protocol setting")
@@ -193,8 +189,6 @@ def protocol_keys(protocol):
 def call_hook(fn, *args):
     """Call a protocol hook with ``(settings, member_dir, analysis)``-style arguments, dropping the
     trailing ``analysis`` for hooks written with two parameters."""
-    import inspect
-
     try:
         params = inspect.signature(fn).parameters.values()
     except (TypeError, ValueError):

@@ -13,9 +13,14 @@ damping of the slowest bending mode; "fixed": the spec's ``friction_per_ps``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import hashlib
+import json
 
 from dnarod.core.errors import DnarodError
 from dnarod.workflows.protocols import references as ref
+from dnarod.workflows.ensemble.schema import Key
+from dnarod.workflows.protocols.curves import _members
+from dnarod.physics import experiments as ex
 
 
 @dataclass(frozen=True)
@@ -66,9 +71,6 @@ def member_seed(seed, *key):
     -------
     int
     """
-    import hashlib
-    import json
-
     parts = [int(seed)] + [repr(float(k)) if isinstance(k, (int, float)) and not isinstance(k, bool) else str(k)
                            for k in key]
     h = hashlib.sha256(json.dumps(parts).encode()).digest()
@@ -76,8 +78,6 @@ def member_seed(seed, *key):
 
 
 def protocol_keys():
-    from dnarod.workflows.ensemble.schema import Key
-
     return {k.name: k for k in [
         Key("equilibration_ns", float, None, "equilibration before sampling, ns (default 5 slowest bending "
             "relaxation times)", ">0"),
@@ -133,8 +133,6 @@ class TweezersProtocol:
     def check(self, settings):
         """Refuse a member's settings as the protocol commands do (:func:`dnarod.workflows.protocols.curves._members`);
         the ensemble calls it for every member before any runs."""
-        from dnarod.workflows.protocols.curves import _members
-
         _members(self.kind, {}, dict(settings))
 
     def execute(self, settings, member_dir, analysis=None):
@@ -166,8 +164,6 @@ class RingProtocol:
     missing: str | None = "writhe fraction"
 
     def missing_note(self):
-        from dnarod.physics import experiments as ex
-
         return None if ex.writhe_fraction_reference() else _missing_note(self)
 
     @property
@@ -190,8 +186,6 @@ class RingProtocol:
     def check(self, settings):
         """Refuse a member's settings as the protocol commands do (:func:`dnarod.workflows.protocols.curves._members`);
         the ensemble calls it for every member before any runs."""
-        from dnarod.workflows.protocols.curves import _members
-
         _members(self.kind, {}, dict(settings))
 
     def execute(self, settings, member_dir, analysis=None):

@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import write_text_atomic
 
 MANIFEST = "protocol.json"
 #: Names that mark a protocol's folder (any of them; a protocol run stopped early may have only its members).
@@ -55,8 +56,6 @@ def check_protocol_folder(out, kind, settings, overwrite=False):
 
 def write_protocol_record(out, kind, settings):
     """Record ``kind`` and ``settings`` in ``out/protocol.json`` (atomically)."""
-    from dnarod.core.io import write_text_atomic
-
     write_text_atomic(Path(out) / MANIFEST, json.dumps({"format": "dnarod-protocol", "kind": kind,
                                                         "settings": settings}, indent=1, sort_keys=True) + "\n")
 

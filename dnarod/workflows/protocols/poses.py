@@ -2,9 +2,12 @@
 turned by extra turns (a member continuing another at other turns)."""
 from __future__ import annotations
 
+import hashlib
+
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import atomic_path
 
 
 #: File of a member's last pose (written by :func:`dnarod.workflows.protocols.tweezers.run_member`).
@@ -50,8 +53,6 @@ def add_turns(positions, frames, delta_turns):
 
 def pose_sha256(positions, frames):
     """SHA-256 (hex) of a pose's float64 bytes (the key of a chained member's start)."""
-    import hashlib
-
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(positions, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(frames, dtype=np.float64).tobytes())
@@ -60,8 +61,6 @@ def pose_sha256(positions, frames):
 
 def save_pose(path, positions, frames):
     """Write a pose (positions nm, frames) to ``path`` (``.npz``) atomically."""
-    from dnarod.core.io import atomic_path
-
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, positions=np.asarray(positions, float), frames=np.asarray(frames, float))
