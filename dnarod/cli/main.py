@@ -15,6 +15,7 @@ import numpy as np
 from dnarod.core.errors import DnarodError, RunWarning
 from dnarod.core.forcefield import available_forcefields, load_forcefield
 from dnarod.core.units import kT
+from dnarod.core.parameters import StepParameters
 
 
 #: File-system errors that are the user's to fix (a path under a regular file, a folder where a
@@ -136,7 +137,6 @@ def forcefields_cmd(name):
                f"node inertia: {np.array2string(ff.node_inertia, precision=4)} amu nm^2\n"
                f"temperature: {ff.temperature:g} K\nstep types: {', '.join(sorted(ff.table))}")
     for s in sorted(ff.table):
-        from dnarod.core.parameters import StepParameters
         K, xi0 = ff.table[s]
         lp = persistence_length(StepParameters(K, xi0), ff.ds, kT(ff.temperature))
         click.echo(f"  {s}: bending persistence length (exact, {ff.temperature:g} K) {lp:.2f} nm")

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.parameters import StepParameters
-from dnarod.core.rotations import cayley
+from dnarod.core.rotations import cayley, rotation_about_axis
 from dnarod.core.units import BOLTZMANN, kT
 from dnarod.physics.writhe import _perp, _signed_angle, _transport
 from dnarod.core.strains import chain_from_strains
@@ -309,7 +309,6 @@ def equilibrium_sample(model, temperature, seed=None, align=None):
     xi = sample_open_chain_strains(model.params, model.ds, kT(T), rng)[0]
     pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds, model.positions[0], model.frames[0])
     if align is not None:
-        from dnarod.core.rotations import rotation_about_axis
 
         a = np.asarray(align, float)
         a = a / np.linalg.norm(a)

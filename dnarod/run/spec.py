@@ -288,7 +288,8 @@ class RunSpec:
         if not self.nonbonded:
             return False
 
-        extra: dict[str, Any] = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
+        extra: dict[str, Any] = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye))
+                                 if v is not None}
         if check:
             return member_nonbonded(dict(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
                                          salt_M=self.salt, temperature_K=scales_temperature(self.temperature), **extra))

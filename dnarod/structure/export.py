@@ -17,6 +17,7 @@ import contextlib
 import os
 from pathlib import Path
 import warnings
+import errno
 
 import numpy as np
 
@@ -284,7 +285,6 @@ def _check_written(path, tmp, n_frames, kind, needed):
         return
     free = disk_free(Path(path).parent)
     if free is not None and free < needed:
-        import errno
 
         raise write_failure(path, OSError(errno.ENOSPC, "No space left on device"), needed, needed_bound=kind == "xtc")
     held = f"{got} of its {n_frames} frames" if got >= 0 else f"none of its {n_frames} frames readably"

@@ -12,6 +12,7 @@ from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 from dnarod.core.forcefield import load_forcefield
 from dnarod.core.model import RodModel
 from dnarod.structure.trajectory import is_structure_file
+from dnarod.structure import model_from_structure
 
 #: Letters of a DNA sequence given on the command line or in a sequence file (strand I, 5'->3').
 SEQUENCE_RE = re.compile(r"[ACGTacgt]+")
@@ -140,7 +141,6 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
                 raise ParameterError("--circular/--ring/--delta-lk apply to a sequence; a model or structure file "
                                      "holds its own chain")
             if is_structure_file(p):
-                from dnarod.structure import model_from_structure
 
                 return model_from_structure(p, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
                                             intrinsic=intrinsic)

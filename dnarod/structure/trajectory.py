@@ -10,6 +10,7 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+import tempfile
 
 import numpy as np
 
@@ -123,7 +124,6 @@ def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop
     if is_structure_file(topology):
         ana = analyze_structure(topology, model=model)
     else:
-        import tempfile
 
         import MDAnalysis as mda
 

@@ -47,6 +47,7 @@ from dnarod.physics.theory.supercoil import depew_wang_K, ring_constants, twist_
 from dnarod.validate.wlc_ring_mc import sample_ring_writhe
 from dnarod.analysis.polymer import integrated_autocorrelation_time
 from dnarod.physics import experiments as ex
+from dnarod.validate.ring_harmonic import gaussian_writhe_samples
 
 NAME = "nicked_ring"
 Z_TOL = 3.0
@@ -90,7 +91,6 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     lk2_model_err = model_err
     harm = None
     if harmonic_samples:
-        from dnarod.validate.ring_harmonic import gaussian_writhe_samples
 
         hw = gaussian_writhe_samples(ring, harmonic_samples, temperature, seed=seed)["tangent"]
         harm = dict(wr2=float(np.mean(hw ** 2)), wr2_err=float(np.std(hw ** 2, ddof=1) / np.sqrt(len(hw))),

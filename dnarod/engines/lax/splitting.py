@@ -32,6 +32,7 @@ from dnarod.core.units import kT as _kT
 from dnarod.engines.lax.boundary import BoundaryConditions
 from dnarod.engines.lax.splitting_limits import MOMENTUM_LIMIT
 from dnarod.physics.modes import omega_max as _omega_max
+from dnarod.engines.lax.kernel import NumbaKernel
 
 
 @dataclass
@@ -301,7 +302,6 @@ class SplittingIntegrator:
             F_ext += self._pd[1]
             tau_ext += self._pd[2]
         if check_stability:
-            from dnarod.physics.modes import omega_max as _omega_max
 
             self.omega_max = _omega_max(model, self.loads, self.state.positions, self.state.frames,
                                         angles=self.loads.clamp_angles(0.0, self.boundary.duration_ps))
@@ -314,7 +314,6 @@ class SplittingIntegrator:
                     raise SimulationError(msg, step=0, node=None, term="dt")
                 warnings.warn(msg, RuntimeWarning, stacklevel=2)
         if fast:
-            from dnarod.engines.lax.kernel import NumbaKernel
             if fast not in (True, "blocked", "scalar"):
                 raise DnarodError(f"fast must be True, False, 'blocked' or 'scalar', got {fast!r}")
             self.kernel = NumbaKernel(model, F_ext, tau_ext, self.free, blocked=(fast != "scalar"))

@@ -47,6 +47,7 @@ from dnarod.engines.openmm.platforms import choose_platform
 from dnarod.engines.openmm.system import build_system
 from dnarod.physics.nonbonded import scales_temperature
 from dnarod.physics.loads import RotationClamp, clamp_angle
+from dnarod.engines.openmm.plugin import rigid_body_integrator
 
 
 
@@ -208,7 +209,6 @@ class RodSimulation:
         if rs.elastic == "plugin":
             # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
             # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
-            from dnarod.engines.openmm.plugin import rigid_body_integrator
 
             integ = rigid_body_integrator(rs.radius, dt, temperature, friction if integrator == "langevin" else 0.0,
                                           seed)

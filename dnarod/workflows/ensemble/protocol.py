@@ -33,6 +33,7 @@ from importlib.metadata import entry_points
 from dnarod.workflows.ensemble.schema import SpecError, Key
 from dnarod.run import RunSpec, run
 from dnarod.workflows.ensemble.reduce import reduce_run
+from dnarod.physics.loads import tweezers
 
 #: Protocols registered in this process: name -> object.
 PROTOCOLS = {}
@@ -93,7 +94,6 @@ def build_runspec(settings, model_cache=None):
                 model_cache[key] = model
         # the one tweezers set-up (dnarod.physics.loads.tweezers), with the command line's checks (overstretching, a
         # torque with no equilibrium, turns without a clamp, loads on a closed ring)
-        from dnarod.physics.loads import tweezers
 
         loads = list(tweezers(model, force or None, torque or None, rclamp, s.get("turns", 0.0),
                               anchor="surface" if s.get("clamp_first") else "ends",

@@ -199,7 +199,6 @@ def _missing_note(proto):
     if proto.missing is None:
         return None
     if proto.kind == "torque_turns":
-        from dnarod.physics import experiments as ex
 
         if ex.buckling_torque_reference():
             return None

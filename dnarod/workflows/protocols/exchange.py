@@ -66,6 +66,7 @@ from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
 from dnarod.core.units import kT
 from dnarod.workflows.protocols import ensemble_hooks as hooks
 from dnarod.workflows.protocols.curves import member_name
+from dnarod.workflows.ensemble.cluster import client_for
 
 #: Default time between exchange attempts (ps).
 EXCHANGE_PS = 20.0
@@ -436,7 +437,6 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
     rid_groups = [list(range(g, R, n_groups)) for g in range(n_groups)]
     stack = contextlib.ExitStack()
     if workers or client is not None:
-        from dnarod.workflows.ensemble.cluster import client_for
 
         c = stack.enter_context(client_for(client, None, n_groups))
         stack.enter_context(c.as_current())  # actor proxies find their client through it
