@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import click
+from dnarod.analysis.report import analyze
 
 
 @click.command("analyze")
@@ -36,8 +37,6 @@ def analyze_cmd(input_path, topology, forcefield, out, circular, temperature, st
     INPUT is a dnarod .dtraj trajectory or an all-atom trajectory MDAnalysis reads (with
     --topology), or a PDB/mmCIF file (its models are the frames).
     """
-    from dnarod.analysis.report import analyze
-
     # the report's lines are printed when the analysis has finished: a refusal found on the way (too few
     # frames, an open chain with --circular) is then its one line on stderr, with nothing on stdout before it
     lines = []

@@ -13,9 +13,11 @@ import click
 import numpy as np
 
 from dnarod.core.errors import DnarodError, RunWarning
+from dnarod.core.io import write_failure
 from dnarod.core.forcefield import available_forcefields, load_forcefield
 from dnarod.core.units import kT
 from dnarod.core.parameters import StepParameters
+from dnarod.physics.thermal import persistence_length
 
 
 #: File-system errors that are the user's to fix (a path under a regular file, a folder where a
@@ -104,8 +106,6 @@ class DnarodGroup(click.Group):
             if exc.errno not in USER_OS_ERRORS:
                 raise
             if exc.filename and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-                from dnarod.core.io import write_failure
-
                 click.echo(f"dnarod: error: {write_failure(exc.filename, exc)}", err=True)
                 sys.exit(2)
             where = f"{exc.filename}: " if exc.filename else ""
@@ -125,8 +125,6 @@ def main():
 @click.argument("name", required=False)
 def forcefields_cmd(name):
     """List the bundled force fields, or describe NAME (a bundled name or a .toml path)."""
-    from dnarod.physics.thermal import persistence_length
-
     if name is None:
         for n in available_forcefields():
             ff = load_forcefield(n)

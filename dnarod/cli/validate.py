@@ -8,6 +8,7 @@ import click
 
 from dnarod.validate import CHECKS, run_validation
 from dnarod.core.io import check_dir_path
+from dnarod.validate.report import summary_table
 
 
 @click.command("validate")
@@ -26,8 +27,6 @@ def validate(quick, out_dir, only, overwrite):
     OUT must be new, empty, or a report folder: a folder holding a report is refused unless --overwrite. Exit
     status 0 if every check passed, 1 otherwise.
     """
-    from dnarod.validate.report import summary_table
-
     check_dir_path(out_dir, what="report folder")  # before the checks run, not after
     t0 = time.perf_counter()
     res = run_validation(out_dir, quick=quick, checks=list(only) or None, echo=lambda m: click.echo(m, err=True),

@@ -11,6 +11,7 @@ import secrets
 import shutil
 import socket
 import math
+import warnings
 
 import numpy as np
 
@@ -193,8 +194,6 @@ def _ascii_folder(folder):
             os.symlink(folder, link)
             yield link
         finally:
-            import shutil
-
             shutil.rmtree(link_dir, ignore_errors=True)
     finally:
         if fd is not None:
@@ -519,8 +518,6 @@ def folder_lock(folder, what="output folder"):
                           f"choose another folder with -o")
     try:
         if previous:
-            import warnings
-
             warnings.warn(f"{folder}: took over the lock left by {_describe_owner(previous)}, which ended without "
                           f"releasing it (killed?); its files are kept", RuntimeWarning, stacklevel=3)
         with contextlib.suppress(OSError):  # the pid is for messages; on a full disk the lock holds without it
@@ -531,7 +528,7 @@ def folder_lock(folder, what="output folder"):
         remove_stale_stages(folder)  # left by an --overwrite that was killed: every live stage's writer holds this lock
         yield folder
     finally:
-        import fcntl
+        import fcntl  # POSIX only: imported where a lock is taken
 
         with contextlib.suppress(OSError):
             if _same_file(fh, path):  # ours still: remove it while holding the lock (see _take_lock)
@@ -545,7 +542,7 @@ def _take_lock(path):
     """``(open file holding the flock, text the lock file held before)``, or ``(None, its text)`` when another
     process holds it. A holder removes the file before releasing the lock, so a lock won on a file that is no
     longer at ``path`` is a lock on nothing: it is dropped and taken again on the new file."""
-    import fcntl
+    import fcntl  # POSIX only: imported where a lock is taken
 
     for _ in range(100):
         fh = open(path, "a+")

@@ -173,7 +173,7 @@ def wlc_extension_band(forces_pN, salt_M, stretch_modulus_pN, temperature):
     """Relative extension x/L (extensible WLC, Bouchiat interpolation) implied by the measured persistence
     lengths at ``salt_M``: ``(low, high)`` arrays over ``forces_pN`` (pN) with the model's stretch modulus (pN)
     and kT at ``temperature`` (K). Not measured points: those could not be read (:data:`MISSING`)."""
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension  # loads scipy.optimize
 
     lo, hi, _ = persistence_length_band(salt_M)
     F = np.atleast_1d(np.asarray(forces_pN, float))

@@ -39,6 +39,9 @@ from dnarod.core.units import kT
 from dnarod.core.trajectory import HEADER_SIZE, bytes_per_node_frame
 from dnarod.run.loop import simulate_engine
 from dnarod.core.model import RodModel
+from dnarod.physics.observables import csv_observables
+from dnarod.physics.statics import solve_static
+from dnarod.physics.thermal import equilibrium_sample
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
 RUN_FILES = {"run_json": "run.json", "trajectory": "trajectory.dtraj", "energies": "energies.csv",
@@ -76,7 +79,7 @@ class RunResult:
 # ----------------------------------------------------------------------------------------------
 def source_model(spec):
     """The model named by ``spec.source`` (structure, model file, sequence, sequence file, node count)."""
-    from dnarod.structure.inputs import load_model
+    from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
 
     return load_model(spec.source, spec.forcefield, spec.circular, spec.ring, spec.delta_lk, spec.duplex,
                       spec.intrinsic)
@@ -87,20 +90,8 @@ def start_model(spec, model, seed):
     if spec.start == "intrinsic":
         return model
     if spec.start == "equilibrium":
-        try:
-            from dnarod.physics.thermal import equilibrium_sample
-        except ImportError:
-            raise ParameterError("start='equilibrium' needs dnarod.physics.thermal.equilibrium_sample, not in this "
-                                 "version") from None
         return equilibrium_sample(model, spec.temperature if spec.temperature > 0 else 300.0, seed=seed,
                                   align=_pull_direction(spec.loads, model.n_nodes))
-    try:
-        from dnarod.physics.statics import solve_static
-    except ImportError:
-        if spec.engine != "openmm":
-            raise ParameterError("--minimize needs dnarod.physics.statics.solve_static (not in this version) for the "
-                                 "lax engine") from None
-        return None  # the OpenMM engine minimises its context
     solved, _ = solve_static(model, tuple(spec.loads))
     return solved
 
@@ -185,7 +176,7 @@ def preflight(spec, model=None):
     ParameterError
         The first refusal, with the message :func:`run` would give.
     """
-    from dnarod.run.resources import check_memory, node_count_hint
+    from dnarod.run.resources import check_memory, node_count_hint  # loads scipy.spatial
 
     spec.check()
     if model is None:
@@ -219,10 +210,10 @@ def make_engine(spec, model, dt, seed, omega):
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
     if spec.engine == "lax":
-        from dnarod.engines.lax.engine import LaxEngine
+        from dnarod.engines.lax.engine import LaxEngine  # loads scipy.integrate
 
         return LaxEngine(model, dt, spec.temperature, spec.friction, seed, spec.loads, duration_ps, omega)
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     nb = spec.nonbonded_settings()
     return RodSimulation.create(model, integrator="langevin" if spec.friction > 0 else "verlet",
@@ -261,7 +252,7 @@ def estimate_run_bytes(spec, n_nodes, dt):
     # two checkpoints (OpenMM's state blob ~430 B/node, the lax engine's ~145) and final_model.npz (~525 B/node)
     total += 3 * 1024 + n_nodes * (2 * 450 + 530)
     if spec.export:
-        from dnarod.structure.export import dcd_bytes
+        from dnarod.structure.export import dcd_bytes  # loads scipy.spatial: not at the CLI's start-up
 
         dcd = dcd_bytes(frames, 3 * n_nodes)  # exact
         total += 270 * n_nodes + dcd  # PDB (3 beads of 88 B per node) and DCD
@@ -285,10 +276,6 @@ def run_files(outdir):
 
 def _observables(spec, model):
     """Per-frame observables of the loads for the energies CSV (:mod:`dnarod.physics.observables`), or None."""
-    try:
-        from dnarod.physics.observables import csv_observables
-    except ImportError:
-        return None
     return csv_observables(model, tuple(spec.loads), duration_ps=spec.time_ns * 1000.0)
 
 
@@ -385,8 +372,8 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
 def _setup_start(spec, progress):
     """Before the model is built: refuse a node count this machine's memory cannot hold, say that the kernels
     compile (a first run after install), and return the set-up's stage printer (:class:`SetupStages`)."""
-    from dnarod.run.resources import compile_notice
-    from dnarod.run.resources import SetupStages, check_memory, node_count_hint
+    from dnarod.run.resources import compile_notice  # loads scipy.spatial
+    from dnarod.run.resources import SetupStages, check_memory, node_count_hint  # loads scipy.spatial
 
     n = node_count_hint(spec.source)
     check_memory(n, spec.engine)
@@ -402,7 +389,7 @@ def _setup_start(spec, progress):
 
 def _setup_model(spec, model, stage, progress):
     """Once the model is built: the memory check of a source whose size was not known before (a file)."""
-    from dnarod.run.resources import SetupStages, check_memory
+    from dnarod.run.resources import SetupStages, check_memory  # loads scipy.spatial
 
     if not stage.on:
         check_memory(model.n_nodes, spec.engine)
@@ -621,7 +608,7 @@ def _sequence_of(paths):
 
 def _export(paths, meta, xtc, sequence):
     """Export ``trajectory.dtraj`` to PDB + DCD (+ XTC) and record it in ``run.json`` (the folder is locked)."""
-    from dnarod.structure.export import export_trajectory
+    from dnarod.structure.export import export_trajectory  # loads scipy.spatial: not at the CLI's start-up
 
     if not paths["trajectory"].exists():
         raise ParameterError(f"{paths['trajectory']} does not exist: nothing to export")

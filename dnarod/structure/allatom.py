@@ -826,7 +826,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         ``bond_tolerance``, a heavy-atom clash under 2.2 A, a flipped sugar, or a base pair moved by
         more than 0.05 A or 1 degree (naming the pair).
     """
-    import resource
+    import resource  # POSIX only
 
     import openmm
 

@@ -24,6 +24,7 @@ Every problem raises :class:`~dnarod.core.errors.StructureError` naming the file
 """
 from __future__ import annotations
 
+import gzip
 import re
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -260,8 +261,6 @@ def _read_gemmi(path, text, source):
             raise StructureError(f"{source}: no such file")
         head = p.read_bytes()[:4096]
         if head[:2] == b"\x1f\x8b":  # gzip (gemmi reads it directly): check the decompressed start
-            import gzip
-
             try:
                 with gzip.open(p) as fh:
                     head = fh.read(4096)

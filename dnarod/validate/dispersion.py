@@ -45,7 +45,7 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
     asym : float
         Relative asymmetry of the raw differences before symmetrisation.
     """
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                         elastic=elastic, nonbonded=False, seed=0)

@@ -73,7 +73,7 @@ def _half_step_particle_velocities(model, radius, v, w, dt):
 
 def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
     """OpenMM NVE run; positions, frames, energy, momentum, angular momentum at ``t_report``."""
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
                         elastic=elastic, nonbonded=False, initial_velocities=(v, w),
@@ -121,7 +121,7 @@ def _conventions(model, v, w):
     The OpenMM triangle's principal inertia ``m l^2 (1/2, 1/2, 1)`` against the model's (which the
     Lax-form engine uses), and the round trip of (v lab, omega body) through the OpenMM particles.
     """
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
                         nonbonded=False, initial_velocities=(v, w), seed=0)

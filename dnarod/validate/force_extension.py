@@ -32,7 +32,9 @@ agrees with the WLC.
 """
 from __future__ import annotations
 
+import multiprocessing as mp
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -117,9 +119,6 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
     ``lp_override`` replaces the model's persistence length in the reference curve (the tests use a
     wrong value to show the check fails); ``workers`` processes run the runs in parallel.
     """
-    from concurrent.futures import ProcessPoolExecutor
-
-
     t0 = time.perf_counter()
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lp, S, kt_pn, L0 = model_constants(model, temperature)
@@ -129,8 +128,6 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
     jobs = [(n_bp, F, temperature, dt, g, t_equil, t_prod, sample_every, seed + 7 * i, st)
             for i, (F, g) in enumerate(zip(forces_pn, gammas)) for st in starts]
     if workers and workers > 1 and len(jobs) > 1:
-        import multiprocessing as mp
-
         with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as ex:
             series = list(ex.map(_pull_star, jobs))
     else:

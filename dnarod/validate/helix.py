@@ -48,7 +48,7 @@ def default_models():
 def _openmm_loads(model, elastic):
     import openmm
 
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                                elastic=elastic,

@@ -90,7 +90,7 @@ def writhed_start(settings, softening, ns, member_dir):
         nm.
     frames : ndarray, shape (n, 3, 3)
     """
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     kept = Path(member_dir) / START_POSE
     if kept.is_file():

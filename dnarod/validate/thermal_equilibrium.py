@@ -76,7 +76,7 @@ def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equi
 
 def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
     """The same from the OpenMM engine (LangevinMiddleIntegrator, CPU platform, elastic forces only)."""
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
                                platform="CPU", nonbonded=False, seed=seed, threads=1)

@@ -21,6 +21,7 @@ from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, 
 from dnarod.engines.openmm.forces import GROUPS, python_force
 from dnarod.engines.openmm.particles import SQRT3, loads_to_particle_forces, node_poses
 from dnarod.core.rotations import rotation_about_axis
+from dnarod.engines.openmm.walls import wall_forces
 
 __all__ = ["TorqueCallback", "build_load_forces", "set_clamp_rotation"]
 
@@ -94,8 +95,6 @@ def build_load_forces(loads, model, radius, system, platform="CPU"):
             raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp, Trap or "
                                  f"Walls")
         if isinstance(load, Walls):
-            from dnarod.engines.openmm.walls import wall_forces
-
             for f in wall_forces(n, float(model.positions[0, 2]), float(load.k), load.skip, platform=platform):
                 system.addForce(f)
             continue

@@ -90,7 +90,7 @@ def _load():
     if os.environ.get("DNAROD_PLUGIN", "").strip() == "0":
         return PluginStatus(False, "switched off by DNAROD_PLUGIN=0", "", installed), None
     try:
-        from dnarod._plugin import _build_info
+        from dnarod._plugin import _build_info  # the compiled extension, optional
     except ImportError:
         return PluginStatus(False, "dnarod was installed without its build step (no dnarod/_plugin/_build_info.py); "
                                    "reinstall with pip install -e .", "", installed), None
@@ -101,7 +101,7 @@ def _load():
         return PluginStatus(False, f"it was built against OpenMM {built} but OpenMM {installed} is installed; "
                                    f"reinstall dnarod (pip install -e .) to rebuild it", built, installed), None
     try:
-        from dnarod._plugin import dnarodplugin as mod
+        from dnarod._plugin import dnarodplugin as mod  # the compiled extension, optional
     except Exception as exc:  # noqa: BLE001 - any load failure (ImportError, OSError, undefined symbol) falls back
         return PluginStatus(False, f"it failed to load ({type(exc).__name__}: {exc}; built against OpenMM {built}, "
                                    f"installed OpenMM {installed})", built, installed), None
@@ -256,7 +256,7 @@ def smk_force(model, radius, particles=None):
     ParameterError
         If the plugin is not usable here (the message says why).
     """
-    from dnarod.engines.openmm.forces import GROUPS
+    from dnarod.engines.openmm.forces import GROUPS  # loads OpenMM
 
     mod, idx = _module_and_particles(model, particles, "elastic='plugin'", "; use elastic='auto' or 'fast'")
     n = model.n_nodes
@@ -341,7 +341,7 @@ def node_pair_force(model, numbers, particles=None):
     NodePairForce
         In force group ``GROUPS["nonbonded"]``.
     """
-    from dnarod.engines.openmm.forces import GROUPS
+    from dnarod.engines.openmm.forces import GROUPS  # loads OpenMM
 
     mod, idx = _module_and_particles(model, particles, "the compiled non-bonded force")
     n = model.n_nodes

@@ -48,6 +48,7 @@ from dnarod.engines.openmm.system import build_system
 from dnarod.physics.nonbonded import scales_temperature
 from dnarod.physics.loads import RotationClamp, clamp_angle
 from dnarod.engines.openmm.plugin import rigid_body_integrator
+from dnarod.engines.openmm.loads import set_clamp_rotation
 
 
 
@@ -423,8 +424,6 @@ class RodSimulation:
 
     def set_clamp_rotation(self, angle, index=0):
         """Turn rotation clamp ``index`` by ``angle`` rad about its axis (magnetic tweezers)."""
-        from dnarod.engines.openmm.loads import set_clamp_rotation
-
         set_clamp_rotation(self.context, self.rs.load_info["rotation_clamps"][index], angle)
         self.invalidate()
 
@@ -433,7 +432,6 @@ class RodSimulation:
         clamps = self.rs.load_info.get("rotation_clamps") or []
         if not clamps:
             return
-        from dnarod.engines.openmm.loads import set_clamp_rotation
 
         # build_load_forces lists the rotation clamps in the order of the loads
         for info, load in zip(clamps, [x for x in self.loads if isinstance(x, RotationClamp)]):

@@ -92,7 +92,7 @@ def local_cluster(workers=None, dashboard=False, log=None, **kw):
     import dask
     from distributed import LocalCluster
 
-    from dnarod.workflows.ensemble import worker_setup
+    from dnarod.workflows.ensemble import worker_setup  # with dask: the workers' set-up
 
     check_workers(workers)
     n = int(workers or available_cores())
@@ -339,7 +339,7 @@ def tls_security(ca_file=None, cert=None, key=None):
     cannot be read, a CA without a client certificate (or the reverse), or files that are not a matching
     PEM certificate and key.
     """
-    import ssl
+    import ssl  # only for TLS clusters: not at the CLI's start-up
 
     from distributed.security import Security
 
@@ -460,7 +460,7 @@ def _http_probe(host, port, deadline):
 
 def _tls_probe(host, port, deadline):
     """Whether a TLS server answers a handshake at ``host:port`` (certificates not checked)."""
-    import ssl
+    import ssl  # only for TLS clusters: not at the CLI's start-up
 
     ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
     ctx.check_hostname = False
@@ -513,7 +513,7 @@ def probe_scheduler(address, timeout=10.0, security=None):
     security : distributed.security.Security, optional
         The client's TLS certificates (for ``tls://``).
     """
-    import ssl
+    import ssl  # only for TLS clusters: not at the CLI's start-up
 
     scheme, host, port = split_address(address)
     where = f"--scheduler {address}"

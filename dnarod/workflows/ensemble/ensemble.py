@@ -18,6 +18,7 @@ import hashlib
 import json
 import shutil
 import time
+import tomllib
 import uuid
 from pathlib import Path
 import os
@@ -25,7 +26,7 @@ import tempfile
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.extras import require
-from dnarod.core.io import REPLACEMENT_PREFIX, check_output_folder, write_text_atomic
+from dnarod.core.io import REPLACEMENT_PREFIX, _rewrite_message, check_output_folder, write_text_atomic
 from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
 from dnarod.core.io import RESULT
 from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol, build_runspec
@@ -95,8 +96,6 @@ class Ensemble:
         keys = None
         proto = protocol
         if proto is None and p.is_file():
-            import tomllib
-
             try:
                 proto = tomllib.loads(p.read_text()).get("ensemble", {}).get("protocol")
             except (tomllib.TOMLDecodeError, UnicodeDecodeError, AttributeError):
@@ -261,7 +260,7 @@ class Ensemble:
         Dask's own log records go to ``OUT/ensemble.log`` while the ensemble runs, not to the terminal;
         a lost scheduler raises :class:`~dnarod.workflows.ensemble.cluster.SchedulerError` (one line).
         """
-        from concurrent.futures import CancelledError
+        from concurrent.futures import CancelledError  # with dask, below: not at the CLI's start-up
 
         as_completed = require("distributed", "ensemble").as_completed
         from tqdm.auto import tqdm
@@ -383,8 +382,6 @@ class Ensemble:
         try:
             return self._write_results(**extra)
         except DnarodError as exc:  # name the files by their place in the ensemble folder; the old one is kept
-            from dnarod.core.io import _rewrite_message
-
             _rewrite_message(exc, self.outdir, self._replaces,
                              f" (the earlier ensemble in {self._replaces} is unchanged; the same command with "
                              f"--overwrite continues the replacement kept in {self.outdir.name})")

@@ -81,7 +81,7 @@ def _member_log(mdir, mid):
 @contextlib.contextmanager
 def _locked(mdir):
     """Exclusive lock on ``mdir/.lock`` (released by the OS if the process dies)."""
-    import fcntl
+    import fcntl  # POSIX only: imported where a lock is taken
 
     fh = open(Path(mdir) / ".lock", "w")
     try:
@@ -184,7 +184,7 @@ def _run(proto, settings, mdir, log):
     _, run = _run_api()
     build = getattr(proto, "build", None) or resolve_build()
     spec = build(settings)
-    from dnarod.engines.openmm.platforms import env_threads
+    from dnarod.engines.openmm.platforms import env_threads  # loads OpenMM
 
     threads = env_threads()
     if getattr(spec, "threads", "absent") is None and threads and spec.engine == "openmm":

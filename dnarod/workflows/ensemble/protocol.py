@@ -79,7 +79,7 @@ def build_runspec(settings, model_cache=None):
     with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run. ``model_cache`` (a
     dict) keeps the models loaded for the loads, so checking many members of one source loads it once.
     """
-    from dnarod.structure.inputs import load_model
+    from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
     RunSpec, _ = _run_api()
     s = settings
     loads = []

@@ -346,7 +346,7 @@ def check_members(members, extra_check=None):
     Distinct (source, forcefield, circular, ring) combinations are built once with
     :func:`dnarod.structure.inputs.load_model`; a failure names the member's index and settings.
     """
-    from dnarod.structure.inputs import load_model
+    from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
 
     seen = {}
     for m in members:

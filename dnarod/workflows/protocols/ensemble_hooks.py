@@ -21,6 +21,8 @@ from dnarod.workflows.protocols import references as ref
 from dnarod.workflows.ensemble.schema import Key
 from dnarod.workflows.protocols.curves import _members
 from dnarod.physics import experiments as ex
+from dnarod.workflows.protocols.tweezers import run_member
+from dnarod.workflows.protocols.rings import run_ring_member
 
 
 @dataclass(frozen=True)
@@ -46,7 +48,7 @@ def _source(settings):
 
 def _member_platform(settings):
     """``platform``/``threads`` of a member from the spec (:func:`dnarod.engines.openmm.platforms.member_platform`)."""
-    from dnarod.engines.openmm.platforms import member_platform
+    from dnarod.engines.openmm.platforms import member_platform  # loads OpenMM
 
     return member_platform(settings.get("platform"), settings.get("threads"))
 
@@ -136,8 +138,6 @@ class TweezersProtocol:
         _members(self.kind, {}, dict(settings))
 
     def execute(self, settings, member_dir, analysis=None):
-        from dnarod.workflows.protocols.tweezers import run_member
-
         return flat_row(run_member(self.member_settings(settings), member_dir))
 
 
@@ -189,8 +189,6 @@ class RingProtocol:
         _members(self.kind, {}, dict(settings))
 
     def execute(self, settings, member_dir, analysis=None):
-        from dnarod.workflows.protocols.rings import run_ring_member
-
         return flat_row(run_ring_member(self.member_settings(settings), member_dir))
 
 
