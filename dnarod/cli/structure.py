@@ -101,7 +101,7 @@ def structure_options(f):
 
 
 def _analyze(path, model, altloc, pairs_file, maps, ignore):
-    from dnarod.structure.analysis import analyze_structure
+    from dnarod.structure.analysis import analyze_structure  # loads scipy.spatial: not at the CLI's start-up
 
     extra = _parse_map(maps)
     _check_names(altloc, ignore, extra)
@@ -159,7 +159,7 @@ def _only_duplex(ana, duplex):
     """Restrict an analysis to duplex ``duplex`` (1-based) for the tables."""
     if duplex is None:
         return ana
-    from dnarod.structure.selection import choose_duplex
+    from dnarod.structure.selection import choose_duplex  # loads scipy.spatial: not at the CLI's start-up
 
     if duplex < 1:
         raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
@@ -189,6 +189,7 @@ def step_rows(ana, ds, notes=None):
     A step that is not stacked (node frames turning by nearly a half turn) keeps its 3DNA
     parameters and gets NaN strains; a line naming it is appended to ``notes``.
     """
+    # loads scipy.spatial: not at the CLI's start-up
     from dnarod.structure.analysis import describe_unstacked, unstacked_steps
 
     rows = []
@@ -279,6 +280,7 @@ def pairs(input_path, csv_path, duplex, model, altloc, pairs_file, maps, ignore)
 def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, altloc, pairs_file, maps, ignore,
           overwrite):
     """A dnarod model (.npz) from a structure INPUT (nodes at its base-pair frames) or from --sequence."""
+    # loads scipy.spatial: not at the CLI's start-up
     from dnarod.structure.builders import model_from_sequence, model_from_structure
 
     if sequence is not None and not re.fullmatch(r"[ACGTacgt]+", sequence):
@@ -316,6 +318,7 @@ def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, al
 def rebuild(model_path, output, hydrogens, minimize, overwrite):
     """An all-atom PDB/mmCIF from a dnarod model file (.npz): standard bases in the node frames and a
     backbone closed by restrained Amber14 minimisation (OBC2), checked bond by bond."""
+    # loads scipy.spatial: not at the CLI's start-up
     from dnarod.structure.rebuild import base_pair_frames, rebuild_model
 
     _output_path(output, "-o", (".pdb", ".cif", ".mmcif"), "an all-atom structure", overwrite)
@@ -327,7 +330,7 @@ def rebuild(model_path, output, hydrogens, minimize, overwrite):
         click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides (rigid placement, backbone "
                    f"not closed)")
         return
-    from dnarod.structure.allatom import rebuild_allatom
+    from dnarod.structure.allatom import rebuild_allatom  # loads scipy.spatial: not at the CLI's start-up
 
     if not m.sequence:
         raise StructureError("rebuild: the model has no sequence; build it from a sequence or a structure")
