@@ -274,8 +274,8 @@ def test_torsion_check_passes_and_fails_with_a_wrong_twist_stiffness(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind, axes", [("magnetic_tweezers", {"turns": [-0.3, 0.3]}), ("rings", {"delta_lk": [-1,
-                                                                                                               0]})])
+@pytest.mark.parametrize("kind, axes", [("magnetic_tweezers", {"turns": [-0.3, 0.3]}),
+                                        ("rings", {"delta_lk": [-1, 0]})])
 def test_protocols_through_the_ensemble_layer(tmp_path, kind, axes):
     """The same members through dnarod.workflows.ensemble (dask LocalCluster, one worker)."""
     from dnarod.workflows.protocols import run_protocol

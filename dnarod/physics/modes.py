@@ -287,7 +287,6 @@ def _elastic_load_fn(model):
         tau = np.zeros(pos.shape)
         E = loads_kernel(np.ascontiguousarray(pos), np.ascontiguousarray(frm), K, xi0, model.ds, Q, t, circ, F, tau)
         if not np.isfinite(E):
-
             raise GeometryError("a step rotation is at or beyond 180 deg; the Hessian is undefined at this pose")
         return F, tau
 
@@ -351,7 +350,6 @@ def hessian_blocks(model, loads=(), positions=None, frames=None, mass_weighted=T
         t = np.ascontiguousarray(model.closure.t, float) if circular else np.zeros(3)
         bad = _step_hessians(pos, frm, K, xi0, model.ds, Q, t, circular, ht, hr, diag, off)
         if bad >= 0:
-
             raise GeometryError(f"{step_name(bad, n)}: the rotation between its base pairs is at or beyond "
                                 f"180 deg; the Hessian is undefined at this pose")
         _add_external(diag, rl, frm, angles, hr)

@@ -309,7 +309,6 @@ def equilibrium_sample(model, temperature, seed=None, align=None):
     xi = sample_open_chain_strains(model.params, model.ds, kT(T), rng)[0]
     pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds, model.positions[0], model.frames[0])
     if align is not None:
-
         a = np.asarray(align, float)
         a = a / np.linalg.norm(a)
         e = pos[-1] - pos[0]

@@ -19,11 +19,13 @@ import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 import hashlib
 import sys
 
 import numpy as np
 
+from dnarod.core.seeds import resolve_seed
 from dnarod.core.errors import ParameterError, step_name
 from dnarod.core.io import (FULL_DISK_ERRNOS, STAGE_PREFIX, WriteError, check_dir_path, check_free_space,
                             check_output_folder, folder_lock, jsonable, staged_folder, write_failure, write_text_atomic,
@@ -39,6 +41,7 @@ from dnarod.core.units import kT
 from dnarod.core.trajectory import HEADER_SIZE, bytes_per_node_frame
 from dnarod.run.loop import simulate_engine
 from dnarod.core.model import RodModel
+from dnarod.run.engine import Engine
 from dnarod.physics.observables import csv_observables
 from dnarod.physics.statics import solve_static
 from dnarod.physics.thermal import equilibrium_sample
@@ -69,15 +72,15 @@ class RunResult:
     """
 
     outdir: Path
-    files: dict = field(default_factory=dict)
-    summary: dict = field(default_factory=dict)
+    files: dict[str, Path] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
     resumed_from: int | None = None
 
 
 # ----------------------------------------------------------------------------------------------
 # building blocks (public: the CLI and the ensemble layer use them)
 # ----------------------------------------------------------------------------------------------
-def source_model(spec):
+def source_model(spec: RunSpec) -> RodModel:
     """The model named by ``spec.source`` (structure, model file, sequence, sequence file, node count)."""
     from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
 
@@ -85,7 +88,7 @@ def source_model(spec):
                       spec.intrinsic)
 
 
-def start_model(spec, model, seed):
+def start_model(spec: RunSpec, model: RodModel, seed: int | None) -> RodModel:
     """The start pose: the source's, an exact equilibrium sample, or the static minimum under the loads."""
     if spec.start == "intrinsic":
         return model
@@ -96,7 +99,7 @@ def start_model(spec, model, seed):
     return solved
 
 
-def _pull_direction(loads, n_nodes):
+def _pull_direction(loads: Any, n_nodes: int) -> np.ndarray | None:
     """Net pulling force on the last node (kJ/mol/nm, (3,)) or None: an equilibrium start of a pulled
     chain is turned so that its end-to-end vector points along it (else a long chain may start
     pointing away from the force)."""
@@ -105,12 +108,12 @@ def _pull_direction(loads, n_nodes):
     return f if np.linalg.norm(f) > 0 else None
 
 
-def default_omega_max(model, loads=()):
+def default_omega_max(model: RodModel, loads: Any = ()) -> float:
     """Fastest normal-mode frequency of a pose under its loads, rad/ps (:func:`dnarod.physics.modes.omega_max`)."""
     return float(omega_max(model, loads=tuple(loads)))
 
 
-def choose_dt(spec, model, omega):
+def choose_dt(spec: RunSpec, model: RodModel, omega: float) -> float:
     """Time step, ps: ``spec.dt`` (checked against the stability limit) or ``0.4 / omega_max``."""
     limit = MAX_OMEGA_DT / omega
     if spec.dt is None:
@@ -122,7 +125,7 @@ def choose_dt(spec, model, omega):
     return float(spec.dt)
 
 
-def check_start_pose(model, temperature):
+def check_start_pose(model: RodModel, temperature: float) -> None:
     """Refuse (or warn about) a start pose the rod model cannot run: steps near the Cayley limit or
     storing far more elastic energy than equipartition (a tiny ring), which heats the run up."""
     if model.n_steps == 0:
@@ -156,7 +159,7 @@ def check_start_pose(model, temperature):
         warnings.warn(msg, RuntimeWarning, stacklevel=3)
 
 
-def preflight(spec, model=None):
+def preflight(spec: RunSpec, model: RodModel | None = None) -> RodModel:
     """The checks :func:`run` makes before it writes anything, without running: the settings
     (:meth:`RunSpec.check`), the source, the start pose, an equilibrium start on a closed model, the time
     step against the stability limit and the number of steps. An ensemble calls it for every distinct
@@ -195,18 +198,17 @@ def preflight(spec, model=None):
     return model
 
 
-def _default_dt(omega):
+def _default_dt(omega: float) -> float:
     return DEFAULT_OMEGA_DT / omega
 
 
-def check_load_stiffness(spec, model, omega=None):
+def check_load_stiffness(spec: RunSpec, model: RodModel, omega: float | None = None) -> None:
     """:func:`dnarod.physics.modes.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode
-    with
-    the loads, rad/ps, if known), naming the ``simulate`` options."""
+    with the loads, rad/ps, if known), naming the ``simulate`` options."""
     _check_load_stiffness(model, spec.loads, omega=omega)
 
 
-def make_engine(spec, model, dt, seed, omega):
+def make_engine(spec: RunSpec, model: RodModel, dt: float, seed: int, omega: float) -> Engine:
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
     if spec.engine == "lax":
@@ -227,7 +229,7 @@ def make_engine(spec, model, dt, seed, omega):
 MAX_STEPS = 10**12
 
 
-def intervals(spec, dt):
+def intervals(spec: RunSpec, dt: float) -> tuple[int, int, int]:
     """(n_steps, frame interval, checkpoint interval) in steps; the checkpoint interval is 0 (none on a step
     schedule: by wall time, ``spec.checkpoint_wall_s``) unless ``spec.checkpoint_interval_ps`` is given."""
     steps = spec.time_ns * 1000.0 / dt
@@ -240,7 +242,7 @@ def intervals(spec, dt):
     return n_steps, fi, ci
 
 
-def estimate_run_bytes(spec, n_nodes, dt):
+def estimate_run_bytes(spec: RunSpec, n_nodes: int, dt: float) -> int:
     """Disk space a run of ``spec`` takes (bytes, an estimate checked against the free space before it starts):
     the ``.dtraj`` frames (:func:`dnarod.core.trajectory.bytes_per_node_frame`), ``energies.csv`` rows, two
     checkpoints and the final model (a checkpoint is replaced atomically, so the old and the new one exist at
@@ -261,14 +263,14 @@ def estimate_run_bytes(spec, n_nodes, dt):
     return int(total)
 
 
-def run_folder_markers():
+def run_folder_markers() -> tuple[str, ...]:
     """Names that mark a folder as a run's (any of them): the run files, and the record of an ensemble member
     (:data:`dnarod.core.io.RESULT`, ``MEMBER``, ``LOG``), whose folder is a run folder. A new run refuses any other
     non-empty folder (:func:`dnarod.core.io.check_output_folder`)."""
     return (*RUN_FILES.values(), MEMBER, LOG, RESULT)
 
 
-def run_files(outdir):
+def run_files(outdir: str | Path) -> dict[str, Path]:
     """Name -> Path of the run-folder files that exist."""
     outdir = Path(outdir)
     return {k: outdir / v for k, v in RUN_FILES.items() if (outdir / v).exists()}
@@ -284,7 +286,8 @@ def _run_id(fp):
 
 
 # ----------------------------------------------------------------------------------------------
-def run(spec, outdir, resume=False, overwrite=False, progress=True):
+def run(spec: RunSpec, outdir: str | Path, resume: bool = False, overwrite: bool = False,
+        progress: bool = True) -> RunResult:
     """Run ``spec`` into the folder ``outdir`` (created), or continue it with ``resume``.
 
     Parameters
@@ -334,7 +337,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     model = source_model(spec)
     stage = _setup_model(spec, model, stage, progress)
     check_start_pose(model, spec.temperature)
-    seed = int(np.random.SeedSequence().entropy % 2**31) if spec.seed is None else int(spec.seed)
+    seed = resolve_seed(spec.seed)
     if spec.start != "intrinsic":
         stage(f"the {spec.start} start pose")
     start = start_model(spec, model, seed)
@@ -565,7 +568,8 @@ def _dtraj_stamp(path):
     return dict(dtraj_bytes=int(st.st_size), dtraj_mtime_ns=int(st.st_mtime_ns))
 
 
-def export_status(outdir, meta=None, xtc=True):
+def export_status(outdir: str | Path, meta: dict[str, Any] | None = None,
+                  xtc: bool = True) -> tuple[list[str], list[str]]:
     """Which exports of the run in ``outdir`` are up to date.
 
     An export is up to date when it exists and ``run.json`` records that it was made from the trajectory
@@ -624,7 +628,7 @@ def _export(paths, meta, xtc, sequence):
     return {n: paths["run_json"].parent / n for n in files}
 
 
-def export_run(outdir, xtc=None):
+def export_run(outdir: str | Path, xtc: bool | None = None) -> dict[str, Path]:
     """Make (or remake) the exports of the run in ``outdir``: ``trajectory.pdb`` (topology, first frame),
     ``trajectory.dcd`` (all frames) and ``trajectory.xtc`` (all frames, with times), from ``trajectory.dtraj``.
 

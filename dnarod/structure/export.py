@@ -287,7 +287,6 @@ def _check_written(path, tmp, n_frames, kind, needed):
         return
     free = disk_free(Path(path).parent)
     if free is not None and free < needed:
-
         raise write_failure(path, OSError(errno.ENOSPC, "No space left on device"), needed, needed_bound=kind == "xtc")
     held = f"{got} of its {n_frames} frames" if got >= 0 else f"none of its {n_frames} frames readably"
     raise WriteError(f"cannot write {path}: the {kind.upper()} writer stopped early (the file held {held}; "

@@ -141,7 +141,6 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
                 raise ParameterError("--circular/--ring/--delta-lk apply to a sequence; a model or structure file "
                                      "holds its own chain")
             if is_structure_file(p):
-
                 return model_from_structure(p, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
                                             intrinsic=intrinsic)
             if duplex is not None:

@@ -124,7 +124,6 @@ def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop
     if is_structure_file(topology):
         ana = analyze_structure(topology, model=model)
     else:
-
         import MDAnalysis as mda
 
         with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():

@@ -91,7 +91,6 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     lk2_model_err = model_err
     harm = None
     if harmonic_samples:
-
         hw = gaussian_writhe_samples(ring, harmonic_samples, temperature, seed=seed)["tangent"]
         harm = dict(wr2=float(np.mean(hw ** 2)), wr2_err=float(np.std(hw ** 2, ddof=1) / np.sqrt(len(hw))),
                     samples=int(harmonic_samples))

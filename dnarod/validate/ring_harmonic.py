@@ -211,7 +211,6 @@ def harmonic_writhe_variance(model, temperature=300.0, block=None, gaussian_samp
     wr2 = lin + 0.5 * float(np.sum(MS * MS.T)) + mean * mean
     res = dict(wr2=wr2, linear_term=lin, mean_wr=mean, axis_vertices=m, n_nodes=n, **info)
     if gaussian_samples:
-
         rng = np.random.default_rng(seed)
         w, U = np.linalg.eigh(S)
         w = np.clip(w, 0.0, None)

@@ -67,7 +67,6 @@ class DensitySystem:
         if self.scheme == "exact":
             out = exact_density_rhs(Gamma, Omega, p, m, self.model.params, self.ds, self.rho, self.I)
         else:
-
             gamma, omega = p / self.rho, m / self.I
             M, P, _ = stresses(Omega, Gamma, self.model.params)
             out = smk_rhs(Gamma, Omega, p, m, gamma, omega, P, M, self.ds, reading=self.reading, periodic=True)

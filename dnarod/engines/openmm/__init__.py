@@ -33,6 +33,5 @@ __all__ = list(_EXPORTS)
 def __getattr__(name):
     # Lazy: importing dnarod.engines.openmm (e.g. for the CLI) does not load OpenMM and numba until used.
     if name in _EXPORTS:
-
         return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -154,7 +154,6 @@ def platform_properties(name, threads=None, precision=None):
 def _gpu_elastic(name, elastic):
     """Which elastic path ``elastic`` gives on GPU platform ``name`` (for the reason line)."""
     if elastic in ("auto", "plugin"):
-
         if device_kernel(name)[0]:
             return "SMK force on the device (compiled plugin)"
     return "portable elastic path"

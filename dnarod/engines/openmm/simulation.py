@@ -29,6 +29,7 @@ import time
 import numpy as np
 import openmm
 
+from dnarod.core.seeds import resolve_seed
 from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path
 from dnarod.physics import modes
@@ -200,7 +201,7 @@ class RodSimulation:
         friction = float(friction)
         if integrator == "langevin" and not (np.isfinite(friction) and friction >= 0):
             raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
-        seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
+        seed = resolve_seed(seed)
         # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         rs = build_system(model, plat.getName(), elastic, nonbonded, loads,

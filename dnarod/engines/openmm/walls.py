@@ -47,7 +47,6 @@ COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
 def _check(n_nodes, skip):
     n, skip = int(n_nodes), int(skip)
     if not 0 <= skip < n:
-
         raise ParameterError(f"wall skip must be in 0 .. n_nodes-1 = {n - 1}, got {skip}")
     return n, skip
 
@@ -114,7 +113,6 @@ def wall_forces_compiled(n_nodes, z_surface, k, skip):
     """
     n, skip = _check(n_nodes, skip)
     if not compiled_walls_available():
-
         reason = plugin.status().reason or "the installed plugin was built without WallForce: reinstall dnarod"
         raise ParameterError(f"the compiled tweezers walls need the compiled OpenMM plugin, which is not usable "
                              f"here ({reason})")

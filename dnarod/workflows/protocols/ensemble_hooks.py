@@ -197,7 +197,6 @@ def _missing_note(proto):
     if proto.missing is None:
         return None
     if proto.kind == "torque_turns":
-
         if ex.buckling_torque_reference():
             return None
     return f"no measured {proto.missing} could be read (data/README.md)"

@@ -437,7 +437,6 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
     rid_groups = [list(range(g, R, n_groups)) for g in range(n_groups)]
     stack = contextlib.ExitStack()
     if workers or client is not None:
-
         c = stack.enter_context(client_for(client, None, n_groups))
         stack.enter_context(c.as_current())  # actor proxies find their client through it
         futs = [c.submit(ReplicaGroup, settings, rids, actor=True, pure=False) for rids in rid_groups]
