@@ -103,6 +103,10 @@ def quantity(table: dict[str, Any], key: str, dimension: str, where: str,
     return value
 
 
+#: Watson-Crick complement of a base letter (U pairs with A, inosine I with C): the one table of it.
+COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
+
+
 def normalise_sequence(sequence: str, where: str = "sequence") -> str:
     """Upper-case DNA sequence (A, C, G, T); whitespace removed.
 

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from dnarod.core.errors import ParameterError
 from dnarod.core.rotations import rotation_about_axis
@@ -130,8 +131,8 @@ class RotationClamp:
 
     node: int
     k: Any  # float or Quantity; a float in kJ/mol after construction
-    frame: np.ndarray | None = None
-    axis: np.ndarray | None = None
+    frame: npt.ArrayLike | None = None
+    axis: npt.ArrayLike | None = None
     turns: float = 0.0
     turns_per_ns: float | None = None
 

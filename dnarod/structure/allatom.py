@@ -59,6 +59,7 @@ from dnarod.structure.frames import standard_bases, kabsch
 from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates, nucleotide_template
 from dnarod.structure.bpparams import pair_parameters
 from dnarod.core.io import atomic_path
+from dnarod.structure.reader import COMPLEMENT
 
 _log = logging.getLogger(__name__)
 
@@ -838,8 +839,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     _placed_clash(xyz, atoms, F, O, len(F))
     _placed_gap(xyz, atoms, O, len(F), bond_tolerance)
     seq1 = "".join(str(sequence).split()).upper()
-    comp = {"A": "T", "T": "A", "G": "C", "C": "G"}
-    seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
+    seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(COMPLEMENT[c] for c in seq1)
     n = len(seq1)
     t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_utime
     p_fib = fibre_pair_parameters()

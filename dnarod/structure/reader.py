@@ -33,10 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import COMPLEMENT  # noqa: F401 -- the structure modules' name for it
 from dnarod.structure._data import data_file
-
-#: Watson-Crick complement of a base letter (U pairs with A, inosine I with C): the one table of it.
-COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
 
 WATER = {"HOH", "WAT", "H2O", "DOD", "TIP", "TIP3", "TIP4", "SOL", "SPC", "T3P", "T4P"}
 BACKBONE = {"P", "OP1", "OP2", "OP3", "O5'", "C5'", "C4'", "O4'", "C3'", "O3'", "C2'", "O2'", "C1'",
