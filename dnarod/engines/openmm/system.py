@@ -9,9 +9,9 @@ Forces (force groups in :data:`dnarod.engines.openmm.forces.GROUPS`):
 * elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.engines.openmm.plugin`), ``"fast"``
   (numba analytic loads through ``PythonForce``) or ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the
   plugin, else the fast path, on the CPU and Reference platforms; on GPU platforms (CUDA, OpenCL, HIP), where a
-  Python callback would copy positions off the device every step, it picks the plugin where its device kernel is loaded for that platform
-  (:func:`dnarod.engines.openmm.plugin.device_kernel`: SMKForce and the rigid-body integrator's steps on the
-  device), else the portable expression;
+  Python callback would copy positions off the device every step, it picks the plugin where its device kernel is
+  loaded for that platform (:func:`dnarod.engines.openmm.plugin.device_kernel`: SMKForce and the rigid-body
+  integrator's steps on the device), else the portable expression;
 * non-local terms (:mod:`dnarod.engines.openmm.nonbonded`), on by default: with the fast elastic path
   they are evaluated inside the elastic callback (one ``PythonForce``, force group
   ``"elastic"``; the per-term split is read from the callbacks), with the portable path by
