@@ -220,7 +220,8 @@ def main():
             s = res["speedup"] = speedup(args.time_ns, tmp, args.platform)
             print(f"8 x 200-bp members, {args.time_ns:g} ns each, platform {s['platform']} "
                   f"(load {s['load_before']} -> {s['load_after']})")
-            print(f"  sequential, one process   wall {s['sequential_wall_s']:8.1f} s   CPU {s['sequential_cpu_s']:8.1f} s")
+            print(f"  sequential, one process   wall {s['sequential_wall_s']:8.1f} s   "
+                  f"CPU {s['sequential_cpu_s']:8.1f} s")
             print(f"  2-worker LocalCluster     wall {s['parallel_wall_s']:8.1f} s   member CPU "
                   f"{s['parallel_member_cpu_s']:8.1f} s   (cluster start-up {s['cluster_startup_s']:.1f} s, "
                   f"worker warm-up {s['worker_warm_up_s']:.1f} s)")
@@ -230,8 +231,9 @@ def main():
                       + "  ".join(f"{w:.1f}/{c:.1f}" for w, c in s[f"{side}_member_wall_cpu_s"]))
         if "overhead" not in args.skip:
             o = res["overhead"] = overhead(args.overhead_members, tmp)
-            print(f"{o['members']} null members on 2 workers: wall {o['wall_s']:.2f} s -> {o['per_member_s'] * 1000:.1f} ms"
-                  f" per member ({o['worker_s_per_member'] * 1000:.1f} worker-ms; inside the member function "
+            print(f"{o['members']} null members on 2 workers: wall {o['wall_s']:.2f} s -> "
+                  f"{o['per_member_s'] * 1000:.1f} ms per member ({o['worker_s_per_member'] * 1000:.1f} worker-ms; "
+                  f"inside the member function "
                   f"{o['member_wall_s_mean'] * 1000:.1f} ms) (load {o['load_before']} -> {o['load_after']})")
         if "memory" not in args.skip:
             m = res["memory"] = memory(args.memory_members, tmp)

@@ -22,21 +22,27 @@ benchmark runs, not GPU speed. JSON to ``benchmarks/results/bench_gpu.json``.
 compares three device paths, bonded model only (no non-local terms, which are host code on every path):
 ``plugin`` (the compiled plugin's SMK kernel and its rigid-body integrator's step kernel, no constraints),
 ``plugin-settle`` (the SMK kernel inside OpenMM's LangevinMiddleIntegrator + SETTLE) and ``portable`` (the
-CustomCompoundBondForce in LangevinMiddle + SETTLE), each size and path in its own process. Context creation is timed cold (a fresh, empty pocl kernel cache: ``POCL_CACHE_DIR`` set to a
-new directory; OpenMM's OpenCL platform keeps no cache of its own) and warm (a second Context in the same
-process, kernels cached; both include building the System and the first evaluation), then on the warm one
-the elastic force alone (energy evaluations of its force group) and steps/s. JSON to ``benchmarks/results/bench_gpu_compare.json``.
+CustomCompoundBondForce in LangevinMiddle + SETTLE), each size and path in its own process. Context creation is timed
+cold (a fresh, empty pocl kernel cache: ``POCL_CACHE_DIR`` set to a new directory; OpenMM's OpenCL platform keeps no
+cache of its own) and warm (a second Context in the same process, kernels cached; both include building the System and
+the first evaluation), then on the warm one the elastic force alone (energy evaluations of its force group) and steps/s.
+JSON to ``benchmarks/results/bench_gpu_compare.json``.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import os
+import platform as pyplatform
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 import _harness as H
+from _harness import ROOT
 
 
 def _default_platform():

@@ -8,7 +8,7 @@ simulated time a member needs for a standard error of ``target`` (relative, of t
 x/L). Prints a table and writes ``benchmarks/results/hat_1kbp.json``.
 
     python benchmarks/bench_hat_1kbp.py --turns 0,6 --time 40 [--root DIR]
-    python benchmarks/bench_hat_1kbp.py --turns 0,6 --cut 10,40 --dirs runs/bench_hat_1kbp/kbp_0.0,runs/bench_hat_1kbp/kbp_6.0_long
+    python benchmarks/bench_hat_1kbp.py --turns 0,6 --cut 10,40 --dirs runs/kbp_0.0,runs/kbp_6.0_long
 
 ``--curve DIR`` analyses a finished ``dnarod protocol hat ... -o DIR`` instead (every member): cost, the
 integrated autocorrelation times of extension and writhe, the standard error of the extension (block and
@@ -19,7 +19,8 @@ writes ``benchmarks/results/hat_1kbp_curve.json`` (the hat-curve study's recorde
     python benchmarks/bench_hat_1kbp.py --curve runs/hat_1kbp_1pN
 
 It reads both layouts: members of the ensemble (``DIR/ensemble/members``) and of a turn sweep
-(``research/turn_sweeps/turn_sweep.py``, or ``--start exchange``: ``DIR/members``, whose start time is taken as the result's time less its wall time).
+(``research/turn_sweeps/turn_sweep.py``, or ``--start exchange``: ``DIR/members``, whose start time is taken as the
+result's time less its wall time).
 
     python benchmarks/bench_hat_1kbp.py --curve runs/hat1k_sweep --out benchmarks/results/hat_1kbp_sweep.json
 
@@ -27,7 +28,8 @@ It reads both layouts: members of the ensemble (``DIR/ensemble/members``) and of
 ``--settle`` ns, then ``--time`` ns), in ``--root``/<name>, and analyses them (finished continuations are reused);
 writes ``benchmarks/results/hat_1kbp_extend.json``.
 
-    python benchmarks/bench_hat_1kbp.py --extend runs/hat1k_sweep/members/force_pN+1_turns+4,runs/hat1k_sweepin/members/force_pN+1_turns+4 --settle 100 --time 40 --root runs/hat1k_cont
+    python benchmarks/bench_hat_1kbp.py --extend runs/sweep/members/force_pN+1_turns+4 --settle 100 --time 40 \\
+        --root runs/hat1k_cont
 """
 from __future__ import annotations
 
@@ -57,7 +59,8 @@ def analyse(member_dir, cut_ns, windows=(0, 2, 5, 10, 20, 30, 40, 50, 60, 70, 1e
     y = x[m]
     dt = float(t[1] - t[0])
     tau = float(integrated_autocorrelation_time(y)) * dt
-    return dict(turns=res["turns"], force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"], cpu_s=res["cpu_s"],
+    return dict(turns=res["turns"], force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
+                cpu_s=res["cpu_s"],
                 simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0, ns_per_day_wall=res["ns_per_day"],
                 ns_per_day_cpu=res["n_steps"] * res["dt_ps"] / 1000.0 / res["cpu_s"] * 86400.0,
                 elastic_path=res.get("elastic_path"), friction_per_ps=res["friction_per_ps"],
@@ -96,7 +99,8 @@ def analyse_curve(outdir, target=0.03):
         else:  # a sweep's member (no ensemble log): its result's time less its wall time
             starts.append(rj.stat().st_mtime - float(res["wall_s"]))
         ends.append(rj.stat().st_mtime)
-        rows.append(dict(folder=mdir.name, turns=res["turns"], previous_turns=res.get("previous_turns"), start=res.get("start"),
+        rows.append(dict(folder=mdir.name, turns=res["turns"], previous_turns=res.get("previous_turns"),
+                         start=res.get("start"),
                          force_pN=res["force_pN"], n_bp=res["n_bp"], wall_s=res["wall_s"],
                          cpu_s=res["cpu_s"], simulated_ns=res["n_steps"] * res["dt_ps"] / 1000.0,
                          equilibration_ns=res["equilibration_ps"] / 1000.0, production_ns=res["production_ps"] / 1000.0,
@@ -185,12 +189,13 @@ def main(argv=None):
           f"{'tau_int ns':>10} {'prod rel':>9} {'prod abs':>9}")
     for r in rows:
         print(f"{r['turns']:6.1f} {r['wall_s']:8.0f} {r['cpu_s']:8.0f} {r['ns_per_day_wall']:12.0f} "
-              f"{r['ns_per_day_cpu']:11.0f} {r['x_over_L']:6.3f} {r['sd_x_over_L']:6.3f} {r['tau_int_extension_ns']:10.2f} "
-              f"{r['production_ns_rel']:9.0f} {r['production_ns_abs']:9.0f}")
-        print("       windows:", ", ".join(f"{w['from_ns']:g}-{w['to_ns']:.0f} ns {w['x_over_L']:.3f}" for w in r["windows"]))
+              f"{r['ns_per_day_cpu']:11.0f} {r['x_over_L']:6.3f} {r['sd_x_over_L']:6.3f} "
+              f"{r['tau_int_extension_ns']:10.2f} {r['production_ns_rel']:9.0f} {r['production_ns_abs']:9.0f}")
+        print("       windows:",
+              ", ".join(f"{w['from_ns']:g}-{w['to_ns']:.0f} ns {w['x_over_L']:.3f}" for w in r["windows"]))
     for k, e in ext.items():
-        print(f"12-member curve, SE {'relative' if k == 'rel' else 'absolute'} {a.target}: {e['total_simulated_ns']:.0f} ns "
-              f"simulated, {e['hours_2_dedicated_cores']:.2f} h on 2 dedicated cores, "
+        print(f"12-member curve, SE {'relative' if k == 'rel' else 'absolute'} {a.target}: "
+              f"{e['total_simulated_ns']:.0f} ns simulated, {e['hours_2_dedicated_cores']:.2f} h on 2 dedicated cores, "
               f"{e['hours_2_workers_as_measured']:.2f} h at the measured (shared) speed")
 
 
@@ -216,9 +221,10 @@ def main_extend(a):
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps(out, indent=1) + "\n")
     for r in rows:
-        print(f"{r['source']}: before {r['before_x_over_L']:.3f}; +{r['settle_ns']:g} ns settle: x/L {r['x_over_L']:.3f} "
-              f"sd {r['sd_x_over_L']:.3f} tau_int {r['tau_int_extension_ns']:.2f} ns, quarters "
-              + " ".join(f"{q:.3f}" for q in r["quarters_x_over_L"]) + f"; {r['cpu_s']:.0f} CPU-s, {r['wall_s']:.0f} s wall")
+        print(f"{r['source']}: before {r['before_x_over_L']:.3f}; +{r['settle_ns']:g} ns settle: x/L "
+              f"{r['x_over_L']:.3f} sd {r['sd_x_over_L']:.3f} tau_int {r['tau_int_extension_ns']:.2f} ns, quarters "
+              + " ".join(f"{q:.3f}" for q in r["quarters_x_over_L"])
+              + f"; {r['cpu_s']:.0f} CPU-s, {r['wall_s']:.0f} s wall")
     return out
 
 
@@ -249,8 +255,8 @@ def main_curve(a):
         _write_csv(obs, Path(a.figure + ".csv"))
         plot_curve("magnetic_tweezers", obs, Path(a.figure + ".png"))
         print(f"wrote {a.figure}.csv and {a.figure}.png ({len(obs)} finished members)")
-    print(f"{'turns':>6} {'from':>5} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} {'sd':>6} "
-          f"{'SE blk':>7} {'SE tau':>7} {'SE/x':>6} {'tau_x ns':>8} {'tau_Wr ns':>9} {'Wr':>6} {'plect':>5} "
+    print(f"{'turns':>6} {'from':>5} {'eq+prod ns':>10} {'wall s':>7} {'cpu s':>6} {'ns/CPU-day':>10} {'x/L':>6} "
+          f"{'sd':>6} {'SE blk':>7} {'SE tau':>7} {'SE/x':>6} {'tau_x ns':>8} {'tau_Wr ns':>9} {'Wr':>6} {'plect':>5} "
           f"{'drift z':>7}  quarters")
     for r in rows:
         frm = "-" if r.get("previous_turns") is None else f"{r['previous_turns']:+.1f}"

@@ -77,7 +77,8 @@ def main():
     args = ap.parse_args()
     ff = load_forcefield("dna-default")
     rows = []
-    hdr = f"{'nodes':>8} {'numpy ref':>12} {'numba scalar':>13} {'numba blocked':>14} {'PyElastica':>11} {'blocked/ref':>11} {'blocked/Elastica':>16}"
+    hdr = (f"{'nodes':>8} {'numpy ref':>12} {'numba scalar':>13} {'numba blocked':>14} {'PyElastica':>11} "
+           f"{'blocked/ref':>11} {'blocked/Elastica':>16}")
     print("node-steps per CPU-second (NVE, dt = 0.05 ps, dna-default, 300 K)")
     print(hdr)
     for n in args.sizes:
@@ -87,15 +88,17 @@ def main():
         sca, _ = measure(model, state, "scalar", args.seconds)
         blk, _ = measure(model, state, "blocked", args.seconds)
         ela = elastica_rate(args.elastica_python, n, args.seconds)
-        rows.append(dict(nodes=n, numpy_reference=ref, numba_scalar=sca, numba_blocked=blk, pyelastica_position_verlet=ela))
-        fmt = lambda x: f"{x:.3g}" if x else "n/a"
+        rows.append(dict(nodes=n, numpy_reference=ref, numba_scalar=sca, numba_blocked=blk,
+                         pyelastica_position_verlet=ela))
+        def fmt(x):
+            return f"{x:.3g}" if x else "n/a"
         print(f"{n:>8} {ref:>12.3g} {sca:>13.3g} {blk:>14.3g} {fmt(ela):>11} {blk / ref:>11.1f} "
               f"{(blk / ela if ela else float('nan')):>16.2f}")
     meta = dict(benchmark="lax splitting throughput", unit="node-steps per CPU-second (time.process_time)",
                 dt_ps=0.05, forcefield="dna-default", python=platform.python_version(),
                 machine=platform.machine(), processor=platform.processor(), numpy=np.__version__,
-                pyelastica_note="PyElastica measured in the same run when its interpreter is available; "
-                                "target (issue 4): blocked >= 2x PyElastica PositionVerlet (~5e6 element-steps/CPU-s here)")
+                pyelastica_note="PyElastica measured in the same run when its interpreter is available; target "
+                                "(issue 4): blocked >= 2x PyElastica PositionVerlet (~5e6 element-steps/CPU-s here)")
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(dict(meta=meta, results=rows), indent=2))
     print(f"wrote {args.out}")

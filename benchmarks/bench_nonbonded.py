@@ -144,7 +144,8 @@ def main():
               f"{r['bonded_steps_per_cpu_s']:>15.4g} {r['full_steps_per_cpu_s']:>13.4g} {100 * r['share']:>6.1f}% {cb} "
               f"{r['manning5_steps_per_cpu_s']:>17.4g} {100 * r['manning5_share']:>6.1f}% "
               f"{r['full_over_manning5_cpu_per_step']:>14.3f} {r.get('manning5_pairs_per_node', float('nan')):>10.2f}")
-    H.write_results(args.json, "bench_nonbonded", elastic=args.elastic, pinned=bool(prefix), load_average_start_end=load, sizes=results,
+    H.write_results(args.json, "bench_nonbonded", elastic=args.elastic, pinned=bool(prefix),
+                    load_average_start_end=load, sizes=results,
                     target="share <= 3% at 10^4 nodes")
 
 

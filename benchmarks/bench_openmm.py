@@ -16,8 +16,9 @@ all alike; wall-clock figures in the JSON), the ratios to the floor, the time to
 simulation (fastest-mode estimate, system, OpenMM Context) and the peak resident memory. Then a
 1 kbp duplex at 300 K with the default time step, bare and through the run loop (``dnarod.run.simulate_engine``:
 trajectory every 1 ps, energies, checkpoints): steps per CPU-second and ns/day, for the default
-(``elastic="auto"``), the Python-callback path and the compiled plugin, each in its own process of the same run. No oxDNA figure is
-computed here (oxDNA is not run by this script; the README quotes a side-by-side measurement with its date).
+(``elastic="auto"``), the Python-callback path and the compiled plugin, each in its own process of the same run. No
+oxDNA figure is computed here (oxDNA is not run by this script; the README quotes a side-by-side measurement with its
+date).
 
 Targets: bonded >= 40% of the floor at 10^4 nodes; full <= 2x bonded cost at 10^4; 1 kbp full
 model >= 2000 steps per CPU-second on one core; Context creation < 2 s; 10^6 nodes fit in memory.
@@ -191,9 +192,10 @@ def main():
             continue
         print(f"1 kbp duplex, 300 K, dt {k['dt_ps'] * 1000:.1f} fs, full model, elastic={path} -> {k['elastic']} path, "
               f"{k['platform']} platform: {k['steps_per_cpu_s_bare']:.0f} steps per CPU-second bare "
-              f"({k['node_steps_per_cpu_s_bare']:.3g} node-steps/CPU-s) = {k['ns_per_day_bare_cpu']:.0f} ns per CPU-day "
-              f"({k['ns_per_day_bare']:.0f} ns/day wall); with reporters {k['steps_per_cpu_s_with_reporters']:.0f} "
-              f"steps per CPU-second = {k['node_steps_per_cpu_s_with_reporters']:.3g} node-steps per CPU-second, "
+              f"({k['node_steps_per_cpu_s_bare']:.3g} node-steps/CPU-s) = {k['ns_per_day_bare_cpu']:.0f} ns per "
+              f"CPU-day ({k['ns_per_day_bare']:.0f} ns/day wall); with reporters "
+              f"{k['steps_per_cpu_s_with_reporters']:.0f} steps per CPU-second = "
+              f"{k['node_steps_per_cpu_s_with_reporters']:.3g} node-steps per CPU-second, "
               f"{k['ns_per_day_with_reporters_cpu']:.0f} ns per CPU-day ({k['ns_per_day_with_reporters']:.0f} wall); "
               f"setup {k['setup_s']:.2f} s (Context {k['context_s']:.3f} s); mean T {k['mean_temperature']:.1f} K")
     H.write_results(args.json, "bench_openmm", pinned=bool(prefix), load_average_start_end=load, sizes=results,

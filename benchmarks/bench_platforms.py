@@ -112,8 +112,10 @@ def main():
             print(f"{r['n_nodes']:>8} error: {r['error']}")
             continue
         cells = [f"{r[f'{c}_steps_per_cpu_s']:>9.4g} ({r[f'{c}_steps_per_wall_s']:>7.4g})" for c in CONFIGS]
-        print(f"{r['n_nodes']:>8} " + " ".join(cells) + f"  {r['auto_choice']:>11}  {r['auto_node_steps_per_cpu_s']:.3g}")
-    H.write_results(args.json, "bench_platforms", elastic=args.elastic, pinned=bool(prefix), load_average_start_end=load, sizes=results)
+        print(f"{r['n_nodes']:>8} " + " ".join(cells)
+              + f"  {r['auto_choice']:>11}  {r['auto_node_steps_per_cpu_s']:.3g}")
+    H.write_results(args.json, "bench_platforms", elastic=args.elastic, pinned=bool(prefix),
+                    load_average_start_end=load, sizes=results)
 
 
 if __name__ == "__main__":

@@ -54,7 +54,8 @@ def _forces_module(rev):
                          text=True, check=True).stdout
     d = tempfile.mkdtemp()
     path = Path(d) / "forces_baseline.py"
-    path.write_text(src.replace("from ..", "from dnarod.").replace("from .particles", "from dnarod.engines.openmm.particles"))
+    path.write_text(src.replace("from ..", "from dnarod.").replace("from .particles",
+                                                                   "from dnarod.engines.openmm.particles"))
     spec = importlib.util.spec_from_file_location("forces_baseline", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
@@ -297,18 +298,21 @@ def main():
             r["lepton_total"] = {k: sum(c[k] for c in counts) for k in ("energy_tree_nodes",
                                                                         "derivative_tree_nodes")}
         r.pop("expressions", None)
-    print("portable force: Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache "
-          "filled), cold (empty cache); energy vs dnarod.core.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
+    print("portable force: Context creation (LangevinMiddle) CPU s (wall s); OpenCL: warm (pocl cache filled), "
+          "cold (empty cache); energy vs dnarod.core.energy; Lepton tree nodes energy / 18 derivatives (all forces)")
     for r in results:
         if "error" in r:
-            print(f"{r['revision'][:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} error: {r['error']}")
+            print(f"{r['revision'][:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} "
+                  f"error: {r['error']}")
             continue
         lep = r.get("lepton_total")
         lep = f"{lep['energy_tree_nodes']}/{lep['derivative_tree_nodes']}" if lep else ""
-        cold = f" cold {r['cold_context_cpu_s']:6.2f} ({r['cold_context_wall_s']:6.2f})" if "cold_context_cpu_s" in r else ""
+        cold = (f" cold {r['cold_context_cpu_s']:6.2f} ({r['cold_context_wall_s']:6.2f})"
+                if "cold_context_cpu_s" in r else "")
         err = f"rel.err {r['energy_rel_error']:.1e}" if "energy_rel_error" in r else ""
-        print(f"{r.get('revision', '')[:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} {r['context_cpu_s']:6.2f} "
-              f"({r['context_wall_s']:6.2f}){cold} forces {r.get('n_forces', 1):>2} {err} {lep}")
+        print(f"{r.get('revision', '')[:12]:>12} {r.get('n_nodes', ''):>5} {r['case']:>18} {r['platform']:>9} "
+              f"{r['context_cpu_s']:6.2f} ({r['context_wall_s']:6.2f}){cold} forces {r.get('n_forces', 1):>2} "
+              f"{err} {lep}")
     H.write_results(args.json, "bench_portable", load_average_start_end=load, openmm=openmm.__version__,
                     results=results, target="Context creation < 2 s on every platform for any stiffness")
 

@@ -32,9 +32,8 @@ def main():
     root = Path(tempfile.mkdtemp(prefix="bench_protocols_"))
     for n in [int(x) for x in a.lengths.split(",")]:
         for turns in (0.0, round(0.04 * n / 10.5, 2)):
-            r = run_member(dict(n_bp=n, force_pN=a.force, turns=turns, time_ns=a.time_ns, seed=1), root / f"{n}_{turns}")
-            L = r["contour_length_nm"]
-            sd = None
+            r = run_member(dict(n_bp=n, force_pN=a.force, turns=turns, time_ns=a.time_ns, seed=1),
+                           root / f"{n}_{turns}")
             d = np.genfromtxt(root / f"{n}_{turns}" / "samples.csv", delimiter=",", names=True)
             sd = float(np.std(d["extension_nm"], ddof=1))
             tau = r["extension_nm_tau_ps"] or float("nan")
@@ -49,9 +48,10 @@ def main():
                              plectoneme_fraction=r["plectoneme_fraction"]))
             q = rows[-1]
             print(f"{n:5d} bp turns {turns:5.2f}: wall {q['wall_s']:6.1f} s cpu {q['cpu_s']:6.1f} s "
-                  f"({q['simulated_ns']:.2f} ns, {q['ns_per_day']:.0f} ns/day), friction {q['friction_per_ps']:.2e}/ps, "
-                  f"tau_ext {tau:.0f} ps (estimate tau_1 {q['tau_bend_estimate_ps']:.0f} ps), x/L {q['relative_extension']:.3f}, "
-                  f"needs {q['production_for_3pct_ns']:.2f} ns for 3 %", flush=True)
+                  f"({q['simulated_ns']:.2f} ns, {q['ns_per_day']:.0f} ns/day), friction "
+                  f"{q['friction_per_ps']:.2e}/ps, tau_ext {tau:.0f} ps (estimate tau_1 "
+                  f"{q['tau_bend_estimate_ps']:.0f} ps), x/L {q['relative_extension']:.3f}, needs "
+                  f"{q['production_for_3pct_ns']:.2f} ns for 3 %", flush=True)
     out = Path(__file__).resolve().parent / "results" / "protocols.json"
     out.parent.mkdir(exist_ok=True)
     doc = dict(host=platform.node(), cpus=os.cpu_count(), date=time.strftime("%Y-%m-%d %H:%M"), rows=rows,

@@ -11,7 +11,8 @@ from the start and the O3'-P range.
 
 Usage: ``python benchmarks/bench_rebuild_md.py [--structure 1KX5] [--steps 5000] [--cutoff 2.0]
 [--out DIR] [--json OUT] [--pdb FILE]``; ``--pdb`` skips the rebuild and runs the MD on a duplex
-already rebuilt (e.g. ``bench_rebuild.py --keep DIR``), re-measuring its bond geometry. The machine is shared: compare figures from the same run only.
+already rebuilt (e.g. ``bench_rebuild.py --keep DIR``), re-measuring its bond geometry. The machine is shared: compare
+figures from the same run only.
 """
 from __future__ import annotations
 

@@ -109,7 +109,8 @@ def main():
     import os
 
     out = {"machine": platform.platform(), "python": platform.python_version(), "openmm": openmm.__version__,
-           "load_average_at_end": os.getloadavg(), "steps": a.steps, "temperature_K": 300, "summary": summ, "rows": rows}
+           "load_average_at_end": os.getloadavg(), "steps": a.steps, "temperature_K": 300, "summary": summ,
+           "rows": rows}
     Path(a.json).parent.mkdir(parents=True, exist_ok=True)
     Path(a.json).write_text(json.dumps(out, indent=1))
     print(f"wrote {a.json}")

@@ -76,7 +76,8 @@ def main():
               f"{r['reference_writhe_fraction_err']:.3f} {r['model_plectoneme_fraction']:>10.3f} "
               f"{r['model_cpu_s']:>12.1f} {r['model_wall_s']:>13.1f}")
     H.write_results(args.json, "bench_ring_charge", load_average_start_end=load, runs=res,
-                    cpu_ratio_calibrated_over_manning5=res["calibrated"]["model_cpu_s"] / res["manning5"]["model_cpu_s"])
+                    cpu_ratio_calibrated_over_manning5=(res["calibrated"]["model_cpu_s"]
+                                                        / res["manning5"]["model_cpu_s"]))
 
 
 if __name__ == "__main__":

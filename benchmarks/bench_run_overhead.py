@@ -264,8 +264,8 @@ def main():
         print("10^4-node plugin benchmark, medians (node-steps per CPU-second):")
         for tree, s in plugin_summary.items():
             if s.get("n"):
-                print(f"{tree:>40} plugin full {s['plugin_full_per_cpu_s']:.4g}, bonded {s['plugin_bonded_per_cpu_s']:.4g} "
-                      f"({s['n']} runs)")
+                print(f"{tree:>40} plugin full {s['plugin_full_per_cpu_s']:.4g}, bonded "
+                      f"{s['plugin_bonded_per_cpu_s']:.4g} ({s['n']} runs)")
     H.write_results(args.json, "run_layer_overhead", command=" ".join(sys.argv), load_average_start=load0,
                     summary=summary, children=children, plugin=plugin,
                     plugin_summary=plugin_summary)

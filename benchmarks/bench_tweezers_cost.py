@@ -7,8 +7,8 @@ compiled plugin where built, one thread): (1) every force in its own force group
 groups=...)`` timed per force on a copy of the System with a plain Verlet integrator; (2) steps per CPU-second of
 the member's own integrator with no walls, the surface wall only and both walls as OpenMM Custom forces (the
 reference form, :func:`dnarod.engines.openmm.walls.wall_forces_reference`: the protocol's form before the compiled one),
-and both walls as the compiled ``WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the protocol's form
-on CPU/Reference now), with the two forms' energies and forces compared on a thermal configuration pushed through
+and both walls as the compiled ``WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the protocol's
+form on CPU/Reference now), with the two forms' energies and forces compared on a thermal configuration pushed through
 both walls; (3) why the Custom forces cost what they do: a ``CustomExternalForce`` and a
 ``CustomCentroidBondForce`` alone on the CPU platform with 0, 1 and 3 particles (bonds) per node, and the walls
 alone in each candidate form (Custom forces, compiled ``WallForce``, the numba kernel in its ``PythonForce``) on
@@ -90,7 +90,6 @@ def wall_form_costs(n_nodes, repeats):
     """CPU microseconds per evaluation of the walls alone in each form (Custom forces, compiled WallForce, the numba
     kernel in its ``PythonForce``) on the CPU (one thread) and Reference platforms, net of an empty group, on
     random positions (about half the surface particles under the plane)."""
-    import openmm
 
     from dnarod.engines.openmm import walls as wl
 

@@ -1,7 +1,7 @@
 """One tweezers member on the compiled plugin and on the callback path, one after the other (same settings, seed).
 
-The walls are created with the simulation (``RodSimulation.create(extra_forces=...)``), so the member can use the plugin.
-Prints wall and CPU time per path and writes ``benchmarks/results/tweezers_paths.json``.
+The walls are created with the simulation (``RodSimulation.create(extra_forces=...)``), so the member can use the
+plugin. Prints wall and CPU time per path and writes ``benchmarks/results/tweezers_paths.json``.
 
     python benchmarks/bench_tweezers_paths.py [--n-bp 300] [--time 0.5]
 """
@@ -36,8 +36,10 @@ def main(argv=None):
     Path(a.out).parent.mkdir(parents=True, exist_ok=True)
     Path(a.out).write_text(json.dumps(out, indent=1) + "\n")
     for r in rows:
-        print(f"{r['elastic_path']:8s} wall {r['wall_s']:7.1f} s  CPU {r['cpu_s']:7.1f} s  {r['ns_per_day']:8.0f} ns/day")
-    print(f"CPU ratio callback/plugin: {out['cpu_ratio_callback_over_plugin']:.1f} (load average {out['load_average'][0]:.1f})")
+        print(f"{r['elastic_path']:8s} wall {r['wall_s']:7.1f} s  CPU {r['cpu_s']:7.1f} s  "
+              f"{r['ns_per_day']:8.0f} ns/day")
+    print(f"CPU ratio callback/plugin: {out['cpu_ratio_callback_over_plugin']:.1f} "
+          f"(load average {out['load_average'][0]:.1f})")
 
 
 if __name__ == "__main__":

@@ -13,7 +13,8 @@ from conftest import random_chain
 
 def fd_loads(pos, frm, params, ds, closure=None, h=1e-4):
     """Richardson-extrapolated central differences of the energy (an independent reference)."""
-    E = lambda p, f: energy(p, f, params, ds, closure)
+    def E(p, f):
+        return energy(p, f, params, ds, closure)
 
     def central(fun, h):
         return (fun(h) - fun(-h)) / (2 * h)

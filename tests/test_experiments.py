@@ -1,6 +1,5 @@
 """Measured DNA values (data/experimental/): the loader's numbers and units, the plot overlays and the
 ``experiment`` validation check (passes with the model's parameters, fails with wrong ones)."""
-import csv
 
 import numpy as np
 import pytest

@@ -1,7 +1,7 @@
 """Values read from secondary sources (data/experimental/): the worm-like-chain fit to cyclization j-factors
-(figure caption on the PubMed page of PMID 15778443) and the secondary ranges of measured elastic constants in PNAS 114:7049 (2017)
-Table 1. The loader returns exactly the numbers read (in MD units), and check ``experiment`` reports the model beside
-them (no gating: the sources state no uncertainty)."""
+(figure caption on the PubMed page of PMID 15778443) and the secondary ranges of measured elastic constants in PNAS
+114:7049 (2017) Table 1. The loader returns exactly the numbers read (in MD units), and check ``experiment`` reports the
+model beside them (no gating: the sources state no uncertainty)."""
 import pytest
 
 from dnarod.physics import experiments as ex

@@ -475,7 +475,8 @@ def test_ensemble_overwrite_is_atomic_and_resumable(tmp_path, monkeypatch):
     import pyarrow.parquet as pq
 
     assert [row["force_pN"] for row in pq.read_table(out / "results.parquet").to_pylist()] == [3.0, 4.0, 5.0]
-    assert not list(out.glob(".dnarod-*")) and str(out) in json.loads((out / "summary.json").read_text())["files"]["table"]
+    assert not list(out.glob(".dnarod-*"))
+    assert str(out) in json.loads((out / "summary.json").read_text())["files"]["table"]
 
 
 PROTO = ["--source", "40", "--time", "0.001", "--workers", "0"]

@@ -1,5 +1,4 @@
 """Parameter sets: schema checks, dna-default derivation, Olson conversion, exact persistence length."""
-import textwrap
 
 import numpy as np
 import pytest
@@ -77,14 +76,16 @@ def test_olson_round_trip_to_3dna_coordinates():
 
     ff = load_forcefield("olson1998")
     kt = kT(ff.temperature)
-    rows = {r["step"]: r for r in csv.DictReader(open(data_dir() / "elastic/olson1998/olson1998_pdna_step_means_16.csv"))}
+    table = data_dir() / "elastic/olson1998/olson1998_pdna_step_means_16.csv"
+    rows = {r["step"]: r for r in csv.DictReader(open(table))}
     order = ["shift", "slide", "rise", "tilt", "roll", "twist"]
     F_pub = {}
     for r in csv.DictReader(open(data_dir() / "elastic/olson1998/olson1998_pdna_force_constants_16.csv")):
         F_pub.setdefault(r["step"], np.zeros((6, 6)))[order.index(r["row"])] = [float(r[c]) for c in order]
     assert len(ff.table) == 16
     for step, (K, xi0) in ff.table.items():
-        p0 = np.array([float(rows[step][c]) for c in ("shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg")])
+        p0 = np.array([float(rows[step][c]) for c in ("shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg",
+                                                      "twist_deg")])
         p_back, F_back = stiffness_to_step_coordinates(xi0, K, ff.ds, kt)
         assert np.abs(p_back - p0).max() < 1e-10, step
         assert np.allclose(F_back, F_pub[step], rtol=1e-8, atol=1e-10), step

@@ -74,7 +74,8 @@ def test_lax_identity_column_and_row_conventions(circular):
     assert np.abs(Up_dot - (Vpn @ Up - Up @ Vpk)).max() < 1e-9 * np.abs(Up_dot).max()
     # and Phi = g^-1 obeys d Phi/dt = V^p Phi
     Phi_dot = _d_dt(lambda t: np.linalg.inv(_g(*pose(t))))
-    assert np.abs(Phi_dot - (-V) @ np.linalg.inv(_g(model.positions, model.frames))).max() < 1e-9 * np.abs(Phi_dot).max()
+    assert np.abs(Phi_dot - (-V) @ np.linalg.inv(_g(model.positions,
+                                                    model.frames))).max() < 1e-9 * np.abs(Phi_dot).max()
 
 
 def _g(positions, frames):

@@ -124,15 +124,18 @@ def test_single_mode_frequency_is_leapfrog_frequency(branch):
         pos = model.positions.copy()
         pos[:, 2] += amp * shape
         st = RigidState(pos, model.frames.copy(), np.zeros((16, 3)), np.zeros((16, 3)))
-        coord = lambda state: (state.positions[:, 2] - model.positions[:, 2] - (state.positions[:, 2] - model.positions[:, 2]).mean()) @ shape
+        def coord(state):
+            dz = state.positions[:, 2] - model.positions[:, 2]
+            return (dz - dz.mean()) @ shape
     else:
         from dnarod.core.rotations import rotation_about_axis
         R = rotation_about_axis(np.tile([0, 0, 1.0], (16, 1)), amp * shape)
         st = RigidState(model.positions.copy(), R @ model.frames, v, om)
         ref = model.frames
         # rotation angle of each frame about the rod axis, relative to the intrinsic frames
-        coord = lambda state: np.arctan2(np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 1]),
-                                         np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 0])) @ shape
+        def coord(state):
+            return np.arctan2(np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 1]),
+                              np.einsum("ki,ki->k", state.frames[:, :, 0], ref[:, :, 0])) @ shape
     integ = SplittingIntegrator(model, dt, st)
     x = [coord(integ.state)]
     for _ in range(400):
@@ -201,7 +204,8 @@ def test_blocked_kernel_large_rotor_angles(spin):
 def test_langevin_kinetic_temperature():
     """BAOAB thermostat: mean kinetic energy (3 kT per node) within 5% (fast statistical check)."""
     model = dna_like_rod(20, seed=3)
-    integ = SplittingIntegrator(model, 0.05, maxwell_state(model, 300.0, seed=1), temperature=300.0, friction=2.0, seed=9)
+    integ = SplittingIntegrator(model, 0.05, maxwell_state(model, 300.0, seed=1), temperature=300.0, friction=2.0,
+                                seed=9)
     integ.step(1000)
     ke = []
     for _ in range(400):

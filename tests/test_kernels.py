@@ -21,7 +21,8 @@ def _kernel(pos, frm, params, ds, closure):
 def test_kernel_equals_numpy_reference_open_and_circular():
     for seed, circular in ((0, False), (1, False), (2, True)):
         pos, frm, params, ds = random_chain(seed, n=9, circular=circular)
-        closure = Closure(Rotation.random(random_state=seed).as_matrix(), np.array([0.2, 0.1, 0.9])) if circular else None
+        closure = Closure(Rotation.random(random_state=seed).as_matrix(), np.array([0.2, 0.1,
+                                                                                    0.9])) if circular else None
         E0, F0, T0 = loads(pos, frm, params, ds, closure)
         E1, F1, T1 = _kernel(pos, frm, params, ds, closure)
         assert abs(E1 - E0) <= 1e-12 * abs(E0)

@@ -1,4 +1,5 @@
-"""Generators (3.1), the 4x4 pair (3.3)-(3.7), the Lax residual (3.8), the obstruction, Appendix A (design B2, B3, B5)."""
+"""Generators (3.1), the 4x4 pair (3.3)-(3.7), the Lax residual (3.8), the obstruction, Appendix A
+(design B2, B3, B5)."""
 import itertools
 
 import numpy as np

@@ -4,7 +4,8 @@ import pytest
 
 from dnarod.core.errors import DnarodError, ParameterError
 from dnarod.core.forcefield import load_forcefield
-from dnarod.physics.loads import Clamp, PullingForce, RotationClamp, Torque, Trap, clamp_angle, resolve_loads, rotation_clamp_load
+from dnarod.physics.loads import (Clamp, PullingForce, RotationClamp, Torque, Trap, clamp_angle, resolve_loads,
+                                  rotation_clamp_load)
 from dnarod.core.rotations import rotation_about_axis
 
 

@@ -1,6 +1,5 @@
 """The README's main job end to end: dnarod simulate on a bundled PDB, then dnarod analyze on the result."""
 import json
-from pathlib import Path
 
 import numpy as np
 from click.testing import CliRunner

@@ -116,7 +116,8 @@ def test_poisson_boltzmann_far_field_charge():
     nonlinear charge is below the linearised one (saturation); the calibrated radius reproduces the constant."""
     from scipy.special import k1
 
-    from dnarod.physics.nonbonded import BARE_LINE_CHARGE, CALIBRATED_LINE_CHARGE, CALIBRATED_RADIUS, calibrated_radius, pb_far_field_line_charge
+    from dnarod.physics.nonbonded import (BARE_LINE_CHARGE, CALIBRATED_LINE_CHARGE, CALIBRATED_RADIUS,
+                                          calibrated_radius, pb_far_field_line_charge)
 
     for salt, a in ((0.01, 1.0), (0.15, 1.159), (1.0, 0.8)):
         k = NonbondedSettings(salt=salt).resolve(0.34, 300.0)["kappa"]

@@ -75,7 +75,8 @@ def _langevin_check(m, tmp_path, n_steps, omega_dt, seed, strain_tol, elastic="f
     """
     sim = RodSimulation.create(m, temperature=300, friction=1.0, nonbonded=False, seed=seed, dt=omega_dt / omega_max(m),
                         elastic=elastic)
-    simulate_engine(sim, n_steps, tmp_path, frame_interval=20, energy_interval=20, checkpoint_interval=0, progress=False)
+    simulate_engine(sim, n_steps, tmp_path, frame_interval=20, energy_interval=20, checkpoint_interval=0,
+                    progress=False)
     T = load_energies(tmp_path / "energies.csv")["temperature_K"][50:]
     blocks = T[: len(T) // 10 * 10].reshape(10, -1).mean(axis=1)
     sigma = blocks.std(ddof=1) / np.sqrt(10)
@@ -170,7 +171,8 @@ def test_static_loads(dna40):
     theta = 0.3
     loads = [PullingForce(-1, F), Torque(5, tau), Trap(10, 40.0, centre=m.positions[10] + [0.1, 0, 0]),
              RotationClamp(20, 25.0), Clamp(0)]
-    sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False, loads=loads,
+    sim = RodSimulation.create(m, integrator="verlet", temperature=0, platform="Reference", nonbonded=False,
+                               loads=loads,
                         dt=0.05)
     st = sim.context.getState(getForces=True, getPositions=True, getEnergy=True, groups={3})
     f_node, t_node = particle_forces_to_loads(st.getPositions(asNumpy=True)._value, st.getForces(asNumpy=True)._value)
@@ -265,7 +267,8 @@ def test_energy_terms_equal_force_group_evaluations(ff):
 
     m = ff.model_from_sequence("ACGT" * 15)
     nb = NonbondedSettings(n_exclude=3, diameter=1.1)  # short exclusion: Debye-Hueckel acts along the chain
-    sim = RodSimulation.create(m, temperature=300, seed=4, nonbonded=nb, loads=[Trap(3, 10.0, [0, 0, -1.0])], elastic="fast")
+    sim = RodSimulation.create(m, temperature=300, seed=4, nonbonded=nb, loads=[Trap(3, 10.0, [0, 0, -1.0])],
+                               elastic="fast")
     sim.advance(5)
     e = sim.energies()
     assert e["nonbonded"] > 0 and e["external"] > 0 and e["elastic"] > 0
@@ -363,12 +366,15 @@ def test_nve_long_drift(ff, tmp_path):
 
 def test_new_run_does_not_overwrite_an_earlier_one(ff, tmp_path):
     m = ff.model_from_sequence("ACGTACGTAC")
-    simulate_engine(RodSimulation.create(m, nonbonded=False, seed=1, dt=0.05), 10, tmp_path, frame_interval=5, progress=False)
+    simulate_engine(RodSimulation.create(m, nonbonded=False, seed=1, dt=0.05), 10, tmp_path, frame_interval=5,
+                    progress=False)
     before = (tmp_path / "trajectory.dtraj").read_bytes()
     with pytest.raises(ParameterError, match="already exists"):
-        simulate_engine(RodSimulation.create(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5, progress=False)
+        simulate_engine(RodSimulation.create(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5,
+                        progress=False)
     assert (tmp_path / "trajectory.dtraj").read_bytes() == before
-    simulate_engine(RodSimulation.create(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5, progress=False,
+    simulate_engine(RodSimulation.create(m, nonbonded=False, seed=2, dt=0.05), 10, tmp_path, frame_interval=5,
+                    progress=False,
                                                            overwrite=True)
     assert (tmp_path / "trajectory.dtraj").read_bytes() != before
 

@@ -294,7 +294,8 @@ print("host-ok")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env, timeout=600)
     assert p.returncode == 0, p.stderr[-2000:]
     assert "host-ok" in p.stdout
-    assert "compiled OpenMM plugin not used on OpenCL (device kernels switched off by DNAROD_DEVICE_KERNELS=0)" in p.stderr
+    assert ("compiled OpenMM plugin not used on OpenCL (device kernels switched off by DNAROD_DEVICE_KERNELS=0)"
+            in p.stderr)
 
 
 def test_system_with_plugin_forces_pickles_and_copies(mod):

@@ -37,7 +37,8 @@ def dodecamer():
 def nve_run(model, v, w, dt, t_report):
     from dnarod.engines.openmm.simulation import RodSimulation
 
-    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference", elastic="plugin",
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
+                               elastic="plugin",
                         nonbonded=False, initial_velocities=(v, w), seed=0)
     assert sim.integrator.usesFusedElasticForce()
     out = []
@@ -189,7 +190,8 @@ def test_node_state_kept_between_calls_matches_particles_and_is_dropped_when_the
     model = load_forcefield("dna-default").model_from_sequence("ACGTACGTTGCAACGTACGT")
     runs = []
     for chunks in ([40], [1] * 40):
-        sim = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3, platform="CPU",
+        sim = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3,
+                                   platform="CPU",
                             nonbonded=False)
         for k in chunks:
             sim.integrator.step(k)

@@ -168,7 +168,8 @@ def test_nve_settle_trajectory_equals_callback_path(mod):
     from dnarod.engines.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
-    ref = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="fast", platform="Reference", seed=4,
+    ref = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="fast", platform="Reference",
+                               seed=4,
                         nonbonded=False, dt=0.01)
     st = ref.context.getState(getPositions=True, getVelocities=True)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)
@@ -195,7 +196,8 @@ def test_rigid_body_steps_on_device_equal_host(mod, precision, tol):
     from dnarod.engines.openmm.system import build_system
 
     model = random_model(8, scale=0.02, rot=0.05)
-    ref = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", platform="Reference", seed=4,
+    ref = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", platform="Reference",
+                               seed=4,
                         nonbonded=False, dt=0.01)
     st = ref.context.getState(getPositions=True, getVelocities=True)
     rs = build_system(model, "OpenCL", "plugin", nonbonded=False)

@@ -10,7 +10,9 @@ from dnarod.cli.main import main
 from dnarod.core.errors import DnarodError
 from dnarod.core.forcefield import load_forcefield
 from dnarod.physics.nonbonded import NonbondedSettings
-from dnarod.workflows.protocols.measure import CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances, plectoneme_end_loops, plectoneme_state, rotation_about_z, twisting_moment
+from dnarod.workflows.protocols.measure import (CONTACT_PER_DIAMETER, clamp_torque_z, detector_distances,
+                                                plectoneme_end_loops, plectoneme_state, rotation_about_z,
+                                                twisting_moment)
 from dnarod.physics.observables import twist_writhe_open
 from dnarod.workflows.protocols.tweezers import check_tweezers, strained_helix
 from dnarod.physics.loads import intrinsic_turns
@@ -220,7 +222,8 @@ def test_torque_turns_curve_short_chain(tmp_path):
     m = FF.model_from_sequence(n_nodes=100)
     L = m.ds * m.n_steps
     kt_pn = kT(300) / PN
-    C = L * (hi["twist_torque_pN_nm"] - lo["twist_torque_pN_nm"]) / (kt_pn * 2 * np.pi * (hi["delta_lk"] - lo["delta_lk"]))
+    C = (L * (hi["twist_torque_pN_nm"] - lo["twist_torque_pN_nm"])
+         / (kt_pn * 2 * np.pi * (hi["delta_lk"] - lo["delta_lk"])))
     theory = moroz_nelson(bare_twist_persistence(m, 300.0), 50.0, 3.0, kt_pn)
     assert C == pytest.approx(theory, rel=0.12)
     rows = (tmp_path / "tt" / "curve.csv").read_text().splitlines()
@@ -271,7 +274,8 @@ def test_torsion_check_passes_and_fails_with_a_wrong_twist_stiffness(tmp_path):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("kind, axes", [("magnetic_tweezers", {"turns": [-0.3, 0.3]}), ("rings", {"delta_lk": [-1, 0]})])
+@pytest.mark.parametrize("kind, axes", [("magnetic_tweezers", {"turns": [-0.3, 0.3]}),
+                                        ("rings", {"delta_lk": [-1, 0]})])
 def test_protocols_through_the_ensemble_layer(tmp_path, kind, axes):
     """The same members through dnarod.workflows.ensemble (dask LocalCluster, one worker)."""
     from dnarod.workflows.protocols import run_protocol

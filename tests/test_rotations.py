@@ -79,6 +79,7 @@ def test_bad_frames_are_named():
 def test_rotation_about_axis_normalises_and_rejects_zero_axis():
     R = rotation_about_axis(np.array([0.3, -0.5, 0.8]), 0.7)
     assert np.allclose(R @ R.T, np.eye(3), atol=1e-14) and np.isclose(np.linalg.det(R), 1.0)
-    assert np.allclose(R, Rotation.from_rotvec(0.7 * np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])).as_matrix())
+    assert np.allclose(R, Rotation.from_rotvec(0.7 * np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5,
+                                                                                                  0.8])).as_matrix())
     with pytest.raises(GeometryError, match="zero length"):
         rotation_about_axis(np.zeros(3), 0.1)

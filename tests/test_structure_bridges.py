@@ -122,7 +122,8 @@ def test_oxdna_round_trip(tmp_path, new_format):
 
 
 def test_cli_simulate_intrinsic_structure_keeps_the_kinks(tmp_path):
-    """`simulate --intrinsic structure --minimize` says which duplex it took and what it dropped, and keeps CAP's kinks."""
+    """`simulate --intrinsic structure --minimize` says which duplex it took and what it dropped, and keeps CAP's
+    kinks."""
     from dnarod.core.model import RodModel
 
     out = tmp_path / "cap"

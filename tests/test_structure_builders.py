@@ -95,7 +95,7 @@ def test_step_parameters_over_frames_matches_direct(tmp_path):
     # the same through a multi-model PDB read by MDAnalysis
     write_pdb(tmp_path / "traj.pdb", X, atoms)
     r = read_duplex_trajectory(tmp_path / "top.pdb", tmp_path / "traj.pdb")
-    d2, sp2 = r.duplex, r.step_params
+    sp2 = r.step_params
     assert sp2.shape == (nf, 13, 6) and np.abs(sp2 - want).max() < 2e-3  # PDB rounds to 1e-4 nm
     with pytest.raises(StructureError, match="coordinates have 5 atoms"):
         step_parameters_over_frames(d, X[:, :5])

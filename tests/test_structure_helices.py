@@ -72,10 +72,10 @@ def _ideal(n=12):
 def _extrude(xyz, atoms, after, before, out_nm=1.5, axis=None):
     """Insert an extruded copy of residue ``before`` between residues ``after`` and ``before``
     (backbone-linked through O3'-P) and renumber; returns new xyz, atoms."""
-    key = lambda a: (a[0], a[1])
+    def key(a):
+        return (a[0], a[1])
     idx_after = [i for i, a in enumerate(atoms) if key(a) == after]
     idx_before = [i for i, a in enumerate(atoms) if key(a) == before]
-    pos = {atoms[i][3]: xyz[i] for i in idx_after + idx_before if True}
     o3 = xyz[[i for i in idx_after if atoms[i][3] == "O3'"][0]]
     p_next = xyz[[i for i in idx_before if atoms[i][3] == "P"][0]]
     u = (p_next - o3) / np.linalg.norm(p_next - o3)
@@ -185,7 +185,8 @@ def test_hoogsteen_and_mismatch_named(tmp_path):
     seq2 = "CTAGTCATCGTA"  # partners of GATCCGTAGCAT position by position; position 5 (C) against T
     xyz, atoms = rebuild_coordinates(m.frames, m.positions, m.sequence, sequence2=seq2)
     # A:2 (A) flipped syn about its glycosidic bond and moved so its N7 faces T's N3 (a Hoogsteen pair)
-    res = lambda ch, n: [i for i, a in enumerate(atoms) if a[0] == ch and a[1] == n]
+    def res(ch, n):
+        return [i for i, a in enumerate(atoms) if a[0] == ch and a[1] == n]
     ia = res("A", 2)
     names = {atoms[i][3]: i for i in ia}
     c1, n9 = xyz[names["C1'"]], xyz[names["N9"]]

@@ -58,7 +58,8 @@ def test_hydrogens_water_ignored_same_result(tmp_path):
         if ln[12:16].strip() == "C1*":  # a hydrogen on C1', as MD files have
             h = ln[:12] + " H1*" + ln[16:30] + f"{float(ln[30:38]) + 1.0:8.3f}" + ln[38:76] + " H\n"
             extra.append(h)
-    text = "".join(extra + ATOMS[40:]) + "HETATM 9999  O   HOH C 100       1.000   2.000   3.000  1.00 10.00           O\n"
+    water = "HETATM 9999  O   HOH C 100       1.000   2.000   3.000  1.00 10.00           O\n"
+    text = "".join(extra + ATOMS[40:]) + water
     a = analyze_structure(text=text)
     b = analyze_structure(PDB355)
     assert np.allclose(a.duplexes[0].bp_params, b.duplexes[0].bp_params)

@@ -142,7 +142,8 @@ def test_relaxed_twist_at_temperature():
     S = np.diag([100.0, 100.0, 1.0, 100.0, 100.0, 100.0])  # only the twist keeps its (marginal) fluctuations
     from dataclasses import replace
 
-    stiff = replace(ring, params=replace(ring.params, stiffness=np.einsum("ij,kjl,lm->kim", S, ring.params.stiffness, S)))
+    stiffness = np.einsum("ij,kjl,lm->kim", S, ring.params.stiffness, S)
+    stiff = replace(ring, params=replace(ring.params, stiffness=stiffness))
     tw_s, se_s = relaxed_ribbon_twist(stiff, 300.0)
     x = sample_step_strains(ring.params.stiffness[0], ring.params.intrinsic[0], ring.ds, kT(300.0), 400_000,
                             np.random.default_rng(2))

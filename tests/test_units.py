@@ -9,8 +9,10 @@ from dnarod.physics.thermal import kinetic_temperature, node_kinetic_energy
 
 def test_constants_match_openmm_units():
     md_force = unit.kilojoule_per_mole / unit.nanometer
-    assert units.PN == pytest.approx((1 * unit.piconewton * unit.AVOGADRO_CONSTANT_NA).value_in_unit(md_force), rel=1e-12)
-    assert units.BOLTZMANN == pytest.approx(unit.MOLAR_GAS_CONSTANT_R.value_in_unit(unit.kilojoule_per_mole / unit.kelvin), rel=1e-9)
+    assert units.PN == pytest.approx((1 * unit.piconewton * unit.AVOGADRO_CONSTANT_NA).value_in_unit(md_force),
+                                     rel=1e-12)
+    assert units.BOLTZMANN == pytest.approx(
+        unit.MOLAR_GAS_CONSTANT_R.value_in_unit(unit.kilojoule_per_mole / unit.kelvin), rel=1e-9)
     assert units.PA == pytest.approx((1 * unit.pascal * unit.AVOGADRO_CONSTANT_NA * unit.nanometer**3)
                                      .value_in_unit(unit.kilojoule_per_mole), rel=1e-12)
     assert units.KG_PER_M3 == pytest.approx((1 * unit.kilogram / unit.meter**3 * unit.AVOGADRO_CONSTANT_NA)

@@ -24,4 +24,5 @@ def test_bouchiat_limits_and_inverse():
         lx = extensible_wlc_extension(F, lp, 1e15, kt)
         assert bouchiat_force(lx, lp, kt) == pytest.approx(F, rel=1e-10)
     # at high force the Odijk form and the Bouchiat form agree (within the 1e-3 of its validity)
-    assert extensible_wlc_extension(10.0, lp, 1100.0, kt) == pytest.approx(odijk_extension(10.0, lp, 1100.0, kt), abs=3e-3)
+    assert extensible_wlc_extension(10.0, lp, 1100.0, kt) == pytest.approx(odijk_extension(10.0, lp, 1100.0, kt),
+                                                                           abs=3e-3)

@@ -64,8 +64,8 @@ def check_trajectory(traj, check_spacing=True, atol=1e-6):
         bad = ~np.isfinite(arr.reshape(traj.n_frames, traj.n_nodes, -1)).all(axis=2)
         if bad.any():
             f, k = (int(i) for i in np.argwhere(bad)[0])
-            raise GeometryError(f"trajectory frame {f} (time {traj.time[f]:g} ps), base pair {k + 1}: {name} is not finite "
-                                f"({int(bad.sum())} bad node poses in {int(bad.any(axis=1).sum())} frames); "
+            raise GeometryError(f"trajectory frame {f} (time {traj.time[f]:g} ps), base pair {k + 1}: {name} is not "
+                                f"finite ({int(bad.sum())} bad node poses in {int(bad.any(axis=1).sum())} frames); "
                                 f"the run that wrote it blew up or the file is corrupt; analyse the frames "
                                 f"before it with stop={f}")
     F = traj.frames

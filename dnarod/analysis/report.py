@@ -424,8 +424,8 @@ def _report(input_path, traj, model, kind, ff, final_out, out, temperature, excl
             line += f" (model exact {lp['exact_one_step']:.2f} nm)"
     echo(line)
     if lp["fit"] is not None and np.isfinite(lp["fit"] or np.nan):
-        echo(f"long-lag fit {_pm(lp['fit'], lp['error'], '.1f', no_bar)} ({lp['n_lags_fitted']} lags; converged only for "
-             f"runs of many slowest bending relaxation times"
+        echo(f"long-lag fit {_pm(lp['fit'], lp['error'], '.1f', no_bar)} ({lp['n_lags_fitted']} lags; converged only "
+             f"for runs of many slowest bending relaxation times"
              + (f", here {summary['relaxation']['run_over_tau']:.3g} of them)"
                 if summary.get("relaxation", {}).get("run_over_tau") is not None else ")"))
     for w in summary["warnings"]:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import click
+from dnarod.analysis.report import analyze
 
 
 @click.command("analyze")
@@ -12,8 +13,8 @@ import click
 @click.option("--forcefield", "-f", default=None,
               help="Force field (bundled name or .toml): ds and node mass for the fitted stiffness file, and the "
                    "exact tangent correlation to compare with. Default dna-default.")
-@click.option("--out", "-o", type=click.Path(file_okay=False), help="Output folder (default INPUT_analysis/): new, empty or an earlier report's (any other "
-                   "non-empty folder is refused).")
+@click.option("--out", "-o", type=click.Path(file_okay=False), help="Output folder (default INPUT_analysis/): new, "
+                   "empty or an earlier report's (any other non-empty folder is refused).")
 @click.option("--circular", is_flag=True, help="The chain is a ring: the last node joins the first; "
                                                "reports Lk, Tw and Wr.")
 @click.option("--temperature", type=float, default=None,
@@ -36,8 +37,6 @@ def analyze_cmd(input_path, topology, forcefield, out, circular, temperature, st
     INPUT is a dnarod .dtraj trajectory or an all-atom trajectory MDAnalysis reads (with
     --topology), or a PDB/mmCIF file (its models are the frames).
     """
-    from dnarod.analysis.report import analyze
-
     # the report's lines are printed when the analysis has finished: a refusal found on the way (too few
     # frames, an open chain with --circular) is then its one line on stderr, with nothing on stdout before it
     lines = []

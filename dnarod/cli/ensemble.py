@@ -2,8 +2,17 @@
 from __future__ import annotations
 
 import sys
+import math
+import re
+from pathlib import Path
 
 import click
+
+from dnarod.core.errors import ParameterError
+from dnarod.workflows.ensemble.cluster import (DaskLog, check_workers, route_dask_logs, available_cores, connect,
+                                               tls_security)
+from dnarod.workflows.ensemble.ensemble import LOG_FILE, Ensemble
+import dnarod.workflows.protocols  # noqa: F401 -- registers the protocols that specs name
 
 
 @click.command("ensemble")
@@ -37,12 +46,6 @@ def ensemble_cmd(spec, outdir, scheduler, workers, timeout, tls_ca_file, tls_cer
     OUT/results.csv, OUT/plot_<axis>.png and OUT/summary.json; dask's own log goes to OUT/ensemble.log.
     Exit status 1 if members failed, 2 for bad input, a wrong or lost scheduler or a full disk, 130 on Ctrl-C.
     """
-    import math
-    import re
-
-    import dnarod.workflows.protocols  # noqa: F401 -- registers the protocols that specs name
-    from dnarod.core.errors import ParameterError
-    from dnarod.workflows.ensemble.cluster import DaskLog, check_workers, route_dask_logs
 
     check_workers(workers)
     if not (math.isfinite(timeout) and timeout > 0):
@@ -85,10 +88,6 @@ def ensemble_cmd(spec, outdir, scheduler, workers, timeout, tls_ca_file, tls_cer
 
 def _run(spec, outdir, scheduler, workers, timeout, tls, overwrite, dashboard, progress, dask_log):
     """Check the spec, connect, run; returns the finished :class:`Ensemble`."""
-    from pathlib import Path
-
-    from dnarod.workflows.ensemble.cluster import available_cores, connect, tls_security
-    from dnarod.workflows.ensemble.ensemble import LOG_FILE, Ensemble
 
     ens = Ensemble.from_toml(spec, outdir, overwrite=overwrite)
     # certificates given here (the rest from dask's configuration); a tls:// address without them looks there only

@@ -1,7 +1,10 @@
-"""``dnarod export RUN``: (re)make a run's PDB + DCD (+ XTC) exports, a thin shell over :func:`dnarod.run.api.export_run`."""
+"""``dnarod export RUN``: (re)make a run's PDB + DCD (+ XTC) exports, a thin shell over
+:func:`dnarod.run.api.export_run`."""
 from __future__ import annotations
 
 import click
+
+from dnarod.run.api import export_run
 
 
 @click.command("export")
@@ -15,7 +18,5 @@ def export_cmd(run_dir, xtc):
     now (a run whose export failed, was skipped with --no-export, or was made before the run went on),
     each written beside the old file and put in place only when complete.
     """
-    from dnarod.run.api import export_run
-
     files = export_run(run_dir, xtc=xtc)
     click.echo("wrote: " + ", ".join(str(p) for p in files.values()))

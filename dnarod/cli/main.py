@@ -10,8 +10,14 @@ import sys
 import warnings
 
 import click
+import numpy as np
 
 from dnarod.core.errors import DnarodError, RunWarning
+from dnarod.core.io import write_failure
+from dnarod.core.forcefield import available_forcefields, load_forcefield
+from dnarod.core.units import kT
+from dnarod.core.parameters import StepParameters
+from dnarod.physics.thermal import persistence_length
 
 
 #: File-system errors that are the user's to fix (a path under a regular file, a folder where a
@@ -100,8 +106,6 @@ class DnarodGroup(click.Group):
             if exc.errno not in USER_OS_ERRORS:
                 raise
             if exc.filename and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
-                from dnarod.core.io import write_failure
-
                 click.echo(f"dnarod: error: {write_failure(exc.filename, exc)}", err=True)
                 sys.exit(2)
             where = f"{exc.filename}: " if exc.filename else ""
@@ -121,12 +125,6 @@ def main():
 @click.argument("name", required=False)
 def forcefields_cmd(name):
     """List the bundled force fields, or describe NAME (a bundled name or a .toml path)."""
-    import numpy as np
-
-    from dnarod.core.forcefield import available_forcefields, load_forcefield
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
-
     if name is None:
         for n in available_forcefields():
             ff = load_forcefield(n)
@@ -137,7 +135,6 @@ def forcefields_cmd(name):
                f"node inertia: {np.array2string(ff.node_inertia, precision=4)} amu nm^2\n"
                f"temperature: {ff.temperature:g} K\nstep types: {', '.join(sorted(ff.table))}")
     for s in sorted(ff.table):
-        from dnarod.core.parameters import StepParameters
         K, xi0 = ff.table[s]
         lp = persistence_length(StepParameters(K, xi0), ff.ds, kT(ff.temperature))
         click.echo(f"  {s}: bending persistence length (exact, {ff.temperature:g} K) {lp:.2f} nm")
@@ -153,8 +150,13 @@ main.add_command(_structure_rebuild)
 from dnarod.cli.simulate import lax_run as _lax_run, simulate_cmd as _simulate_cmd  # noqa: E402
 main.add_command(_simulate_cmd)
 main.add_command(_lax_run)
-from dnarod.cli.analyze import analyze_cmd as _analyze_cmd; main.add_command(_analyze_cmd)  # noqa: E402
-from dnarod.cli.export import export_cmd as _export_cmd; main.add_command(_export_cmd)  # noqa: E402
-from dnarod.cli.validate import validate as _validate; main.add_command(_validate)  # noqa: E402
-from dnarod.cli.ensemble import ensemble_cmd as _ensemble_cmd; main.add_command(_ensemble_cmd)  # noqa: E402
-from dnarod.cli.protocol import protocol as _protocol_cmd; main.add_command(_protocol_cmd)  # noqa: E402
+from dnarod.cli.analyze import analyze_cmd as _analyze_cmd  # noqa: E402
+main.add_command(_analyze_cmd)
+from dnarod.cli.export import export_cmd as _export_cmd  # noqa: E402
+main.add_command(_export_cmd)
+from dnarod.cli.validate import validate as _validate  # noqa: E402
+main.add_command(_validate)
+from dnarod.cli.ensemble import ensemble_cmd as _ensemble_cmd  # noqa: E402
+main.add_command(_ensemble_cmd)
+from dnarod.cli.protocol import protocol as _protocol_cmd  # noqa: E402
+main.add_command(_protocol_cmd)

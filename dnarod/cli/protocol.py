@@ -6,16 +6,20 @@ status 2 and one line, before anything runs.
 """
 from __future__ import annotations
 
+import math
+import re
+
 import click
 
 from dnarod.core.errors import DnarodError
 from dnarod.cli.simulate import CHARGE_OPTIONS
-from dnarod.workflows.protocols.curves import STARTS
+from dnarod.workflows.protocols.curves import STARTS, run_protocol
+from dnarod.workflows.ensemble.cluster import check_workers
+from dnarod.core.io import check_dir_path
+from dnarod.physics.nonbonded import nonbonded_options
 
 
 def _floats(text, what):
-    import math
-
     parts = str(text).replace(" ", "").split(",")
     if len(parts) > 1 and "" in parts:
         raise DnarodError(f"{what}: empty entry in {text!r}; give comma-separated numbers such as 0.5,1,2")
@@ -39,11 +43,9 @@ _OPTION_OF_KEY = {"time_ns": "--time", "equilibration_ns": "--equilibration", "t
 
 
 def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
-    """:func:`dnarod.workflows.protocols.curves.run_protocol` (which refuses a folder of other settings unless ``overwrite``,
-    any other non-empty folder, and a folder in use), its settings errors named by the command's options."""
-    import re
-
-    from dnarod.workflows.protocols.curves import run_protocol
+    """:func:`dnarod.workflows.protocols.curves.run_protocol` (which refuses a folder of other settings unless
+    ``overwrite``, any other non-empty folder, and a folder in use), its settings errors named by the command's
+    options."""
 
     try:
         return run_protocol(kind, axes, base, out, overwrite=overwrite, **kw)
@@ -57,9 +59,6 @@ def _run_protocol(kind, axes, base, out, overwrite=False, **kw):
 def _check_run_options(workers, out):
     """Refuse a negative worker count and an output path under a regular file, before anything runs (the
     folder's content is checked by :func:`~dnarod.workflows.protocols.curves.run_protocol`)."""
-    from dnarod.workflows.ensemble.cluster import check_workers
-    from dnarod.core.io import check_dir_path
-
     check_workers(workers)
     check_dir_path(out, what="output folder")
 
@@ -99,7 +98,6 @@ def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, 
              seed=seed, **extra)
     if equilibration_ns is not None:
         b["equilibration_ns"] = equilibration_ns
-    from dnarod.physics.nonbonded import nonbonded_options
 
     b.update(nonbonded_options(charge, cutoff_debye, salt_M, temperature_K))
     return b

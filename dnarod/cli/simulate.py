@@ -4,12 +4,18 @@ Results go to stdout, diagnostics (progress bar, warnings) to stderr.
 """
 from __future__ import annotations
 
-import functools
+import warnings
+
 
 import click
 import numpy as np
+from click.core import ParameterSource
 
 from dnarod.core.errors import ParameterError
+from dnarod.physics.nonbonded import nonbonded_options
+from dnarod.run.api import source_model, run
+from dnarod.physics.loads import tweezers
+from dnarod.run.spec import RunSpec
 
 #: ``--charge`` and ``--cutoff-debye``, shared by ``dnarod simulate`` and ``dnarod protocol`` (checked by
 #: :func:`dnarod.physics.nonbonded.nonbonded_options`).
@@ -43,10 +49,14 @@ _OPTIONS = [
                       "[default: 1.0]."),
     click.option("--integrator", type=click.Choice(["langevin", "verlet"]), default="langevin", show_default=True,
                  help="verlet: NVE (the same as --friction 0)."),
-    click.option("--platform", default=None, help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU platform "
-                      "if a GPU is present, else the CPU fast path; the choice and its reason are printed]."),
-    click.option("--threads", type=int, default=None, help="OpenMM CPU platform threads (without --platform: more than 1 selects the CPU platform, 1 the single-threaded Reference platform)."),
-    click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto", show_default=True,
+    click.option("--platform", default=None,
+                 help="OpenMM platform (CPU, Reference, CUDA, HIP, OpenCL) [default: chosen automatically: a GPU "
+                      "platform if a GPU is present, else the CPU fast path; the choice and its reason are printed]."),
+    click.option("--threads", type=int, default=None,
+                 help="OpenMM CPU platform threads (without --platform: more than 1 selects the CPU platform, 1 the "
+                      "single-threaded Reference platform)."),
+    click.option("--elastic", type=click.Choice(["auto", "plugin", "fast", "portable"]), default="auto",
+                 show_default=True,
                  help="OpenMM elastic path."),
     click.option("--excluded-volume/--no-excluded-volume", default=None,
                  help="WCA excluded volume [default: on with --engine openmm; the lax engine has none]."),
@@ -93,7 +103,8 @@ _OPTIONS = [
     click.option("--export/--no-export", default=True, show_default=True,
                  help="Also write trajectory.pdb + trajectory.dcd for VMD, mdtraj and MDAnalysis."),
     click.option("--xtc/--no-xtc", default=True, show_default=True,
-                 help="With --export, also write trajectory.xtc (frame times that mdtraj reads; its DCD reader has none)."),
+                 help="With --export, also write trajectory.xtc (frame times that mdtraj reads; its DCD reader has "
+                      "none)."),
     click.option("--progress/--no-progress", default=True, show_default=True, help="Progress bar on stderr."),
 ]
 
@@ -130,11 +141,6 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                       checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None,
                       axis="end-to-end", checkpoint_wall=None):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
-    from dnarod.physics.nonbonded import nonbonded_options
-    from dnarod.run.api import source_model
-    from dnarod.physics.loads import tweezers
-    from dnarod.run.spec import RunSpec
-
     if minimize and equilibrium:
         raise ParameterError("choose --minimize or --equilibrium, not both")
     if integrator == "verlet":
@@ -146,7 +152,8 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
         friction = 1.0
     nb_default = engine == "openmm"
     charge_options = nonbonded_options(charge, cutoff_debye, salt, temperature)
-    spec = RunSpec(**charge_options, source=source, forcefield=forcefield, engine=engine, time_ns=time_ns, temperature=temperature,
+    spec = RunSpec(**charge_options, source=source, forcefield=forcefield, engine=engine, time_ns=time_ns,
+                   temperature=temperature,
                    friction=friction, dt=dt, seed=seed, salt=salt,
                    excluded_volume=nb_default if excluded_volume is None else excluded_volume,
                    electrostatics=nb_default if electrostatics is None else electrostatics, platform=platform,
@@ -175,8 +182,6 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
 
 def _given(name):
     """True if option ``name`` (the parameter name) was given on the command line (not its default)."""
-    from click.core import ParameterSource
-
     ctx = click.get_current_context(silent=True)
     return ctx is not None and ctx.get_parameter_source(name) in (ParameterSource.COMMANDLINE,
                                                                   ParameterSource.ENVIRONMENT)
@@ -224,9 +229,6 @@ def _report(result, spec):
 
 
 def _run_command(engine, kw):
-    import warnings
-
-    from dnarod.run.api import run
 
     resume, overwrite, progress, outdir = kw.pop("resume"), kw.pop("overwrite"), kw.pop("progress"), kw.pop("outdir")
     spec = spec_from_options(engine, **kw)

@@ -23,11 +23,18 @@ from __future__ import annotations
 import csv
 import io
 import re
+import copy
+from pathlib import Path
 
 import click
 import numpy as np
 
 from dnarod.core.errors import StructureError
+from dnarod.core.io import write_text_atomic
+from dnarod.core.stepparams import to_angstrom_degrees
+from dnarod.core.strains import strains
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
 
 STEP_COLUMNS = ("step", "bp1", "bp2", "shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg",
                 "Omega1_per_nm", "Omega2_per_nm", "Omega3_per_nm", "Gamma1", "Gamma2", "Gamma3", "gap")
@@ -63,7 +70,8 @@ def _parse_map(items):
             raise StructureError(f"--map {it!r}: the parent base must be A, C, G, T or U")
         key = name.strip().upper()
         if key in out and out[key] != letter.strip().upper():
-            raise StructureError(f"--map {it!r}: {key} is already mapped to {out[key]}; give one --map per residue name")
+            raise StructureError(f"--map {it!r}: {key} is already mapped to {out[key]}; "
+                                 f"give one --map per residue name")
         out[key] = letter.strip().upper()
     return out
 
@@ -93,7 +101,7 @@ def structure_options(f):
 
 
 def _analyze(path, model, altloc, pairs_file, maps, ignore):
-    from dnarod.structure.analysis import analyze_structure
+    from dnarod.structure.analysis import analyze_structure  # loads scipy.spatial: not at the CLI's start-up
 
     extra = _parse_map(maps)
     _check_names(altloc, ignore, extra)
@@ -105,8 +113,6 @@ def _analyze(path, model, altloc, pairs_file, maps, ignore):
 def _output_path(path, option, suffixes, kind, overwrite):
     """Refuse an empty output path, a suffix the writer does not produce and (without ``--overwrite``) a file
     that exists: a name the user gave is never silently replaced or filled with another format."""
-    from pathlib import Path
-
     if path is None:
         return None
     if not str(path).strip():
@@ -122,8 +128,6 @@ def _output_path(path, option, suffixes, kind, overwrite):
 
 
 def _emit(rows, columns, csv_path, title_lines, notes, fmt):
-    from dnarod.core.io import write_text_atomic
-
     if csv_path:
         buf = io.StringIO()
         w = csv.writer(buf, lineterminator="\n")
@@ -155,12 +159,11 @@ def _only_duplex(ana, duplex):
     """Restrict an analysis to duplex ``duplex`` (1-based) for the tables."""
     if duplex is None:
         return ana
-    from dnarod.structure.selection import choose_duplex
+    from dnarod.structure.selection import choose_duplex  # loads scipy.spatial: not at the CLI's start-up
 
     if duplex < 1:
         raise StructureError(f"--duplex {duplex}: duplexes are numbered from 1")
     sel = choose_duplex(ana, duplex - 1)
-    import copy
 
     out = copy.copy(ana)
     out.duplexes = [sel.duplex]
@@ -186,8 +189,7 @@ def step_rows(ana, ds, notes=None):
     A step that is not stacked (node frames turning by nearly a half turn) keeps its 3DNA
     parameters and gets NaN strains; a line naming it is appended to ``notes``.
     """
-    from dnarod.core.stepparams import to_angstrom_degrees
-    from dnarod.core.strains import strains
+    # loads scipy.spatial: not at the CLI's start-up
     from dnarod.structure.analysis import describe_unstacked, unstacked_steps
 
     rows = []
@@ -217,8 +219,6 @@ def step_rows(ana, ds, notes=None):
 
 def pair_rows(ana):
     """Rows of the ``pairs`` table (lengths in Angstrom, angles in degrees)."""
-    from dnarod.core.stepparams import to_angstrom_degrees
-
     rows, k = [], 0
     for d in ana.duplexes:
         bp = to_angstrom_degrees(d.bp_params)
@@ -237,8 +237,6 @@ def pair_rows(ana):
 @structure_options
 def steps(input_path, csv_path, forcefield, duplex, model, altloc, pairs_file, maps, ignore):
     """Step parameters (3DNA convention) and SMK strains of every base-pair step of INPUT (PDB/mmCIF)."""
-    from dnarod.core.forcefield import load_forcefield
-
     _output_path(csv_path, "--csv", (".csv",), "a table", True)
     ff = load_forcefield(forcefield)
     ana = _only_duplex(_analyze(input_path, model, altloc, pairs_file, maps, ignore), duplex)
@@ -282,6 +280,7 @@ def pairs(input_path, csv_path, duplex, model, altloc, pairs_file, maps, ignore)
 def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, altloc, pairs_file, maps, ignore,
           overwrite):
     """A dnarod model (.npz) from a structure INPUT (nodes at its base-pair frames) or from --sequence."""
+    # loads scipy.spatial: not at the CLI's start-up
     from dnarod.structure.builders import model_from_sequence, model_from_structure
 
     if sequence is not None and not re.fullmatch(r"[ACGTacgt]+", sequence):
@@ -319,7 +318,7 @@ def build(input_path, sequence, output, forcefield, intrinsic, duplex, model, al
 def rebuild(model_path, output, hydrogens, minimize, overwrite):
     """An all-atom PDB/mmCIF from a dnarod model file (.npz): standard bases in the node frames and a
     backbone closed by restrained Amber14 minimisation (OBC2), checked bond by bond."""
-    from dnarod.core.model import RodModel
+    # loads scipy.spatial: not at the CLI's start-up
     from dnarod.structure.rebuild import base_pair_frames, rebuild_model
 
     _output_path(output, "-o", (".pdb", ".cif", ".mmcif"), "an all-atom structure", overwrite)
@@ -331,7 +330,7 @@ def rebuild(model_path, output, hydrogens, minimize, overwrite):
         click.echo(f"wrote {output}: {len(atoms)} atoms, {2 * m.n_nodes} nucleotides (rigid placement, backbone "
                    f"not closed)")
         return
-    from dnarod.structure.allatom import rebuild_allatom
+    from dnarod.structure.allatom import rebuild_allatom  # loads scipy.spatial: not at the CLI's start-up
 
     if not m.sequence:
         raise StructureError("rebuild: the model has no sequence; build it from a sequence or a structure")

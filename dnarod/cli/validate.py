@@ -6,7 +6,9 @@ import time
 
 import click
 
-from dnarod.validate import CHECKS
+from dnarod.validate import CHECKS, run_validation
+from dnarod.core.io import check_dir_path
+from dnarod.validate.report import summary_table
 
 
 @click.command("validate")
@@ -25,10 +27,6 @@ def validate(quick, out_dir, only, overwrite):
     OUT must be new, empty, or a report folder: a folder holding a report is refused unless --overwrite. Exit
     status 0 if every check passed, 1 otherwise.
     """
-    from dnarod.core.io import check_dir_path
-    from dnarod.validate import run_validation
-    from dnarod.validate.report import summary_table
-
     check_dir_path(out_dir, what="report folder")  # before the checks run, not after
     t0 = time.perf_counter()
     res = run_validation(out_dir, quick=quick, checks=list(only) or None, echo=lambda m: click.echo(m, err=True),
@@ -36,5 +34,6 @@ def validate(quick, out_dir, only, overwrite):
     wall = time.perf_counter() - t0
     click.echo(summary_table(res))
     ok = all(r["passed"] for r in res["checks"].values())
-    click.echo(f"{'all checks passed' if ok else 'SOME CHECKS FAILED'}; runtime {wall:.1f} s; report: {out_dir}/report.md")
+    click.echo(f"{'all checks passed' if ok else 'SOME CHECKS FAILED'}; runtime {wall:.1f} s; "
+               f"report: {out_dir}/report.md")
     sys.exit(0 if ok else 1)

@@ -69,7 +69,8 @@ def jacobian_strains_to_step_parameters(xi, ds, h=1e-4):
     for j in range(6):
         e = np.zeros(6)
         e[j] = h
-        f = lambda s: strains_to_step_parameters(xi + s * e, ds)
+        def f(s):
+            return strains_to_step_parameters(xi + s * e, ds)
         J[:, j] = (8 * (f(1) - f(-1)) - (f(2) - f(-2))) / (12 * h)
     return J
 

@@ -17,6 +17,7 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.strains import step_geometry, strains
+from dnarod.core.errors import ParameterError
 
 
 def stresses(Omega, Gamma, params):
@@ -76,8 +77,6 @@ def energy(positions, frames, params, ds, closure=None):
 
 def _check_counts(Omega, params):
     if Omega.shape[0] != params.n_steps:
-        from dnarod.core.errors import ParameterError
-
         raise ParameterError(
             f"the chain has {Omega.shape[0]} steps but the parameters have {params.n_steps}; "
             f"an open chain of N nodes needs N-1 steps, a circular one N"

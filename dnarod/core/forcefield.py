@@ -26,6 +26,7 @@ import csv
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,6 +37,7 @@ from dnarod.core.parameters import StepParameters, check_stiffness
 from dnarod.core.strains import Closure, chain_from_strains
 from dnarod.core.units import kT
 from dnarod.core.units import KG_PER_M3, PA, PN
+from dnarod.core.io import write_text_atomic
 
 
 #: unit string -> (dimension, factor to dnarod's internal unit)
@@ -58,7 +60,7 @@ SEARCH_DIRS = [
 ]
 
 
-def data_dir():
+def data_dir() -> Path:
     """The bundled ``data/`` directory (installed wheel or source tree)."""
     for d in (_PACKAGE / "_bundled" / "data", _PACKAGE.parent / "data"):
         if d.is_dir():
@@ -66,16 +68,17 @@ def data_dir():
     raise ParameterError("cannot find dnarod's bundled data directory; reinstall dnarod")
 
 
-def available_forcefields():
+def available_forcefields() -> list[str]:
     """Names of the bundled force fields."""
-    names = set()
+    names: set[str] = set()
     for d in SEARCH_DIRS:
         if d.is_dir():
             names.update(p.stem for p in d.glob("*.toml"))
     return sorted(names)
 
 
-def quantity(table, key, dimension, where, shape=None):
+def quantity(table: dict[str, Any], key: str, dimension: str, where: str,
+             shape: tuple[int, ...] | None = None) -> np.ndarray:
     """Read ``table[key] = {value, unit}`` and convert it to dnarod units."""
     if key not in table:
         raise ParameterError(f"{where}: missing entry '{key}' (a table {{ value = ..., unit = \"...\" }})")
@@ -100,7 +103,11 @@ def quantity(table, key, dimension, where, shape=None):
     return value
 
 
-def normalise_sequence(sequence, where="sequence"):
+#: Watson-Crick complement of a base letter (U pairs with A, inosine I with C): the one table of it.
+COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
+
+
+def normalise_sequence(sequence: str, where: str = "sequence") -> str:
     """Upper-case DNA sequence (A, C, G, T); whitespace removed.
 
     Raises
@@ -120,7 +127,7 @@ def normalise_sequence(sequence, where="sequence"):
     return seq
 
 
-def sequence_steps(sequence, circular=False):
+def sequence_steps(sequence: str, circular: bool = False) -> list[str]:
     """Dinucleotide step names along strand I, e.g. ``"ACG" -> ["AC", "CG"]`` (plus ``"GA"`` if circular)."""
     seq = normalise_sequence(sequence)
     steps = [seq[i:i + 2] for i in range(len(seq) - 1)]
@@ -157,12 +164,13 @@ class ForceField:
     node_mass: float
     node_inertia: np.ndarray
     temperature: float
-    table: dict
+    table: dict[str, tuple[np.ndarray, np.ndarray]]
     description: str = ""
-    sources: list = field(default_factory=list)
+    sources: list[Any] = field(default_factory=list)
     path: str | None = None
 
-    def step_parameters(self, sequence=None, circular=False, n_steps=None):
+    def step_parameters(self, sequence: str | None = None, circular: bool = False,
+                        n_steps: int | None = None) -> StepParameters:
         """Per-step parameters for a sequence (strand I, 5'->3').
 
         Parameters
@@ -197,7 +205,8 @@ class ForceField:
         return StepParameters(np.array([self.table[s][0] for s in names]),
                               np.array([self.table[s][1] for s in names]), names)
 
-    def model_from_sequence(self, sequence=None, circular=False, n_nodes=None):
+    def model_from_sequence(self, sequence: str | None = None, circular: bool = False,
+                            n_nodes: int | None = None) -> RodModel:
         """A model at its intrinsic (zero-energy) shape.
 
         For a circular chain the screw closure is chosen so the intrinsic shape closes
@@ -235,7 +244,8 @@ class ForceField:
                         np.tile(self.node_inertia, (n, 1)), closure=closure, sequence=sequence,
                         metadata={"forcefield": self.name})
 
-    def ring(self, sequence=None, n_nodes=None, linking_number=None, delta_linking_number=0):
+    def ring(self, sequence: str | None = None, n_nodes: int | None = None, linking_number: int | None = None,
+             delta_linking_number: int = 0) -> RodModel:
         """A planar closed ring (see :meth:`RodModel.ring`).
 
         Parameters
@@ -323,7 +333,7 @@ def _sequence_3dna_table(doc, where, base, ds, temperature):
     for row in _read_csv(base / src["means"], where):
         means[row["step"]] = np.array([float(row[c]) for c in
                                        ("shift_A", "slide_A", "rise_A", "tilt_deg", "roll_deg", "twist_deg")])
-    consts = {}
+    consts: dict[str, np.ndarray] = {}
     for row in _read_csv(base / src["force_constants"], where):
         F = consts.setdefault(row["step"], np.full((6, 6), np.nan))
         F[order.index(row["row"])] = [float(row[c]) for c in order]
@@ -338,7 +348,10 @@ def _sequence_3dna_table(doc, where, base, ds, temperature):
     return table
 
 
-def material_rod_table(young_modulus, shear_modulus, radius, density, shear_coefficient, ds, Omega0, Gamma0):
+# one argument per material constant of the rod (no defaults: each is a property of the material)
+def material_rod_table(young_modulus: float, shear_modulus: float, radius: float, density: float,
+                       shear_coefficient: float, ds: float, Omega0: np.ndarray,
+                       Gamma0: np.ndarray) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
     """Stiffness, node mass and inertia of a uniform solid circular rod.
 
     Parameters
@@ -371,7 +384,7 @@ def material_rod_table(young_modulus, shear_modulus, radius, density, shear_coef
     return K, xi0, density * area * ds, density * ds * np.array([I, I, 2 * I])
 
 
-def load_forcefield(name_or_path):
+def load_forcefield(name_or_path: str | Path) -> ForceField:
     """Load a force field by bundled name (see :func:`available_forcefields`) or file path.
 
     Raises
@@ -448,8 +461,10 @@ def _toml_str(text):
     return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
 
 
-def write_forcefield(path, name, table, ds, node_mass, node_inertia, temperature=300.0, description="",
-                     sources=(), header=""):
+# one argument per entry of the force-field file
+def write_forcefield(path: str | Path, name: str, table: dict[str, tuple[np.ndarray, np.ndarray]], ds: float,
+                     node_mass: float, node_inertia: np.ndarray, temperature: float = 300.0, description: str = "",
+                     sources: tuple[Any, ...] | list[Any] = (), header: str = "") -> None:
     """Write a force field file that :func:`load_forcefield` reads (atomically).
 
     Parameters
@@ -472,11 +487,12 @@ def write_forcefield(path, name, table, ds, node_mass, node_inertia, temperature
     header : str
         Comment lines put at the top of the file.
     """
-    from dnarod.core.io import write_text_atomic
-
-    num = lambda v: f"{float(v):.12g}"
-    vec = lambda v: "[" + ", ".join(num(x) for x in v) + "]"
-    mat = lambda M: "[" + ", ".join(vec(r) for r in M) + "]"
+    def num(v):
+        return f"{float(v):.12g}"
+    def vec(v):
+        return "[" + ", ".join(num(x) for x in v) + "]"
+    def mat(M):
+        return "[" + ", ".join(vec(r) for r in M) + "]"
 
     def block(K, xi0):
         K, xi0 = check_stiffness(K, name=f"{name}"), np.asarray(xi0, float)

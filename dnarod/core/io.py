@@ -7,6 +7,11 @@ import json
 import os
 import tempfile
 from pathlib import Path
+import secrets
+import shutil
+import socket
+import math
+import warnings
 
 import numpy as np
 
@@ -156,8 +161,6 @@ def writing(path, needed=None):
 def _temp_name(name, ascii_only=False, suffix=""):
     """Name of a temporary file beside ``name``: hidden, at most 255 bytes (a long ``name`` is cut), ASCII with
     ``ascii_only``. ``suffix`` ends it (a writer that picks its format by the extension)."""
-    import secrets
-
     tag = secrets.token_hex(4)
     if ascii_only:
         stem = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name)
@@ -191,8 +194,6 @@ def _ascii_folder(folder):
             os.symlink(folder, link)
             yield link
         finally:
-            import shutil
-
             shutil.rmtree(link_dir, ignore_errors=True)
     finally:
         if fd is not None:
@@ -207,7 +208,6 @@ def ascii_alias(*paths):
     if all(p is None or str(p).isascii() for p in paths):
         yield [None if p is None else str(p) for p in paths]
         return
-    import shutil
 
     folder = Path(tempfile.mkdtemp(prefix="dnarod-"))
     try:
@@ -335,8 +335,6 @@ def remove_stale_stages(folder):
     """Remove the hidden folders (:data:`STAGE_PREFIX`) left in ``folder`` by an ``--overwrite`` that was killed
     before it finished. Call it while holding ``folder``'s lock (:func:`folder_lock`): a stage of a live writer
     would be removed too."""
-    import shutil
-
     folder = Path(folder)
     if not folder.is_dir():
         return
@@ -376,8 +374,6 @@ def staged_folder(folder, names, what="output", resume_name=None):
         raises, and the same call (the command run again) continues in it (for outputs made of resumable parts:
         a protocol's members). Without it the stage is a fresh hidden folder, removed on failure.
     """
-    import shutil
-
     folder = ensure_dir(folder)
     remove_stale_stages(folder)
     try:
@@ -522,8 +518,6 @@ def folder_lock(folder, what="output folder"):
                           f"choose another folder with -o")
     try:
         if previous:
-            import warnings
-
             warnings.warn(f"{folder}: took over the lock left by {_describe_owner(previous)}, which ended without "
                           f"releasing it (killed?); its files are kept", RuntimeWarning, stacklevel=3)
         with contextlib.suppress(OSError):  # the pid is for messages; on a full disk the lock holds without it
@@ -534,7 +528,7 @@ def folder_lock(folder, what="output folder"):
         remove_stale_stages(folder)  # left by an --overwrite that was killed: every live stage's writer holds this lock
         yield folder
     finally:
-        import fcntl
+        import fcntl  # POSIX only: imported where a lock is taken
 
         with contextlib.suppress(OSError):
             if _same_file(fh, path):  # ours still: remove it while holding the lock (see _take_lock)
@@ -548,7 +542,7 @@ def _take_lock(path):
     """``(open file holding the flock, text the lock file held before)``, or ``(None, its text)`` when another
     process holds it. A holder removes the file before releasing the lock, so a lock won on a file that is no
     longer at ``path`` is a lock on nothing: it is dropped and taken again on the new file."""
-    import fcntl
+    import fcntl  # POSIX only: imported where a lock is taken
 
     for _ in range(100):
         fh = open(path, "a+")
@@ -577,8 +571,6 @@ def _same_file(fh, path):
 
 
 def _hostname():
-    import socket
-
     return socket.gethostname()
 
 
@@ -667,9 +659,6 @@ def jsonable(obj, nonfinite=None):
     nonfinite : None or "repr"
         What NaN and infinities become: ``None`` (JSON null) or their ``repr`` string.
     """
-    import math
-
-    import numpy as np
 
     if isinstance(obj, dict):
         return {str(k): jsonable(v, nonfinite) for k, v in obj.items()}

@@ -14,14 +14,18 @@ import hashlib
 import json
 import zipfile
 from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from dnarod.core import energy as _energy
 from dnarod.core.errors import GeometryError, ParameterError, base_pair
 from dnarod.core.parameters import StepParameters
 from dnarod.core.rotations import check_frames
 from dnarod.core.strains import Closure, chain_from_strains, strains
+from dnarod.core.io import atomic_path, file_kind
 
 
 @dataclass
@@ -56,9 +60,9 @@ class RodModel:
     inertia: np.ndarray
     closure: Closure | None = None
     sequence: str | None = None
-    metadata: dict = field(default_factory=dict)
+    metadata: dict[str, Any] = field(default_factory=dict)
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.positions = np.asarray(self.positions, dtype=float)
         if self.positions.ndim != 2 or self.positions.shape[1] != 3:
             raise GeometryError(f"positions must have shape (n_nodes, 3), got {self.positions.shape}")
@@ -94,54 +98,65 @@ class RodModel:
 
     # --- sizes -------------------------------------------------------------------------
     @property
-    def n_nodes(self):
+    def n_nodes(self) -> int:
+        """Number of nodes (base pairs)."""
         return self.positions.shape[0]
 
     @property
-    def n_steps(self):
+    def n_steps(self) -> int:
+        """Number of steps: ``n_nodes - 1`` (open chain) or ``n_nodes`` (circular)."""
         return self.params.n_steps
 
     @property
-    def circular(self):
+    def circular(self) -> bool:
+        """Whether the chain is closed (a screw closure joins the last node to the first)."""
         return self.closure is not None
 
     # --- physics -----------------------------------------------------------------------
-    def strains(self, positions=None, frames=None):
+    def strains(self, positions: npt.ArrayLike | None = None,
+                frames: npt.ArrayLike | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Strains ``(Omega, Gamma)``, each shape (n_steps, 3), of this pose or of a given one."""
         return strains(self._pos(positions), self._frm(frames), self.ds, self.closure)
 
-    def energy(self, positions=None, frames=None):
+    def energy(self, positions: npt.ArrayLike | None = None, frames: npt.ArrayLike | None = None) -> float:
         """Elastic energy, kJ/mol."""
         return _energy.energy(self._pos(positions), self._frm(frames), self.params, self.ds, self.closure)
 
-    def loads(self, positions=None, frames=None):
+    def loads(self, positions: npt.ArrayLike | None = None,
+              frames: npt.ArrayLike | None = None) -> tuple[float, np.ndarray, np.ndarray]:
         """``(E, F, tau)``: energy (kJ/mol), lab forces (n_nodes, 3) and torques (n_nodes, 3)."""
         return _energy.loads(self._pos(positions), self._frm(frames), self.params, self.ds, self.closure)
 
-    def with_pose(self, positions, frames):
+    def with_pose(self, positions: npt.ArrayLike, frames: npt.ArrayLike) -> RodModel:
         """A copy of the model with another pose (validated)."""
         return replace(self, positions=np.array(positions, float), frames=np.array(frames, float))
 
-    def _pos(self, p):
+    def _pos(self, p: npt.ArrayLike | None) -> np.ndarray:
         return self.positions if p is None else np.asarray(p, float)
 
-    def _frm(self, f):
+    def _frm(self, f: npt.ArrayLike | None) -> np.ndarray:
         return self.frames if f is None else np.asarray(f, float)
 
     # --- builders ----------------------------------------------------------------------
     @classmethod
-    def from_strains(cls, Omega, Gamma, params, ds, mass, inertia, r0=None, frame0=None, sequence=None):
+    # one argument per field of the model and of the chain's first node
+    def from_strains(cls, Omega: np.ndarray, Gamma: np.ndarray, params: StepParameters, ds: float,
+                     mass: npt.ArrayLike, inertia: npt.ArrayLike, r0: npt.ArrayLike | None = None,
+                     frame0: npt.ArrayLike | None = None, sequence: str | None = None) -> RodModel:
         """An open chain whose pose has the given strains (exact inverse of the strain map)."""
         pos, frm = chain_from_strains(Omega, Gamma, ds, r0, frame0)
-        return cls(pos, frm, params, ds, mass, inertia, sequence=sequence)
+        return cls(pos, frm, params, ds, np.asarray(mass, float), np.asarray(inertia, float), sequence=sequence)
 
     @classmethod
-    def intrinsic(cls, params, ds, mass, inertia, sequence=None, r0=None, frame0=None):
+    def intrinsic(cls, params: StepParameters, ds: float, mass: npt.ArrayLike, inertia: npt.ArrayLike,
+                  sequence: str | None = None, r0: npt.ArrayLike | None = None,
+                  frame0: npt.ArrayLike | None = None) -> RodModel:
         """An open chain at its intrinsic (zero-force) shape."""
         return cls.from_strains(params.Omega0, params.Gamma0, params, ds, mass, inertia, r0, frame0, sequence)
 
     @classmethod
-    def ring(cls, params, ds, mass, inertia, linking_number, rise=None, sequence=None):
+    def ring(cls, params: StepParameters, ds: float, mass: npt.ArrayLike, inertia: npt.ArrayLike, linking_number: int,
+             rise: float | None = None, sequence: str | None = None) -> RodModel:
         """A planar circular ring (identity closure) with a given integer linking number.
 
         Nodes lie on a circle whose chords all have length ``rise``; each node's d3 points along
@@ -183,11 +198,11 @@ class RodModel:
         d1 = np.cos(phi)[:, None] * normal + np.sin(phi)[:, None] * binormal
         d2 = np.cross(d3, d1)
         frames = np.stack([d1, d2, d3], axis=2)
-        return cls(pos, frames, params, ds, mass, inertia, closure=Closure.identity(), sequence=sequence,
-                   metadata={"linking_number": int(linking_number)})
+        return cls(pos, frames, params, ds, np.asarray(mass, float), np.asarray(inertia, float),
+                   closure=Closure.identity(), sequence=sequence, metadata={"linking_number": int(linking_number)})
 
     # --- file format ---------------------------------------------------------------------
-    def save(self, path):
+    def save(self, path: str | Path) -> None:
         """Write the model to a ``.npz`` file (format documented in README, "Model files").
 
         Arrays: ``positions`` (nm), ``frames``, ``stiffness``, ``intrinsic``, ``mass`` (amu),
@@ -195,8 +210,6 @@ class RodModel:
         string with ``ds``, ``sequence``, ``step_names``, ``format`` and ``metadata``.
         The file is written atomically (temporary file, then rename).
         """
-        from dnarod.core.io import atomic_path
-
         meta = dict(format="dnarod-model", version=1, ds=self.ds, sequence=self.sequence,
                     step_names=list(self.params.names), metadata=self.metadata)
         arrays = dict(positions=self.positions, frames=self.frames, stiffness=self.params.stiffness,
@@ -206,13 +219,11 @@ class RodModel:
             arrays.update(closure_Q=self.closure.Q, closure_t=self.closure.t)
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as fh:
-                np.savez(fh, **arrays)
+                np.savez(fh, **arrays)  # type: ignore[arg-type]  # numpy's stub types **kwds as bool
 
     @classmethod
-    def load(cls, path):
+    def load(cls, path: str | Path) -> RodModel:
         """Read a model written by :meth:`save`."""
-        from dnarod.core.io import file_kind
-
         kind = file_kind(path)
         if kind is not None and kind not in ("a zip/.npz archive", "an empty file"):
             # numpy would try to unpickle it and suggest allow_pickle=True: say what the file is instead
@@ -234,7 +245,7 @@ class RodModel:
                                  f".npz written by `dnarod build` or a run's final_model.npz") from None
 
 
-def model_fingerprint(model, pose=True):
+def model_fingerprint(model: RodModel, pose: bool = True) -> str:
     """SHA-256 of everything that defines the mechanical system: sizes, sequence, parameters,
     masses, inertias, closure, and (with ``pose``) the pose."""
     h = hashlib.sha256()

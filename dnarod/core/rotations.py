@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dnarod.core.errors import GeometryError
+from dnarod.core.errors import GeometryError, base_pair, step_name
 
 #: Largest rotation angle (rad) between neighbouring frames that the Cayley chart accepts.
 #: At pi the chart is undefined; within ``MAX_CAYLEY_ANGLE`` of it the strain is > 2e4 / ds.
@@ -157,8 +157,6 @@ def rotation_about_axis(axis, angle):
 def _where(what, loc):
     """The item a message names: a step or a node numbered from 1 as `dnarod steps` does (base pair k+1, step k+1
     between base pairs k+1 and k+2), any other ``what`` with its index as given."""
-    from dnarod.core.errors import base_pair, step_name
-
     if len(loc) == 1 and what == "step":
         return step_name(loc[0])
     if len(loc) == 1 and what == "node":

@@ -89,7 +89,8 @@ def step_parameters_with_midframe(L1, o1, L2, o2):
     roll = gamma * np.cos(phi)
     tilt = gamma * np.sin(phi)
     d = o2 - o1
-    dot = lambda a: np.einsum("...i,...i->...", d, a)
+    def dot(a):
+        return np.einsum("...i,...i->...", d, a)
     params = np.stack([dot(xm), dot(ym), dot(zm), tilt, roll, twist], axis=-1)
     mid = np.stack([xm, ym, zm], axis=-1)
     return params, mid, 0.5 * (o1 + o2)

@@ -150,7 +150,8 @@ def strains_dot_form(positions, frames, ds):
     Omega, Gamma : ndarray, shape (n_nodes - 1, 3)
     """
     d = [frames[:, :, a] for a in range(3)]
-    dot = lambda a, b: np.einsum("ki,ki->k", d[a][:-1], d[b][1:])  # d_a(k) . d_b(k+1)
+    def dot(a, b):
+        return np.einsum("ki,ki->k", d[a][:-1], d[b][1:])  # d_a(k) . d_b(k+1)
     D = 1.0 + dot(0, 0) + dot(1, 1) + dot(2, 2)
     Om = np.stack([dot(2, 1) - dot(1, 2), dot(0, 2) - dot(2, 0), dot(1, 0) - dot(0, 1)], axis=1)
     Omega = 2.0 * Om / (ds * D[:, None])

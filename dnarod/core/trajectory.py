@@ -34,6 +34,7 @@ import json
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+import contextlib
 
 import numpy as np
 
@@ -100,7 +101,6 @@ class Trajectory:
         return self.n_frames
 
     def __getitem__(self, index):
-        sel = lambda a: None if a is None else a[index]
         idx = np.arange(self.n_frames)[index]
         if np.ndim(idx) == 0:
             idx = [int(idx)]
@@ -184,8 +184,6 @@ def load_trajectory(path):
 
 
 def _quiet():
-    import contextlib
-
     return contextlib.suppress(OSError)
 
 

@@ -15,10 +15,12 @@ import csv
 import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
+import re
 
 import numpy as np
 
-from dnarod.core.units import NM_PER_ANGSTROM, PN
+from dnarod.core.units import NM_PER_ANGSTROM, PN, kT, AVOGADRO
+from dnarod.core.forcefield import data_dir
 
 #: Quantities the issue asks for that could not be read in any stored source (so nothing is bundled for them),
 #: or of which only a weaker form could be read (the entry says what is still missing).
@@ -97,8 +99,6 @@ class Measurement:
 
 def experimental_dir():
     """``data/experimental`` of the bundled data directory."""
-    from dnarod.core.forcefield import data_dir
-
     return Path(data_dir()) / "experimental"
 
 
@@ -126,8 +126,6 @@ def _m(row, quantity, value, unit, uncertainty=None, force_pN=None, salt_M=None,
 
 def cite_short(source):
     """Short label of a ``source`` string: ``"Wang et al. 1997"``, or the journal reference when no year/author."""
-    import re
-
     year = re.search(r"\b(?:19|20)\d\d\b", source)
     name = re.match(r"([A-Z][\w'-]+)(?: & ([A-Z][\w'-]+))?(,| et al)?", source)
     if year and name:
@@ -175,8 +173,7 @@ def wlc_extension_band(forces_pN, salt_M, stretch_modulus_pN, temperature):
     """Relative extension x/L (extensible WLC, Bouchiat interpolation) implied by the measured persistence
     lengths at ``salt_M``: ``(low, high)`` arrays over ``forces_pN`` (pN) with the model's stretch modulus (pN)
     and kT at ``temperature`` (K). Not measured points: those could not be read (:data:`MISSING`)."""
-    from dnarod.core.units import kT
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension  # loads scipy.optimize
 
     lo, hi, _ = persistence_length_band(salt_M)
     F = np.atleast_1d(np.asarray(forces_pN, float))
@@ -206,8 +203,6 @@ def effective_torsional_persistence(temperature=298.15):
     ``temperature`` (K): the captions read do not state the experiments' temperature, so the conversion is
     the caller's choice and is written into ``conditions``.
     """
-    from dnarod.core.units import kT
-
     out = []
     for r in read_table("effective_torsional_stiffness.csv"):
         salts = [float(s) for s in r.get("salt_M_values", "").split(";") if s.strip()]
@@ -442,8 +437,6 @@ def plectoneme_geometry_reference(quantity=None):
 
 def _erg_cm_to_md():
     """1 erg cm per molecule in kJ/mol nm (1e-9 J m = 1e-9 J * 1e9 nm, times Avogadro / 1000)."""
-    from dnarod.core.units import AVOGADRO
-
     return 1e-9 * 1e9 * AVOGADRO / 1000.0
 
 

@@ -23,18 +23,24 @@ of the wrong shape or of an incompatible unit raises :class:`~dnarod.core.errors
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from dnarod.core.errors import ParameterError
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.core.model import RodModel
+from dnarod.core.units import PN
 
 __all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
-           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls", "tweezers",
-           "pull_axis", "ANCHORS", "AXES"]
+           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls",
+           "tweezers", "pull_axis", "ANCHORS", "AXES"]
 
 
-def _md_units():
+def _md_units() -> dict[str, Any]:
     from openmm import unit
 
     return dict(force=unit.kilojoule_per_mole / unit.nanometer, torque=unit.kilojoule_per_mole,
@@ -42,7 +48,7 @@ def _md_units():
                 rate=unit.nanosecond**-1)
 
 
-def as_md(value, md_unit, shape, what):
+def as_md(value: Any, md_unit: Any, shape: tuple[int, ...], what: str) -> Any:
     """Convert a number/array or Quantity to MD units and check its shape.
 
     Parameters
@@ -87,9 +93,9 @@ class PullingForce:
     """Constant lab force (kJ/mol/nm, shape (3,)) on node ``node`` (negative counts from the end)."""
 
     node: int
-    force: object
+    force: Any  # (3,) array_like or Quantity; an ndarray in kJ/mol/nm after construction
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.force = as_md(self.force, "force", (3,), f"pulling force on node {self.node}")
 
 
@@ -98,9 +104,9 @@ class Torque:
     """Constant lab torque (kJ/mol, shape (3,)) on node ``node`` about its centre."""
 
     node: int
-    torque: object
+    torque: Any  # (3,) array_like or Quantity; an ndarray in kJ/mol after construction
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.torque = as_md(self.torque, "torque", (3,), f"torque on node {self.node}")
 
 
@@ -124,13 +130,13 @@ class RotationClamp:
     """
 
     node: int
-    k: object
-    frame: np.ndarray | None = None
-    axis: np.ndarray | None = None
+    k: Any  # float or Quantity; a float in kJ/mol after construction
+    frame: npt.ArrayLike | None = None
+    axis: npt.ArrayLike | None = None
     turns: float = 0.0
     turns_per_ns: float | None = None
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.k = as_md(self.k, "torque", (), f"rotation clamp stiffness on node {self.node}")
         if self.k <= 0:
             raise ParameterError(f"rotation clamp stiffness on node {self.node} must be positive, got {self.k}")
@@ -169,10 +175,10 @@ class Trap:
     (default: the node's starting position)."""
 
     node: int
-    k: object
-    centre: object = None
+    k: Any  # float or Quantity; a float in kJ/mol/nm^2 after construction
+    centre: Any = None  # (3,) array_like or Quantity, nm; None: the node's starting position
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.k = as_md(self.k, "stiffness", (), f"trap stiffness on node {self.node}")
         if self.k <= 0:
             raise ParameterError(f"trap stiffness on node {self.node} must be positive, got {self.k}")
@@ -203,7 +209,7 @@ class Walls:
     k: float = 100.0
     skip: int = 3
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.k = as_md(self.k, "stiffness", (), "wall stiffness")
         if self.k <= 0:
             raise ParameterError(f"wall stiffness must be positive, got {self.k}")
@@ -215,7 +221,7 @@ class Walls:
 LOAD_TYPES = (PullingForce, Torque, RotationClamp, Clamp, Trap, Walls)
 
 
-def resolve_node(node, n_nodes, what="load"):
+def resolve_node(node: int, n_nodes: int, what: str = "load") -> int:
     """A node index in range (negative indices count from the end)."""
     try:
         k = int(node)
@@ -226,7 +232,7 @@ def resolve_node(node, n_nodes, what="load"):
     return k % n_nodes
 
 
-def clamp_angle(clamp, time_ps, duration_ps=None):
+def clamp_angle(clamp: RotationClamp, time_ps: float, duration_ps: float | None = None) -> float:
     """Angle (rad) by which a rotation clamp's target has turned at ``time_ps``.
 
     ``turns`` are spread linearly over ``duration_ps`` (the run length, ps); ``turns_per_ns`` is a rate.
@@ -251,10 +257,8 @@ class ResolvedClamp:
     axis: np.ndarray
     load: RotationClamp
 
-    def target(self, angle):
+    def target(self, angle: float) -> np.ndarray:
         """Target frame (3, 3) turned by ``angle`` rad about the axis."""
-        from dnarod.core.rotations import rotation_about_axis
-
         return rotation_about_axis(self.axis, float(angle)) @ self.frame0
 
 
@@ -280,25 +284,27 @@ class ResolvedLoads:
     clamped: np.ndarray
     force: np.ndarray
     torque: np.ndarray
-    traps: list = field(default_factory=list)
-    rotation_clamps: list = field(default_factory=list)
-    loads: tuple = ()
+    traps: list[tuple[int, float, np.ndarray]] = field(default_factory=list)
+    rotation_clamps: list[ResolvedClamp] = field(default_factory=list)
+    loads: tuple[Any, ...] = ()
     walls: Walls | None = None
 
     @property
-    def position_dependent(self):
+    def position_dependent(self) -> bool:
         """True if some load depends on the pose (traps, rotation clamps)."""
         return bool(self.traps or self.rotation_clamps)
 
     @property
-    def empty(self):
+    def empty(self) -> bool:
+        """True if there are no loads at all (no clamp, force, torque, trap or rotation clamp)."""
         return not (self.clamped.any() or self.force.any() or self.torque.any() or self.position_dependent)
 
-    def clamp_angles(self, time_ps=0.0, duration_ps=None):
+    def clamp_angles(self, time_ps: float = 0.0, duration_ps: float | None = None) -> np.ndarray:
         """Angles (rad) of the rotation clamps' targets at ``time_ps``; shape (n_rotation_clamps,)."""
         return np.array([clamp_angle(c.load, time_ps, duration_ps) for c in self.rotation_clamps])
 
-    def evaluate(self, positions, frames, angles=None):
+    def evaluate(self, positions: np.ndarray, frames: np.ndarray,
+                 angles: Sequence[float] | np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
         """Energy and lab loads of all external loads at a pose (clamped nodes not zeroed).
 
         Parameters
@@ -334,7 +340,7 @@ class ResolvedLoads:
             tau[rc.node] += t_c
         return E, F, tau
 
-    def clamp_torques(self, frames, angles=None):
+    def clamp_torques(self, frames: np.ndarray, angles: Sequence[float] | np.ndarray | None = None) -> np.ndarray:
         """Lab torque (kJ/mol) each rotation clamp applies to its node; shape (n_rotation_clamps, 3)."""
         out = np.zeros((len(self.rotation_clamps), 3))
         for i, rc in enumerate(self.rotation_clamps):
@@ -343,7 +349,7 @@ class ResolvedLoads:
         return out
 
 
-def rotation_clamp_load(L, T, k):
+def rotation_clamp_load(L: np.ndarray, T: np.ndarray, k: float) -> tuple[float, np.ndarray]:
     """Energy ``k (1 - cos theta) = k (3 - tr(T^T L)) / 2`` (kJ/mol) and lab torque (kJ/mol) on frame L.
 
     With lab virtual rotations ``dL = hat(dth) L``: ``d tr(T^T L) = dth . v`` with
@@ -354,7 +360,8 @@ def rotation_clamp_load(L, T, k):
     return 0.5 * k * (3.0 - np.trace(S)), 0.5 * k * v
 
 
-def resolve_loads(loads, model, positions=None, frames=None):
+def resolve_loads(loads: Any, model: RodModel, positions: np.ndarray | None = None,
+                  frames: np.ndarray | None = None) -> ResolvedLoads:
     """Resolve a sequence of loads against a model.
 
     Parameters
@@ -394,7 +401,7 @@ def resolve_loads(loads, model, positions=None, frames=None):
         if isinstance(load, Clamp):
             clamped[resolve_node(load.node, n, "Clamp")] = True
     out = ResolvedLoads(n, clamped, np.zeros((n, 3)), np.zeros((n, 3)), loads=loads)
-    seen_rc = set()
+    seen_rc: set[int] = set()
     walls = [ld for ld in loads if isinstance(ld, Walls)]
     if len(walls) > 1:
         raise ParameterError("Walls given twice; a tweezers set-up has one surface and one bead")
@@ -436,7 +443,7 @@ MAX_FORCE_PN = 50.0
 MAX_SIGMA = 0.1
 
 
-def intrinsic_turns(model):
+def intrinsic_turns(model: RodModel) -> float:
     """Relaxed linking number Lk0 of an open chain: its intrinsic twist in turns (Cayley twist angles)."""
     return float(np.sum(2.0 * np.arctan(0.5 * model.ds * model.params.Omega0[:, 2])) / (2.0 * np.pi))
 
@@ -448,7 +455,7 @@ ANCHORS = ("ends", "surface")
 AXES = ("end-to-end", "z")
 
 
-def pull_axis(model, axis="end-to-end"):
+def pull_axis(model: RodModel, axis: str = "end-to-end") -> np.ndarray:
     """Unit pull axis (3,) of a set-up: lab z, or from the first to the last node (a ring or a coiled start whose
     ends coincide: node 0's d3)."""
     if axis == "z":
@@ -459,8 +466,11 @@ def pull_axis(model, axis="end-to-end"):
     return a / np.linalg.norm(a)
 
 
-def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns=0.0, anchor="ends",
-             axis="end-to-end", traps=(), walls=False, clamp_frame=None):
+# one keyword per element of a tweezers set-up (the command line's options)
+def tweezers(model: RodModel, force_pN: float | None = None, torque_pN_nm: float | None = None,
+             rotation_clamp: float | None = None, turns: float = 0.0, anchor: str = "ends",
+             axis: str = "end-to-end", traps: Sequence[tuple[int, float]] = (), walls: bool = False,
+             clamp_frame: np.ndarray | None = None) -> tuple[Any, ...]:
     """The loads of a tweezers set-up: the one way dnarod pulls and twists a chain (``dnarod simulate``, ensemble
     members and the protocols all build their loads here).
 
@@ -500,8 +510,6 @@ def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns
         clamp or beyond the chain's helical turns, a torque on a free chain with no force, a non-positive
         stiffness, two traps on one node, an unknown anchor or axis.
     """
-    from dnarod.core.units import PN
-
     n = model.n_nodes
     if anchor not in ANCHORS:
         raise ParameterError(f"anchor {anchor!r}: choose one of {', '.join(ANCHORS)}")
@@ -539,7 +547,7 @@ def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns
         raise ParameterError("walls need the surface anchor and the lab z axis (a magnetic-tweezers set-up: node 0 on "
                              "the surface, the bead pulled along +z)")
     a = pull_axis(model, axis)
-    loads = []
+    loads: list[Any] = []
     if surface:
         loads.append(Clamp(0))
     if force_pN is not None:
@@ -550,7 +558,7 @@ def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns
         loads.append(Torque(n - 1, torque_pN_nm * PN * a))
     if rotation_clamp is not None:
         loads.append(RotationClamp(n - 1, rotation_clamp, frame=clamp_frame, axis=a, turns=float(turns)))
-    trapped = {}
+    trapped: dict[int, float] = {}
     for node, k in traps:
         k_node = resolve_node(node, n, "trap")
         if not (np.isfinite(k) and k > 0):

@@ -40,8 +40,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dnarod.core.errors import DnarodError
-from dnarod.core.kernels import step_loads
+from dnarod.core.errors import DnarodError, GeometryError, step_name
+from dnarod.core.kernels import step_loads, loads_kernel
 from dnarod.core.errors import ParameterError
 from dnarod.core.units import PN
 from dnarod.physics.loads import RotationClamp, Trap, resolve_loads, rotation_clamp_load
@@ -276,8 +276,6 @@ def _colours(n, circular):
 
 
 def _elastic_load_fn(model):
-    from dnarod.core.kernels import loads_kernel
-
     K = np.ascontiguousarray(model.params.stiffness, float)
     xi0 = np.ascontiguousarray(model.params.intrinsic, float)
     circ = model.closure is not None
@@ -289,8 +287,6 @@ def _elastic_load_fn(model):
         tau = np.zeros(pos.shape)
         E = loads_kernel(np.ascontiguousarray(pos), np.ascontiguousarray(frm), K, xi0, model.ds, Q, t, circ, F, tau)
         if not np.isfinite(E):
-            from dnarod.core.errors import GeometryError
-
             raise GeometryError("a step rotation is at or beyond 180 deg; the Hessian is undefined at this pose")
         return F, tau
 
@@ -354,8 +350,6 @@ def hessian_blocks(model, loads=(), positions=None, frames=None, mass_weighted=T
         t = np.ascontiguousarray(model.closure.t, float) if circular else np.zeros(3)
         bad = _step_hessians(pos, frm, K, xi0, model.ds, Q, t, circular, ht, hr, diag, off)
         if bad >= 0:
-            from dnarod.core.errors import GeometryError, step_name
-
             raise GeometryError(f"{step_name(bad, n)}: the rotation between its base pairs is at or beyond "
                                 f"180 deg; the Hessian is undefined at this pose")
         _add_external(diag, rl, frm, angles, hr)

@@ -68,7 +68,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from dnarod.core.errors import ParameterError
+from dnarod.core.errors import ParameterError, DnarodError
 from dnarod.core.units import kT as kT_of
 
 ONE_4PI_EPS0 = 138.935457833  # kJ/mol nm / e^2
@@ -252,8 +252,6 @@ def nonbonded_options(charge, cutoff_debye, salt_M, temperature_K):
     ------
     DnarodError
     """
-    from dnarod.core.errors import DnarodError
-
     out = {}
     if charge is not None:
         name = str(charge).strip().lower()
@@ -418,7 +416,8 @@ def calibrated_radius(line_charge=CALIBRATED_LINE_CHARGE, salt_M=CALIBRATION["sa
     is ``line_charge`` (e/nm) at ``salt_M`` and ``temperature`` (bisection on 0.5-2 nm)."""
     from scipy.optimize import brentq
 
-    f = lambda a: math.log(pb_far_field_line_charge(salt_M, temperature, radius=a)) - math.log(line_charge)  # noqa: E731
+    def f(a):
+        return math.log(pb_far_field_line_charge(salt_M, temperature, radius=a)) - math.log(line_charge)
     return float(brentq(f, 0.5, 2.0, xtol=1e-5))
 
 
@@ -481,8 +480,9 @@ def effective_diameter(settings, ds, temperature, n_angles=24, n_phase=3, n_h=40
     (weight ``sin(gamma)``) gives ``d_eff = int sin^2(g) d(g) dg / int sin^2(g) dg`` on ``(0, pi/2)``. This is the
     definition behind the "effective diameter" of charged DNA (the salt-dependent excluded diameter that knotting
     and catenation experiments are interpreted with, and of the Poisson-Boltzmann hard cylinder the default charge
-    is calibrated to: 5.0 nm at 0.15 M); it is computed here for the model's own potential. Angles below ``gamma_min`` (where the pair count grows as 1/sin(gamma)) take
-    ``d(gamma_min)``; their weight is ``gamma_min^3/3`` of ``pi/4`` (5e-5 for 0.05 rad).
+    is calibrated to: 5.0 nm at 0.15 M); it is computed here for the model's own potential. Angles below ``gamma_min``
+    (where the pair count grows as 1/sin(gamma)) take ``d(gamma_min)``; their weight is ``gamma_min^3/3`` of ``pi/4``
+    (5e-5 for 0.05 rad).
 
     Parameters
     ----------

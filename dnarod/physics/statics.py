@@ -17,8 +17,8 @@ times the load scale. Each iteration:
 
 Converged when ``max(|g_F|, |g_tau| / ds) <= gtol * load_scale`` over the free nodes, with
 ``load_scale = max(|applied forces|, |applied torques| / ds, |trap and clamp loads|)`` at the start
-or at the current pose, whichever is larger (1 kJ/mol/nm if there is no load). Near the solution Newton converges quadratically; the
-finite-difference Hessian (relative error ~1e-10) only affects the rate, not the fixed point.
+or at the current pose, whichever is larger (1 kJ/mol/nm if there is no load). Near the solution Newton converges
+quadratically; the finite-difference Hessian (relative error ~1e-10) only affects the rate, not the fixed point.
 """
 from __future__ import annotations
 
@@ -52,6 +52,82 @@ class StaticResult(dict):
     """Info of a static solve: ``iterations``, ``gradient_norm`` (kJ/mol/nm, max over free nodes of
     ``|g_F|`` and ``|g_tau|/ds``), ``load_scale`` (kJ/mol/nm), ``relative_gradient``, ``converged``,
     ``energy_kJ_mol`` (elastic + external, dead torques excluded)."""
+
+
+class _Newton:
+    """One damped Newton step of :func:`solve_static` and what it needs: the gradient on the free nodes, its norm,
+    the load scale and the merit (exact energy less the work of the dead torques)."""
+
+    def __init__(self, model, rl, angles, load_fn):
+        self.model, self.rl, self.angles = model, rl, angles
+        self.free = ~rl.clamped
+        self.ds = model.ds
+        self.merit_fn = _lax_loads(model, rl, angles)
+        self.grad_fn = self.merit_fn if load_fn is None else load_fn
+
+    def gradient(self, p, f):
+        _, F, tau = self.grad_fn(p, f)
+        g = -np.concatenate([F, tau], axis=1)
+        g[~self.free] = 0.0
+        return g
+
+    def gnorm(self, g):
+        return max(np.abs(g[:, :3]).max(), np.abs(g[:, 3:]).max() / self.ds)
+
+    def load_scale(self, p, f):
+        _, Fe, te = self.rl.evaluate(p, f, self.angles)
+        free = self.free
+        return max(np.abs(Fe[free]).max(initial=0.0), np.abs(te[free]).max(initial=0.0) / self.ds, 1e-300)
+
+    def merit(self, p, f, work):
+        E, _, _ = self.merit_fn(p, f)
+        return E - work
+
+    def direction(self, pos, frm, g, mu):
+        """The Newton direction ``-(H + mu I)^-1 g`` on the free nodes (rows of zeros for clamped ones), with the
+        Levenberg shift ``mu`` raised until ``H + mu I`` is positive definite; returns ``(D (n, 6), mu, diagonal
+        scale of H)``."""
+        from scipy.sparse import identity  # scipy.sparse.linalg is slow to import: not at the CLI's start-up
+        from scipy.sparse.linalg import spsolve
+
+        free = self.free
+        B = hessian_blocks(self.model, self.rl, pos, frm, mass_weighted=False, angles=self.angles)
+        H = B.to_sparse(free_only=True).tocsc()
+        dscale = float(np.abs(H.diagonal()).max())
+        BRn, _ = B.block_rows()
+        BRn = -BRn
+        Lw = np.empty_like(BRn)
+        mu = max(mu * 0.1, 0.0)
+        # (H + mu I) positive definite: sigma I - (-H) with sigma = mu (clamped rows are 0 + mu > 0 for mu > 0)
+        shift_free = (~free).any()
+        while not _block_cholesky_ok(BRn, mu if mu > 0 else (1e-14 * dscale if shift_free else 0.0), Lw):
+            mu = max(10 * mu, 1e-10 * dscale)
+        d = -spsolve(H + mu * identity(H.shape[0], format="csc"), g[free].ravel())
+        D = np.zeros_like(g)
+        D[free] = d.reshape(-1, 6)
+        return D, mu, dscale
+
+    def step(self, pos, frm, work, g, mu):
+        """A Newton step with a backtracking line search on the merit; returns the new ``(pos, frm, work, g, mu)``
+        (the old pose with a larger ``mu`` if no step along the direction is accepted)."""
+        D, mu, dscale = self.direction(pos, frm, g, mu)
+        m0 = self.merit(pos, frm, work)
+        slope = float(g[self.free].ravel() @ D[self.free].ravel())
+        alpha = 1.0
+        for _ in range(40):
+            p2 = pos + alpha * D[:, :3]
+            try:
+                f2 = _rotate(frm, alpha * D[:, 3:])
+                w2 = work + alpha * float(np.sum(self.rl.torque * D[:, 3:]))
+                m2 = self.merit(p2, f2, w2)
+            except GeometryError:
+                m2 = np.inf
+            if np.isfinite(m2) and (m2 <= m0 + 1e-4 * alpha * slope or abs(m2 - m0) <= 1e-13 * max(abs(m0), 1.0)):
+                g2 = self.gradient(p2, f2)
+                if m2 < m0 or self.gnorm(g2) < self.gnorm(g):
+                    return p2, f2, w2, g2, mu
+            alpha *= 0.5
+        return pos, frm, work, g, max(10 * mu, 1e-6 * dscale)
 
 
 def solve_static(model, loads=(), gtol=1e-8, load_fn=None, max_iter=200, angles=None, positions=None, frames=None):
@@ -97,83 +173,24 @@ def solve_static(model, loads=(), gtol=1e-8, load_fn=None, max_iter=200, angles=
     if not anchored and (np.abs(rl.force.sum(0)).max() > 0):
         raise DnarodError("the dead forces do not sum to zero and nothing anchors the chain (no Clamp or Trap): "
                           "there is no static equilibrium; add a Clamp or a Trap, or balance the forces")
-    free = ~rl.clamped
-    ds = model.ds
-    merit_fn = _lax_loads(model, rl, angles)
-    grad_fn = merit_fn if load_fn is None else load_fn
-
-    def gradient(p, f):
-        _, F, tau = grad_fn(p, f)
-        g = -np.concatenate([F, tau], axis=1)
-        g[~free] = 0.0
-        return g
-
-    def gnorm(g):
-        return max(np.abs(g[:, :3]).max(), np.abs(g[:, 3:]).max() / ds)
-
-    def load_scale(p, f):
-        _, Fe, te = rl.evaluate(p, f, angles)
-        return max(np.abs(Fe[free]).max(initial=0.0), np.abs(te[free]).max(initial=0.0) / ds, 1e-300)
-
-    def merit(p, f, work):
-        E, _, _ = merit_fn(p, f)
-        return E - work
-
-    g = gradient(pos, frm)
+    nt = _Newton(model, rl, angles, load_fn)
+    g = nt.gradient(pos, frm)
     work = 0.0  # work of the dead torques along the path (tau . dtheta per step)
-    scale0 = load_scale(pos, frm)   # loads of the starting pose (a trap's pull may vanish at equilibrium)
+    scale0 = nt.load_scale(pos, frm)   # loads of the starting pose (a trap's pull may vanish at equilibrium)
     mu = 0.0
     it = 0
     converged = False
     for it in range(max_iter + 1):
-        scale = max(load_scale(pos, frm), scale0)
+        scale = max(nt.load_scale(pos, frm), scale0)
         if scale <= 1e-300:
             scale = 1.0  # no load: 1 kJ/mol/nm
-        if gnorm(g) <= gtol * scale:
+        if nt.gnorm(g) <= gtol * scale:
             converged = True
             break
         if it == max_iter:
             break
-        B = hessian_blocks(model, rl, pos, frm, mass_weighted=False, angles=angles)
-        H = B.to_sparse(free_only=True).tocsc()
-        dscale = float(np.abs(H.diagonal()).max())
-        BRn, _ = B.block_rows()
-        BRn = -BRn
-        Lw = np.empty_like(BRn)
-        mu = max(mu * 0.1, 0.0)
-        # (H + mu I) positive definite: sigma I - (-H) with sigma = mu (clamped rows are 0 + mu > 0 for mu > 0)
-        shift_free = (~free).any()
-        while not _block_cholesky_ok(BRn, mu if mu > 0 else (1e-14 * dscale if shift_free else 0.0), Lw):
-            mu = max(10 * mu, 1e-10 * dscale)
-        from scipy.sparse import identity
-        from scipy.sparse.linalg import spsolve
-
-        gf = g[free].ravel()
-        d = -spsolve(H + mu * identity(H.shape[0], format="csc"), gf)
-        D = np.zeros_like(g)
-        D[free] = d.reshape(-1, 6)
-        m0 = merit(pos, frm, work)
-        slope = float(gf @ d)
-        alpha = 1.0
-        accepted = False
-        for _ in range(40):
-            p2 = pos + alpha * D[:, :3]
-            try:
-                f2 = _rotate(frm, alpha * D[:, 3:])
-                w2 = work + alpha * float(np.sum(rl.torque * D[:, 3:]))
-                m2 = merit(p2, f2, w2)
-            except GeometryError:
-                m2 = np.inf
-            if np.isfinite(m2) and (m2 <= m0 + 1e-4 * alpha * slope or abs(m2 - m0) <= 1e-13 * max(abs(m0), 1.0)):
-                g2 = gradient(p2, f2)
-                if m2 < m0 or gnorm(g2) < gnorm(g):
-                    accepted = True
-                    break
-            alpha *= 0.5
-        if not accepted:
-            mu = max(10 * mu, 1e-6 * dscale)
-            continue
-        pos, frm, work, g = p2, f2, w2, g2
+        pos, frm, work, g, mu = nt.step(pos, frm, work, g, mu)
+    gnorm, merit_fn = nt.gnorm, nt.merit_fn
     info = StaticResult(iterations=it, gradient_norm=float(gnorm(g)), load_scale=float(scale),
                         relative_gradient=float(gnorm(g) / scale), converged=bool(converged),
                         energy_kJ_mol=float(merit_fn(pos, frm)[0]))

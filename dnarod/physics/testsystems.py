@@ -22,6 +22,9 @@ from dnarod.core.model import RodModel
 from dnarod.core.parameters import StepParameters
 from dnarod.core.rotations import rotation_about_axis
 from dnarod.core.strains import Closure, chain_from_strains
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.thermal import tangent_correlation
+from dnarod.core.units import kT
 
 
 @dataclass
@@ -144,8 +147,6 @@ class TwistedRod:
     @classmethod
     def from_forcefield(cls, forcefield, n_nodes, **overrides):
         """The twisted rod of a uniform, isotropic force field (e.g. ``"dna-default"``)."""
-        from dnarod.core.forcefield import load_forcefield
-
         ff = load_forcefield(forcefield) if isinstance(forcefield, str) else forcefield
         if "*" not in ff.table:
             raise ParameterError(f"force field {ff.name} is not uniform; TwistedRod needs one step type")
@@ -227,7 +228,8 @@ class TwistedRod:
         c = self.C1 * A1p * sb**2 / ds**2
         disc = np.sqrt(np.maximum(b * b - 4 * a * c, 0.0))
         bl, bh = (-b - disc) / (2 * a), (-b + disc) / (2 * a)
-        f = lambda w2: np.sqrt(np.maximum(w2, 0.0))
+        def f(w2):
+            return np.sqrt(np.maximum(w2, 0.0))
         return dict(stretch=f(st), twist=f(tw), bend_shear_low=f(bl), bend_shear_high=f(bh), q_axial=qa, q_bend=qb)
 
     def all_frequencies(self):
@@ -245,9 +247,6 @@ class TwistedRod:
 def thermal_tangent_correlation(params, ds, temperature, n_max):
     """Exact ``<d3(k)·d3(k+n)>``, n = 0..n_max, of the free open chain at ``temperature`` (K)
     (docs/formulation.md §8)."""
-    from dnarod.physics.thermal import tangent_correlation
-    from dnarod.core.units import kT
-
     return tangent_correlation(params, ds, kT(temperature), n_max)
 
 
@@ -263,8 +262,6 @@ def dna_like_rod(n_nodes=20, seed=0, twist_deg=33.75, bend_noise=0.08, B33=-54.0
     RodModel
         At its intrinsic shape.
     """
-    from dnarod.core.forcefield import load_forcefield
-
     ff = load_forcefield("dna-default")
     K, _ = ff.table["*"]
     K = K.copy()
@@ -309,8 +306,6 @@ def gaussian_coil(model, temperature=300.0, seed=0, min_distance=1.0, n_exclude=
     RodModel
         The model with the coiled pose.
     """
-    from dnarod.core.units import kT
-
     if model.closure is not None:
         raise ParameterError("gaussian_coil needs an open chain")
     rng = np.random.default_rng(seed)

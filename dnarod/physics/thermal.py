@@ -14,8 +14,11 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.parameters import StepParameters
-from dnarod.core.rotations import cayley
+from dnarod.core.rotations import cayley, rotation_about_axis
 from dnarod.core.units import BOLTZMANN, kT
+from dnarod.physics.writhe import _perp, _signed_angle, _transport
+from dnarod.core.strains import chain_from_strains
+from dnarod.core.errors import DnarodError
 
 
 def node_kinetic_energy(mass, inertia, velocities, angular_velocities):
@@ -249,9 +252,6 @@ def relaxed_ribbon_twist(model, temperature, n_samples=400, seed=0):
     tuple of float
         ``(Tw0_T, standard_error)`` in turns, for all ``model.params.n_steps`` steps.
     """
-    from dnarod.physics.writhe import _perp, _signed_angle, _transport
-    from dnarod.core.strains import chain_from_strains
-
     rng = np.random.default_rng(seed)
     xi = sample_open_chain_strains(model.params, model.ds, kT(temperature), rng, n_chains=int(n_samples))
     tot = np.empty(len(xi))
@@ -299,9 +299,6 @@ def equilibrium_sample(model, temperature, seed=None, align=None):
         For a circular chain (its closure couples all steps; no exact i.i.d. sampler) or a
         non-positive temperature.
     """
-    from dnarod.core.errors import DnarodError
-    from dnarod.core.strains import chain_from_strains
-
     if model.closure is not None:
         raise DnarodError("start 'equilibrium' samples the free open chain exactly; this model is circular "
                           "(a ring or a periodic chain): use start 'intrinsic' or 'minimized'")
@@ -312,8 +309,6 @@ def equilibrium_sample(model, temperature, seed=None, align=None):
     xi = sample_open_chain_strains(model.params, model.ds, kT(T), rng)[0]
     pos, frm = chain_from_strains(xi[:, :3], xi[:, 3:], model.ds, model.positions[0], model.frames[0])
     if align is not None:
-        from dnarod.core.rotations import rotation_about_axis
-
         a = np.asarray(align, float)
         a = a / np.linalg.norm(a)
         e = pos[-1] - pos[0]

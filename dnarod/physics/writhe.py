@@ -143,7 +143,8 @@ def writhe(points, fast=True):
     if fast:
         return 2.0 * _numba_pair_sum()(P, Q, P, Q, 1) / (4.0 * np.pi)
     # Pairs i < j that are not adjacent (j != i+1, and not (i=0, j=n-1)); the sum is symmetric.
-    mask = lambda i, j: (j > i + 1) & ~((i == 0) & (j == n - 1))
+    def mask(i, j):
+        return (j > i + 1) & ~((i == 0) & (j == n - 1))
     with np.errstate(invalid="ignore", divide="ignore"):
         total = _pair_sum(P, Q, P, Q, mask)
     return 2.0 * total / (4.0 * np.pi)

@@ -19,16 +19,32 @@ import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
+import hashlib
+import sys
 
 import numpy as np
 
+from dnarod.core.seeds import resolve_seed
 from dnarod.core.errors import ParameterError, step_name
 from dnarod.core.io import (FULL_DISK_ERRNOS, STAGE_PREFIX, WriteError, check_dir_path, check_free_space,
-                            check_output_folder, folder_lock, jsonable, staged_folder, write_failure,
-                            write_text_atomic)
+                            check_output_folder, folder_lock, jsonable, staged_folder, write_failure, write_text_atomic,
+                            LOG, MEMBER, RESULT)
 from dnarod.run.spec import RunSpec, compare_fingerprints, fingerprint
 from dnarod.core.io import read_checkpoint
-from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
+from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT, omega_max
+from dnarod.physics.modes import check_load_stiffness as _check_load_stiffness
+from dnarod.physics.loads import PullingForce
+from dnarod.core.energy import loads as elastic_loads
+from dnarod.core.rotations import MAX_CAYLEY_ANGLE
+from dnarod.core.units import kT
+from dnarod.core.trajectory import HEADER_SIZE, bytes_per_node_frame
+from dnarod.run.loop import simulate_engine
+from dnarod.core.model import RodModel
+from dnarod.run.engine import Engine
+from dnarod.physics.observables import csv_observables
+from dnarod.physics.statics import solve_static
+from dnarod.physics.thermal import equilibrium_sample
 
 #: Files a run folder may hold (``overwrite`` removes exactly these).
 RUN_FILES = {"run_json": "run.json", "trajectory": "trajectory.dtraj", "energies": "energies.csv",
@@ -56,64 +72,48 @@ class RunResult:
     """
 
     outdir: Path
-    files: dict = field(default_factory=dict)
-    summary: dict = field(default_factory=dict)
+    files: dict[str, Path] = field(default_factory=dict)
+    summary: dict[str, Any] = field(default_factory=dict)
     resumed_from: int | None = None
 
 
 # ----------------------------------------------------------------------------------------------
 # building blocks (public: the CLI and the ensemble layer use them)
 # ----------------------------------------------------------------------------------------------
-def source_model(spec):
+def source_model(spec: RunSpec) -> RodModel:
     """The model named by ``spec.source`` (structure, model file, sequence, sequence file, node count)."""
-    from dnarod.structure.inputs import load_model
+    from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
 
     return load_model(spec.source, spec.forcefield, spec.circular, spec.ring, spec.delta_lk, spec.duplex,
                       spec.intrinsic)
 
 
-def start_model(spec, model, seed):
+def start_model(spec: RunSpec, model: RodModel, seed: int | None) -> RodModel:
     """The start pose: the source's, an exact equilibrium sample, or the static minimum under the loads."""
     if spec.start == "intrinsic":
         return model
     if spec.start == "equilibrium":
-        try:
-            from dnarod.physics.thermal import equilibrium_sample
-        except ImportError:
-            raise ParameterError("start='equilibrium' needs dnarod.physics.thermal.equilibrium_sample, not in this "
-                                 "version") from None
         return equilibrium_sample(model, spec.temperature if spec.temperature > 0 else 300.0, seed=seed,
                                   align=_pull_direction(spec.loads, model.n_nodes))
-    try:
-        from dnarod.physics.statics import solve_static
-    except ImportError:
-        if spec.engine != "openmm":
-            raise ParameterError("--minimize needs dnarod.physics.statics.solve_static (not in this version) for the lax "
-                                 "engine") from None
-        return None  # the OpenMM engine minimises its context
     solved, _ = solve_static(model, tuple(spec.loads))
     return solved
 
 
-def _pull_direction(loads, n_nodes):
+def _pull_direction(loads: Any, n_nodes: int) -> np.ndarray | None:
     """Net pulling force on the last node (kJ/mol/nm, (3,)) or None: an equilibrium start of a pulled
     chain is turned so that its end-to-end vector points along it (else a long chain may start
     pointing away from the force)."""
-    from dnarod.physics.loads import PullingForce
-
     f = sum((np.asarray(ld.force, float) for ld in loads
              if isinstance(ld, PullingForce) and int(ld.node) % n_nodes == n_nodes - 1), np.zeros(3))
     return f if np.linalg.norm(f) > 0 else None
 
 
-def default_omega_max(model, loads=()):
+def default_omega_max(model: RodModel, loads: Any = ()) -> float:
     """Fastest normal-mode frequency of a pose under its loads, rad/ps (:func:`dnarod.physics.modes.omega_max`)."""
-    from dnarod.physics.modes import omega_max
-
     return float(omega_max(model, loads=tuple(loads)))
 
 
-def choose_dt(spec, model, omega):
+def choose_dt(spec: RunSpec, model: RodModel, omega: float) -> float:
     """Time step, ps: ``spec.dt`` (checked against the stability limit) or ``0.4 / omega_max``."""
     limit = MAX_OMEGA_DT / omega
     if spec.dt is None:
@@ -125,13 +125,9 @@ def choose_dt(spec, model, omega):
     return float(spec.dt)
 
 
-def check_start_pose(model, temperature):
+def check_start_pose(model: RodModel, temperature: float) -> None:
     """Refuse (or warn about) a start pose the rod model cannot run: steps near the Cayley limit or
     storing far more elastic energy than equipartition (a tiny ring), which heats the run up."""
-    from dnarod.core.energy import loads as elastic_loads
-    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
-    from dnarod.core.units import kT
-
     if model.n_steps == 0:
         raise ParameterError("the model has a single node: a chain needs at least 2")
     Om, _ = model.strains()
@@ -163,7 +159,7 @@ def check_start_pose(model, temperature):
         warnings.warn(msg, RuntimeWarning, stacklevel=3)
 
 
-def preflight(spec, model=None):
+def preflight(spec: RunSpec, model: RodModel | None = None) -> RodModel:
     """The checks :func:`run` makes before it writes anything, without running: the settings
     (:meth:`RunSpec.check`), the source, the start pose, an equilibrium start on a closed model, the time
     step against the stability limit and the number of steps. An ensemble calls it for every distinct
@@ -183,7 +179,7 @@ def preflight(spec, model=None):
     ParameterError
         The first refusal, with the message :func:`run` would give.
     """
-    from dnarod.run.resources import check_memory, node_count_hint
+    from dnarod.run.resources import check_memory, node_count_hint  # loads scipy.spatial
 
     spec.check()
     if model is None:
@@ -202,27 +198,24 @@ def preflight(spec, model=None):
     return model
 
 
-def _default_dt(omega):
+def _default_dt(omega: float) -> float:
     return DEFAULT_OMEGA_DT / omega
 
 
-def check_load_stiffness(spec, model, omega=None):
+def check_load_stiffness(spec: RunSpec, model: RodModel, omega: float | None = None) -> None:
     """:func:`dnarod.physics.modes.check_load_stiffness` of ``spec.loads`` on ``model`` (``omega``: the fastest mode
-    with
-    the loads, rad/ps, if known), naming the ``simulate`` options."""
-    from dnarod.physics.modes import check_load_stiffness as check
-
-    check(model, spec.loads, omega=omega)
+    with the loads, rad/ps, if known), naming the ``simulate`` options."""
+    _check_load_stiffness(model, spec.loads, omega=omega)
 
 
-def make_engine(spec, model, dt, seed, omega):
+def make_engine(spec: RunSpec, model: RodModel, dt: float, seed: int, omega: float) -> Engine:
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
     if spec.engine == "lax":
-        from dnarod.engines.lax.engine import LaxEngine
+        from dnarod.engines.lax.engine import LaxEngine  # loads scipy.integrate
 
         return LaxEngine(model, dt, spec.temperature, spec.friction, seed, spec.loads, duration_ps, omega)
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     nb = spec.nonbonded_settings()
     return RodSimulation.create(model, integrator="langevin" if spec.friction > 0 else "verlet",
@@ -236,7 +229,7 @@ def make_engine(spec, model, dt, seed, omega):
 MAX_STEPS = 10**12
 
 
-def intervals(spec, dt):
+def intervals(spec: RunSpec, dt: float) -> tuple[int, int, int]:
     """(n_steps, frame interval, checkpoint interval) in steps; the checkpoint interval is 0 (none on a step
     schedule: by wall time, ``spec.checkpoint_wall_s``) unless ``spec.checkpoint_interval_ps`` is given."""
     steps = spec.time_ns * 1000.0 / dt
@@ -249,13 +242,11 @@ def intervals(spec, dt):
     return n_steps, fi, ci
 
 
-def estimate_run_bytes(spec, n_nodes, dt):
+def estimate_run_bytes(spec: RunSpec, n_nodes: int, dt: float) -> int:
     """Disk space a run of ``spec`` takes (bytes, an estimate checked against the free space before it starts):
     the ``.dtraj`` frames (:func:`dnarod.core.trajectory.bytes_per_node_frame`), ``energies.csv`` rows, two
     checkpoints and the final model (a checkpoint is replaced atomically, so the old and the new one exist at
     once), and the exports."""
-    from dnarod.core.trajectory import HEADER_SIZE, bytes_per_node_frame
-
     n_steps, fi, _ = intervals(spec, dt)
     frames = n_steps // fi + 1
     total = HEADER_SIZE + frames * (16 + n_nodes * bytes_per_node_frame(spec.velocities))
@@ -263,7 +254,7 @@ def estimate_run_bytes(spec, n_nodes, dt):
     # two checkpoints (OpenMM's state blob ~430 B/node, the lax engine's ~145) and final_model.npz (~525 B/node)
     total += 3 * 1024 + n_nodes * (2 * 450 + 530)
     if spec.export:
-        from dnarod.structure.export import dcd_bytes
+        from dnarod.structure.export import dcd_bytes  # loads scipy.spatial: not at the CLI's start-up
 
         dcd = dcd_bytes(frames, 3 * n_nodes)  # exact
         total += 270 * n_nodes + dcd  # PDB (3 beads of 88 B per node) and DCD
@@ -272,16 +263,14 @@ def estimate_run_bytes(spec, n_nodes, dt):
     return int(total)
 
 
-def run_folder_markers():
+def run_folder_markers() -> tuple[str, ...]:
     """Names that mark a folder as a run's (any of them): the run files, and the record of an ensemble member
     (:data:`dnarod.core.io.RESULT`, ``MEMBER``, ``LOG``), whose folder is a run folder. A new run refuses any other
     non-empty folder (:func:`dnarod.core.io.check_output_folder`)."""
-    from dnarod.core.io import LOG, MEMBER, RESULT
-
     return (*RUN_FILES.values(), MEMBER, LOG, RESULT)
 
 
-def run_files(outdir):
+def run_files(outdir: str | Path) -> dict[str, Path]:
     """Name -> Path of the run-folder files that exist."""
     outdir = Path(outdir)
     return {k: outdir / v for k, v in RUN_FILES.items() if (outdir / v).exists()}
@@ -289,21 +278,16 @@ def run_files(outdir):
 
 def _observables(spec, model):
     """Per-frame observables of the loads for the energies CSV (:mod:`dnarod.physics.observables`), or None."""
-    try:
-        from dnarod.physics.observables import csv_observables
-    except ImportError:
-        return None
     return csv_observables(model, tuple(spec.loads), duration_ps=spec.time_ns * 1000.0)
 
 
 def _run_id(fp):
-    import hashlib
-
     return hashlib.sha256(json.dumps(jsonable(fp), sort_keys=True).encode()).hexdigest()[:20]
 
 
 # ----------------------------------------------------------------------------------------------
-def run(spec, outdir, resume=False, overwrite=False, progress=True):
+def run(spec: RunSpec, outdir: str | Path, resume: bool = False, overwrite: bool = False,
+        progress: bool = True) -> RunResult:
     """Run ``spec`` into the folder ``outdir`` (created), or continue it with ``resume``.
 
     Parameters
@@ -353,7 +337,7 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
     model = source_model(spec)
     stage = _setup_model(spec, model, stage, progress)
     check_start_pose(model, spec.temperature)
-    seed = int(np.random.SeedSequence().entropy % 2**31) if spec.seed is None else int(spec.seed)
+    seed = resolve_seed(spec.seed)
     if spec.start != "intrinsic":
         stage(f"the {spec.start} start pose")
     start = start_model(spec, model, seed)
@@ -391,10 +375,8 @@ def run(spec, outdir, resume=False, overwrite=False, progress=True):
 def _setup_start(spec, progress):
     """Before the model is built: refuse a node count this machine's memory cannot hold, say that the kernels
     compile (a first run after install), and return the set-up's stage printer (:class:`SetupStages`)."""
-    import sys
-
-    from dnarod.run.resources import compile_notice
-    from dnarod.run.resources import SetupStages, check_memory, node_count_hint
+    from dnarod.run.resources import compile_notice  # loads scipy.spatial
+    from dnarod.run.resources import SetupStages, check_memory, node_count_hint  # loads scipy.spatial
 
     n = node_count_hint(spec.source)
     check_memory(n, spec.engine)
@@ -410,7 +392,7 @@ def _setup_start(spec, progress):
 
 def _setup_model(spec, model, stage, progress):
     """Once the model is built: the memory check of a source whose size was not known before (a file)."""
-    from dnarod.run.resources import SetupStages, check_memory
+    from dnarod.run.resources import SetupStages, check_memory  # loads scipy.spatial
 
     if not stage.on:
         check_memory(model.n_nodes, spec.engine)
@@ -501,8 +483,6 @@ def _restart(spec, outdir, paths, model, meta, run_json_text, seed, dt, progress
 
 
 def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
-    from dnarod.run.loop import simulate_engine
-
     dt = engine.dt
     n_steps, fi, ci = intervals(spec, dt)
     if fi > n_steps:
@@ -529,7 +509,8 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                                  cpu_s=out["cpu_s"]))
     meta.pop("export", None)  # the trajectory changed: the exports are stale until remade
     _write_meta(paths, meta)
-    if spec.export:  # after run.json: a failed export leaves a finished run whose --resume (or `dnarod export`) remakes it
+    # after run.json: a failed export leaves a finished run whose --resume (or `dnarod export`) remakes it
+    if spec.export:
         try:
             _export(paths, meta, spec.xtc, model.sequence)
         except WriteError as exc:
@@ -587,7 +568,8 @@ def _dtraj_stamp(path):
     return dict(dtraj_bytes=int(st.st_size), dtraj_mtime_ns=int(st.st_mtime_ns))
 
 
-def export_status(outdir, meta=None, xtc=True):
+def export_status(outdir: str | Path, meta: dict[str, Any] | None = None,
+                  xtc: bool = True) -> tuple[list[str], list[str]]:
     """Which exports of the run in ``outdir`` are up to date.
 
     An export is up to date when it exists and ``run.json`` records that it was made from the trajectory
@@ -620,8 +602,6 @@ def export_status(outdir, meta=None, xtc=True):
 
 def _sequence_of(paths):
     """Strand I of the run's model (``final_model.npz``, else the trajectory's metadata), or None."""
-    from dnarod.core.model import RodModel
-
     if paths["final_model"].exists():
         try:
             return RodModel.load(paths["final_model"]).sequence
@@ -632,7 +612,7 @@ def _sequence_of(paths):
 
 def _export(paths, meta, xtc, sequence):
     """Export ``trajectory.dtraj`` to PDB + DCD (+ XTC) and record it in ``run.json`` (the folder is locked)."""
-    from dnarod.structure.export import export_trajectory
+    from dnarod.structure.export import export_trajectory  # loads scipy.spatial: not at the CLI's start-up
 
     if not paths["trajectory"].exists():
         raise ParameterError(f"{paths['trajectory']} does not exist: nothing to export")
@@ -648,7 +628,7 @@ def _export(paths, meta, xtc, sequence):
     return {n: paths["run_json"].parent / n for n in files}
 
 
-def export_run(outdir, xtc=None):
+def export_run(outdir: str | Path, xtc: bool | None = None) -> dict[str, Path]:
     """Make (or remake) the exports of the run in ``outdir``: ``trajectory.pdb`` (topology, first frame),
     ``trajectory.dcd`` (all frames) and ``trajectory.xtc`` (all frames, with times), from ``trajectory.dtraj``.
 

@@ -31,14 +31,16 @@ class Engine(Protocol):
         Time step, ps.
     step : int
         Steps done since the start of the run (restored by :meth:`load_checkpoint`).
-    omega_max : float
+    omega_max : float or None
         Fastest normal mode of the start pose, rad/ps.
     """
 
     name: str
     model: RodModel
     dt: float
-    omega_max: float
+
+    @property
+    def omega_max(self) -> float | None: ...
 
     @property
     def step(self) -> int: ...
@@ -47,7 +49,7 @@ class Engine(Protocol):
         """Integrate ``n_steps`` steps; raise :class:`~dnarod.core.errors.SimulationError` naming the step, node
         and term on a blow-up."""
 
-    def node_state(self, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def node_state(self, *, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """On-step ``(positions (n, 3) nm, frames (n, 3, 3), velocities (n, 3) nm/ps lab, angular velocities
         (n, 3) rad/ps body)``; ``copy=False`` may return the engine's own arrays or read-only views, valid until
         it advances (the run layer's reports read each state once, so they need no copies)."""
@@ -55,7 +57,7 @@ class Engine(Protocol):
     def energies(self) -> dict[str, float]:
         """kJ/mol: ``potential``, ``kinetic``, ``elastic``, ``nonbonded``, ``external``; K: ``temperature``."""
 
-    def save_checkpoint(self, path: str | Path, extra: dict[str, Any] | None = None) -> None:
+    def save_checkpoint(self, path: str | Path, *, extra: dict[str, Any] | None = None) -> None:
         """Write, atomically, everything needed to continue bit for bit."""
 
     def load_checkpoint(self, path: str | Path) -> dict[str, Any]:

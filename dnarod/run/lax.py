@@ -19,17 +19,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.io import atomic_path
 from dnarod.physics.thermal import kinetic_temperature, node_kinetic_energy
-from dnarod.core.trajectory import load_trajectory
+from dnarod.core.trajectory import Trajectory, load_trajectory
 from dnarod.engines.lax.engine import LaxEngine
 from dnarod.engines.lax.splitting import RigidState, SplittingIntegrator, maxwell_state
 from dnarod.run.loop import run_engine
 from dnarod.run.reporters import ENERGY_COLUMNS, DtrajReporter, EnergyReporter, ProgressReporter
+from dnarod.engines.lax.boundary import BoundaryConditions
+from dnarod.engines.lax.exact import ExactResult, integrate_exact
+from dnarod.core.model import RodModel
 
 
 @dataclass
@@ -57,7 +61,7 @@ class SimulationResult:
     omega_max: float | None
     integrator: SplittingIntegrator
 
-    def trajectory(self):
+    def trajectory(self) -> Trajectory:
         """The written trajectory as a :class:`~dnarod.core.trajectory.Trajectory` (requires ``out``)."""
         if self.trajectory_path is None:
             raise DnarodError("this run wrote no trajectory; pass out=PATH")
@@ -67,31 +71,51 @@ class SimulationResult:
 class _Rows:
     """Reporter keeping the energy rows in memory (for :attr:`SimulationResult.energies`)."""
 
-    def __init__(self, interval):
+    def __init__(self, interval: int) -> None:
         self.interval = int(interval)
-        self.rows = []
+        self.rows: list[list[float]] = []
 
-    def describeNextReport(self, engine):  # noqa: N802 - reporter protocol
+    def describeNextReport(self, engine: Any) -> int:  # noqa: N802 - reporter protocol
         return self.interval - engine.step % self.interval
 
-    def due(self, step):
+    def due(self, step: int) -> bool:
         return step % self.interval == 0
 
-    def report(self, engine, snap):
+    def report(self, engine: Any, snap: Any) -> None:
         e = snap.energies
         self.rows.append([snap.step, snap.time_ps, e["potential"], e["kinetic"], e["potential"] + e["kinetic"],
                           e["temperature"]])
 
-    def flush(self):
+    def flush(self) -> None:
         pass
 
-    def close(self):
+    def close(self) -> None:
         pass
 
 
-def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, seed, out, report_interval,
-              energy_csv, checkpoint, checkpoint_interval, resume, fast, allow_unstable, check_stability,
-              metadata, progress):
+@dataclass(frozen=True)
+class _Outputs:
+    """What a splitting run writes and how it integrates (the options :func:`simulate_nve` and
+    :func:`simulate_langevin` share)."""
+
+    out: str | Path | None
+    report_interval: int
+    energy_csv: str | Path | None
+    checkpoint: str | Path | None
+    checkpoint_interval: int | None
+    resume: bool
+    fast: bool
+    allow_unstable: bool
+    check_stability: bool
+    metadata: dict[str, Any] | None
+    progress: bool
+
+
+def _simulate(model: RodModel, dt: float, n_steps: int, state: RigidState | None,
+              boundary: BoundaryConditions | None, temperature: float | None, friction: float | None,
+              seed: int | None, o: _Outputs) -> SimulationResult:
+    out, report_interval, energy_csv, checkpoint = o.out, o.report_interval, o.energy_csv, o.checkpoint
+    resume, metadata = o.resume, o.metadata
     n_steps = int(n_steps)
     if n_steps < 0:
         raise DnarodError(f"n_steps must be >= 0, got {n_steps}")
@@ -99,17 +123,17 @@ def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, see
     if resume and checkpoint is None:
         raise DnarodError("resume=True needs the checkpoint path")
     integ = SplittingIntegrator(model, dt, state=state, boundary=boundary,
-                                temperature=temperature if friction else None, friction=friction, seed=seed, fast=fast,
-                                check_stability=check_stability, allow_unstable=allow_unstable)
+                                temperature=temperature if friction else None, friction=friction, seed=seed,
+                                fast=o.fast, check_stability=o.check_stability, allow_unstable=o.allow_unstable)
     engine = LaxEngine.wrap(integ, temperature=temperature or 0.0, friction=friction or 0.0, seed=seed)
     resume_step = None
-    if resume and Path(checkpoint).exists():
+    if resume and checkpoint is not None and Path(checkpoint).exists():
         engine.load_checkpoint(checkpoint)
         resume_step = engine.step
     meta = dict(engine="lax", dt_ps=dt, ensemble="langevin" if friction else "nve", temperature_K=temperature,
                 friction_per_ps=friction, n_nodes=model.n_nodes, **(metadata or {}))
     rows = _Rows(report_interval)
-    reporters = [rows]
+    reporters: list[Any] = [rows]
     bar = None
     try:
         if out is not None:
@@ -117,10 +141,10 @@ def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, see
                                            resume_step=resume_step, precision="float64"))
         if energy_csv is not None:
             reporters.append(EnergyReporter(energy_csv, report_interval, resume_step=resume_step))
-        if progress:
+        if o.progress:
             bar = ProgressReporter(n_steps, engine.step)
-        run_engine(engine, n_steps, reporters, checkpoint, checkpoint_interval if checkpoint is not None else 0,
-                   bar, report_start=resume_step is None)
+        run_engine(engine, n_steps, reporters, checkpoint,
+                   (o.checkpoint_interval or 0) if checkpoint is not None else 0, bar, report_start=resume_step is None)
     finally:
         for r in reporters:
             r.close()
@@ -130,9 +154,14 @@ def _simulate(model, dt, n_steps, *, state, boundary, temperature, friction, see
                             integ.omega_max, integ)
 
 
-def simulate_nve(model, dt, n_steps, state=None, temperature=None, seed=None, boundary=None, out=None,
-                 report_interval=100, energy_csv=None, checkpoint=None, checkpoint_interval=None, resume=False,
-                 fast=True, allow_unstable=False, check_stability=True, metadata=None, progress=False):
+# One keyword per output and integration option, as the run layer's simulate_engine takes them.
+def simulate_nve(model: RodModel, dt: float, n_steps: int, state: RigidState | None = None,
+                 temperature: float | None = None, seed: int | None = None,
+                 boundary: BoundaryConditions | None = None, out: str | Path | None = None,
+                 report_interval: int = 100, energy_csv: str | Path | None = None,
+                 checkpoint: str | Path | None = None, checkpoint_interval: int | None = None, resume: bool = False,
+                 fast: bool = True, allow_unstable: bool = False, check_stability: bool = True,
+                 metadata: dict[str, Any] | None = None, progress: bool = False) -> SimulationResult:
     """Constant-energy run with the symplectic splitting (docs/formulation.md §7).
 
     Parameters
@@ -169,16 +198,20 @@ def simulate_nve(model, dt, n_steps, state=None, temperature=None, seed=None, bo
     """
     if state is None and temperature is not None:
         state = maxwell_state(model, temperature, seed, boundary)
-    return _simulate(model, dt, n_steps, state=state, boundary=boundary, temperature=temperature, friction=None,
-                     seed=seed, out=out, report_interval=report_interval, energy_csv=energy_csv,
-                     checkpoint=checkpoint, checkpoint_interval=checkpoint_interval, resume=resume, fast=fast,
-                     allow_unstable=allow_unstable, check_stability=check_stability, metadata=metadata,
-                     progress=progress)
+    o = _Outputs(out, report_interval, energy_csv, checkpoint, checkpoint_interval, resume, fast, allow_unstable,
+                 check_stability, metadata, progress)
+    return _simulate(model, dt, n_steps, state, boundary, temperature, None, seed, o)
 
 
-def simulate_langevin(model, dt, n_steps, temperature, friction=1.0, seed=None, state=None, boundary=None, out=None,
-                      report_interval=100, energy_csv=None, checkpoint=None, checkpoint_interval=None, resume=False,
-                      fast=True, allow_unstable=False, check_stability=True, metadata=None, progress=False):
+# One keyword per output and integration option, as simulate_nve.
+def simulate_langevin(model: RodModel, dt: float, n_steps: int, temperature: float, friction: float = 1.0,
+                      seed: int | None = None, state: RigidState | None = None,
+                      boundary: BoundaryConditions | None = None, out: str | Path | None = None,
+                      report_interval: int = 100, energy_csv: str | Path | None = None,
+                      checkpoint: str | Path | None = None, checkpoint_interval: int | None = None,
+                      resume: bool = False, fast: bool = True, allow_unstable: bool = False,
+                      check_stability: bool = True, metadata: dict[str, Any] | None = None,
+                      progress: bool = False) -> SimulationResult:
     """Langevin run (BAOAB on lab momenta and body angular momenta) at ``temperature`` (K).
 
     Parameters are those of :func:`simulate_nve` plus ``friction`` (collision rate, 1/ps) and
@@ -188,22 +221,22 @@ def simulate_langevin(model, dt, n_steps, temperature, friction=1.0, seed=None, 
         raise DnarodError(f"temperature must be >= 0 K, got {temperature}")
     if state is None:
         state = maxwell_state(model, temperature, seed, boundary)
-    return _simulate(model, dt, n_steps, state=state, boundary=boundary, temperature=temperature, friction=friction,
-                     seed=seed, out=out, report_interval=report_interval, energy_csv=energy_csv,
-                     checkpoint=checkpoint, checkpoint_interval=checkpoint_interval, resume=resume, fast=fast,
-                     allow_unstable=allow_unstable, check_stability=check_stability, metadata=metadata,
-                     progress=progress)
+    o = _Outputs(out, report_interval, energy_csv, checkpoint, checkpoint_interval, resume, fast, allow_unstable,
+                 check_stability, metadata, progress)
+    return _simulate(model, dt, n_steps, state, boundary, temperature, friction, seed, o)
 
 
-def simulate_exact(model, t_end, velocities=None, angular_velocities=None, temperature=None, seed=None,
-                   boundary=None, rtol=1e-10, atol=1e-10, n_frames=101, out=None, energy_csv=None):
+# One keyword per option of the exact integrator and of the outputs.
+def simulate_exact(model: RodModel, t_end: float, velocities: np.ndarray | None = None,
+                   angular_velocities: np.ndarray | None = None, temperature: float | None = None,
+                   seed: int | None = None, boundary: BoundaryConditions | None = None, rtol: float = 1e-10,
+                   atol: float = 1e-10, n_frames: int = 101, out: str | Path | None = None,
+                   energy_csv: str | Path | None = None) -> ExactResult:
     """Reference run of the exact strain-space system with DOP853 (docs/formulation.md §6-7).
 
     Initial velocities: given, or Maxwell at ``temperature`` (K), or at rest. Writes the same
     ``.dtraj`` and energies CSV as the splitting runs. Returns :class:`.exact.ExactResult`.
     """
-    from dnarod.engines.lax.exact import integrate_exact
-
     if velocities is None and angular_velocities is None and temperature is not None:
         st = maxwell_state(model, temperature, seed, boundary)
         velocities, angular_velocities = st.velocities(model.mass, model.inertia)
@@ -211,8 +244,6 @@ def simulate_exact(model, t_end, velocities=None, angular_velocities=None, tempe
     if out is not None:
         res.trajectory.save(out)
     if energy_csv is not None:
-        from dnarod.engines.lax.boundary import BoundaryConditions
-
         tr = res.trajectory
         ke = node_kinetic_energy(model.mass, model.inertia, tr.velocities, tr.angular_velocities)
         temp = kinetic_temperature(ke, 6 * model.n_nodes)

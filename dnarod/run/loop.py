@@ -12,9 +12,14 @@ from __future__ import annotations
 import signal
 import threading
 import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 from dnarod.core.errors import ParameterError
-from dnarod.run.reporters import Snapshot
+from dnarod.run.reporters import Snapshot, DtrajReporter, EnergyReporter, ProgressReporter
+from dnarod.core.io import ensure_dir
+from dnarod.run.engine import Engine
 
 #: Default wall time between checkpoints, s (a checkpoint is always written at the end and on Ctrl-C): the
 #: protocol samplers' interval. A checkpoint of a 1,000-node OpenMM run takes about a millisecond, so
@@ -22,7 +27,7 @@ from dnarod.run.reporters import Snapshot
 CHECKPOINT_WALL_S = 120.0
 
 
-def _next_multiple(step, interval):
+def _next_multiple(step: int, interval: int) -> int:
     return (step // interval + 1) * interval
 
 
@@ -53,8 +58,10 @@ class _DeferredInterrupt:
         return False
 
 
-def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interval=0, progress=None,
-               duration_ps=None, checkpoint_extra=None, report_start=True, checkpoint_wall_s=None):
+def run_engine(engine: Engine, n_steps: int, reporters: Sequence[Any] = (), checkpoint: str | Path | None = None,
+               checkpoint_interval: int = 0, progress: Any = None,
+               duration_ps: float | None = None, checkpoint_extra: dict[str, Any] | None = None,
+               report_start: bool = True, checkpoint_wall_s: float | None = None) -> dict[str, Any]:
     """Advance ``engine`` to a total of ``n_steps`` steps, feeding the reporters and writing checkpoints.
 
     Parameters
@@ -101,7 +108,7 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
     update = getattr(engine, "update_loads", None)
     n_checkpoints = 0
 
-    def report_all():
+    def report_all() -> None:
         snap = Snapshot(engine)
         for r in reporters:
             if r.due(snap.step):
@@ -109,8 +116,11 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
 
     stateful = [r for r in reporters if hasattr(r, "state")]
 
-    def save():
+    last_save = t0
+
+    def save() -> None:
         nonlocal n_checkpoints, last_save
+        assert checkpoint is not None
         for r in reporters:
             r.flush()
         extra = dict(checkpoint_extra or {})
@@ -120,8 +130,8 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
         n_checkpoints += 1
         last_save = time.perf_counter()
 
-    last_save = t0
-    timed = None  # (step, wall) after the first advance: the speed leaves out the kernels' first-call compile
+    # (step, wall) after the first advance: the speed leaves out the kernels' first-call compile
+    timed: tuple[int, float] | None = None
     with _DeferredInterrupt() as interrupt:
         if report_start:
             report_all()
@@ -160,10 +170,13 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
                 timed_steps=int(engine.step) - timed[0] if timed else 0, timed_wall_s=t1 - timed[1] if timed else 0.0)
 
 
-def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval=None, checkpoint_interval=None,
-                    resume=False, overwrite=False, velocities=False, precision="float32", metadata=None,
-                    observables=None, progress=False, duration_ps=None, checkpoint_extra=None, restored=False,
-                    checkpoint_wall_s=CHECKPOINT_WALL_S):
+def simulate_engine(engine: Engine, n_steps: int, outdir: str | Path, frame_interval: int = 100,
+                    energy_interval: int | None = None, checkpoint_interval: int | None = None,
+                    resume: bool = False, overwrite: bool = False, velocities: bool = False,
+                    precision: str = "float32", metadata: dict[str, Any] | None = None,
+                    observables: Any = None, progress: bool = False, duration_ps: float | None = None,
+                    checkpoint_extra: dict[str, Any] | None = None, restored: bool = False,
+                    checkpoint_wall_s: float = CHECKPOINT_WALL_S) -> dict[str, Any]:
     """Run an engine into a folder: ``trajectory.dtraj``, ``energies.csv``, ``checkpoint.npz``, ``final_model.npz``.
 
     The engine-level form of :func:`dnarod.run.run` (which also builds the engine from a
@@ -205,10 +218,7 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
         The loop's summary (:func:`run_engine`) plus ``temperatures`` (K, one per energy row) and
         ``resumed_from``.
     """
-    from dnarod.core.io import ensure_dir
-    from dnarod.run.reporters import DtrajReporter, EnergyReporter, ProgressReporter
-
-    outdir = ensure_dir(outdir)
+    outdir = Path(ensure_dir(outdir))
     fi = int(frame_interval)
     ei = int(energy_interval or fi)
     ci = 0 if checkpoint_interval is None else int(checkpoint_interval)
@@ -225,7 +235,8 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
     elif traj.exists() and not overwrite:
         raise ParameterError(f"{traj} already exists: resume the run (--resume), choose another output folder, or "
                              f"pass --overwrite")
-    reporters, bar = [], None
+    reporters: list[Any] = []
+    bar = None
     try:
         reporters.append(DtrajReporter(traj, engine.model.n_nodes, fi, velocities, metadata, resume_step=resume_step,
                                        precision=precision))

@@ -19,11 +19,13 @@ import contextlib
 import csv
 import io
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.io import atomic_path, writing
+from dnarod.core.trajectory import TrajectoryWriter
 
 #: Columns of ``energies.csv`` (both engines); observables follow when the loads define them.
 ENERGY_COLUMNS = ["step", "time_ps", "potential_kJ_mol", "kinetic_kJ_mol", "total_kJ_mol", "temperature_K",
@@ -33,15 +35,15 @@ ENERGY_COLUMNS = ["step", "time_ps", "potential_kJ_mol", "kinetic_kJ_mol", "tota
 class Snapshot:
     """The engine's state at one step, read at most once per report (node state, energies)."""
 
-    def __init__(self, engine):
+    def __init__(self, engine: Any) -> None:
         self.engine = engine
         self.step = int(engine.step)
         self.time_ps = self.step * engine.dt
-        self._state = None
-        self._energies = None
+        self._state: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._energies: dict[str, float] | None = None
 
     @property
-    def state(self):
+    def state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(positions, frames, velocities, angular_velocities)`` (on-step; see the engine protocol): the engine's
         arrays or read-only views, valid for this report only."""
         if self._state is None:
@@ -49,7 +51,8 @@ class Snapshot:
         return self._state
 
     @property
-    def energies(self):
+    def energies(self) -> dict[str, float]:
+        """The engine's energies (kJ/mol) and temperature (K) at this step."""
         if self._energies is None:
             self._energies = self.engine.energies()
         return self._energies
@@ -58,17 +61,17 @@ class Snapshot:
 class _Interval:
     interval = 1
 
-    def describeNextReport(self, engine):  # noqa: N802 - OpenMM reporter protocol name
+    def describeNextReport(self, engine: Any) -> int:  # noqa: N802 - OpenMM reporter protocol name
         """Steps until the next report (always >= 1)."""
         return self.interval - engine.step % self.interval
 
-    def due(self, step):
+    def due(self, step: int) -> bool:
         return step % self.interval == 0
 
-    def flush(self):
+    def flush(self) -> None:
         pass
 
-    def close(self):
+    def close(self) -> None:
         pass
 
 
@@ -89,27 +92,26 @@ class DtrajReporter(_Interval):
     precision : {"float32", "float64"}
     """
 
-    def __init__(self, path, n_nodes, interval, velocities=False, metadata=None, resume_step=None,
-                 precision="float32"):
-        from dnarod.core.trajectory import TrajectoryWriter
-
+    def __init__(self, path: str | Path, n_nodes: int, interval: int, velocities: bool = False,
+                 metadata: dict[str, Any] | None = None, resume_step: int | None = None,
+                 precision: str = "float32") -> None:
         self.path = Path(path)
         self.interval = int(interval)
         self.velocities = bool(velocities)
         self.writer = TrajectoryWriter(self.path, n_nodes, velocities=self.velocities, metadata=metadata,
                                        resume_step=resume_step, precision=precision)
 
-    def report(self, engine, snap):
+    def report(self, engine: Any, snap: Snapshot) -> None:
         pos, frm, v, w = snap.state
         if self.velocities:
             self.writer.write(snap.step, snap.time_ps, pos, frm, v, w)
         else:
             self.writer.write(snap.step, snap.time_ps, pos, frm)
 
-    def flush(self):
+    def flush(self) -> None:
         self.writer.flush(sync=False)
 
-    def close(self):
+    def close(self) -> None:
         self.writer.close()
 
 
@@ -127,7 +129,8 @@ class EnergyReporter(_Interval):
         Continue an existing file, dropping rows after this step.
     """
 
-    def __init__(self, path, interval, observables=None, resume_step=None):
+    def __init__(self, path: str | Path, interval: int, observables: Any = None,
+                 resume_step: int | None = None) -> None:
         self.path = Path(path)
         self.interval = int(interval)
         extra = list(getattr(observables, "columns", []) if observables else [])
@@ -153,9 +156,9 @@ class EnergyReporter(_Interval):
             self._fh = open(self.path, "a", newline="")
         self._failed = False
         self._csv = csv.writer(self._fh, lineterminator="\n")
-        self.temperatures = []
+        self.temperatures: list[float] = []
 
-    def report(self, engine, snap):
+    def report(self, engine: Any, snap: Snapshot) -> None:
         e = snap.energies
         self.temperatures.append(e["temperature"])
         row = [snap.step, f"{snap.time_ps:.6f}", repr(float(e["potential"])), repr(float(e["kinetic"])),
@@ -169,13 +172,13 @@ class EnergyReporter(_Interval):
             self._csv.writerow(row)
         self._failed = False
 
-    def flush(self):
+    def flush(self) -> None:
         self._failed = True
         with writing(self.path):
             self._fh.flush()
         self._failed = False
 
-    def close(self):
+    def close(self) -> None:
         if self._fh.closed:
             return
         if self._failed:  # already reported; the buffered bytes would fail again
@@ -190,7 +193,7 @@ class EnergyReporter(_Interval):
 class ProgressReporter(_Interval):
     """A tqdm progress bar (stderr) updated at every report of the other reporters."""
 
-    def __init__(self, total, initial=0, enabled=True):
+    def __init__(self, total: int, initial: int = 0, enabled: bool = True) -> None:
         from tqdm import tqdm
 
         self.interval = 1 << 62  # never asks for a report of its own
@@ -198,21 +201,21 @@ class ProgressReporter(_Interval):
                         dynamic_ncols=True)
         self._last = int(initial)
 
-    def describeNextReport(self, engine):  # noqa: N802
+    def describeNextReport(self, engine: Any) -> int:  # noqa: N802
         return self.interval
 
-    def update(self, step):
+    def update(self, step: int) -> None:
         self.bar.update(int(step) - self._last)
         self._last = int(step)
 
-    def report(self, engine, snap):
+    def report(self, engine: Any, snap: Snapshot) -> None:
         self.update(snap.step)
 
-    def close(self):
+    def close(self) -> None:
         self.bar.close()
 
 
-def load_energies(path):
+def load_energies(path: str | Path) -> dict[str, np.ndarray]:
     """Read ``energies.csv`` into a dict of arrays (column name -> ndarray)."""
     try:
         with open(path, newline="") as fh:

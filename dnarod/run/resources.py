@@ -7,13 +7,17 @@ fixed part (the Python process with numpy, numba, OpenMM) plus a per-node part f
 """
 from __future__ import annotations
 
+import importlib
 import os
 import sys
 import time
+from typing import IO, Any
 
 from dnarod.core.errors import ParameterError
 from dnarod.core.io import human_bytes
 from dnarod.core.jit import is_cached
+from dnarod.structure.inputs import MAX_NODES
+from dnarod.core.model import RodModel
 
 #: Bytes per node of a run's set-up and run (model, normal-mode estimate, engine state, reporters), by engine.
 MEMORY_PER_NODE = {"lax": 3500, "openmm": 4500}
@@ -23,7 +27,7 @@ MEMORY_BASE = 250_000_000
 LARGE_MODEL = 100_000
 
 
-def available_memory():
+def available_memory() -> int | None:
     """Bytes of memory available to a new allocation without swapping (``MemAvailable`` of ``/proc/meminfo``;
     elsewhere the free physical pages, ``os.sysconf``), or None if unknown."""
     try:
@@ -39,12 +43,12 @@ def available_memory():
         return None
 
 
-def estimate_memory(n_nodes, engine):
+def estimate_memory(n_nodes: int, engine: str) -> int:
     """Peak memory of a run of ``n_nodes`` nodes with ``engine`` ("lax" or "openmm"), bytes (an estimate)."""
     return MEMORY_BASE + int(n_nodes) * MEMORY_PER_NODE.get(engine, max(MEMORY_PER_NODE.values()))
 
 
-def check_memory(n_nodes, engine, available=None):
+def check_memory(n_nodes: int | None, engine: str, available: int | None = None) -> None:
     """Refuse, before any work, a model whose run would need more memory than this machine has available.
 
     Raises
@@ -52,8 +56,6 @@ def check_memory(n_nodes, engine, available=None):
     ParameterError
         One line naming the node count, the estimate and the memory available.
     """
-    from dnarod.structure.inputs import MAX_NODES
-
     if n_nodes is None or not 2 <= n_nodes <= MAX_NODES:  # outside: refused by the model's own check, in its words
         return
     need = estimate_memory(n_nodes, engine)
@@ -68,11 +70,9 @@ def check_memory(n_nodes, engine, available=None):
                          f"memory")
 
 
-def node_count_hint(source):
+def node_count_hint(source: Any) -> int | None:
     """The node count of a run's SOURCE when it is cheap to know before the model is built (a node count, a
     sequence, a model), else None (a file: its size is checked once the model is built)."""
-    from dnarod.core.model import RodModel
-
     if isinstance(source, RodModel):
         return source.n_nodes
     if isinstance(source, bool):
@@ -91,13 +91,13 @@ class SetupStages:
     """One line on stderr per stage of a large model's set-up (``dnarod: set-up of N nodes: STAGE...``), with the
     time the previous stage took; silent for small models or when ``enabled`` is false."""
 
-    def __init__(self, n_nodes, enabled=True, stream=None):
+    def __init__(self, n_nodes: int | None, enabled: bool = True, stream: IO[str] | None = None) -> None:
         self.on = bool(enabled) and n_nodes is not None and n_nodes >= LARGE_MODEL
         self.n = n_nodes
         self.stream = stream
-        self.t = None
+        self.t: float | None = None
 
-    def __call__(self, stage):
+    def __call__(self, stage: str) -> None:
         if not self.on:
             return
         now = time.perf_counter()
@@ -121,13 +121,11 @@ KERNELS = {
 COMPILE_S = {"lax": 70, "openmm": 15}
 
 
-def uncompiled(engine):
+def uncompiled(engine: str) -> list[str]:
     """Names of the kernels ``engine`` ("lax" or "openmm") would compile on its first call (not in the cache)."""
     out = []
     for mod, name in KERNELS["common"] + KERNELS.get(engine, []):
         try:
-            import importlib
-
             disp = getattr(importlib.import_module(mod), name)
         except (ImportError, AttributeError):
             continue
@@ -136,7 +134,7 @@ def uncompiled(engine):
     return out
 
 
-def compile_notice(engine):
+def compile_notice(engine: str) -> str | None:
     """The one-line notice before a first compile, or None when the kernels are cached."""
     missing = uncompiled(engine)
     if not missing:

@@ -175,8 +175,8 @@ def run_sampling(engine: Any, sampler: SampleReporter, checkpoint: str | Path | 
     sampler : SampleReporter
     checkpoint : path, optional
         The engine's checkpoint file: written every ``checkpoint_wall_s`` wall seconds (default
-        :data:`dnarod.run.loop.CHECKPOINT_WALL_S`) and at the end, with the sampler's rows. If it exists, the engine and the
-        sampler resume from it, so the run ends with the samples an uninterrupted run would have.
+        :data:`dnarod.run.loop.CHECKPOINT_WALL_S`) and at the end, with the sampler's rows. If it exists, the engine and
+        the sampler resume from it, so the run ends with the samples an uninterrupted run would have.
     extra : mapping, optional
         What identifies the run (settings); stored in the checkpoint and required to match on resume.
     checkpoint_wall_s : float, optional

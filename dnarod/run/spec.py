@@ -4,17 +4,20 @@ Units: time ns (``time_ns``) or ps (``dt``, intervals), temperature K, friction 
 """
 from __future__ import annotations
 
-import hashlib
 import math
+import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 from dataclasses import asdict, dataclass, field, fields, is_dataclass, replace
 
 import numpy as np
 
 from dnarod.core.errors import ParameterError
-from dnarod.core.model import model_fingerprint
-from dnarod.physics.nonbonded import scales_temperature
+from dnarod.core.model import model_fingerprint, RodModel
+from dnarod.physics.nonbonded import scales_temperature, NonbondedSettings, member_nonbonded, nonbonded_record
 from dnarod.run.loop import CHECKPOINT_WALL_S
+from dnarod.core.io import jsonable
 
 ENGINES = ("openmm", "lax")
 STARTS = ("intrinsic", "equilibrium", "minimized")
@@ -25,6 +28,31 @@ MAX_SALT = 6.0
 #: Debye-Hueckel screening) is liquid water, which boils at 373.15 K (100 degC) at 1 atm; far above it the runs blow
 #: up (a member at 1e9 K failed at its first step), so more is a typo.
 MAX_TEMPERATURE = 373.15
+
+
+def _finite(name: str, v: Any, cond: Callable[[float], bool], what: str, option: str | None = None) -> float:
+    """``v`` as a finite float satisfying ``cond``, else one line naming the option (``--name`` by default)."""
+    opt = option or "--" + name.replace("_", "-")
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{opt} {v!r}: must be a number ({what})") from None
+    if not (math.isfinite(x) and cond(x)):
+        raise ParameterError(f"{opt} {v:g}: must be {what}")
+    return x
+
+
+def _integer(opt: str, v: Any, cond: Callable[[int], bool], what: str) -> int:
+    """``v`` as an integer satisfying ``cond`` (a whole float or numeric string counts), else one line."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer, float, np.floating, str)):
+        raise ParameterError(f"{opt} {v!r}: must be an integer ({what})")
+    try:
+        x = float(v)
+    except (TypeError, ValueError):
+        raise ParameterError(f"{opt} {v!r}: must be an integer ({what})") from None
+    if not (math.isfinite(x) and x == int(x) and cond(int(x))):
+        raise ParameterError(f"{opt} {v}: must be an integer {what}")
+    return int(x)
 
 
 @dataclass(frozen=True)
@@ -100,7 +128,7 @@ class RunSpec:
     friction: float = 1.0
     dt: float | None = None
     seed: int | None = None
-    loads: tuple = ()
+    loads: tuple[Any, ...] = ()
     salt: float = 0.15
     excluded_volume: bool = True
     electrostatics: bool = True
@@ -121,67 +149,66 @@ class RunSpec:
     xtc: bool = True
     elastic: str = "auto"
     threads: int | None = None
-    extra: dict = field(default_factory=dict, compare=False)
+    extra: dict[str, Any] = field(default_factory=dict, compare=False)
 
     # ------------------------------------------------------------------------------------
     @property
-    def ensemble(self):
+    def ensemble(self) -> str:
         """``"langevin"`` (friction > 0) or ``"nve"`` (friction 0)."""
         return "langevin" if self.friction > 0 else "nve"
 
     @property
-    def nonbonded(self):
+    def nonbonded(self) -> bool:
+        """Whether any non-bonded term (excluded volume, electrostatics) is on."""
         return bool(self.excluded_volume or self.electrostatics)
 
-    def replace(self, **kw):
+    def replace(self, **kw: Any) -> RunSpec:
+        """A copy with the given fields changed (:func:`dataclasses.replace`)."""
         return replace(self, **kw)
 
-    def check(self):
-        """Refuse absurd values with one line naming the option (:class:`ParameterError`); returns self."""
-        def finite(name, v, cond, what, option=None):
-            opt = option or "--" + name.replace("_", "-")
-            try:
-                x = float(v)
-            except (TypeError, ValueError):
-                raise ParameterError(f"{opt} {v!r}: must be a number ({what})") from None
-            if not (math.isfinite(x) and cond(x)):
-                raise ParameterError(f"{opt} {v:g}: must be {what}")
-            return x
+    def check(self) -> RunSpec:
+        """Refuse absurd values with one line naming the option (:class:`ParameterError`); returns self.
 
-        def integer(opt, v, cond, what):
-            if isinstance(v, bool) or not isinstance(v, (int, np.integer, float, np.floating, str)):
-                raise ParameterError(f"{opt} {v!r}: must be an integer ({what})")
-            try:
-                x = float(v)
-            except (TypeError, ValueError):
-                raise ParameterError(f"{opt} {v!r}: must be an integer ({what})") from None
-            if not (math.isfinite(x) and x == int(x) and cond(int(x))):
-                raise ParameterError(f"{opt} {v}: must be an integer {what}")
-            return int(x)
+        The checks run in groups, in this order (the first bad value is the one named): choices, quantities,
+        non-bonded options, engine options, counts, names, types.
+        """
+        self._check_choices()
+        self._check_quantities()
+        self._check_nonbonded_options()
+        self._check_engine_options()
+        self._check_counts()
+        self._check_names()
+        self._check_types()
+        return self
 
+    def _check_choices(self) -> None:
         if self.source is None:
             raise ParameterError("no source: give a structure, model, sequence, sequence file or node count")
         if self.engine not in ENGINES:
             raise ParameterError(f"--engine {self.engine!r}: choose one of {', '.join(ENGINES)}")
         if self.start not in STARTS:
             raise ParameterError(f"start {self.start!r}: choose one of {', '.join(STARTS)}")
-        finite("time_ns", self.time_ns, lambda x: x > 0, "a positive simulated time in ns", "--time")
-        finite("temperature", self.temperature, lambda x: 0 <= x <= MAX_TEMPERATURE,
-               f"from 0 to {MAX_TEMPERATURE:g} K (the model's solvent is liquid water)", "--temperature")
-        finite("friction", self.friction, lambda x: x >= 0,
-               ">= 0 1/ps (0 runs NVE; a negative friction would pump energy in)")
+
+    def _check_quantities(self) -> None:
+        _finite("time_ns", self.time_ns, lambda x: x > 0, "a positive simulated time in ns", "--time")
+        _finite("temperature", self.temperature, lambda x: 0 <= x <= MAX_TEMPERATURE,
+                f"from 0 to {MAX_TEMPERATURE:g} K (the model's solvent is liquid water)", "--temperature")
+        _finite("friction", self.friction, lambda x: x >= 0,
+                ">= 0 1/ps (0 runs NVE; a negative friction would pump energy in)")
         if self.dt is not None:
-            finite("dt", self.dt, lambda x: x > 0, "a positive time step in ps")
-        finite("frame_interval_ps", self.frame_interval_ps, lambda x: x > 0, "a positive time in ps",
-               "--frame-interval")
+            _finite("dt", self.dt, lambda x: x > 0, "a positive time step in ps")
+        _finite("frame_interval_ps", self.frame_interval_ps, lambda x: x > 0, "a positive time in ps",
+                "--frame-interval")
         if self.checkpoint_interval_ps is not None:
-            finite("checkpoint_interval_ps", self.checkpoint_interval_ps, lambda x: x >= 0,
-                   ">= 0 ps (0: only at the end)", "--checkpoint-interval")
-        finite("checkpoint_wall_s", self.checkpoint_wall_s, lambda x: x >= 0, ">= 0 s of wall time (0: only at the end)",
-               "--checkpoint-wall")
-        finite("salt", self.salt, lambda x: 0 < x <= MAX_SALT,
-               f"a salt concentration in mol/L above 0 and at most {MAX_SALT:g} (Debye-Hueckel screening is "
-               f"meaningless beyond)")
+            _finite("checkpoint_interval_ps", self.checkpoint_interval_ps, lambda x: x >= 0,
+                    ">= 0 ps (0: only at the end)", "--checkpoint-interval")
+        _finite("checkpoint_wall_s", self.checkpoint_wall_s, lambda x: x >= 0,
+                ">= 0 s of wall time (0: only at the end)", "--checkpoint-wall")
+        _finite("salt", self.salt, lambda x: 0 < x <= MAX_SALT,
+                f"a salt concentration in mol/L above 0 and at most {MAX_SALT:g} (Debye-Hueckel screening is "
+                f"meaningless beyond)")
+
+    def _check_nonbonded_options(self) -> None:
         if self.charge is not None or self.cutoff_debye is not None:
             given = "--charge" if self.charge is not None else "--cutoff-debye"
             if self.engine == "lax":
@@ -191,8 +218,10 @@ class RunSpec:
                 raise ParameterError(f"{given} sets the Debye-Hueckel electrostatics, which are off; drop it or turn "
                                      f"electrostatics on")
             if self.cutoff_debye is not None:
-                finite("cutoff_debye", self.cutoff_debye, lambda x: x > 0, "a positive number of Debye lengths")
+                _finite("cutoff_debye", self.cutoff_debye, lambda x: x > 0, "a positive number of Debye lengths")
             self.nonbonded_settings(check=True)
+
+    def _check_engine_options(self) -> None:
         if self.threads is not None and self.platform not in (None, "CPU"):
             raise ParameterError(f"--threads applies to OpenMM's CPU platform, not --platform {self.platform}; drop "
                                  f"one of them")
@@ -209,18 +238,20 @@ class RunSpec:
             if self.elastic != "auto":
                 raise ParameterError(f"--elastic {self.elastic}: chooses the OpenMM engine's elastic path; the lax "
                                      f"engine ignores it (drop --elastic or use --engine openmm)")
+
+    def _check_counts(self) -> None:
         if self.duplex is not None:
-            integer("--duplex", self.duplex, lambda k: k >= 1, "from 1 (duplexes are numbered from 1)")
+            _integer("--duplex", self.duplex, lambda k: k >= 1, "from 1 (duplexes are numbered from 1)")
         if self.intrinsic not in ("sequence", "structure"):
             raise ParameterError(f"--intrinsic {self.intrinsic!r}: choose 'sequence' or 'structure'")
         if self.threads is not None:
-            import os
-
             most = 4 * (os.cpu_count() or 1)
-            integer("--threads", self.threads, lambda k: 1 <= k <= most, f"from 1 to {most} (4 per core here)")
+            _integer("--threads", self.threads, lambda k: 1 <= k <= most, f"from 1 to {most} (4 per core here)")
         if self.seed is not None:
-            integer("--seed", self.seed, lambda k: 0 <= k < 2**31, "in [0, 2^31)")
-        integer("--delta-lk", self.delta_lk, lambda k: True, "(the linking number of a closed ring is an integer)")
+            _integer("--seed", self.seed, lambda k: 0 <= k < 2**31, "in [0, 2^31)")
+        _integer("--delta-lk", self.delta_lk, lambda k: True, "(the linking number of a closed ring is an integer)")
+
+    def _check_names(self) -> None:
         if not isinstance(self.forcefield, (str, Path)):
             raise ParameterError(f"--forcefield {self.forcefield!r}: give a bundled force-field name or a .toml path")
         if self.elastic not in ELASTIC:
@@ -229,7 +260,7 @@ class RunSpec:
             raise ParameterError(f"--platform {self.platform!r}: give an OpenMM platform name (CPU, Reference, "
                                  f"CUDA, HIP, OpenCL)")
         if self.engine == "openmm" and self.platform is not None:
-            from dnarod.engines.openmm.platforms import platform_names
+            from dnarod.engines.openmm.platforms import platform_names  # loads OpenMM
 
             names = platform_names()
             if self.platform not in names:
@@ -237,6 +268,8 @@ class RunSpec:
                 hint = f"; did you mean {near[0]}?" if near else ""
                 raise ParameterError(f"--platform {self.platform}: OpenMM platform not installed here (available: "
                                      f"{', '.join(names)}){hint}")
+
+    def _check_types(self) -> None:
         for name in ("circular", "ring", "velocities", "export", "xtc", "excluded_volume", "electrostatics"):
             if not isinstance(getattr(self, name), (bool, np.bool_)):
                 raise ParameterError(f"{name} {getattr(self, name)!r}: must be True or False")
@@ -244,30 +277,27 @@ class RunSpec:
             raise ParameterError(f"loads {self.loads!r}: give a tuple of dnarod.physics.loads objects")
         for ld in self.loads:
             if not is_dataclass(ld) or isinstance(ld, type):
-                raise ParameterError(f"loads: {ld!r} is not a dnarod.physics.loads object (PullingForce, Torque, Clamp, "
-                                     f"RotationClamp, Trap, ...)")
+                raise ParameterError(f"loads: {ld!r} is not a dnarod.physics.loads object (PullingForce, Torque, "
+                                     f"Clamp, RotationClamp, Trap, ...)")
         if not isinstance(self.extra, dict):
             raise ParameterError(f"extra {self.extra!r}: must be a dict")
-        return self
 
-    def nonbonded_settings(self, check=False):
+    def nonbonded_settings(self, check: bool = False) -> NonbondedSettings | bool:
         """The :class:`dnarod.physics.nonbonded.NonbondedSettings` of the run, or ``False`` when both terms are off
         (``check``: refuse a bad charge or cutoff with one line, :class:`ParameterError`)."""
         if not self.nonbonded:
             return False
-        from dnarod.physics.nonbonded import NonbondedSettings, member_nonbonded
 
-        extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
+        extra: dict[str, Any] = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye))
+                                 if v is not None}
         if check:
             return member_nonbonded(dict(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
                                          salt_M=self.salt, temperature_K=scales_temperature(self.temperature), **extra))
         return NonbondedSettings(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
                                  salt=self.salt, **extra)
 
-    def to_json(self):
+    def to_json(self) -> dict[str, Any]:
         """JSON-safe dict of the spec (loads as ``{"type": ..., fields...}``; a model source as its name)."""
-        from dnarod.core.io import jsonable
-
         d = {f.name: getattr(self, f.name) for f in fields(self) if f.name not in ("loads", "extra", "source")}
         d["source"] = _source_text(self.source)
         d["loads"] = [load_json(x) for x in self.loads]
@@ -275,18 +305,14 @@ class RunSpec:
         return jsonable(d)
 
 
-def _source_text(source):
-    from dnarod.core.model import RodModel
-
+def _source_text(source: Any) -> str:
     if isinstance(source, RodModel):
         return f"<RodModel {source.n_nodes} nodes>"
     return str(source)
 
 
-def load_json(load):
+def load_json(load: Any) -> dict[str, Any]:
     """A load dataclass as a JSON-safe dict ``{"type": class name, field: value}``."""
-    from dnarod.core.io import jsonable
-
     try:
         d = asdict(load)
     except TypeError:
@@ -294,7 +320,7 @@ def load_json(load):
     return jsonable({"type": type(load).__name__, **d})
 
 
-def fingerprint(spec, model, dt, seed):
+def fingerprint(spec: RunSpec, model: RodModel, dt: float, seed: int) -> dict[str, Any]:
     """Everything a resumed run must share with the run it continues (name -> JSON value).
 
     Model (sequence, parameters, masses, starting pose via :func:`model_fingerprint`), engine,
@@ -321,20 +347,18 @@ def fingerprint(spec, model, dt, seed):
 CHARGE_ENTRIES = ("charge_model", "charge_e_per_node", "cutoff_debye", "cutoff_nm")
 
 
-def _nonbonded_fingerprint(spec, model):
+def _nonbonded_fingerprint(spec: RunSpec, model: RodModel) -> dict[str, Any]:
     """The non-bonded entries of a fingerprint: on/off and salt, and with electrostatics the charge model, its
     charge per node (e), the cutoff in Debye lengths and nm (resolved at the run's temperature, 300 K at T = 0)."""
     fp = dict(excluded_volume=bool(spec.excluded_volume), electrostatics=bool(spec.electrostatics),
               salt_mol_L=float(spec.salt) if spec.nonbonded else None)
     if spec.engine == "openmm" and spec.electrostatics:
-        from dnarod.physics.nonbonded import nonbonded_record
-
         rec = nonbonded_record(spec.nonbonded_settings(), model.ds, scales_temperature(spec.temperature))
         fp.update({k: rec[k] for k in CHARGE_ENTRIES})
     return fp
 
 
-def compare_fingerprints(old, new, where):
+def compare_fingerprints(old: dict[str, Any], new: dict[str, Any], where: str | Path) -> None:
     """Raise :class:`ParameterError` naming the first entry that differs (``where``: the run.json path)."""
     names = {"model": "model (sequence, parameters, masses or starting pose)", "dt_ps": "time step (--dt)",
              "temperature_K": "temperature (-T)", "friction_per_ps": "friction (--friction)",
@@ -364,7 +388,7 @@ def compare_fingerprints(old, new, where):
                                  f"run (-o NEWDIR, or --overwrite)")
 
 
-def _same(a, b):
+def _same(a: Any, b: Any) -> bool:
     if isinstance(a, float) or isinstance(b, float):
         try:
             return math.isclose(float(a), float(b), rel_tol=1e-12, abs_tol=0.0)

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 from dnarod.core.errors import StructureError
+from dnarod.core.forcefield import data_dir
 
 
 def data_file(*parts):
@@ -12,8 +13,6 @@ def data_file(*parts):
     StructureError
         If the file is missing (a broken installation).
     """
-    from dnarod.core.forcefield import data_dir
-
     p = data_dir().joinpath(*parts)
     if not p.is_file():
         raise StructureError(f"bundled data file {'/'.join(parts)} is missing from {data_dir()}; reinstall dnarod")

@@ -25,9 +25,10 @@ Three stages:
    overlapping windows, each a core of ``WINDOW_CORE`` bp with ``WINDOW_FLANK`` bp on each side,
    every window built and closed as a duplex of its own (its own fibre-to-input path); each atom is
    taken from the window whose core holds its base pair, and the whole duplex is then polished as in
-   the closure's last step (covalent terms, stiffened bonds, firm restraints) with a capped iteration count, which brings the links where two cores meet to Amber14's
-   lengths. Each window costs the same whatever the length, so the rebuild is linear in length (one
-   closure of the whole grew faster: 0.6 s CPU per bp at 12 bp, 1.0 at 24, over 11 at 147).
+   the closure's last step (covalent terms, stiffened bonds, firm restraints) with a capped iteration count, which
+   brings the links where two cores meet to Amber14's lengths. Each window costs the same whatever the length, so the
+   rebuild is linear in length (one closure of the whole grew faster: 0.6 s CPU per bp at 12 bp, 1.0 at 24, over 11 at
+   147).
 
 Before the closure, frames that put ring atoms of two bases closer than any placement within the
 frame tolerance could separate to 2.2 A are refused at once (:func:`_placed_clash`), naming the
@@ -49,12 +50,16 @@ import logging
 import time
 from dataclasses import dataclass, field
 from functools import lru_cache
+from pathlib import Path
 
 import numpy as np
 
 from dnarod.core.errors import StructureError
-from dnarod.structure.frames import standard_bases
-from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates
+from dnarod.structure.frames import standard_bases, kabsch
+from dnarod.structure.rebuild import fibre_pair_parameters, rebuild_coordinates, nucleotide_template
+from dnarod.structure.bpparams import pair_parameters
+from dnarod.core.io import atomic_path
+from dnarod.structure.reader import COMPLEMENT
 
 _log = logging.getLogger(__name__)
 
@@ -342,8 +347,6 @@ def _retarget(force, context, groups, pos, placed):
     while their internal geometry is the force field's, so firm restraints hold the frame without
     straining the ring bonds toward the standard base's lengths.
     """
-    from dnarod.structure.frames import kabsch
-
     k = 0
     for ids, ref in groups:
         Rb, ob, _ = kabsch(ref, pos[ids])
@@ -476,8 +479,6 @@ def _placed_gap(xyz, atoms, O, n, bond_tolerance):
     sum of those lengths apart. If the frames put them further apart even after both moves, no closure
     can pass the checks: raise before minimising, naming the step, the distance and the shortfall.
     """
-    from dnarod.structure.rebuild import nucleotide_template
-
     def path_length(letter, names):
         tn, tx = nucleotide_template(letter)
         ix = {a: i for i, a in enumerate(tn)}
@@ -621,9 +622,6 @@ def _links(topology):
 
 def _pair_frames_of(topology, xyz, n, sequence, sequence2):
     """Base-pair frames refitted from the rebuilt atoms (nm, as the analysis computes them)."""
-    from dnarod.structure.bpparams import pair_parameters
-    from dnarod.structure.frames import kabsch
-
     std, ring = standard_bases()
     res = list(topology.residues())
     F, O = np.zeros((2, n, 3, 3)), np.zeros((2, n, 3))
@@ -648,13 +646,12 @@ def _homotopy(F, O, fractions):
     Step i is ``(R_i, d_i)`` in the frame of pair i (``R_i = F_i^T F_{i+1}``, ``d_i = F_i^T (O_{i+1} - O_i)``);
     at fraction t the rotation is ``R_fib exp(t log(R_fib^T R_i))`` and the offset ``(1 - t) d_fib + t d_i``.
     Each chain is superposed on the input origins (least squares) so that successive stages move the
-    atoms locally only (origins and frame axes fitted); at t = 1 it is the input itself. Why: the rigid placement nearly closes the
-    backbone on the fibre (the nucleotide template is the fibre's), so the backbone can follow the
+    atoms locally only (origins and frame axes fitted); at t = 1 it is the input itself. Why: the rigid placement nearly
+    closes the backbone on the fibre (the nucleotide template is the fibre's), so the backbone can follow the
     frames continuously from there instead of being untangled from a far-off start.
     """
     from scipy.spatial.transform import Rotation
 
-    from dnarod.structure.frames import kabsch
 
     n = len(F)
     c, s_ = np.cos(FIBRE_TWIST), np.sin(FIBRE_TWIST)
@@ -732,7 +729,6 @@ def _close(F, O, seq1, seq2, p_in, restraint_k, bond_tolerance, max_iterations, 
     ``F`` (m, 3, 3), ``O`` (m, 3) nm, ``p_in`` (m, 6) pair parameters. Returns ``(topology, positions nm,
     Amber14 system (restraints in force group 31), placement on the input frames nm)``; no checks.
     """
-    import openmm
 
     xyz, atoms = rebuild_coordinates(F, O, seq1, p_in, seq2)
     # placements along the path from the fibre (backbone nearly closed) to the input frames and pair parameters
@@ -831,9 +827,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
         ``bond_tolerance``, a heavy-atom clash under 2.2 A, a flipped sugar, or a base pair moved by
         more than 0.05 A or 1 degree (naming the pair).
     """
-    import resource
-
-    import openmm
+    import resource  # POSIX only
 
     F = np.asarray(bp_frames, float)
     O = np.asarray(bp_origins, float)
@@ -843,8 +837,7 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     _placed_clash(xyz, atoms, F, O, len(F))
     _placed_gap(xyz, atoms, O, len(F), bond_tolerance)
     seq1 = "".join(str(sequence).split()).upper()
-    comp = {"A": "T", "T": "A", "G": "C", "C": "G"}
-    seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(comp[c] for c in seq1)
+    seq2 = "".join(str(sequence2).split()).upper() if sequence2 else "".join(COMPLEMENT[c] for c in seq1)
     n = len(seq1)
     t0, c0 = time.perf_counter(), resource.getrusage(resource.RUSAGE_SELF).ru_utime
     p_fib = fibre_pair_parameters()
@@ -852,155 +845,24 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     core, flank = int(window), int(flank)
     if core < 1 or flank < 1:
         raise StructureError(f"rebuild: window ({window}) and flank ({flank}) must be at least 1 bp")
-    windowed = n > core + 2 * flank
-    if not windowed:
+    if n <= core + 2 * flank:
         top, pos, system, placed = _close(F, O, seq1, seq2, p_in, restraint_k, bond_tolerance, max_iterations,
                                           platform)
         chiral0 = _chirality(top, placed)
         bonds, r0 = _bond_table(system, top)
     else:
-        # the whole duplex's topology (hydrogens) on the input placement; every atom is then taken from the
-        # window whose core holds its base pair
-        top, placed, tmap = _hydrogenated(atoms, xyz, platform)
-        placed[tmap] = xyz
-        chiral0 = _chirality(top, placed)
-        pos = placed.copy()
-        index = {(a.residue.chain.id, int(a.residue.id), a.name): a.index for a in top.atoms()}
-        taken = np.zeros(len(pos), bool)
-        for a in range(0, n, core):
-            b = min(n, a + core)
-            lo, hi = max(0, a - flank), min(n, b + flank)
-            wtop, wpos, _, _ = _close(F[lo:hi], O[lo:hi], seq1[lo:hi], seq2[lo:hi], p_in[lo:hi], restraint_k,
-                                      bond_tolerance, max_iterations, platform)
-            m = hi - lo
-            _log.debug("rebuild: window %d-%d (core %d-%d) closed, %.1f s", lo + 1, hi, a + 1, b,
-                       time.perf_counter() - t0)
-            for at in wtop.atoms():
-                k = lo + _pair_of(at.residue, m)  # 1-based pair of the whole duplex
-                if a < k <= b:
-                    rid = k if at.residue.chain.id == "A" else 2 * n + 1 - k
-                    i = index[(at.residue.chain.id, rid, at.name)]
-                    pos[i], taken[i] = wpos[at.index], True
-        if not taken.all():  # cannot happen with standard residues; guards the atom bookkeeping
-            miss = list(top.atoms())[int(np.flatnonzero(~taken)[0])]
-            raise StructureError(f"rebuild: no window placed atom {_atom_name(miss)}")
-        system, _ = amber_system(top, cutoff=MIN_CUTOFF)
-        bonds, r0 = _bond_table(system, top)
-        # global polish, capped: where two windows meet, the link and its neighbours come from different
-        # windows (each closed with the same frames, so they differ by little); the covalent terms with
-        # stiffened bonds, the capped repulsion, the firm base restraints and the sugar chirality hold
-        # bring them to Amber14's lengths without the non-bonded terms turning the pairs (see stage 3)
-        covalent, cforce, cgroups = _covalent_system(system, top, placed, restraint_k, bonds)
-        _scale_bonds(covalent, POLISH_BOND_SCALE)
-        cctx = _context(covalent, pos, platform)
-        for _ in range(1 + EXTRA_ROUNDS):
-            _retarget(cforce, cctx, cgroups, pos, placed)
-            pos, _ = _relax(cctx, 0.01, polish_iterations)
-            d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
-            if d.max() <= 0.2 * bond_tolerance:
-                break
-        del cctx
-    ctx = _context(system, pos, platform)
-    energy = ctx.getState(getEnergy=True, groups={g for g in range(31)}).getPotentialEnergy().value_in_unit(
-        openmm.unit.kilojoule_per_mole)
-    del ctx
-    links = _links(top)
-    if len(links) != 2 * (n - 1):
-        raise StructureError(f"rebuild: expected {2 * (n - 1)} O3'-P links, the topology has {len(links)}")
-    place = np.array([np.linalg.norm(placed[a.index] - placed[b.index]) for a, b in links])
-    targets = [placed]
+        top, pos, system, placed, chiral0, bonds, r0 = _close_windows(
+            F, O, seq1, seq2, p_in, atoms, xyz, (core, flank), (restraint_k, bond_tolerance, max_iterations,
+                                                                polish_iterations), platform, t0)
+    energy = _potential_energy(system, pos, platform)
+    ck = _RebuildChecks(top, pos, placed, bonds, r0, n)
     seconds = time.perf_counter() - t0
     cpu = resource.getrusage(resource.RUSAGE_SELF).ru_utime - c0
-    # checks
-    lengths = np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1)
-    dev = np.abs(lengths - r0)
-    atoms_list = list(top.atoms())
-    bond_index = {(int(i), int(j)): k for k, (i, j) in enumerate(bonds)}
-    o3p = []
-    for (a, b) in links:
-        k = bond_index.get((a.index, b.index), bond_index.get((b.index, a.index)))
-        o3p.append((lengths[k], r0[k]))
-    o3p = np.array(o3p)
-    link_k = [bond_index.get((a.index, b.index), bond_index.get((b.index, a.index))) for a, b in links]
-    def step_of(j):
-        r1, r2 = links[j][0].residue, links[j][1].residue
-        return int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
-
-    def gap_near(pairs):
-        """The O3'-P link touching base pairs ``pairs`` (1-based) that the frames placed furthest off."""
-        js = [j for j in range(len(links)) if {step_of(j), step_of(j) + 1} & set(pairs)]
-        if not js:
-            return ""
-        j = max(js, key=lambda j: abs(place[j] - r0[link_k[j]]))
-        if abs(place[j] - r0[link_k[j]]) < 0.05:
-            return ""
-        return (f" (the input frames placed the O3'-P link of step {step_of(j)}-{step_of(j) + 1}, strand "
-                f"{'I' if links[j][0].residue.chain.id == 'A' else 'II'}, at {10 * place[j]:.2f} A; Amber14 "
-                f"{10 * r0[link_k[j]]:.2f} A, off by {10 * abs(place[j] - r0[link_k[j]]):.2f} A)")
-
-    # a backbone that did not close: name the link whose frames put it furthest from Amber14's length among
-    # the links next to a bond left off (a gap also strains the neighbouring links, more so where two
-    # windows meet, so the worst link after minimisation need not be the step the frames broke)
-    off = dev > bond_tolerance
-    bad_res = {atoms_list[int(i)].residue.index for i in bonds[off].ravel()}
-    near = [j for j, (a, b) in enumerate(links) if a.residue.index in bad_res or b.residue.index in bad_res]
-    if near:
-        j = max(near, key=lambda j: (abs(place[j] - r0[link_k[j]]), dev[link_k[j]]))
-        a, b = links[j]
-        k = link_k[j]
-        r1, r2 = a.residue, b.residue
-        step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
-        local = [q for q in np.flatnonzero(off) if {atoms_list[bonds[q, 0]].residue.index,
-                                                     atoms_list[bonds[q, 1]].residue.index} & {r1.index, r2.index}]
-        w = max(local, key=lambda q: dev[q]) if local else k
-        worst_there = "" if w == k else (
-            f"; worst bond there {_atom_name(atoms_list[bonds[w, 0]])}-{atoms_list[bonds[w, 1]].name} "
-            f"{10 * lengths[w]:.2f} A, off by {10 * dev[w]:.2f} A")
-        raise StructureError(
-            f"rebuild: cannot close the backbone at step {step}-{step + 1} (strand {'I' if r1.chain.id == 'A' else 'II'}, "
-            f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
-            f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A{worst_there}); "
-            f"the two base-pair frames are too far apart or too distorted for a DNA backbone")
-    worst = int(np.argmax(dev))
-    if dev[worst] > bond_tolerance:
-        a, b = atoms_list[bonds[worst, 0]], atoms_list[bonds[worst, 1]]
-        raise StructureError(f"rebuild: bond {_atom_name(a)}-{b.name} is {10 * lengths[worst]:.3f} A after "
-                             f"minimisation, Amber14 {10 * r0[worst]:.3f} A; the frames are too distorted")
-    chiral1 = _chirality(top, pos)
-    flipped = [key for key, s in chiral0.items() if chiral1.get(key) != s]
-    if flipped:
-        r, centre = flipped[0]
-        res = list(top.residues())[r]
-        raise StructureError(f"rebuild: the sugar of {res.chain.id}:{res.id} changed chirality at {centre} while "
-                             f"closing the backbone; the frames are too distorted{gap_near([_pair_of(res, n)])}")
-    heavy = np.array([a.element.symbol != "H" for a in atoms_list])
-    excl = _exclusion_pairs(len(atoms_list), bonds)
-    from scipy.spatial import cKDTree
-
-    hidx = np.flatnonzero(heavy)
-    tree = cKDTree(pos[hidx])
-    close = [(d, hidx[i], hidx[j]) for i, j in tree.query_pairs(0.3)
-             if (min(hidx[i], hidx[j]), max(hidx[i], hidx[j])) not in excl
-             for d in [np.linalg.norm(pos[hidx[i]] - pos[hidx[j]])]]
-    dmin, pair = np.inf, None
-    if close:
-        d, i, j = min(close)
-        dmin, pair = d, f"{_atom_name(atoms_list[i])} - {_atom_name(atoms_list[j])}"
-    if dmin < MIN_NONBONDED:
-        placed_d = np.linalg.norm(targets[-1][i] - targets[-1][j])
-        where = _where(_pair_of(atoms_list[i].residue, n), _pair_of(atoms_list[j].residue, n))
-        raise StructureError(f"rebuild: atoms {pair} ({where}) are {10 * dmin:.3f} A apart after minimisation "
-                             f"(under {10 * MIN_NONBONDED:.1f} A, short by {10 * (MIN_NONBONDED - dmin):.3f} A); the "
-                             f"frames put two nucleotides into each other (placed {10 * placed_d:.2f} A apart; the "
-                             f"frames must move them further apart)")
-    mid, morg = _pair_frames_of(top, pos, n, seq1, seq2)
-    shift, turn = np.linalg.norm(morg - O, axis=-1), _rotation_angle(mid, F)
-    bad = np.flatnonzero((shift > FRAME_ORIGIN_TOL) | (turn > FRAME_ANGLE_TOL))
-    if len(bad):
-        k = int(bad[np.argmax(shift[bad] / FRAME_ORIGIN_TOL + turn[bad] / FRAME_ANGLE_TOL)])
-        raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg while "
-                             f"closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, {FRAME_ANGLE_TOL:.0f} deg); "
-                             f"the frames are too distorted for an Amber14 backbone{gap_near([k + 1])}")
+    worst = ck.backbone(bond_tolerance)
+    ck.chirality(chiral0)
+    dmin, pair = ck.clashes()
+    mid, morg = ck.frames(F, O, seq1, seq2)
+    atoms_list, dev, place, o3p = ck.atoms_list, ck.dev, ck.place, ck.o3p
     ang_dev, worst_angle = _angle_deviation(system, pos, atoms_list)
     report = RebuildReport(
         max_bond_deviation=float(dev.max()), worst_bond=f"{_atom_name(atoms_list[bonds[worst, 0]])}-"
@@ -1016,6 +878,190 @@ def rebuild_allatom(bp_frames, bp_origins, sequence, bp_params=None, sequence2=N
     return AllAtomDuplex(top, pos, report)
 
 
+def _close_windows(F, O, seq1, seq2, p_in, atoms, xyz, sizes, settings, platform, t0):
+    """A long duplex closed window by window, then polished as a whole: ``(topology, positions, Amber14 system,
+    placement, sugar chiralities of the placement, bond table, bond lengths)``. ``sizes``: (core, flank) in base
+    pairs; ``settings``: (restraint_k, bond_tolerance, max_iterations, polish_iterations)."""
+    core, flank = sizes
+    restraint_k, bond_tolerance, max_iterations, polish_iterations = settings
+    n = len(seq1)
+    # the whole duplex's topology (hydrogens) on the input placement; every atom is then taken from the
+    # window whose core holds its base pair
+    top, placed, tmap = _hydrogenated(atoms, xyz, platform)
+    placed[tmap] = xyz
+    chiral0 = _chirality(top, placed)
+    pos = placed.copy()
+    index = {(a.residue.chain.id, int(a.residue.id), a.name): a.index for a in top.atoms()}
+    taken = np.zeros(len(pos), bool)
+    for a in range(0, n, core):
+        b = min(n, a + core)
+        lo, hi = max(0, a - flank), min(n, b + flank)
+        wtop, wpos, _, _ = _close(F[lo:hi], O[lo:hi], seq1[lo:hi], seq2[lo:hi], p_in[lo:hi], restraint_k,
+                                  bond_tolerance, max_iterations, platform)
+        m = hi - lo
+        _log.debug("rebuild: window %d-%d (core %d-%d) closed, %.1f s", lo + 1, hi, a + 1, b,
+                   time.perf_counter() - t0)
+        for at in wtop.atoms():
+            k = lo + _pair_of(at.residue, m)  # 1-based pair of the whole duplex
+            if a < k <= b:
+                rid = k if at.residue.chain.id == "A" else 2 * n + 1 - k
+                i = index[(at.residue.chain.id, rid, at.name)]
+                pos[i], taken[i] = wpos[at.index], True
+    if not taken.all():  # cannot happen with standard residues; guards the atom bookkeeping
+        miss = list(top.atoms())[int(np.flatnonzero(~taken)[0])]
+        raise StructureError(f"rebuild: no window placed atom {_atom_name(miss)}")
+    system, _ = amber_system(top, cutoff=MIN_CUTOFF)
+    bonds, r0 = _bond_table(system, top)
+    # global polish, capped: where two windows meet, the link and its neighbours come from different
+    # windows (each closed with the same frames, so they differ by little); the covalent terms with
+    # stiffened bonds, the capped repulsion, the firm base restraints and the sugar chirality hold
+    # bring them to Amber14's lengths without the non-bonded terms turning the pairs (see stage 3)
+    covalent, cforce, cgroups = _covalent_system(system, top, placed, restraint_k, bonds)
+    _scale_bonds(covalent, POLISH_BOND_SCALE)
+    cctx = _context(covalent, pos, platform)
+    for _ in range(1 + EXTRA_ROUNDS):
+        _retarget(cforce, cctx, cgroups, pos, placed)
+        pos, _ = _relax(cctx, 0.01, polish_iterations)
+        d = np.abs(np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1) - r0)
+        if d.max() <= 0.2 * bond_tolerance:
+            break
+    del cctx
+    return top, pos, system, placed, chiral0, bonds, r0
+
+
+def _potential_energy(system, pos, platform):
+    """Amber14 potential energy of the rebuilt duplex (every force group), kJ/mol."""
+    import openmm
+
+    ctx = _context(system, pos, platform)
+    energy = ctx.getState(getEnergy=True, groups={g for g in range(31)}).getPotentialEnergy().value_in_unit(
+        openmm.unit.kilojoule_per_mole)
+    del ctx
+    return energy
+
+
+class _RebuildChecks:
+    """What :func:`rebuild_allatom` refuses in a rebuilt duplex (an open backbone, a bond off Amber14, a flipped
+    sugar, a clash, a moved base pair), each naming where; they share the bond table and the O3'-P links."""
+
+    def __init__(self, top, pos, placed, bonds, r0, n):
+        self.top, self.pos, self.placed, self.bonds, self.r0, self.n = top, pos, placed, bonds, r0, n
+        links = self.links = _links(top)
+        if len(links) != 2 * (n - 1):
+            raise StructureError(f"rebuild: expected {2 * (n - 1)} O3'-P links, the topology has {len(links)}")
+        self.place = np.array([np.linalg.norm(placed[a.index] - placed[b.index]) for a, b in links])
+        self.lengths = np.linalg.norm(pos[bonds[:, 0]] - pos[bonds[:, 1]], axis=1)
+        self.dev = np.abs(self.lengths - r0)
+        self.atoms_list = list(top.atoms())
+        bond_index = {(int(i), int(j)): k for k, (i, j) in enumerate(bonds)}
+        self.link_k = [bond_index.get((a.index, b.index), bond_index.get((b.index, a.index))) for a, b in links]
+        self.o3p = np.array([(self.lengths[k], r0[k]) for k in self.link_k])
+
+    def step_of(self, j):
+        """The step (1-based, its first base pair) of O3'-P link ``j``."""
+        r1, r2 = self.links[j][0].residue, self.links[j][1].residue
+        return int(r1.id) if r1.chain.id == "A" else 2 * self.n + 1 - int(r2.id)
+
+    def gap_near(self, pairs):
+        """The O3'-P link touching base pairs ``pairs`` (1-based) that the frames placed furthest off."""
+        links, place, r0, link_k = self.links, self.place, self.r0, self.link_k
+        js = [j for j in range(len(links)) if {self.step_of(j), self.step_of(j) + 1} & set(pairs)]
+        if not js:
+            return ""
+        j = max(js, key=lambda j: abs(place[j] - r0[link_k[j]]))
+        if abs(place[j] - r0[link_k[j]]) < 0.05:
+            return ""
+        return (f" (the input frames placed the O3'-P link of step {self.step_of(j)}-{self.step_of(j) + 1}, strand "
+                f"{'I' if links[j][0].residue.chain.id == 'A' else 'II'}, at {10 * place[j]:.2f} A; Amber14 "
+                f"{10 * r0[link_k[j]]:.2f} A, off by {10 * abs(place[j] - r0[link_k[j]]):.2f} A)")
+
+    def backbone(self, bond_tolerance):
+        """Refuse a backbone that did not close or a bond off Amber14; returns the worst bond's index."""
+        links, place, r0, link_k, dev = self.links, self.place, self.r0, self.link_k, self.dev
+        bonds, lengths, atoms_list, n = self.bonds, self.lengths, self.atoms_list, self.n
+        # a backbone that did not close: name the link whose frames put it furthest from Amber14's length among
+        # the links next to a bond left off (a gap also strains the neighbouring links, more so where two
+        # windows meet, so the worst link after minimisation need not be the step the frames broke)
+        off = dev > bond_tolerance
+        bad_res = {atoms_list[int(i)].residue.index for i in bonds[off].ravel()}
+        near = [j for j, (a, b) in enumerate(links) if a.residue.index in bad_res or b.residue.index in bad_res]
+        if near:
+            j = max(near, key=lambda j: (abs(place[j] - r0[link_k[j]]), dev[link_k[j]]))
+            a, b = links[j]
+            k = link_k[j]
+            r1, r2 = a.residue, b.residue
+            step = int(r1.id) if r1.chain.id == "A" else 2 * n + 1 - int(r2.id)
+            local = [q for q in np.flatnonzero(off) if {atoms_list[bonds[q, 0]].residue.index,
+                                                         atoms_list[bonds[q, 1]].residue.index} & {r1.index, r2.index}]
+            w = max(local, key=lambda q: dev[q]) if local else k
+            worst_there = "" if w == k else (
+                f"; worst bond there {_atom_name(atoms_list[bonds[w, 0]])}-{atoms_list[bonds[w, 1]].name} "
+                f"{10 * lengths[w]:.2f} A, off by {10 * dev[w]:.2f} A")
+            raise StructureError(
+                f"rebuild: cannot close the backbone at step {step}-{step + 1} "
+                f"(strand {'I' if r1.chain.id == 'A' else 'II'}, "
+                f"{r1.chain.id}:{r1.id} O3' - {r2.chain.id}:{r2.id} P): {10 * lengths[k]:.2f} A after minimisation "
+                f"(placed at {10 * place[j]:.2f} A; Amber14 {10 * r0[k]:.2f} A, off by {10 * dev[k]:.2f} A"
+                f"{worst_there}); the two base-pair frames are too far apart or too distorted for a DNA backbone")
+        worst = int(np.argmax(dev))
+        if dev[worst] > bond_tolerance:
+            a, b = atoms_list[bonds[worst, 0]], atoms_list[bonds[worst, 1]]
+            raise StructureError(f"rebuild: bond {_atom_name(a)}-{b.name} is {10 * lengths[worst]:.3f} A after "
+                                 f"minimisation, Amber14 {10 * r0[worst]:.3f} A; the frames are too distorted")
+        return worst
+
+    def chirality(self, chiral0):
+        """Refuse a sugar whose chirality changed while the backbone was closed."""
+        chiral1 = _chirality(self.top, self.pos)
+        flipped = [key for key, s in chiral0.items() if chiral1.get(key) != s]
+        if flipped:
+            r, centre = flipped[0]
+            res = list(self.top.residues())[r]
+            raise StructureError(f"rebuild: the sugar of {res.chain.id}:{res.id} changed chirality at {centre} "
+                                 f"while closing the backbone; the frames are too distorted"
+                                 f"{self.gap_near([_pair_of(res, self.n)])}")
+
+    def clashes(self):
+        """Refuse non-bonded heavy atoms closer than :data:`MIN_NONBONDED`; returns the closest pair's distance
+        (nm) and names."""
+        from scipy.spatial import cKDTree
+
+        pos, atoms_list, n = self.pos, self.atoms_list, self.n
+        heavy = np.array([a.element.symbol != "H" for a in atoms_list])
+        excl = _exclusion_pairs(len(atoms_list), self.bonds)
+        hidx = np.flatnonzero(heavy)
+        tree = cKDTree(pos[hidx])
+        close = [(d, hidx[i], hidx[j]) for i, j in tree.query_pairs(0.3)
+                 if (min(hidx[i], hidx[j]), max(hidx[i], hidx[j])) not in excl
+                 for d in [np.linalg.norm(pos[hidx[i]] - pos[hidx[j]])]]
+        dmin, pair = np.inf, None
+        if close:
+            d, i, j = min(close)
+            dmin, pair = d, f"{_atom_name(atoms_list[i])} - {_atom_name(atoms_list[j])}"
+        if dmin < MIN_NONBONDED:
+            placed_d = np.linalg.norm(self.placed[i] - self.placed[j])
+            where = _where(_pair_of(atoms_list[i].residue, n), _pair_of(atoms_list[j].residue, n))
+            raise StructureError(f"rebuild: atoms {pair} ({where}) are {10 * dmin:.3f} A apart after minimisation "
+                                 f"(under {10 * MIN_NONBONDED:.1f} A, short by {10 * (MIN_NONBONDED - dmin):.3f} A); "
+                                 f"the frames put two nucleotides into each other (placed {10 * placed_d:.2f} A "
+                                 f"apart; the frames must move them further apart)")
+        return dmin, pair
+
+    def frames(self, F, O, seq1, seq2):
+        """Refuse a base pair moved by more than the accepted shift or turn; returns the rebuilt pairs' frames
+        and origins."""
+        mid, morg = _pair_frames_of(self.top, self.pos, self.n, seq1, seq2)
+        shift, turn = np.linalg.norm(morg - O, axis=-1), _rotation_angle(mid, F)
+        bad = np.flatnonzero((shift > FRAME_ORIGIN_TOL) | (turn > FRAME_ANGLE_TOL))
+        if len(bad):
+            k = int(bad[np.argmax(shift[bad] / FRAME_ORIGIN_TOL + turn[bad] / FRAME_ANGLE_TOL)])
+            raise StructureError(f"rebuild: base pair {k + 1} moved by {10 * shift[k]:.3f} A and {turn[k]:.2f} deg "
+                                 f"while closing the backbone (accepted {10 * FRAME_ORIGIN_TOL:.2f} A, "
+                                 f"{FRAME_ANGLE_TOL:.0f} deg); the frames are too distorted for an Amber14 "
+                                 f"backbone{self.gap_near([k + 1])}")
+        return mid, morg
+
+
 def write_allatom(path, topology, positions, hydrogens=True, remarks=()):
     """Write an all-atom structure as PDB or PDBx/mmCIF (by suffix), atomically.
 
@@ -1029,12 +1075,9 @@ def write_allatom(path, topology, positions, hydrogens=True, remarks=()):
     hydrogens : bool
         Keep hydrogens (default) or write heavy atoms only.
     """
-    from pathlib import Path
-
     import openmm.app as app
     import openmm.unit as u
 
-    from dnarod.core.io import atomic_path
 
     path = Path(path)
     top, pos = topology, np.asarray(positions, float)

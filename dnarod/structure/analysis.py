@@ -29,11 +29,14 @@ from dnarod.core.errors import StructureError
 from dnarod.core.stepparams import step_parameters
 from dnarod.structure import conventions as cv
 from dnarod.structure.bpparams import flip_strand2, pair_parameters
-from dnarod.structure.findpair import PairCheck, assemble_helices, base_data, candidate_pairs, check_pair, find_best_pairs
+from dnarod.structure.findpair import (PairCheck, assemble_helices, base_data, candidate_pairs, check_pair,
+                                      find_best_pairs)
 from dnarod.structure.frames import base_frames, has_base_atoms, kabsch, ring_atoms_present, standard_bases
-from dnarod.structure.pairing import (MAX_GAP, backbone_links, check_duplicated, classify_pair, explicit_pairs, fill_helix_gaps,
+from dnarod.structure.pairing import (MAX_GAP, backbone_links, check_duplicated, classify_pair, explicit_pairs,
+                                      fill_helix_gaps,
                       is_mismatch, multiplets)
 from dnarod.structure.reader import read_structure
+from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 
 
 @dataclass
@@ -147,8 +150,6 @@ class StructureAnalysis:
 def unstacked_steps(duplex):
     """Steps (0-based in the duplex) whose node frames turn by 80 % of a half turn or more: not a stacked
     step (a pair with parallel base normals, a helix turning back), beyond what the rod's strains describe."""
-    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
-
     F = duplex.bp_frames
     if len(F) < 2:
         return []

@@ -25,15 +25,17 @@ import numpy as np
 
 from dnarod.core.errors import StructureError
 from dnarod.core.model import RodModel
-from dnarod.structure.analysis import analyze_structure
+from dnarod.structure.analysis import analyze_structure, check_node_steps
 from dnarod.structure.selection import choose_duplex
+from dnarod.core.forcefield import ForceField, load_forcefield
+from dnarod.core.parameters import StepParameters
+from dnarod.core.strains import strains
+from dnarod.structure.conventions import reverse_pair_parameters
 
 INTRINSIC = ("sequence", "structure")
 
 
 def _forcefield(forcefield):
-    from dnarod.core.forcefield import ForceField, load_forcefield
-
     return forcefield if isinstance(forcefield, ForceField) else load_forcefield(forcefield)
 
 
@@ -74,9 +76,6 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
         ``metadata["selection"]`` is the one-line report of the duplex taken and what was
         dropped (:meth:`~dnarod.structure.selection.DuplexSelection.report`).
     """
-    from dnarod.core.parameters import StepParameters
-    from dnarod.core.strains import strains
-
     if intrinsic not in INTRINSIC:
         raise StructureError(f"intrinsic={intrinsic!r}: use 'sequence' (the force field's shape for the sequence) "
                              f"or 'structure' (the input's own step parameters)")
@@ -89,14 +88,12 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
         raise StructureError(f"{ana.source}: duplex {k + 1} strand I {seq!r} has bases other than A, C, G, T "
                              f"(RNA or inosine); the DNA force fields cannot parametrise it")
     params = ff.step_parameters(seq)
-    from dnarod.structure.analysis import check_node_steps
 
     check_node_steps(d)
     if intrinsic == "structure":
         Om, Ga = strains(d.bp_origins, d.bp_frames, ff.ds)
         params = StepParameters(params.stiffness, np.hstack([Om, Ga]), params.names)
     n = d.n_bp
-    from dnarod.structure.conventions import reverse_pair_parameters
 
     bp_phys = reverse_pair_parameters(d.bp_params) if d.frames_reversed else d.bp_params
     meta = {

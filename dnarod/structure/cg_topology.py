@@ -28,6 +28,8 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.trajectory import Trajectory
+from dnarod.core.io import ascii_alias
 
 BEADS = ("BPC", "BPX", "BPZ")
 ELEMENT = "VS"
@@ -57,8 +59,8 @@ def chain_and_number(k):
     """(chain ID, residue number) of node ``k`` (0-based)."""
     c = k // PER_CHAIN
     if c >= len(CHAIN_IDS):
-        raise DnarodError(f"base pair {k + 1}: more than {PER_CHAIN * len(CHAIN_IDS)} base pairs do not fit PDB chain IDs; "
-                          f"export the frames with the .dtraj trajectory instead")
+        raise DnarodError(f"base pair {k + 1}: more than {PER_CHAIN * len(CHAIN_IDS)} base pairs do not fit PDB chain "
+                          f"IDs; export the frames with the .dtraj trajectory instead")
     return CHAIN_IDS[c], k % PER_CHAIN + 1
 
 
@@ -172,9 +174,7 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
     """
     import mdtraj as md
 
-    from dnarod.core.trajectory import Trajectory
 
-    from dnarod.core.io import ascii_alias
 
     with ascii_alias(pdb_path, trajectory_path) as (pdb, trj):  # mdtraj's C readers take only ASCII paths
         t = md.load(trj, top=pdb) if trj else md.load(pdb)

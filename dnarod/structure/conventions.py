@@ -32,6 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.stepparams import step_parameters_with_midframe
+from dnarod.structure.findpair import check_wc_wobble
 
 #: Rotation by 180 degrees about y, applied on the right of a frame: x and z reversed.
 REVERSE = np.diag([-1.0, 1.0, -1.0])
@@ -77,8 +78,6 @@ def wc_info(bp_params, frames1, frames2f, antiparallel, letters):
     -------
     ndarray of int, shape (n,)
     """
-    from dnarod.structure.findpair import check_wc_wobble
-
     out = np.zeros(len(letters), dtype=int)
     for k, lt in enumerate(letters):
         if (antiparallel[k] and frames1[k][:, 0] @ frames2f[k][:, 0] > 0
@@ -137,7 +136,8 @@ def bz_step_flips(frames, origins):
         The step joins a right- and a left-handed pair (B-Z junction).
     """
     F1, F2 = frames[..., :-1, :, :], frames[..., 1:, :, :]
-    dot = lambda a, b: np.einsum("...i,...i->...", a, b)
+    def dot(a, b):
+        return np.einsum("...i,...i->...", a, b)
     x1, y1, z1 = F1[..., :, 0], F1[..., :, 1], F1[..., :, 2]
     x2, y2, z2 = F2[..., :, 0], F2[..., :, 1], F2[..., :, 2]
     dorg = origins[..., 1:, :] - origins[..., :-1, :]

@@ -16,13 +16,17 @@ from __future__ import annotations
 import contextlib
 import os
 from pathlib import Path
+import warnings
+import errno
 
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.core.trajectory import Trajectory, load_trajectory
+from dnarod.core.trajectory import Trajectory, load_trajectory, HEADER_SIZE, _read_header, _record_dtype
 
-from dnarod.structure.cg_topology import cg_pdb_text
+from dnarod.structure.cg_topology import cg_pdb_text, mdtraj_topology as _top
+from dnarod.core.units import ANGSTROM_PER_NM
+from dnarod.core.io import atomic_path, write_text_atomic
 
 
 def load_dtraj(path):
@@ -32,8 +36,6 @@ def load_dtraj(path):
 
 def mdtraj_topology(n_nodes, residue_names=None, sequence=None):
     """An ``mdtraj.Topology`` with the coarse-grained beads (:mod:`dnarod.structure.cg_topology`)."""
-    from dnarod.structure.cg_topology import mdtraj_topology as _top
-
     return _top(n_nodes, sequence)
 
 
@@ -52,8 +54,6 @@ class _DCDFrames:
     step (no per-frame copy of an AtomGroup's time step; the bytes written are the same)."""
 
     def __init__(self, path, n_atoms, dt, istart):
-        import warnings
-
         import MDAnalysis as mda
         from MDAnalysis.coordinates.DCD import DCDWriter
 
@@ -65,8 +65,6 @@ class _DCDFrames:
         self.w = DCDWriter(str(path), n_atoms, dt=dt, istart=istart, nsavc=1)
 
     def write(self, xyz_nm):
-        from dnarod.core.units import ANGSTROM_PER_NM
-
         for frame in xyz_nm:
             self.ts.positions = frame * ANGSTROM_PER_NM
             self.w.write(self.u)
@@ -102,7 +100,6 @@ def _frame_source(traj):
     3)`` of frames ``a:b`` as stored (float32 or float64)."""
     if isinstance(traj, Trajectory):
         return traj.n_nodes, traj.time, traj.metadata, lambda a, b: (traj.positions[a:b], traj.frames[a:b])
-    from dnarod.core.trajectory import HEADER_SIZE, _read_header, _record_dtype
 
     path = Path(traj)
     try:
@@ -157,8 +154,6 @@ def export_trajectory(traj, pdb_path, dcd_path=None, sequence=None, arm=1.0, xtc
     int
         Number of frames written.
     """
-    from dnarod.core.io import atomic_path, write_text_atomic
-
     n, time_ps, metadata, chunk = _frame_source(traj)
     n_frames = len(time_ps)
     if n_frames == 0:
@@ -234,6 +229,7 @@ class _c_writer:
         return self
 
     def __exit__(self, typ, exc, tb):
+        # late: a test patches core.io.disk_free
         from dnarod.core.io import WriteError, disk_free, human_bytes, write_failure
 
         if exc is None or isinstance(exc, DnarodError) or not isinstance(exc, (OSError, RuntimeError, IOError)):
@@ -283,6 +279,7 @@ def _frames_in(tmp, kind):
 def _check_written(path, tmp, n_frames, kind, needed):
     """Refuse a file its C writer left short (one line naming ``path``: a full disk with the free space, else
     the frames it holds)."""
+    # late: a test patches core.io.disk_free
     from dnarod.core.io import WriteError, disk_free, human_bytes, write_failure
 
     got = _frames_in(tmp, kind)
@@ -290,8 +287,6 @@ def _check_written(path, tmp, n_frames, kind, needed):
         return
     free = disk_free(Path(path).parent)
     if free is not None and free < needed:
-        import errno
-
         raise write_failure(path, OSError(errno.ENOSPC, "No space left on device"), needed, needed_bound=kind == "xtc")
     held = f"{got} of its {n_frames} frames" if got >= 0 else f"none of its {n_frames} frames readably"
     raise WriteError(f"cannot write {path}: the {kind.upper()} writer stopped early (the file held {held}; "

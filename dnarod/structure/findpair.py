@@ -42,6 +42,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from dnarod.core.stepparams import step_parameters
+
 MAX_DORG = 1.5          # nm (15 A)
 MAX_DV = 0.25           # nm (2.5 A)
 MAX_PLANE_ANGLE = 65.0  # degrees
@@ -404,8 +406,6 @@ def check_wc_wobble(letters, shear_A, stretch_A, opening_deg):
 
 def _pair_params_A(bi, bj):
     """Base-pair parameters (A, deg) with base i as strand I, base j as strand II."""
-    from dnarod.core.stepparams import step_parameters
-
     L2 = bj.frame.copy()
     if bi.frame[:, 2] @ bj.frame[:, 2] < 0:
         L2[:, 1:] *= -1
@@ -758,14 +758,16 @@ def _check_others(P, m, n):
         return False
     m1, m2 = P.axes_of(m)
     n1, n2 = P.axes_of(n)
-    dots = lambda A, B: np.einsum("ij,ij->j", A, B)  # x, y, z axis dots
+    def dots(A, B):
+        return np.einsum("ij,ij->j", A, B)  # x, y, z axis dots
     a1, a2, r1, r2 = dots(m1, n1), dots(m2, n2), dots(m1, n2), dots(m2, n1)
     i1ok, i2ok, j1ok, j2ok = (bool((v > 0).all()) for v in (a1, a2, r1, r2))
     if i1ok and i2ok:
         return False
     if not i1ok and not i2ok:
         return j1ok or j2ok
-    ang = lambda v: float(np.degrees(np.arccos(np.clip(v, -1, 1))).sum())
+    def ang(v):
+        return float(np.degrees(np.arccos(np.clip(v, -1, 1))).sum())
     d = [ang(a1), ang(a2), ang(r1), ang(r2)]
     if i1ok and j1ok:
         return d[0] > d[2]

@@ -4,7 +4,15 @@ from __future__ import annotations
 import re
 from pathlib import Path
 
+import numpy as np
+
 from dnarod.core.errors import ParameterError
+from dnarod.physics.loads import intrinsic_turns
+from dnarod.core.rotations import MAX_CAYLEY_ANGLE
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
+from dnarod.structure.trajectory import is_structure_file
+from dnarod.structure import model_from_structure
 
 #: Letters of a DNA sequence given on the command line or in a sequence file (strand I, 5'->3').
 SEQUENCE_RE = re.compile(r"[ACGTacgt]+")
@@ -62,18 +70,14 @@ def _is_file(p):
 def _check_ring_twist(relaxed, delta_lk):
     """Refuse a linking difference whose twist per step leaves the rod model's Cayley chart (beyond it the
     twist would wrap around by whole turns and the ring would silently hold another linking number)."""
-    import numpy as np
-
-    from dnarod.physics.loads import intrinsic_turns
-    from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 
     lk0 = float(intrinsic_turns(relaxed))
     n = relaxed.n_nodes
     per_step = 2 * np.pi * abs(lk0 + delta_lk) / n
     if per_step > 0.8 * MAX_CAYLEY_ANGLE:
         most = int(0.8 * MAX_CAYLEY_ANGLE * n / (2 * np.pi) - abs(lk0))
-        raise ParameterError(f"--delta-lk {delta_lk}: sigma = {delta_lk / lk0:+.3g} (Lk0 = {lk0:.1f}) twists each of the "
-                             f"{n} steps by {np.degrees(per_step):.0f} deg, beyond the rod model's range "
+        raise ParameterError(f"--delta-lk {delta_lk}: sigma = {delta_lk / lk0:+.3g} (Lk0 = {lk0:.1f}) twists each of "
+                             f"the {n} steps by {np.degrees(per_step):.0f} deg, beyond the rod model's range "
                              f"({np.degrees(0.8 * MAX_CAYLEY_ANGLE):.0f} deg); use |delta-lk| <= {max(most, 0)} "
                              f"(real DNA denatures beyond |sigma| ~ 0.1)")
 
@@ -108,10 +112,6 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
     ParameterError
         A missing file, an unreadable source or options that do not apply to the source.
     """
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.core.model import RodModel
-    from dnarod.structure.trajectory import is_structure_file
-
     if isinstance(source, RodModel):
         return source
     if isinstance(source, int) and not isinstance(source, bool):
@@ -141,8 +141,6 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
                 raise ParameterError("--circular/--ring/--delta-lk apply to a sequence; a model or structure file "
                                      "holds its own chain")
             if is_structure_file(p):
-                from dnarod.structure import model_from_structure
-
                 return model_from_structure(p, forcefield=forcefield, duplex=None if duplex is None else duplex - 1,
                                             intrinsic=intrinsic)
             if duplex is not None:

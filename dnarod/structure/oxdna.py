@@ -34,6 +34,8 @@ import numpy as np
 
 from dnarod.core.errors import StructureError
 from dnarod.structure.reader import COMPLEMENT
+from dnarod.core.trajectory import Trajectory
+from dnarod.core.io import write_text_atomic
 
 LENGTH_NM = 0.8518      # oxDNA length unit, nm
 TIME_PS = 3.03          # oxDNA time unit, ps
@@ -222,8 +224,6 @@ def read_oxdna(topology, configuration):
         Node centres (nm) and base-pair frames per frame; time in ps; metadata ``sequence``,
         ``source`` and the oxDNA indices of the pairs.
     """
-    from dnarod.core.trajectory import Trajectory
-
     bases, next3, strand = read_topology(topology)
     t, r, a1, a3 = read_configurations(configuration, len(bases))
     pos, frm, seq, pairs = duplex_nodes(bases, next3, strand, r, a1, a3)
@@ -275,7 +275,6 @@ def write_oxdna(topology, configuration, positions, frames, sequence, new_format
             n3 = pos_of[g + 1] if g < last else -1
             n5 = pos_of[g - 1] if g > first else -1
             top.append(f"{s} {letters[g]} {n3} {n5}")
-    from dnarod.core.io import write_text_atomic
 
     write_text_atomic(topology, "\n".join(top) + "\n")
     out = []

@@ -229,8 +229,9 @@ def multiplets(nucleotides, bases, cand, pairs, source="<structure>"):
                                  f"dnarod models double helices only. Give the pairs explicitly (--pairs) to force "
                                  f"a duplex, or remove the quadruplex")
         kind = "base triple (triplex or major-groove base?)" if len(g) == 3 else f"{len(g)}-base multiplet"
+        kept = ", ".join(f"{nucleotides[a].rid}/{nucleotides[b].rid}" for a, b in pairs if a in g and b in g)
         notes.append(f"{kind}: {ids} ({letters}) pair with more than one base; the helix keeps the pairs "
-                     f"{', '.join(f'{nucleotides[a].rid}/{nucleotides[b].rid}' for a, b in pairs if a in g and b in g) or 'none of them'}, "
+                     f"{kept or 'none of them'}, "
                      f"the other contacts are left out")
     return notes
 

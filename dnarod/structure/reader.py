@@ -24,6 +24,7 @@ Every problem raises :class:`~dnarod.core.errors.StructureError` naming the file
 """
 from __future__ import annotations
 
+import gzip
 import re
 from dataclasses import dataclass, field
 from functools import lru_cache
@@ -32,9 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import StructureError
-
-#: Watson-Crick complement of a base letter (U pairs with A, inosine I with C): the one table of it.
-COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
+from dnarod.core.forcefield import COMPLEMENT  # noqa: F401 -- the structure modules' name for it
 from dnarod.structure._data import data_file
 
 WATER = {"HOH", "WAT", "H2O", "DOD", "TIP", "TIP3", "TIP4", "SOL", "SPC", "T3P", "T4P"}
@@ -260,8 +259,6 @@ def _read_gemmi(path, text, source):
             raise StructureError(f"{source}: no such file")
         head = p.read_bytes()[:4096]
         if head[:2] == b"\x1f\x8b":  # gzip (gemmi reads it directly): check the decompressed start
-            import gzip
-
             try:
                 with gzip.open(p) as fh:
                     head = fh.read(4096)
@@ -380,110 +377,143 @@ def read_structure(path=None, text=None, model=1, altloc=None, extra_residues=No
         raise StructureError(f"{source}: no atoms found (empty, truncated or not a PDB/mmCIF file)")
     if not isinstance(model, (int, np.integer)) or not 1 <= model <= n_models:
         raise StructureError(f"{source}: model {model!r} does not exist; the file has {n_models} model(s) (1-based)")
-    extra = {k.strip().upper(): v for k, v in (extra_residues or {}).items()}
-    ignore = {n.strip().upper() for n in ignore_residues}
-    altloc = (altloc or None)
-    counts = {"water": 0, "amino acid": 0, "hydrogen atoms": 0, "other (ions, ligands)": 0}
-    others = set()
-    nucleotides, skipped, seen, ligands, modified_nts = [], [], {}, [], []
-    alt_codes = set()  # altloc codes present in the nucleotides (an asked-for code must be one of them)
+    reading = _Reading(source, {k.strip().upper(): v for k, v in (extra_residues or {}).items()},
+                       {n.strip().upper() for n in ignore_residues}, altloc or None)
     atom_counter = 0
     try:
-        linked = _linked_residues(st[model - 1])
+        reading.linked = _linked_residues(st[model - 1])
         for ci, chain in enumerate(st[model - 1]):
             for ri, res in enumerate(chain):
                 first_index = atom_counter
                 atom_counter += len(res)
-                name = res.name.strip().upper()
-                label = f"chain {chain.name} residue {res.seqid.num}{res.seqid.icode.strip()} ({res.name})"
-                if name in ignore:
-                    skipped.append(f"{label}: ignored on request")
-                    continue
-                if name in WATER:
-                    counts["water"] += 1
-                    continue
-                parent = normalise_residue_name(name, extra)
-                if parent is None:
-                    info = _tabulated(name)
-                    if info is not None and info.is_water():
-                        counts["water"] += 1
-                    elif info is not None and info.is_amino_acid():
-                        counts["amino acid"] += 1
-                    elif _looks_nucleotide(res):
-                        raise StructureError(
-                            f"{source}: {label}: unknown residue name {res.name!r} with nucleotide atoms; map it "
-                            f"to its parent base (extra_residues={{'{name}': 'C'}}, CLI --map {name}=C) or ignore "
-                            f"it (ignore_residues, CLI --ignore {name})")
-                    else:
-                        counts["other (ions, ligands)"] += 1
-                        others.add(name)
-                    continue
-                base, modified = parent
-                if _is_ligand(res, (ci, ri), linked, modified):
-                    ligands.append(f"{res.name.strip()} {chain.name}:{res.seqid.num}{res.seqid.icode.strip()}")
-                    continue
-                if base == "P":
-                    skipped.append(f"{label}: pseudouridine is not supported (no standard base); skipped")
-                    continue
-                raw = []
-                for k, atom in enumerate(res):
-                    aname = _normalise_atom_name(atom.name)
-                    if _is_hydrogen(atom, aname):
-                        counts["hydrogen atoms"] += 1
-                        continue
-                    pos = atom.pos
-                    raw.append((aname, atom.altloc.strip("\0 "), float(atom.occ),
-                                (pos.x, pos.y, pos.z), first_index + k))
-                alt_codes.update(r[1] for r in raw if r[1])
-                atoms, index, kept = _choose_altloc(raw, altloc, source, label)
-                if not atoms:
-                    skipped.append(f"{label}: no heavy atoms; skipped")
-                    continue
-                xyz = np.array(list(atoms.values()), dtype=float)
-                if not np.isfinite(xyz).all() or np.abs(xyz).max() > 1e6:
-                    raise StructureError(f"{source}: {label}: non-finite or absurd coordinates")
-                key = (chain.name, res.seqid.num, res.seqid.icode.strip())
-                xyz_nm = {k: 0.1 * np.array(v) for k, v in atoms.items()}
-                if key in seen:  # the residue's atoms come in several blocks: merge them unless they repeat
-                    prev = seen[key]
-                    both = sorted(set(prev.atoms) & set(xyz_nm))
-                    if both or prev.resname != res.name.strip():
-                        what = f"duplicate atom {both[0]}" if both else f"also named {prev.resname}"
-                        raise StructureError(f"{source}: {label}: residue appears twice in chain {chain.name} "
-                                             f"({what}); remove the duplicate copy")
-                    prev.atoms.update(xyz_nm)
-                    prev.atom_index.update(index)
-                    continue
-                nt = Nucleotide(chain.name, res.seqid.num, res.seqid.icode.strip(), res.name.strip(), base, modified,
-                                len(nucleotides), xyz_nm, index, tuple(sorted({r[1] for r in raw if r[1]})), kept)
-                seen[key] = nt
-                nucleotides.append(nt)
-                if modified:
-                    modified_nts.append(f"{nt.rid} {nt.resname}->{base}")
-        if altloc is not None and altloc not in alt_codes:
-            present = ", ".join(sorted(alt_codes)) if alt_codes else "none"
-            raise StructureError(f"{source}: altloc {altloc!r} does not occur in the nucleotides (altlocs present: "
-                                 f"{present}); give one of those or leave altloc unset")
+                reading.residue(chain, res, (ci, ri), first_index)
+        reading.check_altloc()
     except UnicodeDecodeError:
         raise StructureError(f"{source}: non-ASCII bytes in a chain, residue or atom name near atom "
                              f"{atom_counter}; PDB/mmCIF names must be plain text") from None
-    for what, n in counts.items():
-        if n:
-            extra_txt = f" ({', '.join(sorted(others))})" if what.startswith("other") else ""
-            skipped.append(f"ignored {n} {what}{extra_txt}")
-    if ligands:
-        skipped.append(f"ignored {len(ligands)} nucleotide-like ligand{'s' if len(ligands) > 1 else ''} not linked "
-                       f"into a DNA/RNA chain ({', '.join(ligands)})")
-    notes = []
-    if modified_nts:
-        notes.append(f"modified nucleotides modelled as their parent base: {', '.join(modified_nts)}")
-    if not nucleotides:
-        found = [f"{n} {w}" for w, n in counts.items() if n]
+    return reading.result(int(model), n_models, atom_counter)
+
+
+@dataclass
+class _Reading:
+    """What :func:`read_structure` collects while it walks the residues of one model: the nucleotides, and what
+    it skipped and why."""
+
+    source: str
+    extra: dict
+    ignore: set
+    altloc: str | None
+    linked: set = field(default_factory=set)
+    counts: dict = field(default_factory=lambda: {"water": 0, "amino acid": 0, "hydrogen atoms": 0,
+                                                  "other (ions, ligands)": 0})
+    others: set = field(default_factory=set)
+    nucleotides: list = field(default_factory=list)
+    skipped: list = field(default_factory=list)
+    seen: dict = field(default_factory=dict)
+    ligands: list = field(default_factory=list)
+    modified_nts: list = field(default_factory=list)
+    alt_codes: set = field(default_factory=set)  # altloc codes in the nucleotides (an asked-for one must be one)
+
+    def residue(self, chain, res, key, first_index):
+        """Sort one residue: skipped (asked, water, amino acid, ligand, other), or a nucleotide kept."""
+        name = res.name.strip().upper()
+        label = f"chain {chain.name} residue {res.seqid.num}{res.seqid.icode.strip()} ({res.name})"
+        if name in self.ignore:
+            self.skipped.append(f"{label}: ignored on request")
+            return
+        if name in WATER:
+            self.counts["water"] += 1
+            return
+        parent = normalise_residue_name(name, self.extra)
+        if parent is None:
+            info = _tabulated(name)
+            if info is not None and info.is_water():
+                self.counts["water"] += 1
+            elif info is not None and info.is_amino_acid():
+                self.counts["amino acid"] += 1
+            elif _looks_nucleotide(res):
+                raise StructureError(
+                    f"{self.source}: {label}: unknown residue name {res.name!r} with nucleotide atoms; map it "
+                    f"to its parent base (extra_residues={{'{name}': 'C'}}, CLI --map {name}=C) or ignore "
+                    f"it (ignore_residues, CLI --ignore {name})")
+            else:
+                self.counts["other (ions, ligands)"] += 1
+                self.others.add(name)
+            return
+        base, modified = parent
+        if _is_ligand(res, key, self.linked, modified):
+            self.ligands.append(f"{res.name.strip()} {chain.name}:{res.seqid.num}{res.seqid.icode.strip()}")
+            return
+        if base == "P":
+            self.skipped.append(f"{label}: pseudouridine is not supported (no standard base); skipped")
+            return
+        self.nucleotide(chain, res, base, modified, label, first_index)
+
+    def nucleotide(self, chain, res, base, modified, label, first_index):
+        """Keep a nucleotide's heavy atoms (one altloc, nm), merging a residue written in several blocks."""
+        raw = []
+        for k, atom in enumerate(res):
+            aname = _normalise_atom_name(atom.name)
+            if _is_hydrogen(atom, aname):
+                self.counts["hydrogen atoms"] += 1
+                continue
+            pos = atom.pos
+            raw.append((aname, atom.altloc.strip("\0 "), float(atom.occ), (pos.x, pos.y, pos.z), first_index + k))
+        self.alt_codes.update(r[1] for r in raw if r[1])
+        atoms, index, kept = _choose_altloc(raw, self.altloc, self.source, label)
+        if not atoms:
+            self.skipped.append(f"{label}: no heavy atoms; skipped")
+            return
+        xyz = np.array(list(atoms.values()), dtype=float)
+        if not np.isfinite(xyz).all() or np.abs(xyz).max() > 1e6:
+            raise StructureError(f"{self.source}: {label}: non-finite or absurd coordinates")
+        key = (chain.name, res.seqid.num, res.seqid.icode.strip())
+        xyz_nm = {k: 0.1 * np.array(v) for k, v in atoms.items()}
+        if key in self.seen:  # the residue's atoms come in several blocks: merge them unless they repeat
+            prev = self.seen[key]
+            both = sorted(set(prev.atoms) & set(xyz_nm))
+            if both or prev.resname != res.name.strip():
+                what = f"duplicate atom {both[0]}" if both else f"also named {prev.resname}"
+                raise StructureError(f"{self.source}: {label}: residue appears twice in chain {chain.name} "
+                                     f"({what}); remove the duplicate copy")
+            prev.atoms.update(xyz_nm)
+            prev.atom_index.update(index)
+            return
+        nt = Nucleotide(chain.name, res.seqid.num, res.seqid.icode.strip(), res.name.strip(), base, modified,
+                        len(self.nucleotides), xyz_nm, index, tuple(sorted({r[1] for r in raw if r[1]})), kept)
+        self.seen[key] = nt
+        self.nucleotides.append(nt)
+        if modified:
+            self.modified_nts.append(f"{nt.rid} {nt.resname}->{base}")
+
+    def check_altloc(self):
+        """Refuse an asked-for altloc that no nucleotide has."""
+        if self.altloc is not None and self.altloc not in self.alt_codes:
+            present = ", ".join(sorted(self.alt_codes)) if self.alt_codes else "none"
+            raise StructureError(f"{self.source}: altloc {self.altloc!r} does not occur in the nucleotides (altlocs "
+                                 f"present: {present}); give one of those or leave altloc unset")
+
+    def result(self, model, n_models, n_atoms):
+        """The :class:`NucleicStructure`, with one line per kind of what was skipped; no nucleotide is an error."""
+        skipped = list(self.skipped)
+        for what, n in self.counts.items():
+            if n:
+                extra_txt = f" ({', '.join(sorted(self.others))})" if what.startswith("other") else ""
+                skipped.append(f"ignored {n} {what}{extra_txt}")
+        ligands = self.ligands
         if ligands:
-            found.append(f"{len(ligands)} nucleotide-like ligands not in a chain")
-        raise StructureError(f"{source}: no nucleic acid found in model {model} "
-                             f"({atom_counter} atoms; {', '.join(found) or 'none recognised'})")
-    return NucleicStructure(source, int(model), n_models, atom_counter, nucleotides, skipped, notes)
+            skipped.append(f"ignored {len(ligands)} nucleotide-like ligand{'s' if len(ligands) > 1 else ''} not "
+                           f"linked into a DNA/RNA chain ({', '.join(ligands)})")
+        notes = []
+        if self.modified_nts:
+            notes.append(f"modified nucleotides modelled as their parent base: {', '.join(self.modified_nts)}")
+        if not self.nucleotides:
+            found = [f"{n} {w}" for w, n in self.counts.items() if n]
+            if ligands:
+                found.append(f"{len(ligands)} nucleotide-like ligands not in a chain")
+            raise StructureError(f"{self.source}: no nucleic acid found in model {model} "
+                                 f"({n_atoms} atoms; {', '.join(found) or 'none recognised'})")
+        return NucleicStructure(self.source, model, n_models, n_atoms, self.nucleotides, skipped, notes)
 
 
 @lru_cache(maxsize=None)

@@ -22,8 +22,8 @@ import numpy as np
 from dnarod.core.errors import StructureError
 from dnarod.core.io import atomic_path
 from dnarod.structure._data import data_file
-from dnarod.structure.bpparams import base_frames_from_pair
-from dnarod.structure.frames import kabsch, standard_bases
+from dnarod.structure.bpparams import base_frames_from_pair, pair_parameters
+from dnarod.structure.frames import kabsch, standard_bases, base_frames
 from dnarod.structure.reader import COMPLEMENT, read_structure
 
 BACKBONE_ORDER = ("P", "OP1", "OP2", "O5'", "C5'", "C4'", "O4'", "C3'", "O3'", "C2'", "C1'")
@@ -68,9 +68,6 @@ def fibre_pair_parameters():
     -------
     ndarray, shape (6,)
     """
-    from dnarod.structure.bpparams import pair_parameters
-    from dnarod.structure.frames import base_frames
-
     nts = [read_structure(data_file("structures", "fiber_models", TEMPLATE, f"{b}.pdb")).nucleotides[0]
            for b in ("A", "T")]
     F, O, _ = base_frames(nts)

@@ -10,12 +10,15 @@ from __future__ import annotations
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
+import tempfile
 
 import numpy as np
 
 from dnarod.core.errors import StructureError
 from dnarod.structure.analysis import analyze_structure, step_parameters_over_frames
 from dnarod.structure.reader import OLD_NAMES
+from dnarod.structure.cg_topology import is_cg_export, load_cg_trajectory
+from dnarod.structure.oxdna import looks_like_oxdna_topology, read_oxdna
 
 STRUCTURE_SUFFIXES = {".pdb", ".ent", ".cif", ".mmcif", ".pdbx"}
 CHUNK = 500
@@ -112,7 +115,6 @@ def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop
         raise StructureError(f"{topology}: no such topology file")
     if trajectory is not None and not Path(trajectory).exists():
         raise StructureError(f"{trajectory}: no such trajectory file")
-    from dnarod.structure.cg_topology import is_cg_export
 
     if is_cg_export(topology):
         raise StructureError(f"{topology}: a dnarod coarse-grained export (beads BPC/BPX/BPZ), not an all-atom "
@@ -122,8 +124,6 @@ def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop
     if is_structure_file(topology):
         ana = analyze_structure(topology, model=model)
     else:
-        import tempfile
-
         import MDAnalysis as mda
 
         with tempfile.TemporaryDirectory() as tmp, warnings.catch_warnings():
@@ -190,9 +190,6 @@ def read_node_trajectory(path, topology=None):
     dnarod.core.trajectory.Trajectory or None
         None if the input is neither (an all-atom trajectory).
     """
-    from dnarod.structure.cg_topology import is_cg_export, load_cg_trajectory
-    from dnarod.structure.oxdna import looks_like_oxdna_topology, read_oxdna
-
     if topology is not None and looks_like_oxdna_topology(topology):
         return read_oxdna(topology, path)
     if topology is not None and is_cg_export(topology):

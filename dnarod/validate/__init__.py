@@ -32,6 +32,8 @@ import traceback
 from pathlib import Path
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import check_output_folder, folder_lock, staged_folder
+from dnarod.validate.report import REPORT_FILES, old_report, write_report
 
 #: name -> (module, function)
 CHECKS = {
@@ -94,9 +96,6 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     DnarodError
         An unknown check, a folder holding a report (without ``overwrite``) or anything else, a folder in use.
     """
-    from dnarod.core.io import check_output_folder, folder_lock, staged_folder
-    from dnarod.validate.report import REPORT_FILES, old_report
-
     out_dir = Path(out_dir)
     names = list(checks) if checks else list(QUICK_CHECKS if quick else CHECKS)
     for n in names:
@@ -116,8 +115,6 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
 
 
 def _refuse_old_report(out_dir, overwrite):
-    from dnarod.validate.report import old_report
-
     present = old_report(out_dir)[0]
     if present and not overwrite:
         raise DnarodError(f"{out_dir} already holds a validation report ({present}); pass --overwrite to replace it, "
@@ -126,8 +123,6 @@ def _refuse_old_report(out_dir, overwrite):
 
 def _run_checks(out_dir, names, quick, options, echo):
     """Run the checks ``names`` into ``out_dir`` and write the report (see :func:`run_validation`)."""
-    from dnarod.validate.report import write_report
-
     options = options or {}
     results = {"checks": {}}
     t0 = time.perf_counter()

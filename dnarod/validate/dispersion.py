@@ -23,6 +23,9 @@ import numpy as np
 import scipy.linalg
 
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.physics.modes import hessian_blocks, mass_matrix as sparse_mass
+from dnarod.engines.openmm.particles import particle_forces_to_loads, particle_positions
+from dnarod.physics.testsystems import TwistedRod
 
 NAME = "dispersion"
 TOLERANCES = dict(frequency_tol_rad_per_ps=1e-6, zero_mode_tol_rad2_per_ps2=1e-8, zero_mode_cutoff_rad_per_ps=1e-2)
@@ -42,9 +45,7 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
     asym : float
         Relative asymmetry of the raw differences before symmetrisation.
     """
-    from dnarod.physics.modes import hessian_blocks
-    from dnarod.engines.openmm.particles import particle_forces_to_loads, particle_positions
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
                         elastic=elastic, nonbonded=False, seed=0)
@@ -62,8 +63,6 @@ def openmm_hessian(model, elastic="fast", eps=EPS):
 
 def mass_matrix(model):
     """``diag(m_k I, L_k diag(J_k) L_k^T)``, shape (6n, 6n) (dense; :func:`dnarod.physics.modes.mass_matrix`)."""
-    from dnarod.physics.modes import mass_matrix as sparse_mass
-
     return sparse_mass(model).toarray()
 
 
@@ -97,8 +96,6 @@ def check_dispersion(out_dir, quick=False, n_nodes=None, rod=None, reference_rod
         The system whose analytic dispersion is the reference (default ``rod``; a different one
         is how the tests show the check can fail).
     """
-    from dnarod.physics.testsystems import TwistedRod
-
     t0 = time.perf_counter()
     n_nodes = n_nodes or (12 if quick else 24)
     rod = rod or TwistedRod.from_forcefield("dna-default", n_nodes)

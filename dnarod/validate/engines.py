@@ -36,6 +36,11 @@ from dnarod.core.units import md_value
 from dnarod.core.errors import DnarodError
 from dnarod.validate._common import observed_order, pairwise_orders, rotation_angle
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.structure import model_from_structure
+from dnarod.structure._data import data_file
+from dnarod.engines.openmm.particles import BODY_OFFSETS, particle_velocities
+from dnarod.engines.lax import RigidState, SplittingIntegrator, integrate_exact
+from dnarod.engines.lax.splitting import maxwell_state
 
 NAME = "engines"
 PDB = "355D.pdb"
@@ -46,9 +51,6 @@ TOLERANCES = dict(order_min=1.8, order_max=2.2, small_dt_position_tol_nm=1e-6, r
 
 def default_model():
     """The 355D dodecamer with dna-default parameters (12 nodes, pose from the crystal structure)."""
-    from dnarod.structure import model_from_structure
-    from dnarod.structure._data import data_file
-
     return model_from_structure(data_file("structures", PDB), forcefield="dna-default")
 
 
@@ -58,8 +60,6 @@ def _half_step_particle_velocities(model, radius, v, w, dt):
     ``u_i = v + L (w x b_i)`` with body offsets ``b_i``; ``du_i/dt = F/m + L (wdot x b_i + w x (w x b_i))``,
     ``wdot = J^-1 (L^T tau - w x J w)`` (Euler), loads from :func:`dnarod.core.energy.loads`.
     """
-    from dnarod.engines.openmm.particles import BODY_OFFSETS, particle_velocities
-
     _, F, tau = model.loads()
     J = model.inertia
     wdot = (np.einsum("kji,kj->ki", model.frames, tau) - np.cross(w, J * w)) / J
@@ -73,7 +73,7 @@ def _half_step_particle_velocities(model, radius, v, w, dt):
 
 def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
     """OpenMM NVE run; positions, frames, energy, momentum, angular momentum at ``t_report``."""
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=dt, platform="Reference",
                         elastic=elastic, nonbonded=False, initial_velocities=(v, w),
@@ -99,8 +99,6 @@ def _openmm_run(model, v, w, dt, t_report, half_step, elastic="auto"):
 
 
 def _lax_splitting_run(model, v, w, dt, t_report):
-    from dnarod.engines.lax import RigidState, SplittingIntegrator
-
     integ = SplittingIntegrator(model, dt, state=RigidState.from_model(model, v, w), check_stability=False)
     steps = np.rint(np.asarray(t_report) / dt).astype(int)
     out = {k: [] for k in ("positions", "frames", "energy", "momentum", "angular_momentum")}
@@ -123,7 +121,7 @@ def _conventions(model, v, w):
     The OpenMM triangle's principal inertia ``m l^2 (1/2, 1/2, 1)`` against the model's (which the
     Lax-form engine uses), and the round trip of (v lab, omega body) through the OpenMM particles.
     """
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.001, platform="Reference",
                         nonbonded=False, initial_velocities=(v, w), seed=0)
@@ -173,9 +171,6 @@ def check_engines(out_dir, quick=False, model=None, lax_model=None, temperature=
     -------
     dict
     """
-    from dnarod.engines.lax import integrate_exact
-    from dnarod.engines.lax.splitting import maxwell_state
-
     t0 = time.perf_counter()
     model = default_model() if model is None else model
     lax_model = model if lax_model is None else lax_model

@@ -31,8 +31,8 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
 5. **Effective diameter** (gating by default): the model's second-virial effective diameter at ``salt_M``
    (:func:`dnarod.physics.theory.supercoil.effective_diameter` of the default non-bonded terms: WCA 2 nm + shifted
    Debye-Hückel with the calibrated Poisson-Boltzmann far-field charge, ``dnarod.engines.openmm.nonbonded``) vs the
-   hard-cylinder diameter with the same second virial coefficient as the Poisson-Boltzmann potential at 150 mM, 5.0 nm (Gebe et al. 1995,
-   Biophys J abstract: a computed value, not a measurement; ``dna_diameter.csv``): pass if
+   hard-cylinder diameter with the same second virial coefficient as the Poisson-Boltzmann potential at 150 mM, 5.0 nm
+   (Gebe et al. 1995, Biophys J abstract: a computed value, not a measurement; ``dna_diameter.csv``): pass if
    ``|model - reference| <= DIAMETER_PRECISION_NM + DIAMETER_QUADRATURE_NM`` (the reference's precision, "50 Å"
    read as rounded to 10 Å, plus the measured quadrature error of the model's value;
    :func:`compare_effective_diameter`). The model's charge is calibrated to this value at 0.15 M, so there the
@@ -56,8 +56,8 @@ Comparisons (each passes only inside its tolerance; the overall check passes if 
 
 Not compared, because no value could be read (:data:`dnarod.physics.experiments.MISSING`): buckling torques
 and post-buckling plateaus, Depew & Wang's own K and an uncertainty or ionic conditions for K, measured (knotting)
-effective diameters and the primary writhe-fraction measurements. ``lp_override`` / ``c_override`` / ``d_override`` replace the
-model's values (the tests show the check failing with wrong ones).
+effective diameters and the primary writhe-fraction measurements. ``lp_override`` / ``c_override`` / ``d_override``
+replace the model's values (the tests show the check failing with wrong ones).
 """
 from __future__ import annotations
 
@@ -402,9 +402,9 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                                    f"{q['low']:.4g} to {q['high']:.4g} (secondary, {q['source']})"
                                    for q in ranges) + "." if ranges else ""),
                       "Effective diameter: the reference is computed (Poisson-Boltzmann), not measured; the model's "
-                      "Debye-Hueckel line charge is calibrated to it at 0.15 M (dnarod.engines.openmm.nonbonded), so at "
-                      "0.15 M this checks the calibration (" + ("gating" if gate_effective_diameter else "not gating")
-                      + ")."],
+                      "Debye-Hueckel line charge is calibrated to it at 0.15 M (dnarod.engines.openmm.nonbonded), so "
+                      "at 0.15 M this checks the calibration ("
+                      + ("gating" if gate_effective_diameter else "not gating") + ")."],
                passed=passed)
     res["headline"] = (f"lp {lp:.1f} nm vs measured {lo:g}-{hi:g} nm at {1000 * salt_M:g} mM; "
                        + (f"C_eff({mtt['force_pN']:g} pN) {mtt['model_nm']:.1f} vs {mtt['measured_nm']:g}"

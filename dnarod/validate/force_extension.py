@@ -32,13 +32,23 @@ agrees with the WLC.
 """
 from __future__ import annotations
 
+import multiprocessing as mp
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from dnarod.core.units import PN
+from dnarod.core.units import PN, kT
 from dnarod.analysis.plots import new_figure, save_figure
 from dnarod.analysis.statistics import jackknife, split_blocks
+from dnarod.physics.thermal import persistence_length, equilibrium_sample
+from dnarod.core.forcefield import load_forcefield
+from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
+from dnarod.engines.lax.engine import LaxEngine
+from dnarod.engines.lax.splitting import maxwell_state
+from dnarod.run.sampling import SampleReporter, run_sampling
+from dnarod.physics.theory.wlc import extensible_wlc_extension
+from dnarod.physics.experiments import wlc_extension_band, persistence_length_band
 
 NAME = "force_extension"
 Z_TOL = 3.0
@@ -48,9 +58,6 @@ DEFAULT_FORCES_PN = (0.1, 0.3, 1.0, 3.0, 10.0)
 
 def model_constants(model, temperature):
     """``(lp nm, S pN, kT pN nm, L0 nm)`` of a uniform model at ``temperature`` K."""
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
-
     kt = kT(temperature)
     lp = persistence_length(model.params, model.ds, kt)
     K = model.params.stiffness[0]
@@ -64,19 +71,11 @@ def equilibrium_coil(model, temperature, seed):
 
     :func:`dnarod.physics.thermal.equilibrium_sample` (the one home of the sampler) with ``align = z``.
     """
-    from dnarod.physics.thermal import equilibrium_sample
-
     return equilibrium_sample(model, temperature, seed, align=(0.0, 0.0, 1.0))
 
 
 def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_every, seed, start="straight"):
     """One pulling run along z from ``start`` ("straight" or "coil"); returns the projected extension (nm) series."""
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
-    from dnarod.engines.lax.engine import LaxEngine
-    from dnarod.engines.lax.splitting import maxwell_state
-    from dnarod.run.sampling import SampleReporter, run_sampling
-
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     if start == "coil":
         model = equilibrium_coil(model, temperature, seed + 1000)
@@ -120,11 +119,6 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
     ``lp_override`` replaces the model's persistence length in the reference curve (the tests use a
     wrong value to show the check fails); ``workers`` processes run the runs in parallel.
     """
-    from concurrent.futures import ProcessPoolExecutor
-
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
-
     t0 = time.perf_counter()
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     lp, S, kt_pn, L0 = model_constants(model, temperature)
@@ -134,13 +128,10 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
     jobs = [(n_bp, F, temperature, dt, g, t_equil, t_prod, sample_every, seed + 7 * i, st)
             for i, (F, g) in enumerate(zip(forces_pn, gammas)) for st in starts]
     if workers and workers > 1 and len(jobs) > 1:
-        import multiprocessing as mp
-
         with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("fork")) as ex:
             series = list(ex.map(_pull_star, jobs))
     else:
         series = [pull(*j) for j in jobs]
-    from dnarod.physics.experiments import wlc_extension_band
 
     x_lo, x_hi = wlc_extension_band(forces_pn, experiment_salt_M, S, temperature)
     rows = []
@@ -179,12 +170,10 @@ def check_force_extension(out_dir, quick=False, n_bp=1000, forces_pn=DEFAULT_FOR
 
 
 def _plot(out_dir, rows, lp, S, kt, salt_M=0.15, temperature=300.0):
-    from dnarod.physics.experiments import persistence_length_band, wlc_extension_band
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
-
     fig, ax = new_figure(1, 1, width=6.0, height=4.2)
     a = ax[0, 0]
-    F = np.logspace(np.log10(min(r["force_pN"] for r in rows)) - 0.2, np.log10(max(r["force_pN"] for r in rows)) + 0.1, 80)
+    F = np.logspace(np.log10(min(r["force_pN"] for r in rows)) - 0.2, np.log10(max(r["force_pN"] for r in rows)) + 0.1,
+                    80)
     lo, hi = wlc_extension_band(F, salt_M, S, temperature)
     lp_lo, lp_hi, _ = persistence_length_band(salt_M)
     a.fill_between(F, lo, hi, color="0.85", zorder=0,

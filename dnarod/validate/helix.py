@@ -21,6 +21,11 @@ import numpy as np
 
 
 from dnarod.validate._common import rotation_angle
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.testsystems import UniformHelix
+from dnarod.engines.openmm.particles import particle_forces_to_loads
+from dnarod.engines.lax import SplittingIntegrator, integrate_exact
+from dnarod.engines.lax.exact import ExactSystem
 
 NAME = "helix"
 #: The drift tolerance is set by the OpenMM engine's constraint solver, not by the forces: OpenMM holds
@@ -34,9 +39,6 @@ TOLERANCES = dict(force_tol_kJmol_nm=1e-8, torque_tol_kJmol=1e-8, closed_form_to
 
 def default_models():
     """``[(label, RodModel), ...]``: the analytic helix and the olson1998 intrinsic shape of 355D."""
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.testsystems import UniformHelix
-
     hx = UniformHelix(Omega0=[0.35, -0.2, 1.78], Gamma0=[0.08, -0.05, 1.0], ds=0.34, n_nodes=24)
     ff = load_forcefield("olson1998")
     return [("uniform helix (A5 i)", hx.model(), hx), ("olson1998 CGCGAATTCGCG", ff.model_from_sequence("CGCGAATTCGCG"),
@@ -46,10 +48,10 @@ def default_models():
 def _openmm_loads(model, elastic):
     import openmm
 
-    from dnarod.engines.openmm.particles import particle_forces_to_loads
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
-    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference", elastic=elastic,
+    sim = RodSimulation.create(model, integrator="verlet", temperature=0.0, dt=0.01, platform="Reference",
+                               elastic=elastic,
                         nonbonded=False, constraint_tolerance=1e-12, seed=0)
     st = sim.context.getState(getPositions=True, getForces=True)
     x = sim.node_particles(st.getPositions(asNumpy=True))
@@ -66,9 +68,6 @@ def _drift(model, positions, frames):
 
 def check_helix(out_dir, quick=False, models=None, t_run=1.0):
     """Run the check; ``models`` overrides :func:`default_models` (list of (label, model, helix or None))."""
-    from dnarod.engines.lax import SplittingIntegrator, integrate_exact
-    from dnarod.engines.lax.exact import ExactSystem
-
     t0 = time.perf_counter()
     models = default_models() if models is None else models
     res = dict(TOLERANCES, run_time_ps=t_run, systems={})

@@ -42,6 +42,12 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.workflows.protocols.nicked import run_nicked_member
+from dnarod.physics.theory.supercoil import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
+from dnarod.validate.wlc_ring_mc import sample_ring_writhe
+from dnarod.analysis.polymer import integrated_autocorrelation_time
+from dnarod.physics import experiments as ex
+from dnarod.validate.ring_harmonic import gaussian_writhe_samples
 
 NAME = "nicked_ring"
 Z_TOL = 3.0
@@ -55,10 +61,6 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     """Run the check (see the module docstring). ``nonbonded`` (dict with ``charge`` and/or ``cutoff_debye``) runs
     the ring with other non-bonded terms than the defaults (the recorded test member was run with Manning's charge
     and 5 Debye lengths)."""
-    from dnarod.workflows.protocols.nicked import run_nicked_member
-    from dnarod.physics.theory.supercoil import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
-    from dnarod.validate.wlc_ring_mc import sample_ring_writhe
-
     t0 = time.perf_counter()
     n_bp = n_bp or (200 if quick else 600)
     time_ns = time_ns or (30.0 if quick else 400.0)
@@ -74,7 +76,6 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                                 softening=softening, sample_ps=sample_ps, **dict(nonbonded or {})),
                            root / f"ring{n_bp}")
     mc = sample_ring_writhe(L, A_ref, d_eff, b_nm=segment_nm, n_samples=mc_samples, seed=seed)
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     w2 = mc["wr"] ** 2
     tau_mc = max(float(integrated_autocorrelation_time(w2)), 0.5)
@@ -90,8 +91,6 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     lk2_model_err = model_err
     harm = None
     if harmonic_samples:
-        from dnarod.validate.ring_harmonic import gaussian_writhe_samples
-
         hw = gaussian_writhe_samples(ring, harmonic_samples, temperature, seed=seed)["tangent"]
         harm = dict(wr2=float(np.mean(hw ** 2)), wr2_err=float(np.std(hw ** 2, ddof=1) / np.sqrt(len(hw))),
                     samples=int(harmonic_samples))
@@ -111,7 +110,6 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                     reference_wr2_err=wr2_full_se, K=K_full, K_err=K_full * wr2_full_se / (tw_full + wr2_full),
                     writhe_share=wr2_full / (tw_full + wr2_full), segments=mcf["segments"],
                     segment_nm=mcf["segment_nm"])
-    from dnarod.physics import experiments as ex
 
     measured = ex.supercoiling_free_energy_reference()  # Horowitz & Wang 1984: N K ~ 1150 RT bp above 2000 bp
     measured_K = measured[0].value if measured else None

@@ -16,6 +16,8 @@ import time
 import numpy as np
 
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.physics.testsystems import TwistedRod
+from dnarod.engines.lax import paper_scheme as ps
 
 NAME = "paper_scheme"
 TOLERANCES = dict(order_min=0.8, order_max=1.25, unstable_rate_min_per_ps=1e-3, exact_rate_max_per_ps=1e-6)
@@ -24,8 +26,6 @@ DESIGN_RATE = 4.38  # max Re lambda of (3.13) for another DNA parameter set at N
 
 def ring_family(n_ref=32, forcefield="dna-default"):
     """``make(n)``: the dna-default ring of fixed length ``n_ref ds`` discretised with n nodes."""
-    from dnarod.physics.testsystems import TwistedRod
-
     base = TwistedRod.from_forcefield(forcefield, n_ref)
     tau0, length = base.tau0, n_ref * base.ds
     rho, I1, I3 = base.mass / base.ds, base.J1 / base.ds, base.J3 / base.ds
@@ -47,7 +47,6 @@ def check_paper_scheme(out_dir, quick=False, scheme="paper", n_nodes=32, t_run=2
     """
     from scipy.integrate import solve_ivp
 
-    from dnarod.engines.lax import paper_scheme as ps
 
     t0 = time.perf_counter()
     make, length = ring_family(n_nodes)
@@ -87,7 +86,8 @@ def check_paper_scheme(out_dir, quick=False, scheme="paper", n_nodes=32, t_run=2
                observed_orders_pairwise=dict(zip(names, orders.T)),
                growth_rate_per_ps=rate, exact_growth_rate_per_ps=rate_exact, design_growth_rate_per_ps=DESIGN_RATE,
                growth_system=f"dna-default ring, {n_nodes} nodes, ds = {model.ds} nm, at rest",
-               energy_growth_factor=float(E_p[-1] / E_p[0]), exact_energy_relative_change=float(abs(E_e[-1] / E_e[0] - 1)),
+               energy_growth_factor=float(E_p[-1] / E_p[0]),
+               exact_energy_relative_change=float(abs(E_e[-1] / E_e[0] - 1)),
                energy_run_ps=t_run)
     consistent = bool(np.all((final >= TOLERANCES["order_min"]) & (final <= TOLERANCES["order_max"])))
     unstable = bool(rate > TOLERANCES["unstable_rate_min_per_ps"] and rate_exact < TOLERANCES["exact_rate_max_per_ps"])

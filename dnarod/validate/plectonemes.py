@@ -1,7 +1,7 @@
 """Check ``plectonemes``: the fraction of the linking difference taken up as writhe in closed rings at sigma ~ -0.05.
 
-Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.workflows.protocols.rings`; OpenMM engine, WCA +
-Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0_T)`` with its standard error from the block
+Model: a closed ``dna-default`` ring with ``Lk = Lk0 + ΔLk`` (:mod:`dnarod.workflows.protocols.rings`; OpenMM engine,
+WCA + Debye-Hueckel at the chosen salt), writhe fraction ``Wr / (Lk - Tw0_T)`` with its standard error from the block
 error of Wr (the measured integrated autocorrelation time of Wr is reported). ``Tw0_T`` is the relaxed ring's mean
 twist at the run's temperature (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`), not the T = 0 sum of intrinsic
 twist angles: for 600 bp of dna-default it is 0.27 turns lower (56.885 ± 0.013 vs 57.143), i.e. ΔLk = -2.885,
@@ -42,10 +42,21 @@ from __future__ import annotations
 import tempfile
 import time
 from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
+from dnarod.workflows.protocols.poses import START_POSE, load_pose
+from dnarod.workflows.protocols.tweezers import auto_friction
+from dnarod.analysis.polymer import integrated_autocorrelation_time
+from dnarod.validate.wlc_ring_mc import sample_ring_writhe, pair_parameters
+from dnarod.physics.loads import intrinsic_turns
+from dnarod.workflows.protocols.rings import run_ring_member
+from dnarod.physics.theory.supercoil import ring_constants, thermal_relaxed_twist, writhe_fraction_from_P
+from dnarod.validate.experiment import compare_writhe_fraction
 
 NAME = "plectonemes"
 Z_TOL = 3.0
@@ -59,8 +70,6 @@ def bend_softened_model(model, factor):
     run with it writhes more than the model's own: a start on the other side of the equilibrium from the planar
     circle (:func:`writhed_start`).
     """
-    from dataclasses import replace
-
     S = np.diag([float(factor) ** -0.5] * 2 + [1.0] * 4)
     K = np.einsum("ij,kjl,lm->kim", S, np.asarray(model.params.stiffness, float), S)
     return replace(model, params=replace(model.params, stiffness=K))
@@ -81,11 +90,7 @@ def writhed_start(settings, softening, ns, member_dir):
         nm.
     frames : ndarray, shape (n, 3, 3)
     """
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm.simulation import RodSimulation
-    from dnarod.physics.nonbonded import member_nonbonded
-    from dnarod.workflows.protocols.poses import START_POSE, load_pose
-    from dnarod.workflows.protocols.tweezers import auto_friction
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     kept = Path(member_dir) / START_POSE
     if kept.is_file():
@@ -103,9 +108,6 @@ def writhed_start(settings, softening, ns, member_dir):
 
 def _reference(L, A, C, d, dlk, n, seed, pair=None):
     """Writhe fraction of the worm-like-ring MC: hard core ``d`` (nm), or the soft ``pair`` energy (``d = 0``)."""
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
-    from dnarod.validate.wlc_ring_mc import sample_ring_writhe
-
     r = sample_ring_writhe(L, A, d, b_nm=3.4, n_samples=n, seed=seed, C_nm=C, delta_lk=dlk, equilibration_sweeps=300,
                            pair=pair)
     wr = r["wr"]
@@ -125,12 +127,6 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     ``cutoff_debye``, as in the members' settings) runs the rings and the reference with other non-bonded terms
     than the defaults. ``hard_core=False`` skips the reported hard-core reference.
     """
-    from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
-    from dnarod.physics.loads import intrinsic_turns
-    from dnarod.workflows.protocols.rings import run_ring_member
-    from dnarod.physics.theory.supercoil import ring_constants, thermal_relaxed_twist, writhe_fraction_from_P
-    from dnarod.validate.wlc_ring_mc import pair_parameters
-
     t0 = time.perf_counter()
     n_bp = n_bp or (400 if quick else 600)
     delta_lk = delta_lk or (-2 if quick else -3)
@@ -182,7 +178,8 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                delta_lk=dlk, sigma=dlk / tw0_T, relaxed_twist_T0=tw0, relaxed_twist_thermal=tw0_T,
                relaxed_twist_thermal_err=tw0_T_se, model_writhe_fraction_vs_T0_twist=row["Wr"] / (row["Lk"] - tw0),
                model_writhe=row["Wr"], model_writhe_err=row["Wr_err"],
-               model_writhe_tau_ps=row["Wr_tau_ps"], model_writhe_fraction=f_model, model_writhe_fraction_err=f_model_se,
+               model_writhe_tau_ps=row["Wr_tau_ps"], model_writhe_fraction=f_model,
+               model_writhe_fraction_err=f_model_se,
                model_plectoneme_fraction=row["plectoneme_fraction"], model_production_ns=row["production_ps"] / 1000.0,
                model_wall_s=row["wall_s"], model_cpu_s=row["cpu_s"],
                reference_writhe_fraction=f_ref, reference_writhe_fraction_err=f_ref_se,
@@ -192,7 +189,6 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                hard_core_minus_reference_err=None if f_hard is None else float(np.hypot(f_hard_se, f_ref_se)),
                reference_segments=mc["segments"], reference_acceptance=mc["acceptance"],
                standard_error=se, tolerance=tol, z_tolerance=Z_TOL, bracket=twin, passed=passed)
-    from dnarod.validate.experiment import compare_writhe_fraction
 
     # against the value read (reported here; check experiment gates on it when run in the same validation)
     res["vs_experiment"] = compare_writhe_fraction(f_model, f_model_se, res["model"])

@@ -11,6 +11,8 @@ import json
 import os
 import platform
 
+import numpy as np
+
 from dnarod.core.io import write_text_atomic
 from dnarod.validate._common import jsonable
 
@@ -48,14 +50,17 @@ def headline(name, r):
     try:
         if name == "engines":
             o, s = r["openmm"], r["lax_splitting"]
-            return (f"OpenMM order {_fmt(o['order_positions'], '.2f')}, |dr| {_fmt(o['max_position_difference_nm'][-1])} nm "
-                    f"at dt {r['dt_ps'][-1]} ps (half-step start: order {_fmt(r['openmm_half_step']['order_positions'], '.2f')}, "
-                    f"{_fmt(r['openmm_half_step']['max_position_difference_nm'][-1])} nm); Lax splitting order "
+            h = r["openmm_half_step"]
+            return (f"OpenMM order {_fmt(o['order_positions'], '.2f')}, "
+                    f"|dr| {_fmt(o['max_position_difference_nm'][-1])} nm at dt {r['dt_ps'][-1]} ps "
+                    f"(half-step start: order {_fmt(h['order_positions'], '.2f')}, "
+                    f"{_fmt(h['max_position_difference_nm'][-1])} nm); Lax splitting order "
                     f"{_fmt(s['order_positions'], '.2f')}",
                     f"order {r['order_min']}-{r['order_max']}, |dr| < {r['small_dt_position_tol_nm']:g} nm")
         if name == "thermal":
             eng = [e for e in ("lax", "openmm") if e in r]
-            parts = [f"{e}: max|z| {_fmt(r[e]['max_abs_z'], '.2f')}, lp {_fmt(r[e]['persistence_length']['measured_nm'], '.2f')}"
+            parts = [f"{e}: max|z| {_fmt(r[e]['max_abs_z'], '.2f')}, "
+                     f"lp {_fmt(r[e]['persistence_length']['measured_nm'], '.2f')}"
                      f"+-{_fmt(r[e]['persistence_length']['standard_error_nm'], '.2f')} nm, T "
                      f"{_fmt(r[e]['kinetic_temperature']['measured_K'], '.1f')}+-"
                      f"{_fmt(r[e]['kinetic_temperature']['standard_error_K'], '.1f')} K" for e in eng]
@@ -70,7 +75,8 @@ def headline(name, r):
             t = max(v for s in r["systems"].values() for k, v in s.items() if k.endswith("max_torque"))
             d = max(v for s in r["systems"].values() for k, v in s.items() if k.endswith("drift_nm"))
             return (f"max |F| {_fmt(f)} kJ/mol/nm, |tau| {_fmt(t)} kJ/mol, drift {_fmt(d)} nm in {r['run_time_ps']} ps",
-                    f"|F| < {r['force_tol_kJmol_nm']:g}, |tau| < {r['torque_tol_kJmol']:g}, drift < {r['drift_tol_nm']:g} nm")
+                    f"|F| < {r['force_tol_kJmol_nm']:g}, |tau| < {r['torque_tol_kJmol']:g}, "
+                    f"drift < {r['drift_tol_nm']:g} nm")
         if name == "paper_scheme":
             o = ", ".join(_fmt(v, ".2f") for v in r["observed_order_last_pair"].values())
             return (f"orders (Gamma, Omega, p, m) {o}; growth rate {_fmt(r['growth_rate_per_ps'], '.3f')}/ps "
@@ -92,9 +98,12 @@ def headline(name, r):
                     f"agree within {r['z_tolerance']} SE; theory {r['z_tolerance']} SE + "
                     f"{100 * r['theory_allowance_relative']:.0f}%")
         if name == "plectonemes":
-            return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
-                    f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC {_fmt(r['reference_writhe_fraction'], '.3f')}"
-                    f"+-{_fmt(r['reference_writhe_fraction_err'], '.3f')} (A {_fmt(r['reference_persistence_length_nm'], '.1f')},"
+            return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}"
+                    f"+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
+                    f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC "
+                    f"{_fmt(r['reference_writhe_fraction'], '.3f')}"
+                    f"+-{_fmt(r['reference_writhe_fraction_err'], '.3f')} "
+                    f"(A {_fmt(r['reference_persistence_length_nm'], '.1f')},"
                     f" C {_fmt(r['reference_twist_persistence_nm'], '.1f')}, the model's pair energy: "
                     f"{r['nonbonded']['charge_model']} {_fmt(r['nonbonded']['charge_e_per_node'], '.2f')} e/bp, cutoff "
                     f"{_fmt(r['nonbonded']['cutoff_debye'], '.0f')} Debye lengths); hard core d_eff "
@@ -107,8 +116,9 @@ def headline(name, r):
         if name == "nicked_ring":
             f = r.get("full") or {}
             h = r.get("harmonic") or {}
-            return (f"Var(Wr*) {_fmt(r['model_wr_star_var'], '.5f')}+-{_fmt(r['model_wr_star_var_err'], '.5f')} (Wr* = Lk -"
-                    f" step twist) vs worm-like ring MC {_fmt(r['reference_wr2'], '.5f')}+-{_fmt(r['reference_wr2_err'], '.5f')}"
+            return (f"Var(Wr*) {_fmt(r['model_wr_star_var'], '.5f')}+-{_fmt(r['model_wr_star_var_err'], '.5f')} "
+                    f"(Wr* = Lk - step twist) vs worm-like ring MC {_fmt(r['reference_wr2'], '.5f')}"
+                    f"+-{_fmt(r['reference_wr2_err'], '.5f')}"
                     f" ({_fmt(r['reference_segment_nm'], '.2f')}-nm segments)"
                     + (f", harmonic ring {_fmt(h['wr2'], '.5f')}+-{_fmt(h['wr2_err'], '.5f')}" if h else "")
                     + f"; <ΔTw²> {_fmt(r['twist_variance_exact_turns2'], '.4f')} (continuum "
@@ -117,7 +127,8 @@ def headline(name, r):
                     + (f"; {f['n_bp']} bp (exact twist + MC writhe): K {_fmt(f['K'], '.0f')}+-{_fmt(f['K_err'], '.0f')}"
                        if f else "")
                     + f" (measured K: {'none read' if r.get('measured_K') is None else _fmt(r['measured_K'], '.0f')})",
-                    f"{r['z_tolerance']} SE + {100 * r['discrete_allowance_relative']:.0f}% (= {_fmt(r['tolerance'], '.5f')})")
+                    f"{r['z_tolerance']} SE + {100 * r['discrete_allowance_relative']:.0f}% "
+                    f"(= {_fmt(r['tolerance'], '.5f')})")
     except (KeyError, TypeError, ValueError, IndexError):
         pass
     return "see results.json", "-"
@@ -146,14 +157,13 @@ def summary_table(results):
     lines = [f"{'check':16s} {'result':6s} {'time (s)':>9s}  measured"]
     for name, r in results["checks"].items():
         measured, _ = headline(name, r)
-        lines.append(f"{name:16s} {'PASS' if r['passed'] else 'FAIL':6s} {r.get('runtime_s', float('nan')):9.1f}  {measured}")
+        lines.append(f"{name:16s} {'PASS' if r['passed'] else 'FAIL':6s} "
+                     f"{r.get('runtime_s', float('nan')):9.1f}  {measured}")
     return "\n".join(lines)
 
 
 def write_report(out_dir, results, quick=False, runtime_s=None):
     """Write ``results.json`` and ``report.md`` into ``out_dir``; returns the JSON-safe results."""
-    import numpy as np
-
     try:
         import openmm
 
@@ -175,7 +185,8 @@ def write_report(out_dir, results, quick=False, runtime_s=None):
     for name, r in checks.items():
         m, t = headline(name, r)
         m, t = m.replace("|", "\\|"), t.replace("|", "\\|")
-        md.append(f"| {name} | {'PASS' if r['passed'] else '**FAIL**'} | {r.get('runtime_s', float('nan')):.1f} | {m} | {t} |")
+        md.append(f"| {name} | {'PASS' if r['passed'] else '**FAIL**'} | "
+                  f"{r.get('runtime_s', float('nan')):.1f} | {m} | {t} |")
     for name, r in checks.items():
         md += ["", f"## {name}: {'PASS' if r['passed'] else 'FAIL'}", ""]
         m, t = headline(name, r)

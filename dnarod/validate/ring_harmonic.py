@@ -37,6 +37,13 @@ import math
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.model import RodModel
+from dnarod.physics.statics import solve_static
+from dnarod.physics.modes import hessian, total_load_fn
+from dnarod.core.units import kT
+from dnarod.physics.writhe import writhe
+from dnarod.workflows.protocols.nicked import smoothed_axis, AXIS_BLOCK
+from dnarod.core.rotations import rotation_about_axis
 
 
 def relaxed_ring(model):
@@ -47,8 +54,6 @@ def relaxed_ring(model):
     RodModel
         Same stiffness, masses and linking number; ``Omega0_3 = (2/ds) tan(pi Lk / n)`` at every step.
     """
-    from dnarod.core.model import RodModel
-
     if model.closure is None:
         raise DnarodError("the harmonic writhe needs a ring; give a closed model (ForceField.ring)")
     lk = int(model.metadata["linking_number"])
@@ -58,7 +63,6 @@ def relaxed_ring(model):
     params = dataclasses.replace(model.params, intrinsic=xi0)
     ring = RodModel.ring(params, model.ds, model.mass, model.inertia, lk, sequence=model.sequence)
     # the planar pose (d3 along the chords) carries a small torque (~0.015 kJ/mol at 100 bp): relax it
-    from dnarod.physics.statics import solve_static
 
     return solve_static(ring)[0]
 
@@ -73,9 +77,6 @@ def position_covariance(model, temperature=300.0, zero_tol=1e-12):
         ``n_zero_modes`` (eigenvalues below ``zero_tol`` times the largest), ``smallest_kept`` and
         ``largest`` eigenvalue (kJ/mol per nm² or rad²), ``max_load`` (largest |force| at the pose, kJ/mol/nm).
     """
-    from dnarod.physics.modes import hessian
-    from dnarod.core.units import kT
-
     H = hessian(model).toarray()
     H = 0.5 * (H + H.T)
     lam, V = np.linalg.eigh(H)
@@ -87,7 +88,6 @@ def position_covariance(model, temperature=300.0, zero_tol=1e-12):
     pos_idx = (np.arange(n)[:, None] * 6 + np.arange(3)[None, :]).ravel()
     Vp = V[pos_idx][:, ~zero]
     cov = (Vp * (kT(temperature) / lam[~zero])) @ Vp.T
-    from dnarod.physics.modes import total_load_fn
 
     F, tau = total_load_fn(model)(model.positions, model.frames)
     return cov, dict(n_zero_modes=int(zero.sum()), smallest_kept=float(lam[~zero].min()), largest=float(lam.max()),
@@ -121,12 +121,6 @@ def gaussian_writhe_samples(model, n_samples, temperature=300.0, seed=0, curves=
     -------
     dict of str to ndarray (n_samples,)
     """
-    from dnarod.physics.writhe import writhe
-    from dnarod.physics.modes import hessian
-    from dnarod.workflows.protocols.nicked import smoothed_axis
-    from dnarod.core.rotations import rotation_about_axis
-    from dnarod.core.units import kT
-
     ring = relaxed_ring(model)
     H = hessian(ring).toarray()
     lam, V = np.linalg.eigh(0.5 * (H + H.T))
@@ -154,8 +148,6 @@ def writhe_derivatives(points, h=None):
     Central differences of the exact writhe with step ``h`` (default 1e-3 of the mean edge length); the
     writhe is smooth away from self-contact, and the truncation error is O(h²) (relative ~1e-6).
     """
-    from dnarod.physics.writhe import writhe
-
     x0 = np.asarray(points, float)
     m = len(x0)
     if h is None:
@@ -201,8 +193,6 @@ def harmonic_writhe_variance(model, temperature=300.0, block=None, gaussian_samp
         ``wr2_gaussian`` and ``wr2_gaussian_err`` (when sampled), ``n_zero_modes``, ``max_load``,
         ``axis_vertices``.
     """
-    from dnarod.workflows.protocols.nicked import AXIS_BLOCK, smoothed_axis
-
     block = AXIS_BLOCK if block is None else int(block)
     ring = relaxed_ring(model)
     cov, info = position_covariance(ring, temperature)
@@ -221,8 +211,6 @@ def harmonic_writhe_variance(model, temperature=300.0, block=None, gaussian_samp
     wr2 = lin + 0.5 * float(np.sum(MS * MS.T)) + mean * mean
     res = dict(wr2=wr2, linear_term=lin, mean_wr=mean, axis_vertices=m, n_nodes=n, **info)
     if gaussian_samples:
-        from dnarod.physics.writhe import writhe
-
         rng = np.random.default_rng(seed)
         w, U = np.linalg.eigh(S)
         w = np.clip(w, 0.0, None)

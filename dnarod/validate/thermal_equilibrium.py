@@ -27,6 +27,17 @@ import numpy as np
 
 from dnarod.analysis.plots import new_figure, save_figure
 from dnarod.analysis.statistics import jackknife, split_blocks
+from dnarod.core.forcefield import load_forcefield
+from dnarod.analysis.polymer import tangent_correlation_frames
+from dnarod.analysis.stiffness import haar_weight
+from dnarod.core.strains import strains
+from dnarod.engines.lax import SplittingIntegrator
+from dnarod.engines.lax.engine import LaxEngine
+from dnarod.engines.lax.splitting import maxwell_state
+from dnarod.run.sampling import SampleReporter, run_sampling
+from dnarod.core.parameters import StepParameters
+from dnarod.physics.thermal import persistence_length, tangent_correlation
+from dnarod.core.units import kT
 
 NAME = "thermal"
 Z_TOL = 4.5
@@ -34,8 +45,6 @@ N_BLOCKS = 40
 
 
 def default_model(n_nodes):
-    from dnarod.core.forcefield import load_forcefield
-
     return load_forcefield("dna-default").model_from_sequence(n_nodes=n_nodes)
 
 
@@ -48,10 +57,6 @@ def frame_statistics(model, positions, frames, n_max):
         ``XW`` (n_frames, 6, 6) sum over steps of ``W dxi dxi^T``; ``X`` the same without W;
         ``W`` (n_frames,) sum of W; ``corr`` (n_frames, n_max) mean over k of ``d3(k).d3(k+n)``.
     """
-    from dnarod.analysis.polymer import tangent_correlation_frames
-    from dnarod.analysis.stiffness import haar_weight
-    from dnarod.core.strains import strains
-
     Om, Ga = strains(positions, frames, model.ds, model.closure)  # (n_frames, n_steps, 3)
     d = np.concatenate([Om, Ga], axis=-1) - model.params.intrinsic
     W = haar_weight(Om, model.ds)
@@ -64,10 +69,6 @@ def frame_statistics(model, positions, frames, n_max):
 
 def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
     """Positions, frames (n_samples, n, ...) and kinetic temperatures (n_samples,) from the Lax-form BAOAB engine."""
-    from dnarod.engines.lax import SplittingIntegrator
-    from dnarod.engines.lax.engine import LaxEngine
-    from dnarod.engines.lax.splitting import maxwell_state
-
     integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed),
                                 temperature=temperature, friction=friction, seed=seed + 1)
     return _sample(LaxEngine.wrap(integ, temperature, friction, seed), n_samples, stride, n_equil)
@@ -75,7 +76,7 @@ def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equi
 
 def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
     """The same from the OpenMM engine (LangevinMiddleIntegrator, CPU platform, elastic forces only)."""
-    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.engines.openmm.simulation import RodSimulation  # loads OpenMM
 
     sim = RodSimulation.create(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
                                platform="CPU", nonbonded=False, seed=seed, threads=1)
@@ -85,8 +86,6 @@ def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_e
 def _sample(engine, n_samples, stride, n_equil):
     """Equilibrate (``n_equil`` steps, rounded up to whole strides), then record (positions, frames, kinetic
     temperature) every ``stride`` steps, through the run layer (:func:`dnarod.run.sampling.run_sampling`)."""
-    from dnarod.run.sampling import SampleReporter, run_sampling
-
     def observe(pos, frm, snapshot):
         return {"positions": pos, "frames": frm, "temperature": snapshot.energies["temperature"]}
 
@@ -103,10 +102,6 @@ def analyse(model, positions, frames, tkin, temperature, n_max, stiffness_scale=
     ``stiffness_scale`` multiplies the stiffness used for the *expected* values (1 = the model's own;
     any other value must fail -- used by the tests).
     """
-    from dnarod.core.parameters import StepParameters
-    from dnarod.physics.thermal import persistence_length, tangent_correlation
-    from dnarod.core.units import kT
-
     kt = kT(temperature)
     ds = model.ds
     p = model.params

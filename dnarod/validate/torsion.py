@@ -9,8 +9,9 @@ System: an open ``dna-default`` chain in magnetic tweezers (node 0 clamped, forc
    difference the measured ``Lk - Lk0`` (``Tw + Wr`` with the vertical closure). ``C_slope =
    L d(torque) / (kT 2 pi d(Lk))``.
 2. **Twist fluctuations of an (almost) torque-free end**: one member with a weak rotation clamp k_w at zero
-   turns, friction critically damping the slowest twist mode (:func:`twist_friction`); the end rotation phi about z has ``<dphi^2> = kT / (k_w + kT C_eff / L)``, so ``C_fluct = L (kT /
-   <dphi^2> - k_w) / kT``. Its error comes from the measured integrated autocorrelation time of phi^2.
+   turns, friction critically damping the slowest twist mode (:func:`twist_friction`); the end rotation phi about z has
+   ``<dphi^2> = kT / (k_w + kT C_eff / L)``, so ``C_fluct = L (kT / <dphi^2> - k_w) / kT``. Its error comes from the
+   measured integrated autocorrelation time of phi^2.
 3. **Theory** (the model's own parameters): Moroz & Nelson's high-force expansion (PNAS 94:14418, 1997;
    Macromolecules 31:6333, 1998; third-order form as summarised by Lipfert et al., Nat. Commun. 2:439,
    2011): ``C_eff = C (1 - M/(4 K0) + (M^2 - 2M)/(16 K0^2) - (4M^3 - 16M^2 + 21M)/(256 K0^3))`` with
@@ -26,11 +27,18 @@ model's C in the theory (the tests feed a wrong value to show the check fails).
 from __future__ import annotations
 
 import time
+import tempfile
+from pathlib import Path
 
 import numpy as np
 
 from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson, twist_friction
 from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.core.forcefield import load_forcefield
+from dnarod.workflows.protocols.tweezers import run_member
+from dnarod.physics.thermal import persistence_length
+from dnarod.core.units import kT, PN
+from dnarod.analysis.polymer import integrated_autocorrelation_time
 
 NAME = "torsion"
 Z_TOL = 3.0
@@ -41,14 +49,6 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
                   weak_clamp_kJ_mol=1.0, fluct_friction=None, temperature=300.0, seed=21, c_override=None, plots=True,
                   member_root=None):
     """Run the check (see the module docstring); ``quick`` uses a 100 bp chain and short runs."""
-    import tempfile
-    from pathlib import Path
-
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.workflows.protocols.tweezers import run_member
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
-    from dnarod.core.units import PN
 
     t0 = time.perf_counter()
     n_bp = n_bp or (100 if quick else 300)
@@ -75,7 +75,6 @@ def check_torsion(out_dir, quick=False, n_bp=None, force_pN=3.0, turns=0.6, slop
     fl = run_member(dict(base, turns=0.0, clamp_k_kJ_mol=weak_clamp_kJ_mol, friction_per_ps=fluct_friction,
                          time_ns=fluct_ns, sample_ps=5.0, seed=seed + 2), root / "fluct")
     d = np.genfromtxt(root / "fluct" / "samples.csv", delimiter=",", names=True)
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
 
     phi = (d["end_turns"] - d["end_turns"].mean()) * 2 * np.pi
     var = float(np.mean(phi ** 2))

@@ -31,6 +31,9 @@ import math
 
 import numpy as np
 
+from dnarod.physics.writhe import _numba_pair_sum, writhe
+from dnarod.core.units import kT
+
 
 def bending_coefficient(b_nm, A_nm):
     """``g`` (kT) with ``coth g - 1/g = exp(-b/A)``."""
@@ -43,7 +46,6 @@ def bending_coefficient(b_nm, A_nm):
 def _kernels():
     from numba import njit
 
-    from dnarod.physics.writhe import _numba_pair_sum
 
     pair_sum = _numba_pair_sum()
 
@@ -285,8 +287,6 @@ def pair_parameters(nonbonded, ds, temperature, b_nm):
         (kT nm), lengths in nm, sites per segment, chain-distance exclusion in sites (the model's own, from
         :meth:`~dnarod.physics.nonbonded.NonbondedSettings.resolve`).
     """
-    from dnarod.core.units import kT
-
     nb = nonbonded.resolve(ds, temperature)
     kt = kT(temperature)
     n_sub = max(1, int(round(b_nm / ds)))
@@ -323,10 +323,10 @@ def sample_ring_writhe(length_nm, A_nm, diameter_nm, b_nm=3.4, n_samples=2000, s
     Returns
     -------
     dict
-        ``wr`` (n_samples,), ``radius_of_gyration_nm`` (n_samples,, of the vertices), ``segments``, ``bending_coefficient``, ``acceptance``.
+        ``wr`` (n_samples,), ``radius_of_gyration_nm`` (n_samples,, of the vertices), ``segments``,
+        ``bending_coefficient``, ``acceptance``.
     """
     global _SWEEP, _KNOT, _CROSS
-    from dnarod.physics.writhe import writhe
 
     if _SWEEP is None:
         _SWEEP, _KNOT, _CROSS = _kernels()

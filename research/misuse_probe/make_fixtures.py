@@ -1,5 +1,5 @@
 """Hand-made bad inputs for the misuse probe (in W = this folder/fx)."""
-import gzip, os, shutil, subprocess, sys
+import gzip, shutil, subprocess, sys
 from pathlib import Path
 import numpy as np
 W = Path(sys.argv[1]); W.mkdir(exist_ok=True)

@@ -12,7 +12,7 @@ were read from the code; tests/test_misuse_cli_inputs.py holds their refusals). 
 import json, os
 from click.testing import CliRunner
 from dnarod.cli.main import main
-import os, subprocess, sys, time, hashlib
+import sys, time
 from pathlib import Path
 W = Path(sys.argv[1]); D = sys.argv[2]; only = sys.argv[3] if len(sys.argv) > 3 else None
 S = "/work/shared/data/structures"

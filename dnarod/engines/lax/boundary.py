@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.physics.loads import LOAD_TYPES, resolve_loads, Clamp, PullingForce, Torque
 
 
 @dataclass
@@ -50,12 +51,11 @@ class BoundaryConditions:
         ----------
         loads : sequence
             :class:`~dnarod.physics.loads.PullingForce`, :class:`~dnarod.physics.loads.Torque`,
-            :class:`~dnarod.physics.loads.Clamp`, :class:`~dnarod.physics.loads.RotationClamp`, :class:`~dnarod.physics.loads.Trap`.
+            :class:`~dnarod.physics.loads.Clamp`, :class:`~dnarod.physics.loads.RotationClamp`,
+            :class:`~dnarod.physics.loads.Trap`.
         duration_ps : float, optional
             Run length, ps, over which ``turns`` of each :class:`~dnarod.physics.loads.RotationClamp` are spread.
         """
-        from dnarod.physics.loads import LOAD_TYPES
-
         if isinstance(loads, LOAD_TYPES):
             loads = (loads,)
         return cls(loads=tuple(loads or ()), duration_ps=duration_ps)
@@ -67,14 +67,10 @@ class BoundaryConditions:
         -------
         dnarod.physics.loads.ResolvedLoads
         """
-        from dnarod.physics.loads import resolve_loads
-
         self.resolve(model.n_nodes, model.circular, any_node=True)  # the table checks, with their messages
         return resolve_loads(self._as_loads(), model, positions, frames)
 
     def _as_loads(self):
-        from dnarod.physics.loads import Clamp, PullingForce, Torque
-
         return (tuple(Clamp(k) for k in self.clamped) + tuple(PullingForce(k, v) for k, v in self.forces.items())
                 + tuple(Torque(k, v) for k, v in self.torques.items()) + tuple(self.loads))
 
@@ -95,8 +91,6 @@ class BoundaryConditions:
             For a clamp on a circular chain or an interior node, a node index out of range,
             a load on a clamped node (it would be absorbed by the clamp) or a non-finite load.
         """
-        from dnarod.physics.loads import Clamp, PullingForce, Torque
-
         n = int(n_nodes)
         clamped = list(self.clamped) + [ld.node for ld in self.loads if isinstance(ld, Clamp)]
         forces = list(self.forces.items()) + [(ld.node, ld.force) for ld in self.loads if isinstance(ld, PullingForce)]

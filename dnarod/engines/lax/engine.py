@@ -2,12 +2,16 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
+from dnarod.core.seeds import resolve_seed
 from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path, read_checkpoint
-from dnarod.core.model import model_fingerprint
+from dnarod.core.model import RodModel, model_fingerprint
 from dnarod.engines.lax.boundary import BoundaryConditions
 from dnarod.engines.lax.splitting import SplittingIntegrator, maxwell_state
 from dnarod.physics.thermal import kinetic_temperature
@@ -40,8 +44,9 @@ class LaxEngine:
 
     name = "lax"
 
-    def __init__(self, model, dt, temperature=300.0, friction=1.0, seed=None, loads=(), duration_ps=None,
-                 omega_max=None, fast=True):
+    def __init__(self, model: RodModel, dt: float, temperature: float = 300.0, friction: float = 1.0,
+                 seed: int | None = None, loads: Sequence[Any] = (), duration_ps: float | None = None,
+                 omega_max: float | None = None, fast: bool | str = True) -> None:
         self.model = model
         self.temperature = float(temperature)
         if not (np.isfinite(self.temperature) and self.temperature >= 0):
@@ -50,7 +55,7 @@ class LaxEngine:
         if not (np.isfinite(friction) and friction >= 0):
             raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
         self.friction = friction
-        self.seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
+        self.seed: int | None = resolve_seed(seed)
         loads = tuple(loads)
         self.boundary = BoundaryConditions.from_loads(loads, duration_ps=duration_ps) if loads \
             else BoundaryConditions()
@@ -62,7 +67,7 @@ class LaxEngine:
                                     check_stability=False)
         self._attach(integ, omega_max, duration_ps)
 
-    def _attach(self, integ, omega_max, duration_ps):
+    def _attach(self, integ: SplittingIntegrator, omega_max: float | None, duration_ps: float | None) -> None:
         self.integ = integ
         self.model = integ.model
         self.boundary = integ.boundary
@@ -74,7 +79,8 @@ class LaxEngine:
         self._duration = duration_ps if duration_ps is not None else getattr(self.boundary, "duration_ps", None)
 
     @classmethod
-    def wrap(cls, integrator, temperature=0.0, friction=0.0, seed=None):
+    def wrap(cls, integrator: SplittingIntegrator, temperature: float = 0.0, friction: float = 0.0,
+             seed: int | None = None) -> LaxEngine:
         """An engine around an existing :class:`SplittingIntegrator` (its state, boundary and noise)."""
         self = cls.__new__(cls)
         self.temperature = float(temperature)
@@ -84,10 +90,11 @@ class LaxEngine:
         return self
 
     @property
-    def step(self):
+    def step(self) -> int:
+        """Steps done since the start of the run."""
         return self.integ.step_count
 
-    def advance(self, n_steps):
+    def advance(self, n_steps: int) -> None:
         """Integrate ``n_steps`` steps (SimulationError names the step, node and quantity on a blow-up)."""
         self.integ.step(int(n_steps))
         if not np.isfinite(self.integ.potential_energy):
@@ -98,7 +105,7 @@ class LaxEngine:
                                   f"not finite); reduce dt or check the loads/model", step=self.step, node=node,
                                   term="elastic")
 
-    def node_state(self, copy=True):
+    def node_state(self, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """On-step ``(positions (n, 3) nm, frames (n, 3, 3), velocities (n, 3) nm/ps lab, angular velocities
         (n, 3) rad/ps body)``; ``copy=False``: positions and frames are the integrator's own arrays (valid until
         it advances; the run layer's reports)."""
@@ -108,7 +115,7 @@ class LaxEngine:
             return s.positions.copy(), s.frames.copy(), v, w
         return s.positions, s.frames, v, w
 
-    def energies(self):
+    def energies(self) -> dict[str, float]:
         """kJ/mol per term (elastic, nonbonded = 0, external) plus potential, kinetic; temperature K."""
         s = self.integ.state
         elastic = float(self.integ.potential_energy)
@@ -121,14 +128,15 @@ class LaxEngine:
         return dict(elastic=elastic, nonbonded=0.0, external=external, potential=elastic + external, kinetic=ke,
                     temperature=float(kinetic_temperature(ke, self.n_dof)))
 
-    def current_model(self):
+    def current_model(self) -> RodModel:
+        """The model at the current pose."""
         s = self.integ.state
         return self.model.with_pose(s.positions.copy(), s.frames.copy())
 
-    def update_loads(self, time_ps, duration_ps=None):
+    def update_loads(self, time_ps: float, duration_ps: float | None = None) -> None:
         """Rotation clamps turn inside the integrator (from its step count); nothing to do."""
 
-    def save_checkpoint(self, path, extra=None):
+    def save_checkpoint(self, path: str | Path, extra: dict[str, Any] | None = None) -> None:
         """State, step, time step and the random-number state, atomically (npz)."""
         s = self.integ.state
         meta = dict(format="dnarod-lax-checkpoint", version=2, step=self.step, dt=self.dt,
@@ -140,7 +148,7 @@ class LaxEngine:
                 np.savez(fh, positions=s.positions, frames=s.frames, momenta=s.momenta,
                          angular_momenta=s.angular_momenta, meta=np.array(json.dumps(meta)))
 
-    def load_checkpoint(self, path):
+    def load_checkpoint(self, path: str | Path) -> dict[str, Any]:
         """Restore a checkpoint of :meth:`save_checkpoint` for this model and time step; returns its metadata."""
         meta, a = read_checkpoint(path, "dnarod-lax-checkpoint",
                                   ("positions", "frames", "momenta", "angular_momenta"))

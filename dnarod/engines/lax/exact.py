@@ -30,11 +30,11 @@ from scipy.spatial.transform import Rotation
 
 from dnarod.core.energy import stresses
 from dnarod.core.errors import DnarodError, SimulationError
-from dnarod.core.rotations import cayley
 from dnarod.core.strains import chain_from_strains
 from dnarod.physics.thermal import node_kinetic_energy
 from dnarod.core.trajectory import Trajectory
 from dnarod.engines.lax.boundary import BoundaryConditions
+from dnarod.core.rotations import hat
 
 
 def _rot_apply(w, v, transpose=False):
@@ -127,8 +127,6 @@ def lax_matrices(positions, frames, velocities_body, angular_velocities_body, cl
     U : ndarray, shape (n_steps, 4, 4)
     V : ndarray, shape (n_nodes, 4, 4)
     """
-    from dnarod.core.rotations import hat
-
     n = positions.shape[0]
     g = np.zeros((n + 1, 4, 4))
     g[:n, :3, :3], g[:n, :3, 3], g[:, 3, 3] = frames, positions, 1.0
@@ -188,11 +186,13 @@ class ExactSystem:
         v = np.zeros((self.n, 3)) if velocities is None else np.asarray(velocities, float)
         om = np.zeros((self.n, 3)) if angular_velocities is None else np.asarray(angular_velocities, float)
         if v.shape != (self.n, 3) or om.shape != (self.n, 3):
-            raise DnarodError(f"velocities and angular velocities must have shape ({self.n}, 3), got {v.shape}, {om.shape}")
+            raise DnarodError(f"velocities and angular velocities must have shape ({self.n}, 3), "
+                              f"got {v.shape}, {om.shape}")
         moving = (np.abs(v).sum(1) + np.abs(om).sum(1)) > 0
         if np.any(moving & self.clamp):
             k = int(np.flatnonzero(moving & self.clamp)[0])
-            raise DnarodError(f"node {k} is clamped but was given a nonzero initial velocity; a clamped node is at rest")
+            raise DnarodError(f"node {k} is clamped but was given a nonzero initial velocity; "
+                              f"a clamped node is at rest")
         Omega, Gamma = model.strains()
         gamma = np.einsum("kji,kj->ki", model.frames, v)
         return self.pack(Omega, Gamma, om, gamma, model.positions[0], model.frames[0])

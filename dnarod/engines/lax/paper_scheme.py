@@ -24,6 +24,7 @@ from scipy.integrate import solve_ivp
 from dnarod.core.energy import stresses
 from dnarod.core.errors import DnarodError
 from dnarod.engines.lax.exact import body_loads, strain_rates
+from dnarod.physics.lax import smk_rhs
 
 
 class DensitySystem:
@@ -66,8 +67,6 @@ class DensitySystem:
         if self.scheme == "exact":
             out = exact_density_rhs(Gamma, Omega, p, m, self.model.params, self.ds, self.rho, self.I)
         else:
-            from dnarod.physics.lax import smk_rhs
-
             gamma, omega = p / self.rho, m / self.I
             M, P, _ = stresses(Omega, Gamma, self.model.params)
             out = smk_rhs(Gamma, Omega, p, m, gamma, omega, P, M, self.ds, reading=self.reading, periodic=True)

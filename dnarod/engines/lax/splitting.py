@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -31,6 +32,9 @@ from dnarod.core.strains import step_geometry
 from dnarod.core.units import kT as _kT
 from dnarod.engines.lax.boundary import BoundaryConditions
 from dnarod.engines.lax.splitting_limits import MOMENTUM_LIMIT
+from dnarod.physics.modes import omega_max as _omega_max
+from dnarod.engines.lax.kernel import NumbaKernel
+from dnarod.core.model import RodModel
 
 
 @dataclass
@@ -54,11 +58,13 @@ class RigidState:
     momenta: np.ndarray
     angular_momenta: np.ndarray
 
-    def copy(self):
+    def copy(self) -> RigidState:
+        """An independent copy (arrays copied)."""
         return RigidState(self.positions.copy(), self.frames.copy(), self.momenta.copy(), self.angular_momenta.copy())
 
     @classmethod
-    def from_model(cls, model, velocities=None, angular_velocities=None):
+    def from_model(cls, model: RodModel, velocities: np.ndarray | None = None,
+                   angular_velocities: np.ndarray | None = None) -> RigidState:
         """State of the model's pose with lab centre velocities (nm/ps) and body angular velocities (rad/ps)."""
         n = model.n_nodes
         v = np.zeros((n, 3)) if velocities is None else np.asarray(velocities, float)
@@ -67,21 +73,22 @@ class RigidState:
             raise DnarodError(f"velocities and angular velocities must have shape ({n}, 3), got {v.shape}, {w.shape}")
         return cls(model.positions.copy(), model.frames.copy(), model.mass[:, None] * v, model.inertia * w)
 
-    def velocities(self, mass, inertia):
+    def velocities(self, mass: np.ndarray, inertia: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Lab centre velocities (n, 3) nm/ps and body angular velocities (n, 3) rad/ps."""
         return self.momenta / mass[:, None], self.angular_momenta / inertia
 
-    def kinetic_energy(self, mass, inertia):
+    def kinetic_energy(self, mass: np.ndarray, inertia: np.ndarray) -> float:
         """kJ/mol."""
         return 0.5 * float(np.sum(self.momenta**2 / mass[:, None]) + np.sum(self.angular_momenta**2 / inertia))
 
-    def total_momentum(self):
+    def total_momentum(self) -> tuple[np.ndarray, np.ndarray]:
         """Lab momentum (3,) and angular momentum about the origin (3,)."""
         L = np.cross(self.positions, self.momenta) + np.einsum("kij,kj->ki", self.frames, self.angular_momenta)
         return self.momenta.sum(0), L.sum(0)
 
 
-def maxwell_state(model, temperature, seed=None, boundary=None, remove_drift=True):
+def maxwell_state(model: RodModel, temperature: float, seed: int | None = None,
+                  boundary: BoundaryConditions | None = None, remove_drift: bool = True) -> RigidState:
     """Maxwell-Boltzmann momenta at ``temperature`` (K) for the model's pose.
 
     Lab momenta have variance ``m kT`` per component, body angular momenta ``J_a kT``. For a free
@@ -106,7 +113,7 @@ def maxwell_state(model, temperature, seed=None, boundary=None, remove_drift=Tru
     return state
 
 
-def _remove_drift(state, model):
+def _remove_drift(state: RigidState, model: RodModel) -> None:
     """Remove total momentum and (for open chains) total angular momentum by a rigid-body velocity."""
     m = model.mass
     state.momenta -= m[:, None] * (state.momenta.sum(0) / m.sum())
@@ -129,7 +136,7 @@ def _remove_drift(state, model):
 ROTOR_SEQUENCE = ((0, 0.5), (1, 0.5), (2, 1.0), (1, 0.5), (0, 0.5))
 
 
-def rotor_flow(frames, pi, inv_inertia, h):
+def rotor_flow(frames: np.ndarray, pi: np.ndarray, inv_inertia: np.ndarray, h: float) -> None:
     """Free-rotor flow for time ``h`` by the symmetric composition R1 R2 R3 R2 R1 (in place)."""
     for a, frac in ROTOR_SEQUENCE:
         b, d = (a + 1) % 3, (a + 2) % 3
@@ -154,18 +161,22 @@ def _bad_step(positions, frames, closure):
 class NumpyKernel:
     """Reference implementation of the splitting steps (vectorised numpy, :func:`dnarod.core.energy.loads`)."""
 
-    def __init__(self, model, ext_force, ext_torque, free):
+    def __init__(self, model: RodModel, ext_force: np.ndarray, ext_torque: np.ndarray, free: np.ndarray) -> None:
         self.model = model
         self.F_ext, self.tau_ext, self.free = ext_force, ext_torque, free
 
-    def loads(self, state):
+    def loads(self, state: RigidState) -> tuple[float, np.ndarray, np.ndarray]:
+        """Elastic energy (kJ/mol), lab forces and torques (n, 3) with the external loads, zero on clamped nodes."""
         m = self.model
         E, F, tau = _loads(state.positions, state.frames, m.params, m.ds, m.closure)
         F += self.F_ext
         tau += self.tau_ext
         return E, F * self.free[:, None], tau * self.free[:, None]
 
-    def run(self, state, F, tau, dt, n_steps, inv_m, inv_J, c=None, sig_P=None, sig_pi=None, noise=None):
+    # the kernel interface (as the numba kernel's): state, loads, inverse masses and the Langevin terms as arrays
+    def run(self, state: RigidState, F: np.ndarray, tau: np.ndarray, dt: float, n_steps: int, inv_m: np.ndarray,
+            inv_J: np.ndarray, c: float | None = None, sig_P: np.ndarray | None = None,
+            sig_pi: np.ndarray | None = None, noise: np.ndarray | None = None) -> tuple[int, int, int, float]:
         """Advance ``n_steps``; returns (status, step, node, E). status 0 = ok, 1 = failure at (step, node)."""
         E = np.nan
         h = 0.5 * dt
@@ -176,6 +187,7 @@ class NumpyKernel:
                 state.positions += dt * state.momenta * inv_m[:, None]
                 rotor_flow(state.frames, state.angular_momenta, inv_J, dt)
             else:
+                assert c is not None and sig_P is not None and sig_pi is not None
                 state.positions += h * state.momenta * inv_m[:, None]
                 rotor_flow(state.frames, state.angular_momenta, inv_J, h)
                 state.momenta[:] = c * state.momenta + sig_P[:, None] * noise[i, :3].T
@@ -198,7 +210,8 @@ class NumpyKernel:
 # ---------------------------------------------------------------------------------------------
 # stability limit
 # ---------------------------------------------------------------------------------------------
-def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-9):
+def omega_max(model: RodModel, positions: np.ndarray | None = None, frames: np.ndarray | None = None,
+              boundary: BoundaryConditions | None = None, tol: float = 1e-9) -> float:
     """Largest normal-mode angular frequency ``omega_max`` (rad/ps) of a pose with its boundary conditions.
 
     ``omega_max^2`` is the largest eigenvalue of ``M^-1/2 H M^-1/2``; computed by
@@ -220,8 +233,6 @@ def omega_max(model, positions=None, frames=None, boundary=None, tol=1e-9):
     float
         rad/ps.
     """
-    from dnarod.physics.modes import omega_max as _omega_max
-
     loads = () if boundary is None else boundary
     return _omega_max(model, loads, positions, frames, rtol=tol)
 
@@ -261,8 +272,12 @@ class SplittingIntegrator:
         If ``dt`` is at or above the stability limit (unless ``allow_unstable``).
     """
 
-    def __init__(self, model, dt, state=None, boundary=None, temperature=None, friction=None, seed=None,
-                 fast=True, check_stability=True, allow_unstable=False, noise_chunk_bytes=8 << 20):
+    # one keyword per integrator setting, as OpenMM integrators take them
+    def __init__(self, model: RodModel, dt: float, state: RigidState | None = None,
+                 boundary: BoundaryConditions | None = None, temperature: float | None = None,
+                 friction: float | None = None, seed: int | None = None, fast: bool | str = True,
+                 check_stability: bool = True, allow_unstable: bool = False,
+                 noise_chunk_bytes: int = 8 << 20) -> None:
         if not (np.isfinite(dt) and dt > 0):
             raise DnarodError(f"time step dt must be a positive number of ps, got {dt}")
         self.model = model
@@ -295,15 +310,13 @@ class SplittingIntegrator:
         self.rng = np.random.default_rng(seed)
         self.noise_chunk = max(1, int(noise_chunk_bytes // (48 * model.n_nodes)))
         self.step_count = 0
-        self.omega_max = None
-        self._pd = None
+        self.omega_max: float | None = None
+        self._pd: tuple[float, np.ndarray, np.ndarray] | None = None
         if self.loads.position_dependent:  # traps, rotation clamps: re-evaluated every step (see _run_loaded)
             self._pd = self._position_dependent_loads(0.0)
             F_ext += self._pd[1]
             tau_ext += self._pd[2]
         if check_stability:
-            from dnarod.physics.modes import omega_max as _omega_max
-
             self.omega_max = _omega_max(model, self.loads, self.state.positions, self.state.frames,
                                         angles=self.loads.clamp_angles(0.0, self.boundary.duration_ps))
             dt_crit = 2.0 / self.omega_max
@@ -315,15 +328,15 @@ class SplittingIntegrator:
                     raise SimulationError(msg, step=0, node=None, term="dt")
                 warnings.warn(msg, RuntimeWarning, stacklevel=2)
         if fast:
-            from dnarod.engines.lax.kernel import NumbaKernel
             if fast not in (True, "blocked", "scalar"):
                 raise DnarodError(f"fast must be True, False, 'blocked' or 'scalar', got {fast!r}")
-            self.kernel = NumbaKernel(model, F_ext, tau_ext, self.free, blocked=(fast != "scalar"))
+            self.kernel: NumbaKernel | NumpyKernel = NumbaKernel(model, F_ext, tau_ext, self.free,
+                                                                 blocked=(fast != "scalar"))
         else:
             self.kernel = NumpyKernel(model, F_ext, tau_ext, self.free)
         self.potential_energy, self.F, self.tau = self._initial_loads()
 
-    def _position_dependent_loads(self, time_ps):
+    def _position_dependent_loads(self, time_ps: float) -> tuple[float, np.ndarray, np.ndarray]:
         """Energy (kJ/mol) and lab loads of the traps and rotation clamps (dead loads excluded) at the
         current state, rotation clamps turned to their angle at ``time_ps``."""
         s = self.state
@@ -331,7 +344,7 @@ class SplittingIntegrator:
         E, F, tau = self.loads.evaluate(s.positions, s.frames, angles)
         return E + float(np.sum(self.F_dead * s.positions)), F - self.F_dead, tau - self.tau_dead
 
-    def _run_loaded(self, n_steps, extra):
+    def _run_loaded(self, n_steps: int, extra: dict[str, Any]) -> tuple[int, int, int, float]:
         """Steps with position-dependent loads: the kernel's closing half kick used the loads of the
         start of the step; it is corrected by ``dt/2 (f_new - f_old)``, which gives exactly the
         velocity-Verlet (BAOAB) step with the full loads."""
@@ -345,6 +358,7 @@ class SplittingIntegrator:
             status, ii, node, E = k.run(self.state, self.F, self.tau, self.dt, 1, self.inv_m, self.inv_J, **ex)
             if status != 0:
                 return status, i + ii, node, E
+            assert self._pd is not None  # set in __init__ when the loads depend on the position
             _, F_old, tau_old = self._pd
             self._pd = self._position_dependent_loads((self.step_count + i + 1) * self.dt)
             dF = (self._pd[1] - F_old) * self.free[:, None]
@@ -357,29 +371,29 @@ class SplittingIntegrator:
             k.tau_ext[:] = self.tau_dead + self._pd[2]
         return 0, n_steps, -1, E
 
-    def _initial_loads(self):
+    def _initial_loads(self) -> tuple[float, np.ndarray, np.ndarray]:
         try:
             return self.kernel.loads(self.state)
         except GeometryError as exc:
             raise SimulationError(f"step {self.step_count}: {exc}", step=self.step_count, term="rotation") from None
 
     # ------------------------------------------------------------------------------------
-    def kinetic_energy(self):
+    def kinetic_energy(self) -> float:
         """kJ/mol."""
         return self.state.kinetic_energy(self.model.mass, self.model.inertia)
 
-    def total_energy(self):
+    def total_energy(self) -> float:
         """Elastic + trap + rotation-clamp + kinetic energy minus the work potential of the dead forces, kJ/mol."""
         return (self.potential_energy + self.external_energy + self.kinetic_energy()
                 - float(np.sum(self.F_dead * self.state.positions)))
 
     @property
-    def external_energy(self):
+    def external_energy(self) -> float:
         """Energy of the traps and rotation clamps at the current state, kJ/mol (``potential_energy`` is
         the elastic energy only)."""
         return 0.0 if self._pd is None else self._pd[0]
 
-    def step(self, n_steps=1):
+    def step(self, n_steps: int = 1) -> None:
         """Advance ``n_steps`` steps (in place).
 
         Raises
@@ -392,7 +406,7 @@ class SplittingIntegrator:
         done = 0
         while done < n_steps:
             chunk = min(n_steps - done, self.noise_chunk) if self.langevin else n_steps - done
-            extra = {}
+            extra: dict[str, Any] = {}
             if self.langevin:
                 extra = dict(c=self.c, sig_P=self.sig_P, sig_pi=self.sig_pi,
                              noise=self.rng.standard_normal((chunk, 6, self.model.n_nodes)))
@@ -412,8 +426,8 @@ class SplittingIntegrator:
                     term = "momentum"
                     what = f"the momentum of {base_pair(node)} is not finite or above {MOMENTUM_LIMIT:g}"
                 raise SimulationError(
-                    f"time step {step}: the run blew up at {base_pair(node)}: {what} (t = {step * self.dt:g} ps); reduce dt "
-                    f"(stability limit 2/omega_max) or check the initial state",
+                    f"time step {step}: the run blew up at {base_pair(node)}: {what} (t = {step * self.dt:g} ps); "
+                    f"reduce dt (stability limit 2/omega_max) or check the initial state",
                     step=step, node=node, term=term)
             self.potential_energy = E
             done += chunk

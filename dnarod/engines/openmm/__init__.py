@@ -24,6 +24,8 @@ Example (20 bp pulled by its last node, 200 steps, a frame every 10 steps; a rea
 >>> _ = run_engine(sim, 200, [rep], checkpoint="run1.npz", checkpoint_interval=100)
 >>> rep.close()
 """
+
+import importlib
 _EXPORTS = {"RodSimulation": "simulation", "build_system": "system"}
 __all__ = list(_EXPORTS)
 
@@ -31,7 +33,5 @@ __all__ = list(_EXPORTS)
 def __getattr__(name):
     # Lazy: importing dnarod.engines.openmm (e.g. for the CLI) does not load OpenMM and numba until used.
     if name in _EXPORTS:
-        import importlib
-
         return getattr(importlib.import_module(f".{_EXPORTS[name]}", __name__), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -134,7 +134,8 @@ def elastic_expression(used, uniform=False):
     rho = "" if uniform else "dnarod_rho*"
     lines += ["W1 = " + _det("h", "q", "s"), "W2 = " + _det("p", "r", "k"),
               f"W3 = {_dot('q', 'r')} - {_dot('p', 's')}",
-              f"Dt = (dnarod_alpha + {_dot('p', 'r')})*(dnarod_beta + {_dot('q', 's')}) - {_dot('p', 's')}*{_dot('q', 'r')}",
+              f"Dt = (dnarod_alpha + {_dot('p', 'r')})*(dnarod_beta + {_dot('q', 's')})"
+              f" - {_dot('p', 's')}*{_dot('q', 'r')}",
               f"G1 = {_dot('p', 'E')}", f"G2 = {_dot('q', 'E')}", "G3 = " + _det("p", "q", "E")]
     lines += [f"h{c} = p{c} + {rho}r{c}" for c in "xyz"] + [f"k{c} = q{c} + {rho}s{c}" for c in "xyz"]
     lines += [f"E{c} = cb{c} - {c}1 - {c}2 - {c}3" for c in "xyz"]

@@ -17,9 +17,11 @@ import numpy as np
 import openmm
 
 from dnarod.core.errors import ParameterError
-from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, Walls, resolve_node
+from dnarod.physics.loads import LOAD_TYPES, Clamp, PullingForce, Torque, Trap, Walls, resolve_node, resolve_loads
 from dnarod.engines.openmm.forces import GROUPS, python_force
-from dnarod.engines.openmm.particles import SQRT3
+from dnarod.engines.openmm.particles import SQRT3, loads_to_particle_forces, node_poses
+from dnarod.core.rotations import rotation_about_axis
+from dnarod.engines.openmm.walls import wall_forces
 
 __all__ = ["TorqueCallback", "build_load_forces", "set_clamp_rotation"]
 
@@ -34,8 +36,6 @@ class TorqueCallback:
         self.last_angle = np.zeros(len(self.torques))
 
     def __call__(self, state):
-        from dnarod.engines.openmm.particles import loads_to_particle_forces, node_poses
-
         p = state.getPositions(asNumpy=True)._value
         _, frames = node_poses(p)
         E = 0.0
@@ -85,8 +85,6 @@ def build_load_forces(loads, model, radius, system, platform="CPU"):
         ``clamped`` (sorted node list), ``rotation_clamps`` (list of (node, parameter prefix,
         frame, axis)), ``torque_callback`` (or None).
     """
-    from dnarod.physics.loads import resolve_loads
-
     resolve_loads(loads, model)  # the same validation as the Lax-form engine (one line per misuse)
     n = model.n_nodes
     out = dict(clamped=[], rotation_clamps=[], torque_callback=None)
@@ -97,8 +95,6 @@ def build_load_forces(loads, model, radius, system, platform="CPU"):
             raise ParameterError(f"unknown load {load!r}; use PullingForce, Torque, RotationClamp, Clamp, Trap or "
                                  f"Walls")
         if isinstance(load, Walls):
-            from dnarod.engines.openmm.walls import wall_forces
-
             for f in wall_forces(n, float(model.positions[0, 2]), float(load.k), load.skip, platform=platform):
                 system.addForce(f)
             continue
@@ -176,8 +172,6 @@ def set_clamp_rotation(context, clamp_info, angle):
     angle : float
         rad (2 pi per turn).
     """
-    from dnarod.core.rotations import rotation_about_axis
-
     _, pre, frame, axis = clamp_info
     T = rotation_about_axis(axis, float(angle)) @ frame
     for r in range(3):

@@ -13,7 +13,6 @@ import math
 
 import numba
 import numpy as np
-import openmm
 
 from dnarod.engines.openmm.forces import GROUPS, python_force
 from dnarod.physics.nonbonded import DEFAULT_SKIN, _separation

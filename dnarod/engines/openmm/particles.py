@@ -33,8 +33,8 @@ docs/formulation.md §6 and the ``.dtraj`` format); particle i has velocity ``v 
 
 Particle order: node k owns particles ``3k, 3k+1, 3k+2``. With the portable elastic path a
 circular chain's System holds three more, massless particles ``3n, 3n+1, 3n+2``: the closure
-screw's image of node 0's particles (none for a plain ring, whose closure is the identity) (:func:`closure_image_positions`,
-:func:`dnarod.engines.openmm.forces.add_closure_image`).
+screw's image of node 0's particles (none for a plain ring, whose closure is the identity)
+(:func:`closure_image_positions`, :func:`dnarod.engines.openmm.forces.add_closure_image`).
 """
 from __future__ import annotations
 

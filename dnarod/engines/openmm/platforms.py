@@ -29,10 +29,12 @@ from __future__ import annotations
 import ctypes
 import ctypes.util
 import functools
+import os
 
 import openmm
 
 from dnarod.core.errors import ParameterError
+from dnarod.engines.openmm.plugin import device_kernel
 
 #: Largest node count run on the Reference platform by the automatic choice (CPU platform above);
 #: None: no limit (Reference is as fast or faster per CPU-second at 10^2-10^6 nodes; docs/platforms.md).
@@ -102,8 +104,6 @@ def env_threads():
     ParameterError
         If it is set to anything but a whole number >= 1 (one line, not a traceback).
     """
-    import os
-
     t = os.environ.get("OPENMM_CPU_THREADS", "").strip()
     if not t:
         return None
@@ -154,8 +154,6 @@ def platform_properties(name, threads=None, precision=None):
 def _gpu_elastic(name, elastic):
     """Which elastic path ``elastic`` gives on GPU platform ``name`` (for the reason line)."""
     if elastic in ("auto", "plugin"):
-        from dnarod.engines.openmm.plugin import device_kernel
-
         if device_kernel(name)[0]:
             return "SMK force on the device (compiled plugin)"
     return "portable elastic path"

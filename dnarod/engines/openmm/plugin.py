@@ -16,7 +16,8 @@ on the host on every platform (OpenMM's CustomCPPForceImpl), and on the device o
 CUDA) whose Common-compute kernel library was built (:func:`device_kernel`; the build records which ones in
 ``_build_info.DEVICE_KERNELS`` and why the others were not built); that library also runs the rigid-body
 integrator's steps on the device. Host code only: ``dnarod.NodePairForce`` (:func:`node_pair_force`, the
-non-local terms) and ``dnarod.WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the tweezers walls).
+non-local terms) and ``dnarod.WallForce`` (:func:`dnarod.engines.openmm.walls.wall_forces_compiled`, the tweezers
+walls).
 """
 from __future__ import annotations
 
@@ -27,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dnarod.core.errors import ParameterError
+from dnarod._plugin import _build_info
 
 #: Host platforms on which ``elastic="auto"`` takes the plugin (SMKForce as host code, rigid-body integrator).
 PLUGIN_PLATFORMS = ("CPU", "Reference")
@@ -81,13 +83,14 @@ def _installed_openmm():
 
 
 def _load():
-    """Load the extension; returns ``(PluginStatus, module or None)``. Never raises, except ParameterError for a misspelt DNAROD_PLUGIN switch."""
+    """Load the extension; returns ``(PluginStatus, module or None)``. Never raises, except ParameterError for a
+    misspelt DNAROD_PLUGIN switch."""
     installed = _installed_openmm()
     _check_switch("DNAROD_PLUGIN")
     if os.environ.get("DNAROD_PLUGIN", "").strip() == "0":
         return PluginStatus(False, "switched off by DNAROD_PLUGIN=0", "", installed), None
     try:
-        from dnarod._plugin import _build_info
+        from dnarod._plugin import _build_info  # the compiled extension, optional
     except ImportError:
         return PluginStatus(False, "dnarod was installed without its build step (no dnarod/_plugin/_build_info.py); "
                                    "reinstall with pip install -e .", "", installed), None
@@ -98,7 +101,7 @@ def _load():
         return PluginStatus(False, f"it was built against OpenMM {built} but OpenMM {installed} is installed; "
                                    f"reinstall dnarod (pip install -e .) to rebuild it", built, installed), None
     try:
-        from dnarod._plugin import dnarodplugin as mod
+        from dnarod._plugin import dnarodplugin as mod  # the compiled extension, optional
     except Exception as exc:  # noqa: BLE001 - any load failure (ImportError, OSError, undefined symbol) falls back
         return PluginStatus(False, f"it failed to load ({type(exc).__name__}: {exc}; built against OpenMM {built}, "
                                    f"installed OpenMM {installed})", built, installed), None
@@ -173,7 +176,6 @@ def _load_device_kernel(platform):
     st = status()
     if not st.available:
         return False, f"the compiled plugin is not usable ({st.reason})"
-    from dnarod._plugin import _build_info
 
     built = getattr(_build_info, "DEVICE_KERNELS", {})
     if platform not in built:
@@ -254,7 +256,7 @@ def smk_force(model, radius, particles=None):
     ParameterError
         If the plugin is not usable here (the message says why).
     """
-    from dnarod.engines.openmm.forces import GROUPS
+    from dnarod.engines.openmm.forces import GROUPS  # loads OpenMM
 
     mod, idx = _module_and_particles(model, particles, "elastic='plugin'", "; use elastic='auto' or 'fast'")
     n = model.n_nodes
@@ -339,7 +341,7 @@ def node_pair_force(model, numbers, particles=None):
     NodePairForce
         In force group ``GROUPS["nonbonded"]``.
     """
-    from dnarod.engines.openmm.forces import GROUPS
+    from dnarod.engines.openmm.forces import GROUPS  # loads OpenMM
 
     mod, idx = _module_and_particles(model, particles, "the compiled non-bonded force")
     n = model.n_nodes
@@ -356,8 +358,8 @@ def node_pair_force(model, numbers, particles=None):
 
 class ElasticEnergy:
     """Per-term energy of the last evaluation of an ``SMKForce`` (the interface of
-    :class:`dnarod.engines.openmm.forces.ElasticCallback` that :class:`~dnarod.engines.openmm.simulation.RodSimulation` reads, so
-    its per-term energies need no extra force evaluations)."""
+    :class:`dnarod.engines.openmm.forces.ElasticCallback` that :class:`~dnarod.engines.openmm.simulation.RodSimulation`
+    reads, so its per-term energies need no extra force evaluations)."""
 
     def __init__(self, force):
         self.force = force

@@ -25,30 +25,36 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 import openmm
 
+from dnarod.core.seeds import resolve_seed
 from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path
 from dnarod.physics import modes
 from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
-from dnarod.core.model import model_fingerprint
+from dnarod.core.model import RodModel, model_fingerprint
 from dnarod.core.io import read_checkpoint
 from dnarod.physics.thermal import kinetic_temperature
 from dnarod.core.units import kT as kT_of
 from dnarod.core.units import md_value
 from dnarod.core.kernels import loads_kernel
 from dnarod.engines.openmm.forces import GROUPS
-from dnarod.engines.openmm.particles import (closure_image_positions, node_poses, node_velocities, particle_forces_to_loads,
-                        particle_positions, particle_velocities)
+from dnarod.engines.openmm.particles import (closure_image_positions, node_poses, node_velocities,
+                                             particle_forces_to_loads, particle_positions, particle_velocities)
 from dnarod.engines.openmm.platforms import choose_platform
-from dnarod.engines.openmm.system import build_system
+from dnarod.engines.openmm.system import RodSystem, build_system
 from dnarod.physics.nonbonded import scales_temperature
+from dnarod.physics.loads import RotationClamp, clamp_angle
+from dnarod.engines.openmm.plugin import rigid_body_integrator
+from dnarod.engines.openmm.loads import set_clamp_rotation
 
 
-
-def _checked_dt(dt, omega):
+def _checked_dt(dt: float | None, omega: float) -> float:
     """The time step (ps): ``dt`` checked against the stability limit ``MAX_OMEGA_DT / omega``, or the default
     ``DEFAULT_OMEGA_DT / omega`` (``omega`` the fastest mode, rad/ps)."""
     limit = MAX_OMEGA_DT / omega
@@ -98,8 +104,12 @@ class RodSimulation:
 
     name = "openmm"
 
-    def __init__(self, model, system, integrator, platform, properties=None, *, temperature=300.0, friction=1.0,
-                 seed=0, omega_max=float("nan"), kind="langevin", initial_velocities=None, platform_reason=None):
+    # OpenMM's Simulation takes system, integrator and platform; the rest are what the engine records
+    def __init__(self, model: RodModel, system: RodSystem, integrator: Any, platform: Any,
+                 properties: dict[str, str] | None = None, *, temperature: float = 300.0, friction: float = 1.0,
+                 seed: int = 0, omega_max: float = float("nan"), kind: str = "langevin",
+                 initial_velocities: tuple[np.ndarray, np.ndarray] | None = None,
+                 platform_reason: str | None = None) -> None:
         self.model = model
         self.rs = system
         self.integrator = integrator
@@ -117,11 +127,12 @@ class RodSimulation:
         self.context = openmm.Context(system.system, integrator, platform, properties or {})
         self.set_particle_positions(particle_positions(model.positions, model.frames, system.radius))
         self.context_time = time.perf_counter() - t0
-        self._state_cache = None
-        self._report_cache = None
-        self._rollback = None
-        self._plugin_reports = None
-        self._limit = None
+        self._state_cache: Any = None
+        self._terms_cache: dict[str, float] | None = None
+        self._report_cache: tuple[np.ndarray, Any] | None = None
+        self._rollback: tuple[int, Any] | None = None
+        self._plugin_reports: bool | None = None
+        self._limit: float | None = None
         if initial_velocities is not None:
             self.set_node_velocities(*initial_velocities)
         elif self.temperature > 0:
@@ -131,16 +142,20 @@ class RodSimulation:
         self.step = 0
         self.fingerprint = model_fingerprint(model, pose=False)
 
-    def __del__(self):
+    def __del__(self) -> None:
         # The Context refers to its System and Integrator: it must go first. Left in a reference cycle (an exception's
         # traceback holding a simulation, say), the collector could otherwise free the Integrator before the
         # Context, whose destructor then crashes the process.
         self.__dict__.pop("context", None)
 
     @classmethod
-    def create(cls, model, integrator="langevin", temperature=300.0, dt=None, friction=1.0, platform=None,
-               elastic="auto", nonbonded=True, loads=(), seed=None, threads=None, constraint_tolerance=1e-8,
-               initial_velocities=None, omega_max=None, precision=None, extra_forces=()):
+    # mirrors the run settings (RunSpec): one keyword per setting of the engine it builds
+    def create(cls, model: RodModel, integrator: str = "langevin", temperature: float = 300.0,
+               dt: float | None = None, friction: float = 1.0, platform: str | None = None, elastic: str = "auto",
+               nonbonded: Any = True, loads: Sequence[Any] = (), seed: int | None = None,
+               threads: int | None = None, constraint_tolerance: float = 1e-8,
+               initial_velocities: tuple[np.ndarray, np.ndarray] | None = None, omega_max: float | None = None,
+               precision: str | None = None, extra_forces: Sequence[Any] = ()) -> RodSimulation:
         """The engine for a model with the default policies: the platform (:func:`~.platforms.choose_platform`),
         the time step (``DEFAULT_OMEGA_DT / omega_max``, :mod:`dnarod.physics.modes`), the elastic path and the
         integrator (the compiled rigid-body integrator with the plugin, else OpenMM's LangevinMiddle or Verlet).
@@ -196,7 +211,7 @@ class RodSimulation:
         friction = float(friction)
         if integrator == "langevin" and not (np.isfinite(friction) and friction >= 0):
             raise ParameterError(f"friction must be >= 0 1/ps, got {friction} (a negative friction pumps energy in)")
-        seed = int(np.random.SeedSequence().entropy % 2**31) if seed is None else int(seed)
+        seed = resolve_seed(seed)
         # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         rs = build_system(model, plat.getName(), elastic, nonbonded, loads,
@@ -206,8 +221,6 @@ class RodSimulation:
         if rs.elastic == "plugin":
             # Compiled rigid-body integrator (same leapfrog velocity convention; no constraints applied). Its steps
             # run on the device where the platform has the plugin's kernels (rs.device), else as host code.
-            from dnarod.engines.openmm.plugin import rigid_body_integrator
-
             integ = rigid_body_integrator(rs.radius, dt, temperature, friction if integrator == "langevin" else 0.0,
                                           seed)
         elif integrator == "langevin":
@@ -220,7 +233,7 @@ class RodSimulation:
                    omega_max=omega, kind=integrator, initial_velocities=initial_velocities, platform_reason=reason)
 
     # --- node state -------------------------------------------------------------------
-    def set_particle_positions(self, particles):
+    def set_particle_positions(self, particles: np.ndarray) -> None:
         """Set the positions of the nodes' particles, shape (3 n_nodes, 3) nm (the closure image particles of
         the portable path of a circular chain, if any, follow node 0)."""
         x = np.asarray(particles, float)
@@ -229,11 +242,11 @@ class RodSimulation:
         self.invalidate()
         self.context.setPositions(x)
 
-    def node_particles(self, array):
+    def node_particles(self, array: Any) -> np.ndarray:
         """The rows of a per-particle array (positions, velocities, forces) that belong to the nodes, (3 n_nodes, 3)."""
         return md_value(array)[:3 * self.model.n_nodes]
 
-    def set_node_velocities(self, velocities, angular_velocities):
+    def set_node_velocities(self, velocities: np.ndarray, angular_velocities: np.ndarray) -> None:
         """Set on-step node velocities at the current positions.
 
         Parameters
@@ -266,7 +279,7 @@ class RodSimulation:
             u = np.vstack([u, np.zeros((3, 3))])
         self.context.setVelocities(u)
 
-    def thermalize(self, temperature, seed=None):
+    def thermalize(self, temperature: float, seed: int | None = None) -> None:
         """Draw Maxwell-Boltzmann node velocities (6 degrees of freedom per free node)."""
         rng = np.random.default_rng(seed)
         kt = kT_of(temperature)
@@ -275,7 +288,7 @@ class RodSimulation:
         w = rng.normal(size=(n, 3)) * np.sqrt(kt / self.model.inertia)
         self.set_node_velocities(v, w)
 
-    def node_pose(self, state=None):
+    def node_pose(self, state: Any = None) -> tuple[np.ndarray, np.ndarray]:
         """``(centres (n,3) nm, frames (n,3,3))`` of the current (or given) state."""
         if state is None:
             rep = self._node_report()
@@ -285,7 +298,8 @@ class RodSimulation:
         state = state or self._full_state()
         return node_poses(self.node_particles(state.getPositions(asNumpy=True)))
 
-    def node_state(self, state=None, on_step=True, copy=True):
+    def node_state(self, state: Any = None, on_step: bool = True,
+                   copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """``(centres, frames, velocities (lab, nm/ps), angular velocities (body, rad/ps))``.
 
         ``copy=False`` (the run layer's reports): on the compiled path, read-only views of the node report,
@@ -319,7 +333,7 @@ class RodSimulation:
             w = w + h * np.einsum("kab,ka->kb", f, tau) / self.model.inertia
         return c, f, v, w
 
-    def _full_state(self):
+    def _full_state(self) -> Any:
         """State with positions, velocities, parameters and energy; cached until the context changes."""
         if self._state_cache is None:
             self._state_cache = self.context.getState(getPositions=True, getVelocities=True, getParameters=True,
@@ -327,7 +341,7 @@ class RodSimulation:
             self._terms_cache = self._callback_terms()
         return self._state_cache
 
-    def _callback_terms(self):
+    def _callback_terms(self) -> dict[str, float] | None:
         """Per-term energies recorded by the fast-path callbacks during the last evaluation, or None."""
         el = self.rs.elastic_callback
         nb = self.rs.nonbonded_callback
@@ -335,13 +349,13 @@ class RodSimulation:
             return None
         return dict(elastic=el.last_energy, nonbonded=sum(nb.last) if nb is not None else 0.0)
 
-    def invalidate(self):
+    def invalidate(self) -> None:
         """Forget the cached state (call after changing the context directly)."""
         self._state_cache = None
         self._report_cache = None
         self._rollback = None
 
-    def _node_report(self):
+    def _node_report(self) -> tuple[np.ndarray, Any] | None:
         """``(rows (n, 18), energies)`` from the compiled integrator's ``getNodeReport``, or None.
 
         Available when the compiled integrator evaluates the SMK force (and the node-pair force, if the
@@ -361,7 +375,7 @@ class RodSimulation:
             self._report_cache = (rows, energies)
         return self._report_cache
 
-    def _reports_in_plugin(self):
+    def _reports_in_plugin(self) -> bool:
         """True if :meth:`_node_report` can be used (the compiled integrator evaluates all dnarod forces); fixed
         when the Context is made, so asked once."""
         if self._plugin_reports is None:
@@ -370,7 +384,7 @@ class RodSimulation:
                                         and (self.rs.nonbonded_callback is None or integ.usesFusedPairForce()))
         return self._plugin_reports
 
-    def energies(self):
+    def energies(self) -> dict[str, float]:
         """Dict of potential energies per term (kJ/mol), plus ``potential``, ``kinetic``, ``temperature``.
 
         With the fast path the per-term split comes from the callbacks' own evaluation at this
@@ -379,12 +393,11 @@ class RodSimulation:
         rep = self._node_report()
         if rep is not None:
             e_smk, e_wca, e_dh, e_other, kinetic = rep[1][:5]
-            out = dict(elastic=e_smk, nonbonded=e_wca + e_dh, external=e_other,
-                       potential=e_smk + e_wca + e_dh + e_other, kinetic=kinetic)
-            out["temperature"] = float(kinetic_temperature(kinetic, self.rs.degrees_of_freedom))
-            return out
+            return dict(elastic=e_smk, nonbonded=e_wca + e_dh, external=e_other,
+                        potential=e_smk + e_wca + e_dh + e_other, kinetic=kinetic,
+                        temperature=float(kinetic_temperature(kinetic, self.rs.degrees_of_freedom)))
         st = self._full_state()
-        out = {}
+        out: dict[str, float] = {}
         pot = md_value(st.getPotentialEnergy())
         if self._terms_cache is not None:
             out.update(self._terms_cache)
@@ -398,12 +411,12 @@ class RodSimulation:
         out["temperature"] = float(kinetic_temperature(out["kinetic"], dof))
         return out
 
-    def current_model(self):
+    def current_model(self) -> RodModel:
         """The model with the current pose."""
         c, f = self.node_pose()
         return self.model.with_pose(c, f)
 
-    def minimize(self, tolerance=1.0, max_iterations=0, max_rounds=20):
+    def minimize(self, tolerance: float = 1.0, max_iterations: int = 0, max_rounds: int = 20) -> float:
         """Local energy minimisation (tolerance: RMS force, kJ/mol/nm); returns the final potential energy.
 
         OpenMM's L-BFGS with constraints can stop early on this stiff, constrained system, so it
@@ -419,21 +432,16 @@ class RodSimulation:
             E = E_new
         return E
 
-    def set_clamp_rotation(self, angle, index=0):
+    def set_clamp_rotation(self, angle: float, index: int = 0) -> None:
         """Turn rotation clamp ``index`` by ``angle`` rad about its axis (magnetic tweezers)."""
-        from dnarod.engines.openmm.loads import set_clamp_rotation
-
         set_clamp_rotation(self.context, self.rs.load_info["rotation_clamps"][index], angle)
         self.invalidate()
 
-    def update_loads(self, time_ps, duration_ps=None):
+    def update_loads(self, time_ps: float, duration_ps: float | None = None) -> None:
         """Turn every rotation clamp with ``turns``/``turns_per_ns`` to its angle at ``time_ps`` (run layer hook)."""
         clamps = self.rs.load_info.get("rotation_clamps") or []
         if not clamps:
             return
-        from dnarod.physics.loads import RotationClamp, clamp_angle
-        from dnarod.engines.openmm.loads import set_clamp_rotation
-
         # build_load_forces lists the rotation clamps in the order of the loads
         for info, load in zip(clamps, [x for x in self.loads if isinstance(x, RotationClamp)]):
             if load.turns or load.turns_per_ns is not None:
@@ -441,33 +449,36 @@ class RodSimulation:
         self.invalidate()
 
     # --- checks -----------------------------------------------------------------------
-    def _energy_limit(self):
+    def _energy_limit(self) -> float:
         """Potential plus kinetic energy above which a state counts as blown up, kJ/mol."""
         return 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
 
-    def _report_healthy(self):
-        e = self._node_report()[1]
+    def _report_healthy(self) -> bool:
+        rep = self._node_report()
+        assert rep is not None  # only asked on the compiled path
+        e = rep[1]
         E, K = e[0] + e[1] + e[2] + e[3], e[4]
         if self._limit is None:
             self._limit = self._energy_limit()
         return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < self._limit
 
-    def _healthy(self, st):
+    def _healthy(self, st: Any) -> bool:
         E = md_value(st.getPotentialEnergy())
         K = md_value(st.getKineticEnergy())
         p = md_value(st.getPositions(asNumpy=True))
         return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < self._energy_limit()
 
-    def _diagnose(self, step):
+    def _diagnose(self, step: int) -> SimulationError:
         """Build the SimulationError for a bad current state: term, node, energies."""
-        terms = {}
+        terms: dict[str, float] = {}
         for name, g in GROUPS.items():
             try:
                 terms[name] = md_value(self.context.getState(getEnergy=True, groups={g}).getPotentialEnergy())
             except Exception:  # noqa: BLE001 - a NaN can make OpenMM raise
                 terms[name] = float("nan")
         el, nb = self.rs.elastic_callback, self.rs.nonbonded_callback
-        if el is not None and nb is not None and getattr(el, "nonbonded", None) is nb:  # fused fast path: split by the callbacks
+        # fused fast path: split by the callbacks
+        if el is not None and getattr(el, "nonbonded", None) is nb and nb is not None:
             terms["elastic"], terms["nonbonded"] = el.last_energy, sum(nb.last)
         bad = [k for k, v in terms.items() if not np.isfinite(v)]
         term = bad[0] if bad else max(terms, key=lambda k: abs(terms[k]))
@@ -494,7 +505,7 @@ class RodSimulation:
     #: Most steps the compiled path keeps a rollback state for before it reads a new one (:meth:`advance`).
     ROLLBACK_STEPS = 1000
 
-    def advance(self, n_steps):
+    def advance(self, n_steps: int) -> None:
         """Integrate ``n_steps`` steps, checking for NaN/blow-up; on failure, locate the first bad step.
 
         Raises
@@ -530,7 +541,8 @@ class RodSimulation:
         raise self._diagnose(self.step + n_steps)
 
     # --- checkpoints ------------------------------------------------------------------
-    def save_checkpoint(self, path, n_frames=None, extra=None):
+    def save_checkpoint(self, path: str | Path, n_frames: int | None = None,
+                        extra: dict[str, Any] | None = None) -> None:
         """Write an OpenMM checkpoint plus step count and model fingerprint (atomically)."""
         meta = dict(format="dnarod-openmm-checkpoint", step=self.step, n_frames=n_frames,
                     fingerprint=self.fingerprint, n_nodes=self.model.n_nodes, dt=self.dt,
@@ -544,7 +556,7 @@ class RodSimulation:
             with open(tmp, "wb") as fh:
                 np.savez(fh, openmm=blob, meta=np.array(json.dumps(meta)))
 
-    def load_checkpoint(self, path):
+    def load_checkpoint(self, path: str | Path) -> dict[str, Any]:
         """Restore a checkpoint written by :meth:`save_checkpoint` for this model; returns its metadata."""
         meta, arrays = read_checkpoint(path, "dnarod-openmm-checkpoint", ("openmm",))
         blob = arrays["openmm"].tobytes()
@@ -567,7 +579,8 @@ class RodSimulation:
         return meta
 
 
-def static_load_fn(model, loads=(), angles=None):
+def static_load_fn(model: RodModel, loads: Sequence[Any] = (), angles: Sequence[float] | None = None
+                   ) -> Callable[[np.ndarray, np.ndarray], tuple[float, np.ndarray, np.ndarray]]:
     """The OpenMM engine's own node loads as a function ``(positions, frames) -> (nan, F, tau)`` for
     :func:`dnarod.physics.statics.solve_static` (Reference platform, double precision, the portable elastic path
     and the OpenMM translation of the loads; rotation clamps at ``angles``, rad), so the solved pose is this
@@ -578,7 +591,7 @@ def static_load_fn(model, loads=(), angles=None):
         sim.set_clamp_rotation(float(a), i)
     radius = sim.rs.radius
 
-    def fn(pos, frm):
+    def fn(pos: np.ndarray, frm: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
         x = particle_positions(pos, frm, radius)
         sim.set_particle_positions(x)
         st = sim.context.getState(getForces=True)

@@ -6,12 +6,12 @@ triangle of circumradius ``l_k = sqrt(J3_k/m_k)`` held by three constraints; see
 
 Forces (force groups in :data:`dnarod.engines.openmm.forces.GROUPS`):
 
-* elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.engines.openmm.plugin`), ``"fast"`` (numba analytic loads through ``PythonForce``) or
-  ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the plugin, else the fast path, on the CPU and
-  Reference platforms; on GPU platforms (CUDA, OpenCL, HIP), where a Python callback would copy positions
-  off the device every step, it picks the plugin where its device kernel is loaded for that platform
-  (:func:`dnarod.engines.openmm.plugin.device_kernel`: SMKForce and the rigid-body integrator's steps on the
-  device), else the portable expression;
+* elastic step energy -- ``"plugin"`` (the compiled SMKForce, :mod:`dnarod.engines.openmm.plugin`), ``"fast"``
+  (numba analytic loads through ``PythonForce``) or ``"portable"`` (CustomCompoundBondForce); ``"auto"`` picks the
+  plugin, else the fast path, on the CPU and Reference platforms; on GPU platforms (CUDA, OpenCL, HIP), where a
+  Python callback would copy positions off the device every step, it picks the plugin where its device kernel is
+  loaded for that platform (:func:`dnarod.engines.openmm.plugin.device_kernel`: SMKForce and the rigid-body
+  integrator's steps on the device), else the portable expression;
 * non-local terms (:mod:`dnarod.engines.openmm.nonbonded`), on by default: with the fast elastic path
   they are evaluated inside the elastic callback (one ``PythonForce``, force group
   ``"elastic"``; the per-term split is read from the callbacks), with the portable path by
@@ -20,32 +20,35 @@ Forces (force groups in :data:`dnarod.engines.openmm.forces.GROUPS`):
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import openmm
 from openmm import app
 
 from dnarod.core.errors import GeometryError, ParameterError
+from dnarod.core.forcefield import COMPLEMENT
 from dnarod.engines.openmm import plugin
-from dnarod.engines.openmm.forces import ElasticCallback, add_closure_image, elastic_compound_forces, elastic_python_force
+from dnarod.engines.openmm.forces import (ElasticCallback, add_closure_image, elastic_compound_forces,
+                                          elastic_python_force)
 from dnarod.engines.openmm.loads import build_load_forces
 from dnarod.engines.openmm.nonbonded import nonbonded_force
 from dnarod.physics.nonbonded import NonbondedSettings
 from dnarod.engines.openmm.particles import SQRT3, triangle_radius
 from dnarod.engines.openmm.platforms import CALLBACK_PLATFORMS
+from dnarod.core.model import RodModel
 
 
-
-def base_pair_names(model):
+def base_pair_names(model: RodModel) -> list[str]:
     """Residue name of every node: its base pair (``"AT"``, ``"GC"``, ...), or ``"BP"`` without sequence."""
-    comp = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A"}
     if not model.sequence:
         return ["BP"] * model.n_nodes
-    return [f"{b}{comp.get(b, 'N')}" for b in model.sequence.upper()]
+    return [f"{b}{COMPLEMENT.get(b, 'N')}" for b in model.sequence.upper()]
 
 
-def check_overlaps(model, min_distance=None):
+def check_overlaps(model: RodModel, min_distance: float | None = None) -> None:
     """Raise GeometryError if two nodes overlap (centres closer than ``min_distance``, default ds/4).
 
     Uses a grid on the centres, so it costs O(n).
@@ -89,21 +92,21 @@ class RodSystem:
         closing step ends on node 0 itself). The nodes' particles are always ``0 .. 3n-1``.
     """
 
-    system: openmm.System
+    system: Any  # openmm.System
     radius: np.ndarray
     elastic: str
-    clamped: list = field(default_factory=list)
-    load_info: dict = field(default_factory=dict)
-    nonbonded: dict | None = None
-    nonbonded_callback: object = None
-    elastic_callback: object = None
-    residue_names: list = field(default_factory=list)
+    clamped: list[int] = field(default_factory=list)
+    load_info: dict[str, Any] = field(default_factory=dict)
+    nonbonded: dict[str, Any] | None = None
+    nonbonded_callback: Any = None
+    elastic_callback: Any = None
+    residue_names: list[str] = field(default_factory=list)
     device: bool = False
     image: int | None = None
-    loads: tuple = ()
+    loads: tuple[Any, ...] = ()
 
     @property
-    def topology(self):
+    def topology(self) -> Any:
         """The OpenMM Topology (built on first use: one chain, one residue per node named by its
         base pair, atoms P0, P1, P2 bonded in a triangle, P0 bonded along the chain). With closure image
         particles (``image`` set) a last residue ``IMG`` holds their three atoms I0, I1, I2, so the topology has
@@ -129,12 +132,12 @@ class RodSystem:
         return self._topology
 
     @property
-    def degrees_of_freedom(self):
+    def degrees_of_freedom(self) -> int:
         """6 per free node."""
         return 6 * (self.radius.size - len(self.clamped))
 
 
-def choose_elastic(elastic, platform):
+def choose_elastic(elastic: str, platform: str) -> str:
     """The elastic path for a platform: ``"auto"`` takes the compiled plugin on CPU/Reference when it is usable
     (saying once which path and why, :mod:`dnarod.engines.openmm.plugin`), else the Python-callback ``"fast"`` path
     there; on OpenCL/CUDA the plugin when its device kernel is loaded for that platform (saying once which
@@ -153,7 +156,8 @@ def choose_elastic(elastic, platform):
     return elastic
 
 
-def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=(), temperature=300.0):
+def build_system(model: RodModel, platform: str = "CPU", elastic: str = "auto", nonbonded: Any = True,
+                 loads: Sequence[Any] = (), temperature: float = 300.0) -> RodSystem:
     """Build the OpenMM System and Topology of a model.
 
     Parameters
@@ -205,7 +209,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
                 nb_cb = nb_force.dnarod_callback
         else:
             nb_numbers = None
-    elastic_cb = None
+    elastic_cb: Any = None
     image = None
     device = elastic == "plugin" and platform not in plugin.PLUGIN_PLATFORMS and plugin.device_kernel(platform)[0]
     if elastic == "plugin":
@@ -230,7 +234,7 @@ def build_system(model, platform="CPU", elastic="auto", nonbonded=True, loads=()
                      residue_names=base_pair_names(model), device=bool(device), image=image, loads=tuple(loads))
 
 
-def _check_nonbonded_overlaps(model, numbers):
+def _check_nonbonded_overlaps(model: RodModel, numbers: dict[str, Any]) -> None:
     """Non-excluded node pairs far inside the WCA core (energy above ~1000 kT) are an input error."""
     if numbers["eps"] <= 0:
         return

@@ -1,7 +1,7 @@
 """The planar walls of a magnetic-tweezers member: the surface under the anchored end, the bead above the pulled one.
 
-Node ``k`` owns particles ``3k, 3k+1, 3k+2`` (:mod:`dnarod.engines.openmm.particles`); node 0 is anchored at the surface,
-node ``n-1`` is pulled along +z. With ``z`` the particles' z coordinates (nm) and ``k`` the stiffness
+Node ``k`` owns particles ``3k, 3k+1, 3k+2`` (:mod:`dnarod.engines.openmm.particles`); node 0 is anchored at the
+surface, node ``n-1`` is pulled along +z. With ``z`` the particles' z coordinates (nm) and ``k`` the stiffness
 (kJ/mol/nm^2), the energy (kJ/mol) is
 
 * surface (a fixed plane at ``z_0``, node 0's z at the start): ``E_s = k/2 sum_p min(0, z_p - z_0)^2`` over the
@@ -37,6 +37,8 @@ import numpy as np
 import openmm
 
 from dnarod.engines.openmm.forces import GROUPS, python_force
+from dnarod.engines.openmm import plugin
+from dnarod.core.errors import ParameterError
 
 #: Platforms on which :func:`wall_forces` takes a host form (compiled, else numba): no copies off a device.
 COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
@@ -45,8 +47,6 @@ COMPILED_WALL_PLATFORMS = ("CPU", "Reference")
 def _check(n_nodes, skip):
     n, skip = int(n_nodes), int(skip)
     if not 0 <= skip < n:
-        from dnarod.core.errors import ParameterError
-
         raise ParameterError(f"wall skip must be in 0 .. n_nodes-1 = {n - 1}, got {skip}")
     return n, skip
 
@@ -91,8 +91,6 @@ def wall_forces_reference(n_nodes, z_surface, k, skip):
 
 def compiled_walls_available():
     """Whether the compiled plugin is usable here and has ``WallForce`` (a plugin built before it has not)."""
-    from dnarod.engines.openmm import plugin
-
     mod = plugin.module()
     return mod is not None and hasattr(mod, "WallForce")
 
@@ -113,12 +111,8 @@ def wall_forces_compiled(n_nodes, z_surface, k, skip):
     ParameterError
         If the compiled plugin (with ``WallForce``) is not usable here.
     """
-    from dnarod.engines.openmm import plugin
-
     n, skip = _check(n_nodes, skip)
     if not compiled_walls_available():
-        from dnarod.core.errors import ParameterError
-
         reason = plugin.status().reason or "the installed plugin was built without WallForce: reinstall dnarod"
         raise ParameterError(f"the compiled tweezers walls need the compiled OpenMM plugin, which is not usable "
                              f"here ({reason})")
@@ -242,7 +236,6 @@ def wall_forces(n_nodes, z_surface, k, skip, platform="CPU", form="auto"):
         return wall_forces_numba(n_nodes, z_surface, k, skip)
     if form == "reference":
         return wall_forces_reference(n_nodes, z_surface, k, skip)
-    from dnarod.core.errors import ParameterError
 
     raise ParameterError(f"wall form must be 'auto', 'compiled', 'numba' or 'reference', got {form!r}")
 

@@ -15,7 +15,8 @@ from dnarod.physics.lax.components import appendix_rhs, component_rhs, smk_rhs
 from dnarod.physics.lax.generators import (D_FLIP, XMINUS, XPLUS, J, K, commutator, so4_coefficients, so4_matrix,
                          xpm_coefficients)
 from dnarod.physics.lax.monodromy import monodromy, monodromy_from_matrices, spectral_invariants
-from dnarod.physics.lax.pair import (U_matrix, V_matrix, appendix_pair, appendix_residual, appendix_to_paper, complexify, lax_pair,
+from dnarod.physics.lax.pair import (U_matrix, V_matrix, appendix_pair, appendix_residual, appendix_to_paper,
+                                     complexify, lax_pair,
                    lax_residual, realify, so4_to_fields, symmetric_obstruction)
 
 __all__ = [

@@ -37,11 +37,17 @@ and ``ΔG = (K RT / N) ΔLk²`` with ``K = N / (2 <ΔLk²>)`` for a ring of N bp
 from __future__ import annotations
 
 import math
+import dataclasses
 
 import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.physics.thermal import relaxed_ribbon_twist as thermal_relaxed_twist  # noqa: F401  (the ring checks' Tw0 at T)
+from dnarod.physics.thermal import sample_step_strains, persistence_length
+from dnarod.core.units import kT
+from dnarod.core.forcefield import load_forcefield
+from dnarod.physics.nonbonded import member_nonbonded, effective_diameter as nb_effective_diameter
+from dnarod.physics.theory.torsion import bare_twist_persistence
 
 TWO_PI = 2.0 * math.pi
 
@@ -219,9 +225,6 @@ def twist_variance_exact(model, temperature, n_samples=400_000, seed=0, steps=No
     steps : array_like of int, optional
         Steps to include (default all).
     """
-    from dnarod.physics.thermal import sample_step_strains
-    from dnarod.core.units import kT
-
     rng = np.random.default_rng(seed)
     p = model.params
     idx = np.arange(p.n_steps) if steps is None else np.asarray(steps, int)
@@ -267,12 +270,6 @@ def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default", nonbonde
         effective diameter of the model's WCA + Debye-Hückel pair energy at ``salt_M``, nm; ``nonbonded``: a dict
         with ``charge`` and/or ``cutoff_debye`` for other terms than the defaults, as in the members' settings).
     """
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.nonbonded import member_nonbonded
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
-    from dnarod.physics.theory.torsion import bare_twist_persistence
-
     terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt_M, **dict(nonbonded or {})))
     ff = load_forcefield(forcefield)
     ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
@@ -283,8 +280,6 @@ def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default", nonbonde
 
 def effective_diameter(nonbonded, ds, temperature, n_h=160, n_gamma=16, n_offset=3):
     """The model's effective diameter (nm); see :func:`_effective_diameter` (results are cached per settings)."""
-    import dataclasses
-
     key = (tuple(dataclasses.astuple(nonbonded)), float(ds), float(temperature), int(n_h), int(n_gamma), int(n_offset))
     if key not in _DEFF_CACHE:
         _DEFF_CACHE[key] = _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset)
@@ -318,6 +313,4 @@ def _effective_diameter(nonbonded, ds, temperature, n_h, n_gamma, n_offset):
     -------
     float
     """
-    from dnarod.physics.nonbonded import effective_diameter as nb_effective_diameter
-
     return float(nb_effective_diameter(nonbonded, ds, temperature, n_angles=n_gamma, n_phase=n_offset, n_h=n_h))

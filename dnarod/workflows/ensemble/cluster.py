@@ -17,6 +17,8 @@ import struct
 import sys
 import time
 from pathlib import Path
+import traceback
+import gc
 
 from dnarod.core.extras import require
 from dnarod.core.errors import DnarodError
@@ -90,7 +92,7 @@ def local_cluster(workers=None, dashboard=False, log=None, **kw):
     import dask
     from distributed import LocalCluster
 
-    from dnarod.workflows.ensemble import worker_setup
+    from dnarod.workflows.ensemble import worker_setup  # with dask: the workers' set-up
 
     check_workers(workers)
     n = int(workers or available_cores())
@@ -228,8 +230,6 @@ class DaskLog(logging.Handler):
     def unraisable(self, unraisable):
         """A ``sys.unraisablehook``: exceptions Python cannot raise (dask's exit hooks, ``__del__``) go to the
         log too."""
-        import traceback
-
         exc = unraisable.exc_value
         text = "".join(traceback.format_exception(type(exc), exc, unraisable.exc_traceback)) if exc else ""
         self.emit(logging.makeLogRecord({"name": "unraisable", "levelno": logging.WARNING, "levelname": "WARNING",
@@ -339,7 +339,7 @@ def tls_security(ca_file=None, cert=None, key=None):
     cannot be read, a CA without a client certificate (or the reverse), or files that are not a matching
     PEM certificate and key.
     """
-    import ssl
+    import ssl  # only for TLS clusters: not at the CLI's start-up
 
     from distributed.security import Security
 
@@ -460,7 +460,7 @@ def _http_probe(host, port, deadline):
 
 def _tls_probe(host, port, deadline):
     """Whether a TLS server answers a handshake at ``host:port`` (certificates not checked)."""
-    import ssl
+    import ssl  # only for TLS clusters: not at the CLI's start-up
 
     ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_CLIENT)
     ctx.check_hostname = False
@@ -513,7 +513,7 @@ def probe_scheduler(address, timeout=10.0, security=None):
     security : distributed.security.Security, optional
         The client's TLS certificates (for ``tls://``).
     """
-    import ssl
+    import ssl  # only for TLS clusters: not at the CLI's start-up
 
     scheme, host, port = split_address(address)
     where = f"--scheduler {address}"
@@ -608,8 +608,6 @@ def connect(address, timeout=10.0, security=None):
 
 
 def _collect_quietly():
-    import gc
-
     hook = sys.unraisablehook
     sys.unraisablehook = lambda u: logging.getLogger("distributed.client").debug(
         "%s: %r", u.err_msg, u.exc_value)
@@ -699,7 +697,6 @@ def slurm_cluster(cores=1, processes=None, memory="4GB", walltime="04:00:00", qu
         SLURMCluster = require("dask_jobqueue", "cluster").SLURMCluster
     except ImportError:
         raise SchedulerError("SLURM clusters need dask-jobqueue: pip install 'dnarod[cluster]'") from None
-    import sys
 
     processes = int(processes or cores)
     prologue = [f"export {k}={v}" for k, v in WORKER_ENV.items()]

@@ -18,18 +18,25 @@ import hashlib
 import json
 import shutil
 import time
+import tomllib
 import uuid
 from pathlib import Path
+import os
+import tempfile
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.extras import require
-from dnarod.core.io import REPLACEMENT_PREFIX, check_output_folder, write_text_atomic
+from dnarod.core.io import REPLACEMENT_PREFIX, _rewrite_message, check_output_folder, write_text_atomic
 from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
 from dnarod.core.io import RESULT
-from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol
-from dnarod.workflows.ensemble.results import CSV, SUMMARY, TABLE, collect_rows, plot_axes, rows_to_table, write_summary, write_table
-from dnarod.workflows.ensemble.schema import SpecError
+from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol, build_runspec
+from dnarod.workflows.ensemble.results import (CSV, SUMMARY, TABLE, collect_rows, plot_axes, rows_to_table,
+                                               write_summary, write_table)
+from dnarod.workflows.ensemble.schema import SpecError, RUN_KEYS
 from dnarod.workflows.ensemble.spec import EnsembleSpec, check_members, load_spec, parse_spec
+from dnarod.run import RunSpec
+from dnarod.run.api import preflight
+from dnarod.workflows.ensemble.cluster import SchedulerError, client_for, dask_logs
 
 MANIFEST = "ensemble.json"
 #: Where dask's log records go while the ensemble runs (never to the terminal).
@@ -89,8 +96,6 @@ class Ensemble:
         keys = None
         proto = protocol
         if proto is None and p.is_file():
-            import tomllib
-
             try:
                 proto = tomllib.loads(p.read_text()).get("ensemble", {}).get("protocol")
             except (tomllib.TOMLDecodeError, UnicodeDecodeError, AttributeError):
@@ -128,10 +133,6 @@ class Ensemble:
             return
         if not hasattr(self.protocol, "build"):
             return
-        from dnarod.run import RunSpec
-        from dnarod.run.api import preflight
-        from dnarod.workflows.ensemble.protocol import build_runspec
-        from dnarod.workflows.ensemble.schema import RUN_KEYS
 
         seen, models = set(), {}
         for m in self.members:
@@ -259,14 +260,13 @@ class Ensemble:
         Dask's own log records go to ``OUT/ensemble.log`` while the ensemble runs, not to the terminal;
         a lost scheduler raises :class:`~dnarod.workflows.ensemble.cluster.SchedulerError` (one line).
         """
-        from concurrent.futures import CancelledError
+        from concurrent.futures import CancelledError  # with dask, below: not at the CLI's start-up
 
         as_completed = require("distributed", "ensemble").as_completed
         from tqdm.auto import tqdm
 
         from distributed.comm.core import CommClosedError
 
-        from dnarod.workflows.ensemble.cluster import SchedulerError, client_for, dask_logs
 
         self.prepare()
         logs = contextlib.ExitStack()
@@ -382,8 +382,6 @@ class Ensemble:
         try:
             return self._write_results(**extra)
         except DnarodError as exc:  # name the files by their place in the ensemble folder; the old one is kept
-            from dnarod.core.io import _rewrite_message
-
             _rewrite_message(exc, self.outdir, self._replaces,
                              f" (the earlier ensemble in {self._replaces} is unchanged; the same command with "
                              f"--overwrite continues the replacement kept in {self.outdir.name})")
@@ -418,9 +416,6 @@ class Ensemble:
         """Put the finished replacement (``--overwrite``) in place of the old ensemble: the old ensemble's files go
         to a hidden folder, the new ones are renamed into the ensemble folder (renames: no data is written), the
         hidden folders are removed."""
-        import os
-        import tempfile
-
         final, stage = self._replaces, self.outdir
         trash = Path(tempfile.mkdtemp(prefix=".dnarod-replaced-", dir=final))
         for p in [*(final / n for n in _OURS), *final.glob("plot_*.png")]:

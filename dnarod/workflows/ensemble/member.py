@@ -26,6 +26,7 @@ import warnings
 from pathlib import Path
 
 from dnarod.core.io import LOG, MEMBER, RESULT, write_text_atomic
+from dnarod.workflows.ensemble.protocol import call_hook, resolve_protocol, _run_api, build_runspec
 
 
 def member_dir(outdir, mid):
@@ -80,7 +81,7 @@ def _member_log(mdir, mid):
 @contextlib.contextmanager
 def _locked(mdir):
     """Exclusive lock on ``mdir/.lock`` (released by the OS if the process dies)."""
-    import fcntl
+    import fcntl  # POSIX only: imported where a lock is taken
 
     fh = open(Path(mdir) / ".lock", "w")
     try:
@@ -156,8 +157,6 @@ def run_member(mid, settings, outdir, protocol=None, analysis=None):
 
 def _attempt(protocol, settings, mdir, analysis, log):
     """Run (or resume) and reduce one member; returns (observables, resumed step or None)."""
-    from dnarod.workflows.ensemble.protocol import call_hook, resolve_protocol
-
     proto = resolve_protocol(protocol)
     if hasattr(proto, "execute"):
         return call_hook(proto.execute, settings, mdir, analysis), None
@@ -182,12 +181,10 @@ def _count_starts(mdir):
 
 def _run(proto, settings, mdir, log):
     """Build the member's RunSpec and run it, resuming a partial run; returns the resumed step or None."""
-    from dnarod.workflows.ensemble.protocol import _run_api
-
     _, run = _run_api()
     build = getattr(proto, "build", None) or resolve_build()
     spec = build(settings)
-    from dnarod.engines.openmm.platforms import env_threads
+    from dnarod.engines.openmm.platforms import env_threads  # loads OpenMM
 
     threads = env_threads()
     if getattr(spec, "threads", "absent") is None and threads and spec.engine == "openmm":
@@ -208,8 +205,6 @@ def _run(proto, settings, mdir, log):
 
 
 def resolve_build():
-    from dnarod.workflows.ensemble.protocol import build_runspec
-
     return build_runspec
 
 

@@ -25,11 +25,15 @@ Python code may pass a protocol object itself (``Ensemble(..., protocol=obj)``).
 """
 from __future__ import annotations
 
-import importlib
 from types import SimpleNamespace
+import inspect
+from importlib.metadata import entry_points
 
 
-from dnarod.workflows.ensemble.schema import SpecError
+from dnarod.workflows.ensemble.schema import SpecError, Key
+from dnarod.run import RunSpec, run
+from dnarod.workflows.ensemble.reduce import reduce_run
+from dnarod.physics.loads import tweezers
 
 #: Protocols registered in this process: name -> object.
 PROTOCOLS = {}
@@ -50,8 +54,6 @@ def register_protocol(name, protocol, aliases=()):
 
 def _entry_points():
     """The entry points of :data:`ENTRY_POINT_GROUP` (none if the package metadata cannot be read)."""
-    from importlib.metadata import entry_points
-
     try:
         return list(entry_points(group=ENTRY_POINT_GROUP))
     except Exception:  # noqa: BLE001 -- broken metadata of some installed package: no entry points
@@ -65,8 +67,6 @@ def known_protocols():
 
 def _run_api():
     """``(RunSpec, run)`` of the run layer."""
-    from dnarod.run import RunSpec, run
-
     return RunSpec, run
 
 
@@ -79,7 +79,7 @@ def build_runspec(settings, model_cache=None):
     with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run. ``model_cache`` (a
     dict) keeps the models loaded for the loads, so checking many members of one source loads it once.
     """
-    from dnarod.structure.inputs import load_model
+    from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
     RunSpec, _ = _run_api()
     s = settings
     loads = []
@@ -94,7 +94,6 @@ def build_runspec(settings, model_cache=None):
                 model_cache[key] = model
         # the one tweezers set-up (dnarod.physics.loads.tweezers), with the command line's checks (overstretching, a
         # torque with no equilibrium, turns without a clamp, loads on a closed ring)
-        from dnarod.physics.loads import tweezers
 
         loads = list(tweezers(model, force or None, torque or None, rclamp, s.get("turns", 0.0),
                               anchor="surface" if s.get("clamp_first") else "ends",
@@ -114,8 +113,6 @@ def build_runspec(settings, model_cache=None):
 
 
 def _default_reduce(member_dir, settings, analysis):
-    from dnarod.workflows.ensemble.reduce import reduce_run
-
     return reduce_run(member_dir, settings, analysis)
 
 
@@ -171,8 +168,6 @@ def _check_hooks(obj, name):
 
 
 def _as_keys(keys):
-    from dnarod.workflows.ensemble.schema import Key
-
     out = {}
     for name, k in dict(keys or {}).items():
         out[name] = k if isinstance(k, Key) else Key(name, k, None, "protocol setting")
@@ -194,8 +189,6 @@ def protocol_keys(protocol):
 def call_hook(fn, *args):
     """Call a protocol hook with ``(settings, member_dir, analysis)``-style arguments, dropping the
     trailing ``analysis`` for hooks written with two parameters."""
-    import inspect
-
     try:
         params = inspect.signature(fn).parameters.values()
     except (TypeError, ValueError):

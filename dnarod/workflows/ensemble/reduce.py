@@ -23,6 +23,9 @@ import numpy as np
 
 from dnarod.analysis.base import block_estimates, standard_error
 from dnarod.core.errors import DnarodError
+from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
+from dnarod.core.model import RodModel
+from dnarod.core.trajectory import load_trajectory
 
 
 #: energies.csv columns renamed in the row (a setting has the plain name).
@@ -63,10 +66,6 @@ def reduce_run(member_dir, settings, analysis):
     dict
         name -> float.
     """
-    from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
-    from dnarod.core.model import RodModel
-    from dnarod.core.trajectory import load_trajectory
-
     d = Path(member_dir)
     blocks = int(analysis.get("blocks", 10))
     t0 = 1000.0 * float(analysis.get("discard_ns", 0.0))

@@ -38,7 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.workflows.ensemble.schema import ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, check_distinct, coerce, unknown_key
+from dnarod.workflows.ensemble.schema import (ANALYSIS_KEYS, ENSEMBLE_KEYS, RUN_KEYS, Key, SpecError, check_distinct,
+                                              coerce, unknown_key)
 
 #: Seed of the first replica when the spec gives none (members must be reproducible to resume).
 DEFAULT_SEED = 1
@@ -345,7 +346,7 @@ def check_members(members, extra_check=None):
     Distinct (source, forcefield, circular, ring) combinations are built once with
     :func:`dnarod.structure.inputs.load_model`; a failure names the member's index and settings.
     """
-    from dnarod.structure.inputs import load_model
+    from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
 
     seen = {}
     for m in members:

@@ -2,8 +2,8 @@
 
 Each protocol is an ensemble over its axes (:mod:`dnarod.workflows.ensemble`): a member is one chain at one force and
 one number of turns (or one ring at one linking difference), sampled at equilibrium by
-:func:`dnarod.workflows.protocols.tweezers.run_member` / :func:`dnarod.workflows.protocols.rings.run_ring_member`, and reports
-extension, turns, clamp torque (and a low-noise twisting-moment estimate), Lk, Tw, Wr, the plectoneme
+:func:`dnarod.workflows.protocols.tweezers.run_member` / :func:`dnarod.workflows.protocols.rings.run_ring_member`, and
+reports extension, turns, clamp torque (and a low-noise twisting-moment estimate), Lk, Tw, Wr, the plectoneme
 detector, block standard errors and measured integrated autocorrelation times. The curve (one row per
 member) is written as ``curve.csv`` and ``curve.png`` with the measured experimental points of
 ``data/experimental/`` drawn beside where they exist.
@@ -25,7 +25,8 @@ Protocol objects for ensemble specs (``protocol = "dnarod.workflows.protocols:MA
 """
 from __future__ import annotations
 
-from dnarod.workflows.protocols.curves import (Curve, force_extension, hat_curve, ring_supercoiling, run_protocol, torque_turns)  # noqa: F401
+from dnarod.workflows.protocols.curves import (Curve, force_extension, hat_curve, ring_supercoiling, run_protocol,
+                                               torque_turns)  # noqa: F401
 from dnarod.workflows.protocols.ensemble_hooks import FORCE_EXTENSION, MAGNETIC_TWEEZERS, RINGS, TORQUE_TURNS  # noqa: F401
 from dnarod.workflows.protocols.nicked import run_nicked_member  # noqa: F401
 from dnarod.workflows.ensemble.protocol import register_protocol

@@ -10,6 +10,7 @@ import csv
 import io
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -24,8 +25,8 @@ class Curve:
     """A protocol's result: ``rows`` (one dict per member, sorted along the x axis) and written ``files``."""
 
     kind: str
-    rows: list
-    files: dict = field(default_factory=dict)
+    rows: list[dict[str, Any]]
+    files: dict[str, Path] = field(default_factory=dict)
 
 
 def _members(kind, axes, base):
@@ -131,8 +132,10 @@ def _checked(value, table, key):
     return value
 
 
-def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True, start="static",
-                 overwrite=False, exchange_ps=None):
+# one keyword per option of the `dnarod protocol` commands
+def run_protocol(kind: str, axes: dict[str, list[Any]], base: dict[str, Any], outdir: str | Path, workers: int = 2,
+                 progress: bool = True, client: Any = None, plots: bool = True, start: str = "static",
+                 overwrite: bool = False, exchange_ps: float | None = None) -> Curve:
     """Run a protocol over its axes and write its curve.
 
     Parameters
@@ -245,7 +248,8 @@ def _run_members(kind, axes, base, members, outdir, workers, progress, client, p
     return write_curve(kind, rows, base, outdir, plots)
 
 
-def write_curve(kind, rows, base, outdir, plots=True):
+def write_curve(kind: str, rows: list[dict[str, Any]], base: dict[str, Any], outdir: str | Path,
+                plots: bool = True) -> Curve:
     """Write a protocol's curve from its member rows: ``outdir/curve.csv`` (and ``curve.png``).
 
     The rows are sorted along the protocol's x axis and put on the model's zero at the run's temperature
@@ -273,7 +277,7 @@ def write_curve(kind, rows, base, outdir, plots=True):
 
     outdir = Path(outdir)
     x = protocol_of(kind).plot.x
-    rows.sort(key=lambda r: (r.get(x) if r.get(x) is not None else 0.0))
+    rows.sort(key=lambda r: (r.get(x) if r.get(x) is not None else 0.0))  # type: ignore[arg-type, return-value]
     for r in rows:
         if kind == "rings" and "Tw" in r:
             r["Tw_minus_Tw0"] = r["Tw"] - r["intrinsic_turns"]
@@ -289,8 +293,8 @@ def _thermal_corrections(kind, base, rows):
     """Put the curve's torques and linking differences on the model's zero at its temperature, in place.
 
     ``twist_torque_pN_nm`` becomes the twisting moment less what it reads on a chain under no torque
-    (:func:`dnarod.workflows.protocols.measure.twisting_moment_offset`, about -1.2 pN nm for ``dna-default`` at 300 K; the
-    raw mean stays in ``twist_torque_pN_nm_raw``), and ``delta_lk_thermal`` is ``Lk`` less the relaxed linking
+    (:func:`dnarod.workflows.protocols.measure.twisting_moment_offset`, about -1.2 pN nm for ``dna-default`` at 300 K;
+    the raw mean stays in ``twist_torque_pN_nm_raw``), and ``delta_lk_thermal`` is ``Lk`` less the relaxed linking
     number at T (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`; ``delta_lk`` stays relative to the T = 0 sum of
     intrinsic twist angles). The clamp torque needs no correction. Members keep their own raw results.
     """
@@ -321,10 +325,10 @@ def _thermal_corrections(kind, base, rows):
             r["twist_torque_pN_nm"] = r["twist_torque_pN_nm"] - off
             r["twist_torque_offset_pN_nm"], r["twist_torque_offset_err_pN_nm"] = off, off_se
             if r.get("twist_torque_pN_nm_err") is not None:
-                r["twist_torque_pN_nm_err"] = float(np.hypot(r["twist_torque_pN_nm_err"], off_se))
+                r["twist_torque_pN_nm_err"] = float(np.hypot(r["twist_torque_pN_nm_err"], off_se))  # type: ignore[arg-type]  # set with off
 
 
-def member_name(m, axes):
+def member_name(m: dict[str, Any], axes: dict[str, Any]) -> str:
     """A member's folder name from its axis values (``force_pN+2_turns+0.5``)."""
     return "_".join(f"{k}{m[k]:+g}" if isinstance(m[k], (int, float)) else f"{k}{m[k]}" for k in axes) or "member"
 
@@ -367,7 +371,7 @@ def _write_csv(rows, path):
     return Path(path)
 
 
-def plot_curve(kind, rows, path):
+def plot_curve(kind: str, rows: list[dict[str, Any]], path: str | Path) -> Path:
     """Plot a protocol's curve (mean +- block standard error per member) with its measured references beside
     (the protocol object's ``plot`` and ``references``, :mod:`dnarod.workflows.protocols.references`)."""
     from dnarod.analysis.plots import new_figure, save_figure
@@ -406,25 +410,27 @@ def plot_curve(kind, rows, path):
     return out
 
 
-def force_extension(forces_pN, outdir, source="600", **kw):
+def force_extension(forces_pN: list[float], outdir: str | Path, source: str | int = "600", **kw: Any) -> Curve:
     """Force-extension curve (torsionally free bead end): one member per force (pN). See :func:`run_protocol`."""
     return run_protocol("force_extension", {"force_pN": list(forces_pN)}, dict(kw.pop("base", {}), source=str(source)),
                         outdir, **kw)
 
 
-def hat_curve(turns, outdir, force_pN=0.5, source="600", **kw):
+def hat_curve(turns: list[float], outdir: str | Path, force_pN: float | list[float] = 0.5, source: str | int = "600",
+              **kw: Any) -> Curve:
     """Magnetic-tweezers hat curve: extension vs turns at constant force (one or several forces, pN)."""
     return run_protocol("magnetic_tweezers", {"force_pN": list(np.atleast_1d(force_pN)), "turns": list(turns)},
                         dict(kw.pop("base", {}), source=str(source)), outdir, **kw)
 
 
-def torque_turns(turns, outdir, force_pN=1.0, source="600", **kw):
+def torque_turns(turns: list[float], outdir: str | Path, force_pN: float | list[float] = 1.0,
+                 source: str | int = "600", **kw: Any) -> Curve:
     """Torque-turns curve with a rotation clamp at constant force (pN)."""
     return run_protocol("torque_turns", {"force_pN": list(np.atleast_1d(force_pN)), "turns": list(turns)},
                         dict(kw.pop("base", {}), source=str(source)), outdir, **kw)
 
 
-def ring_supercoiling(delta_lk, outdir, source="600", **kw):
+def ring_supercoiling(delta_lk: list[int], outdir: str | Path, source: str | int = "600", **kw: Any) -> Curve:
     """Closed rings over a list of linking differences: Tw, Wr, writhe fraction, plectonemes."""
     return run_protocol("rings", {"delta_lk": list(delta_lk)}, dict(kw.pop("base", {}), source=str(source)),
                         outdir, **kw)

@@ -53,6 +53,20 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError, RunWarning
+from dnarod.workflows.protocols.poses import add_turns, save_pose, FINAL_POSE
+from dnarod.workflows.protocols.tweezers import (_member_simulation, build_member, observe_tweezers, COLUMNS,
+                                                 summarize)
+from dnarod.workflows.protocols.measure import rotation_about_z, detector_distances
+from dnarod.run.loop import run_engine
+from dnarod.run.sampling import FollowReporter
+from dnarod.engines.openmm.particles import particle_positions
+from dnarod.physics.modes import DEFAULT_OMEGA_DT, omega_max
+from dnarod.physics.nonbonded import member_nonbonded
+from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
+from dnarod.core.units import kT
+from dnarod.workflows.protocols import ensemble_hooks as hooks
+from dnarod.workflows.protocols.curves import member_name
+from dnarod.workflows.ensemble.cluster import client_for
 
 #: Default time between exchange attempts (ps).
 EXCHANGE_PS = 20.0
@@ -81,8 +95,6 @@ def twist_move(frames, omega_body, delta_turns):
         (:func:`dnarod.workflows.protocols.poses.add_turns`), ``Omega'_k = Q(phi_k)^T Omega_k`` so that the lab angular
         velocity is unchanged. ``twist_move(*twist_move(F, W, d), -d)`` returns ``(F, W)``.
     """
-    from dnarod.workflows.protocols.poses import add_turns
-
     F = np.asarray(frames, float)
     W = np.array(omega_body, float)
     n = len(F)
@@ -99,8 +111,6 @@ class _Replica:
     """One replica: its simulation, the rung it holds and the bead's unwrapped rotation relative to that rung."""
 
     def __init__(self, rid, label, member, rungs, dt):
-        from dnarod.workflows.protocols.tweezers import _member_simulation
-
         self.rid, self.label, self.init_label = int(rid), int(label), int(label)
         self.sim = _member_simulation(member, member["model"], dt=dt)
         inertia = np.asarray(self.sim.model.inertia, float)
@@ -112,8 +122,6 @@ class _Replica:
         self.turns_acc = 0.0
 
     def _angle(self, frames):
-        from dnarod.workflows.protocols.measure import rotation_about_z
-
         return float(rotation_about_z(frames[-1], self.rungs[self.label]["ref_frame"]))
 
     def follow(self):
@@ -128,9 +136,6 @@ class _Replica:
 
     def advance(self, n_steps):
         """Advance ``n_steps`` steps through the run loop, following the bead's rotation at the end."""
-        from dnarod.run.loop import run_engine
-        from dnarod.run.sampling import FollowReporter
-
         n = int(n_steps)
         run_engine(self.sim, self.sim.step + n, [FollowReporter(self, n, origin=self.sim.step)], report_start=False)
 
@@ -149,7 +154,6 @@ class _Replica:
         context is left exactly as it was (positions restored bit for bit, the clamp turned back)."""
         import openmm
 
-        from dnarod.engines.openmm.particles import particle_positions
 
         sim = self.sim
         sim.invalidate()
@@ -173,8 +177,6 @@ class _Replica:
 
     def move(self, label):
         """Carry this replica's configuration to rung ``label`` (an accepted swap)."""
-        from dnarod.engines.openmm.particles import particle_positions
-
         sim = self.sim
         self.follow()
         c, f, v, w = sim.node_state()
@@ -225,8 +227,6 @@ def twist_ramp_mismatch(params, angle=0.7):
 def ladder_dt(members):
     """The ladder's common time step (ps): the smallest of the rungs' default steps
     (``DEFAULT_OMEGA_DT / omega_max`` of each start pose under its loads), since every replica visits every rung."""
-    from dnarod.physics.modes import DEFAULT_OMEGA_DT, omega_max
-
     return min(DEFAULT_OMEGA_DT / omega_max(m["model"], loads=tuple(m["loads"])) for m in members)
 
 
@@ -236,16 +236,13 @@ class ReplicaGroup:
     Parameters
     ----------
     settings : list of dict
-        Tweezers member settings of every rung (:func:`dnarod.workflows.protocols.tweezers.build_member`), in rung order.
+        Tweezers member settings of every rung (:func:`dnarod.workflows.protocols.tweezers.build_member`), in rung
+        order.
     rids : list of int
         The replicas of this group; replica ``r`` starts on rung ``r``, from that rung's static pose.
     """
 
     def __init__(self, settings, rids):
-        from dnarod.workflows.protocols.measure import detector_distances
-        from dnarod.workflows.protocols.tweezers import build_member
-        from dnarod.physics.nonbonded import member_nonbonded
-
         t0, c0 = time.perf_counter(), time.process_time()
         self.members = [build_member(s) for s in settings]
         self.rungs = [dict(turns=m["turns"], ref_frame=m["ref_frame"], clamp_target=m["clamp_target"])
@@ -306,14 +303,12 @@ class ReplicaGroup:
     def sample(self):
         """One sample per replica: ``{label: row}`` (the member's ``observe`` in
         :mod:`dnarod.workflows.protocols.tweezers`)."""
-        from dnarod.workflows.protocols.tweezers import observe_tweezers as observe
-
         def go():
             out = {}
             for r in self.replicas.values():
                 pos, frm = r.sim.node_pose()
                 m = self.members[r.label]
-                out[r.label] = observe(pos, frm, m["model"], m["turns"] + r.turns_acc, m["clamp_target"],
+                out[r.label] = observe_tweezers(pos, frm, m["model"], m["turns"] + r.turns_acc, m["clamp_target"],
                                        float(m["settings"]["clamp_k_kJ_mol"]), self.sep_nm, self.contact_nm)
                 out[r.label]["replica"] = r.rid
             return out
@@ -407,11 +402,6 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
     list of dict
         Each rung's result (:func:`dnarod.workflows.protocols.tweezers.summarize`, with ``exchange_*`` keys).
     """
-    from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
-    from dnarod.workflows.protocols.poses import save_pose, FINAL_POSE
-    from dnarod.core.units import kT
-    from dnarod.workflows.protocols.tweezers import COLUMNS, build_member, summarize
-
     if not (isinstance(exchange_ps, (int, float)) and math.isfinite(exchange_ps) and exchange_ps > 0):
         raise DnarodError(f"exchange interval {exchange_ps!r} ps: give a time > 0")
     turns = [float(s["turns"]) for s in settings]
@@ -447,8 +437,6 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
     rid_groups = [list(range(g, R, n_groups)) for g in range(n_groups)]
     stack = contextlib.ExitStack()
     if workers or client is not None:
-        from dnarod.workflows.ensemble.cluster import client_for
-
         c = stack.enter_context(client_for(client, None, n_groups))
         stack.enter_context(c.as_current())  # actor proxies find their client through it
         futs = [c.submit(ReplicaGroup, settings, rids, actor=True, pure=False) for rids in rid_groups]
@@ -616,9 +604,6 @@ def run_ladders(kind, axes, members, outdir, workers, progress, client, exchange
     plectonemic state during the ladder's equilibration (as it does an independent member), and the swaps carry
     either state along the ladder.
     """
-    from dnarod.workflows.protocols import ensemble_hooks as hooks
-    from dnarod.workflows.protocols.curves import member_name
-
     proto = {"magnetic_tweezers": hooks.MAGNETIC_TWEEZERS, "torque_turns": hooks.TORQUE_TURNS}[kind]
     others = [k for k in axes if k != "turns"]
     ladders = {}

@@ -12,6 +12,7 @@ import json
 from pathlib import Path
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import write_text_atomic
 
 MANIFEST = "protocol.json"
 #: Names that mark a protocol's folder (any of them; a protocol run stopped early may have only its members).
@@ -46,7 +47,8 @@ def check_protocol_folder(out, kind, settings, overwrite=False):
         what = f"a {old_kind} run, not {kind}"
     else:
         keys = sorted(set(old_settings) | set(settings))
-        what = f"a {kind} run made with other settings (" + "; ".join(_describe(k, old_settings.get(k), settings.get(k)) for k in keys
+        what = f"a {kind} run made with other settings (" + "; ".join(_describe(k, old_settings.get(k),
+                                                                                settings.get(k)) for k in keys
                                              if old_settings.get(k) != settings.get(k)) + ")"
     raise DnarodError(f"{out}: holds {what}; choose another -o folder, or pass --overwrite to run its members "
                       f"again with these settings")
@@ -54,8 +56,6 @@ def check_protocol_folder(out, kind, settings, overwrite=False):
 
 def write_protocol_record(out, kind, settings):
     """Record ``kind`` and ``settings`` in ``out/protocol.json`` (atomically)."""
-    from dnarod.core.io import write_text_atomic
-
     write_text_atomic(Path(out) / MANIFEST, json.dumps({"format": "dnarod-protocol", "kind": kind,
                                                         "settings": settings}, indent=1, sort_keys=True) + "\n")
 

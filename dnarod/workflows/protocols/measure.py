@@ -38,7 +38,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from dnarod.core.units import PN
+from dnarod.core.units import PN, kT
+from dnarod.physics.nonbonded import NonbondedSettings
+from dnarod.physics.theory.supercoil import effective_diameter
+from dnarod.core.strains import strains
+from dnarod.physics.thermal import sample_step_strains
 
 Z = np.array([0.0, 0.0, 1.0])
 
@@ -98,9 +102,6 @@ def detector_distances(nonbonded=None, temperature=300.0, ds=0.34):
     tuple of float
         nm, nm.
     """
-    from dnarod.physics.nonbonded import NonbondedSettings
-    from dnarod.physics.theory.supercoil import effective_diameter
-
     nb = NonbondedSettings() if nonbonded is None else nonbonded
     d = effective_diameter(nb, float(ds), float(temperature), n_h=80, n_gamma=8, n_offset=2) \
         if (nb.excluded_volume or nb.electrostatics) else 0.0
@@ -209,8 +210,6 @@ def twisting_moment(positions, frames, params, ds, exclude=None):
     float
         pN nm (NaN if every step is excluded).
     """
-    from dnarod.core.strains import strains
-
     Om, Ga = strains(positions, frames, ds)
     dxi = np.concatenate([Om, Ga], axis=1) - params.intrinsic
     m3 = np.einsum("kj,kj->k", params.stiffness[:, 2, :], dxi)
@@ -246,9 +245,6 @@ def twisting_moment_offset(model, temperature, n_samples=400_000, seed=0):
     tuple of float
         ``(offset, standard_error)``, pN nm.
     """
-    from dnarod.physics.thermal import sample_step_strains
-    from dnarod.core.units import kT
-
     rng = np.random.default_rng(seed)
     p = model.params
     cache, vals, errs = {}, [], []

@@ -28,6 +28,16 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.physics.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
+from dnarod.core.parameters import StepParameters
+from dnarod.core.units import kT
+from dnarod.core.strains import strains
+from dnarod.analysis.polymer import integrated_autocorrelation_time
+from dnarod.physics.writhe import twist, writhe
+from dnarod.core.forcefield import load_forcefield
+from dnarod.core.io import jsonable
+from dnarod.physics.thermal import persistence_length, sample_step_strains
+from dnarod.analysis.statistics import jackknife, split_blocks
 
 COLUMNS = ("time_ps", "Wr_star", "Wr_axis", "Wr", "Tw", "Lk", "step_twist", "radius_of_gyration_nm")
 #: Base pairs per vertex of the smoothed axis whose writhe is the shape writhe (one helical turn).
@@ -51,8 +61,7 @@ DEFAULT_SOFTENING = 16.0
 
 
 def _settings(s):
-    from dnarod.physics.nonbonded import DEFAULT_CHARGE, DEFAULT_CUTOFF_DEBYE
-    from dnarod.engines.openmm.platforms import member_platform
+    from dnarod.engines.openmm.platforms import member_platform  # loads OpenMM
 
     out = dict(n_bp=300, forcefield="dna-default", time_ns=4.0, equilibration_ns=None, temperature_K=300.0,
                salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None, threads=None,
@@ -88,8 +97,6 @@ def soft_twist_model(model, softening, temperature=300.0, n_samples=200_000, see
         Same pose, masses and closure; stiffness per step ``[[S, 0], [0, K_33/softening]]`` with S the Schur
         complement of K_33 on the other five strains.
     """
-    from dnarod.core.parameters import StepParameters
-
     K = np.array(model.params.stiffness, float)
     Kn = np.zeros_like(K)
     other = [0, 1, 3, 4, 5]
@@ -99,8 +106,6 @@ def soft_twist_model(model, softening, temperature=300.0, n_samples=200_000, see
         Kn[k][np.ix_(other, other)] = b - np.outer(c, c) / K[k][2, 2]
         Kn[k][2, 2] = K[k][2, 2] / float(softening)
     xi0 = np.array(model.params.intrinsic, float)
-    from dnarod.physics.thermal import sample_step_strains
-    from dnarod.core.units import kT
 
     rng = np.random.default_rng(seed)
     ds = model.ds
@@ -128,17 +133,12 @@ def step_twist_sum(positions, frames, ds, closure):
     exact complement of the twist whose variance :func:`dnarod.physics.theory.supercoil.twist_variance_exact`
     gives, so ``ΔLk = Δ(step twist) + ΔWr_star`` with no smoothing choice.
     """
-    from dnarod.core.strains import strains
-
     om, _ = strains(positions, frames, ds, closure)
     return float(np.sum(2.0 * np.arctan(0.5 * ds * om[:, 2])) / (2.0 * np.pi))
 
 
 def twist_sum_moments(model, temperature, n_samples=400_000, seed=0):
     """Mean and variance (turns, turns²) of the total twist of the model's steps, from the exact step distribution."""
-    from dnarod.physics.thermal import sample_step_strains
-    from dnarod.core.units import kT
-
     rng = np.random.default_rng(seed)
     p = model.params
     cache, mean, var = {}, 0.0, 0.0
@@ -164,8 +164,6 @@ def free_writhe_moments(wr, lk, tw_mean, tw_var, n_blocks=10):
         ``mean``, ``mean_err``, ``second_moment``, ``second_moment_err``, ``variance`` (about the mean),
         ``unweighted_second_moment``, ``weight_spread`` (max/min weight).
     """
-    from dnarod.analysis.statistics import jackknife, split_blocks
-
     wr = np.asarray(wr, float)
     a = (lk - tw_mean - wr) ** 2 / (2.0 * tw_var)
     w = np.exp(a - a.max())
@@ -191,12 +189,7 @@ def run_nicked_member(settings, member_dir, progress=None):
     :func:`smoothed_axis`) and of the node polygon (``wr2_free_node_polygon``), the unweighted ones,
     the soft chain's total-twist moments, the integrated autocorrelation time of Wr², and the cost.
     """
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
-    from dnarod.physics.writhe import twist, writhe
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.core.io import jsonable
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
+    # late: a test patches rings.sample_ring
     from dnarod.workflows.protocols.rings import cached_member, sample_ring, write_member
 
     s = _settings(settings)

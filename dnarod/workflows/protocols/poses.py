@@ -2,9 +2,14 @@
 turned by extra turns (a member continuing another at other turns)."""
 from __future__ import annotations
 
+import hashlib
+from pathlib import Path
+
 import numpy as np
+import numpy.typing as npt
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.io import atomic_path
 
 
 #: File of a member's last pose (written by :func:`dnarod.workflows.protocols.tweezers.run_member`).
@@ -15,7 +20,8 @@ FINAL_POSE = "final_pose.npz"
 START_POSE = "start_pose.npz"
 
 
-def add_turns(positions, frames, delta_turns):
+def add_turns(positions: npt.ArrayLike, frames: npt.ArrayLike,
+              delta_turns: float) -> tuple[np.ndarray, np.ndarray]:
     """The pose with ``delta_turns`` extra turns of twist spread evenly along the chain.
 
     Node ``i`` of ``n`` is turned about its own d3 by ``2 pi delta_turns i / (n - 1)``; positions are kept, so
@@ -48,26 +54,22 @@ def add_turns(positions, frames, delta_turns):
     return P, F
 
 
-def pose_sha256(positions, frames):
+def pose_sha256(positions: npt.ArrayLike, frames: npt.ArrayLike) -> str:
     """SHA-256 (hex) of a pose's float64 bytes (the key of a chained member's start)."""
-    import hashlib
-
     h = hashlib.sha256()
     h.update(np.ascontiguousarray(positions, dtype=np.float64).tobytes())
     h.update(np.ascontiguousarray(frames, dtype=np.float64).tobytes())
     return h.hexdigest()
 
 
-def save_pose(path, positions, frames):
+def save_pose(path: str | Path, positions: npt.ArrayLike, frames: npt.ArrayLike) -> None:
     """Write a pose (positions nm, frames) to ``path`` (``.npz``) atomically."""
-    from dnarod.core.io import atomic_path
-
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as fh:
             np.savez(fh, positions=np.asarray(positions, float), frames=np.asarray(frames, float))
 
 
-def load_pose(path):
+def load_pose(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """``(positions, frames)`` from a file written by :func:`save_pose`."""
     with np.load(path) as z:
         return z["positions"], z["frames"]

@@ -46,7 +46,7 @@ def wlc_persistence_lengths(a, rows):
     """Force-extension: the worm-like-chain extension (Bouchiat interpolation, inextensible) with each measured
     persistence length, labelled with its salt, and shaded the band of the persistence lengths that bracket the run's
     salt (:func:`~dnarod.physics.experiments.persistence_length_band`)."""
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension  # loads scipy.optimize
 
     kt_pn = _kt_pn(rows)
     F = np.array([float(r["force_pN"]) for r in rows])
@@ -102,7 +102,7 @@ def _ewlc_label(c):
 def ewlc_curves(a, rows):
     """Force-extension: the extensible-WLC curve a source draws over its measured lambda-DNA data (lp 50 nm, S 1000
     pN at 100 mM Na+; :func:`~dnarod.physics.experiments.force_extension_curves`), labelled with its salt."""
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension  # loads scipy.optimize
 
     F = np.array(sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}))
     FF = np.logspace(np.log10(F.min()) - 0.1, np.log10(F.max()) + 0.1, 60)
@@ -114,7 +114,7 @@ def ewlc_curves(a, rows):
 def ewlc_at_zero_turns(a, rows):
     """Hat curves: a diamond at zero turns for the x/L of the curve drawn over lambda-DNA data (100 mM Na+) at the
     run's forces."""
-    from dnarod.physics.theory.wlc import extensible_wlc_extension
+    from dnarod.physics.theory.wlc import extensible_wlc_extension  # loads scipy.optimize
 
     F = np.array(sorted({float(r["force_pN"]) for r in rows if r.get("force_pN") is not None}))
     for c in ex.force_extension_curves():

@@ -6,9 +6,9 @@ each sample reports Tw (ribbon twist of d1), Wr (exact polygon writhe), Lk = Tw 
 integer set), the writhe fraction ``Wr / (Lk - Tw0_T)`` with ``Tw0_T`` the relaxed ring's mean twist at the
 run's temperature (:func:`dnarod.physics.theory.supercoil.thermal_relaxed_twist`; ``intrinsic_turns`` is the
 T = 0 value, the sum of intrinsic twist angles, 0.27 turns higher for 600 bp of dna-default), and the plectoneme
-detector of :mod:`dnarod.workflows.protocols.measure` with chain separations wrapping around, and the number of plectoneme
-end loops (:func:`~dnarod.workflows.protocols.measure.plectoneme_end_loops`: 2 for an unbranched plectoneme, more if it
-branches).
+detector of :mod:`dnarod.workflows.protocols.measure` with chain separations wrapping around, and the number of
+plectoneme end loops (:func:`~dnarod.workflows.protocols.measure.plectoneme_end_loops`: 2 for an unbranched plectoneme,
+more if it branches).
 
 Nicked rings (free linking number) are not sampled by this module: a nick with zero twist stiffness
 still cannot let the strand pass 180 degrees of step rotation in the Cayley coordinates (the energy
@@ -39,8 +39,8 @@ def _settings(s):
 
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
                temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None,
-               threads=None, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
-               start_pose_sha256=None)
+               threads=None, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE,
+               cutoff_debye=DEFAULT_CUTOFF_DEBYE, start_pose_sha256=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -125,7 +125,8 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
                            max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
     nb = member_nonbonded(s)
-    sim = RodSimulation.create(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
+    sim = RodSimulation.create(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb,
+                               seed=int(s["seed"]),
                         threads=s["threads"])
     dt = sim.dt
     stride = max(1, int(round(sample / dt)))
@@ -226,8 +227,8 @@ def run_ring_member(settings, member_dir, progress=None, start_pose=None):
     stride, dt = run.pop("stride"), run["dt_ps"]
     run.pop("elastic_path")
     res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
-               seed=int(s["seed"]), intrinsic_turns=tw0, sigma=int(s["delta_lk"]) / tw0, plectoneme_contact_nm=contact_nm,
-               plectoneme_min_separation_nm=sep_nm, **run)
+               seed=int(s["seed"]), intrinsic_turns=tw0, sigma=int(s["delta_lk"]) / tw0,
+               plectoneme_contact_nm=contact_nm, plectoneme_min_separation_nm=sep_nm, **run)
     for c in COLUMNS[1:]:
         x = out[c]
         res[c] = float(x.mean())

@@ -4,7 +4,8 @@ Geometry (magnetic tweezers): node 0 is clamped (position and orientation: the s
 carries a constant pulling force F along +z (the bead), walls keep the chain above the surface plane and
 below the bead (:class:`dnarod.physics.loads.Walls`; without them the chain unwinds around its ends) and, for
 rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` whose target is the last
-node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free (force-extension).
+node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free
+(force-extension).
 
 Start ("relaxed under load"): the uniformly strained straight helix that is the static equilibrium of a
 uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), refined by
@@ -212,7 +213,8 @@ def build_member(settings, start_pose=None):
             from dnarod.physics.statics import solve_static
 
             start, info = solve_static(start, loads)  # the walls (added below) do not touch the straight start
-            start_info = f"static equilibrium under the loads (dnarod.physics.statics, {info['iterations']} Newton steps)"
+            start_info = (f"static equilibrium under the loads (dnarod.physics.statics, "
+                          f"{info['iterations']} Newton steps)")
         except ImportError:
             pass
     lp = persistence_length(model.params, model.ds, kT(T))
@@ -242,7 +244,8 @@ def _member_simulation(m, model, dt=None):
     # the walls are loads (dnarod.physics.loads.Walls): the engine builds them before its Context exists, so the
     # automatic elastic path (the compiled plugin where it is built) applies; settings["elastic"] can force another
     # path. The walls' form follows the platform.
-    return RodSimulation.create(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
+    return RodSimulation.create(model, temperature=float(s["temperature_K"]), friction=m["friction"],
+                                platform=s["platform"],
                          nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
                          elastic=s["elastic"], dt=dt)
 

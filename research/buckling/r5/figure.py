@@ -1,5 +1,5 @@
 """Figure research/buckling/figures/buckling_600bp_1pN.png from the long members and rings (run from runs/)."""
-import json, sys, os
+import json, sys
 import numpy as np
 import matplotlib
 matplotlib.use("Agg")

@@ -1,5 +1,5 @@
 """Ring member with poses saved. Usage: python ring_member.py OUT.npz N_BP DELTA_LK TIME_NS SEED"""
-import sys, time, os
+import sys
 import numpy as np
 from dnarod.core.forcefield import load_forcefield
 from dnarod.workflows.protocols.rings import sample_ring, _settings

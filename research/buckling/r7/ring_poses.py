@@ -1,6 +1,6 @@
 """Run a ring member keeping every pose the plectoneme detector sees: python ring_poses.py FOLDER n_bp delta_lk time_ns seed
 (the member's settings and samples are those of a plain run; the poses go to FOLDER.poses.npz)."""
-import json, sys, time
+import sys, time
 from pathlib import Path
 import numpy as np
 import dnarod.workflows.protocols.measure as measure

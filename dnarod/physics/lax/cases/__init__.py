@@ -7,7 +7,8 @@
 * :func:`planar_rhs` -- the planar rod (7.1) (Case 4);
 * :func:`curvature_torsion` and the tetrad matrices (8.1)-(8.3) (Case 5).
 """
-from dnarod.physics.lax.cases.curve import (arclength, curvature_torsion, frenet_step_matrix, printed_tetrad_step_matrix, tetrad_step_matrix,
+from dnarod.physics.lax.cases.curve import (arclength, curvature_torsion, frenet_step_matrix,
+                                            printed_tetrad_step_matrix, tetrad_step_matrix,
                     tetrad_velocity_matrix)
 from dnarod.physics.lax.cases.fluid import KirchhoffBody
 from dnarod.physics.lax.cases.kirchhoff_rod import KirchhoffRod

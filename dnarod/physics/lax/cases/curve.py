@@ -27,7 +27,8 @@ from dnarod.core.errors import DnarodError
 from dnarod.physics.lax._checks import as_ds, as_fields, as_lambda
 from dnarod.physics.lax.generators import so4_matrix
 
-__all__ = ["arclength", "curvature_torsion", "tetrad_step_matrix", "tetrad_velocity_matrix", "printed_tetrad_step_matrix",
+__all__ = ["arclength", "curvature_torsion", "tetrad_step_matrix", "tetrad_velocity_matrix",
+           "printed_tetrad_step_matrix",
            "frenet_step_matrix"]
 
 

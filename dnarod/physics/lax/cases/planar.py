@@ -94,7 +94,8 @@ def planar_rhs(u, v, ds, reading="R1", periodic=True):
     out = np.empty_like(u)
     out[:, 0] = (w3n - w3) / ds
     if reading == "midpoint":
-        wb, g1b, g2b, P1b, P2b = 0.5 * (w3 + w3n), 0.5 * (g1 + g1n), 0.5 * (g2 + g2n), 0.5 * (P1 + P1n), 0.5 * (P2 + P2n)
+        wb, g1b, g2b = 0.5 * (w3 + w3n), 0.5 * (g1 + g1n), 0.5 * (g2 + g2n)
+        P1b, P2b = 0.5 * (P1 + P1n), 0.5 * (P2 + P2n)
         out[:, 1] = (g1n - g1) / ds + G2 * wb - O3 * g2b
         out[:, 2] = (g2n - g2) / ds - G1 * wb + O3 * g1b
         out[:, 3] = (M3n - M3) / ds + p1 * g2b - p2 * g1b + G1 * P2b - G2 * P1b
