@@ -139,6 +139,31 @@ def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
     return out
 
 
+def lag1_moments(params: StepParameters, ds, kt, order=24):
+    """Exact mean and variance of each step's lag-1 tangent correlation ``d3(k) . d3(k+1) = (R_k)_33`` in the free
+    chain's equilibrium (the same quadrature as :func:`mean_rotation`).
+
+    The steps of a free open chain are independent, so the lag-1 correlation averaged over M steps of one frame has
+    the exact variance ``sum_k var_k / M^2``: what the frames of a run would scatter by if they were independent.
+
+    Returns
+    -------
+    mean, variance : ndarray, shape (n_steps,)
+    """
+    S = bend_twist_schur(params.stiffness)
+    mean, var = np.empty(params.n_steps), np.empty(params.n_steps)
+    cache = {}
+    for k in range(params.n_steps):
+        key = (S[k].tobytes(), params.Omega0[k].tobytes())
+        if key not in cache:
+            w, W = _quadrature(S[k], ds * params.Omega0[k], ds, kt, order)
+            r33 = cayley(w)[:, 2, 2]
+            m = float(W @ r33)
+            cache[key] = (m, float(W @ (r33 - m) ** 2))
+        mean[k], var[k] = cache[key]
+    return mean, var
+
+
 def persistence_length(params: StepParameters, ds, kt, order=24):
     """Bending persistence length of the discrete model, nm: ``-ds / ln c`` (docs/formulation.md §8).
 
