@@ -94,7 +94,7 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     ring, L, A, C, d_eff = rc["ring"], rc["L"], rc["A"], rc["C"], rc["d_eff"]
     A_ref = A if a_override is None else float(a_override)
     C_ref = C if c_override is None else float(c_override)
-    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt_M, **nb))
+    terms = member_nonbonded({"excluded_volume": True, "electrostatics": True, "salt_M": salt_M, **nb})
     pair = pair_parameters(terms, ring.ds, temperature, 3.4)
     row = run_ring_member(dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed, temperature_K=temperature,
                                salt_M=salt_M, **nb), root / f"ring{n_bp}_{delta_lk}")
