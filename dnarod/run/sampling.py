@@ -33,7 +33,9 @@ class SampleReporter:
     interval : int
         Steps between samples (and between calls of ``follow``).
     observe : callable
-        ``observe(positions (n, 3) nm, frames (n, 3, 3), step) -> mapping column -> float``.
+        ``observe(positions (n, 3) nm, frames (n, 3, 3), snapshot) -> mapping column -> value``: a float, or an
+        array (a per-node quantity, kept as the array of samples (n_samples, ...)); ``snapshot`` has ``step``,
+        ``time_ps`` and ``energies`` (read only if used).
     start : int
         Last step of the equilibration: samples are taken at ``start + interval``, ``start + 2 interval``, ...
         (``start`` must be a multiple of ``interval``).
@@ -90,13 +92,14 @@ class SampleReporter:
             self.follow.update(pos, frm, step)
         if step <= self.start or self.n_done >= self.n_samples:
             return
-        row = self.observe(pos, frm, step)
+        row = self.observe(pos, frm, snapshot)
         self.rows["time_ps"].append(step * float(engine.dt))
         for c in self.columns[1:]:
-            self.rows[c].append(float(row[c]))
+            v = row[c]
+            self.rows[c].append(np.asarray(v, float).tolist() if np.ndim(v) else float(v))
 
     def arrays(self) -> dict[str, np.ndarray]:
-        """The samples so far, column -> array (n_done,)."""
+        """The samples so far, column -> array (n_done, ...)."""
         return {c: np.asarray(v, float) for c, v in self.rows.items()}
 
     def cost(self) -> tuple[float, float]:
@@ -114,7 +117,7 @@ class SampleReporter:
                                                                                     self.start):
             raise ParameterError("checkpoint of a sampling run with another schedule (samples, interval or "
                                  "equilibration); delete it or use a new folder")
-        self.rows = {c: list(map(float, state["rows"][c])) for c in self.columns}
+        self.rows = {c: list(state["rows"][c]) for c in self.columns}
         self._spent = (float(state.get("wall_s", 0.0)), float(state.get("cpu_s", 0.0)))
         self._t0, self._c0 = time.perf_counter(), time.process_time()
         if self.follow is not None and state.get("follow") is not None:

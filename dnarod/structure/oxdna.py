@@ -33,12 +33,12 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import StructureError
+from dnarod.structure.reader import COMPLEMENT
 
 LENGTH_NM = 0.8518      # oxDNA length unit, nm
 TIME_PS = 3.03          # oxDNA time unit, ps
 HB_SITE = 0.4           # hydrogen-bonding site along a1, oxDNA length units
 MAX_SITE_DISTANCE = 0.35  # nm between paired hydrogen-bonding sites
-COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A"}
 
 
 def read_topology(path):

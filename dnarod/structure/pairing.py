@@ -23,7 +23,7 @@ from scipy.spatial import cKDTree
 
 from dnarod.core.errors import StructureError
 from dnarod.structure.findpair import HELIX_BREAK, MAX_DV, check_pair
-from dnarod.structure.reader import BACKBONE
+from dnarod.structure.reader import BACKBONE, COMPLEMENT
 
 LINK = 0.25             # nm, O3'-P bond cut-off
 OVERLAP = 0.10          # nm: two bases with origins this close overlap (atoms closer than 1 A)
@@ -31,7 +31,6 @@ HOOGSTEEN_CONTACT = 0.33  # nm: an N7...N/O hydrogen bond, with no N1 contact, m
 MAX_GAP = 3             # unpaired nucleotides a helix-context pair run or a flagged gap may span on a strand
 MAX_HBOND = 0.40        # nm: 3DNA's hb_dist1, the N/O contact the helix-context pairs miss
 MAX_ANGLE = 65.0        # degrees: 3DNA's max_plane_angle, also the stacking test of helix-context pairs
-COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
 __all__ = ["HELIX_BREAK", "MAX_GAP", "backbone_links", "check_duplicated", "classify_pair", "explicit_pairs",
            "fill_helix_gaps", "is_mismatch", "multiplets"]
 

@@ -32,6 +32,9 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import StructureError
+
+#: Watson-Crick complement of a base letter (U pairs with A, inosine I with C): the one table of it.
+COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G", "U": "A", "I": "C"}
 from dnarod.structure._data import data_file
 
 WATER = {"HOH", "WAT", "H2O", "DOD", "TIP", "TIP3", "TIP4", "SOL", "SPC", "T3P", "T4P"}

@@ -24,10 +24,9 @@ from dnarod.core.io import atomic_path
 from dnarod.structure._data import data_file
 from dnarod.structure.bpparams import base_frames_from_pair
 from dnarod.structure.frames import kabsch, standard_bases
-from dnarod.structure.reader import read_structure
+from dnarod.structure.reader import COMPLEMENT, read_structure
 
 BACKBONE_ORDER = ("P", "OP1", "OP2", "O5'", "C5'", "C4'", "O4'", "C3'", "O3'", "C2'", "C1'")
-COMPLEMENT = {"A": "T", "T": "A", "G": "C", "C": "G"}
 TEMPLATE = "str04"
 
 
@@ -82,7 +81,7 @@ def fibre_pair_parameters():
 def _check_sequence(sequence, n, what):
     seq = "".join(str(sequence).split()).upper()
     for i, ch in enumerate(seq):
-        if ch not in COMPLEMENT:
+        if ch not in "ACGT":
             raise StructureError(f"{what}: letter {ch!r} at position {i + 1} is not A, C, G or T")
     if len(seq) != n:
         raise StructureError(f"{what}: {len(seq)} letters for {n} base pairs")

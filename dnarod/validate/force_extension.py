@@ -73,7 +73,9 @@ def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_ever
     """One pulling run along z from ``start`` ("straight" or "coil"); returns the projected extension (nm) series."""
     from dnarod.core.forcefield import load_forcefield
     from dnarod.engines.lax import BoundaryConditions, SplittingIntegrator
+    from dnarod.engines.lax.engine import LaxEngine
     from dnarod.engines.lax.splitting import maxwell_state
+    from dnarod.run.sampling import SampleReporter, run_sampling
 
     model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
     if start == "coil":
@@ -83,15 +85,11 @@ def pull(n_bp, force_pn, temperature, dt, friction, t_equil, t_prod, sample_ever
     bc = BoundaryConditions(forces={0: -f, n_bp - 1: f})
     integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed), boundary=bc,
                                 temperature=temperature, friction=friction, seed=seed + 1, check_stability=False)
-    integ.step(int(round(t_equil / dt)))
     stride = max(1, int(round(sample_every / dt)))
     n_samp = int(round(t_prod / (stride * dt)))
-    ext = np.empty(n_samp)
-    for i in range(n_samp):
-        integ.step(stride)
-        p = integ.state.positions
-        ext[i] = (p[-1] - p[0]) @ axis
-    return ext
+    sampler = SampleReporter(("extension_nm",), stride, lambda p, f, snap: {"extension_nm": (p[-1] - p[0]) @ axis},
+                             start=stride * -(-int(round(t_equil / dt)) // stride), n_samples=n_samp)
+    return run_sampling(LaxEngine.wrap(integ, temperature, friction, seed + 1), sampler)["samples"]["extension_nm"]
 
 
 def _pull_star(args):

@@ -65,14 +65,12 @@ def frame_statistics(model, positions, frames, n_max):
 def sample_lax(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
     """Positions, frames (n_samples, n, ...) and kinetic temperatures (n_samples,) from the Lax-form BAOAB engine."""
     from dnarod.engines.lax import SplittingIntegrator
+    from dnarod.engines.lax.engine import LaxEngine
     from dnarod.engines.lax.splitting import maxwell_state
-    from dnarod.physics.thermal import kinetic_temperature
 
     integ = SplittingIntegrator(model, dt, state=maxwell_state(model, temperature, seed=seed),
                                 temperature=temperature, friction=friction, seed=seed + 1)
-    return _sample(integ.step, lambda: (integ.state.positions, integ.state.frames),
-                   lambda: kinetic_temperature(integ.kinetic_energy(), 6 * model.n_nodes),
-                   model.n_nodes, n_samples, stride, n_equil)
+    return _sample(LaxEngine.wrap(integ, temperature, friction, seed), n_samples, stride, n_equil)
 
 
 def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_equil):
@@ -80,22 +78,23 @@ def sample_openmm(model, temperature, dt, friction, n_samples, stride, seed, n_e
     from dnarod.engines.openmm.simulation import RodSimulation
 
     sim = RodSimulation.create(model, integrator="langevin", temperature=temperature, dt=dt, friction=friction,
-                        platform="CPU", nonbonded=False, seed=seed, threads=1)
-    return _sample(sim.advance, sim.node_pose, lambda: sim.energies()["temperature"],
-                   model.n_nodes, n_samples, stride, n_equil)
+                               platform="CPU", nonbonded=False, seed=seed, threads=1)
+    return _sample(sim, n_samples, stride, n_equil)
 
 
-def _sample(advance, pose, temperature, n, n_samples, stride, n_equil):
-    """Equilibrate, then record (positions, frames, kinetic temperature) every ``stride`` steps."""
-    advance(n_equil)
-    pos = np.empty((n_samples, n, 3))
-    frm = np.empty((n_samples, n, 3, 3))
-    tk = np.empty(n_samples)
-    for i in range(n_samples):
-        advance(stride)
-        pos[i], frm[i] = pose()
-        tk[i] = temperature()
-    return pos, frm, tk
+def _sample(engine, n_samples, stride, n_equil):
+    """Equilibrate (``n_equil`` steps, rounded up to whole strides), then record (positions, frames, kinetic
+    temperature) every ``stride`` steps, through the run layer (:func:`dnarod.run.sampling.run_sampling`)."""
+    from dnarod.run.sampling import SampleReporter, run_sampling
+
+    def observe(pos, frm, snapshot):
+        return {"positions": pos, "frames": frm, "temperature": snapshot.energies["temperature"]}
+
+    start = stride * -(-int(n_equil) // stride)
+    sampler = SampleReporter(("positions", "frames", "temperature"), stride, observe, start=start,
+                             n_samples=n_samples)
+    s = run_sampling(engine, sampler)["samples"]
+    return s["positions"], s["frames"], s["temperature"]
 
 
 def analyse(model, positions, frames, tkin, temperature, n_max, stiffness_scale=1.0):

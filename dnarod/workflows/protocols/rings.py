@@ -139,7 +139,7 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     n_eq = stride * int(math.ceil(eq / dt / stride))  # whole strides: samples on the schedule
     n_samp = max(min_samples, int(round(1000.0 * float(s["time_ns"]) / (stride * dt))))
 
-    def observe(pos, frm, step):
+    def observe(pos, frm, snapshot):
         tw, wr = twist(pos, frm[:, :, 0]), writhe(pos)
         row = {"Tw": tw, "Wr": wr, "Lk": tw + wr,
                "radius_of_gyration_nm": float(np.sqrt(((pos - pos.mean(axis=0)) ** 2).sum(axis=1).mean()))}

@@ -363,7 +363,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     sep_nm, contact_nm = detector_distances(member_nonbonded(s), float(s["temperature_K"]), model.ds)
     end = EndRotation(m["ref_frame"])
 
-    def observe(pos, frm, step):  # the start frame already carries the turns
+    def observe(pos, frm, snapshot):  # the start frame already carries the turns
         return observe_tweezers(pos, frm, model, m["turns"] + end.turns, m["clamp_target"], k_clamp, sep_nm,
                                 contact_nm)
 
