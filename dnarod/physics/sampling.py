@@ -55,7 +55,8 @@ def sample_chains(params: StepParameters, ds, kt, n_chains, rng, time_step=1.0):
     return Trajectory(np.arange(n_chains) * time_step, pos, frm, metadata={"source": "exact i.i.d. sample"})
 
 
-def tweezers_reference(model, temperature, force_pN, n_chains, rng, clamp_k=None, clamp_frame=None, batch=20000):
+def tweezers_reference(model, temperature, force_pN, n_chains, rng, clamp_k=None, clamp_frame=None, walls=None,
+                       batch=20000):
     """Exact equilibrium averages of a chain clamped at node 0 and pulled at its last node along the lab z axis
     (magnetic tweezers without walls), its last node optionally rotation-clamped: exact free-chain samples
     reweighted by ``exp((F z - E_clamp)/kT)``.
@@ -84,6 +85,12 @@ def tweezers_reference(model, temperature, force_pN, n_chains, rng, clamp_k=None
         Rotation-clamp stiffness, kJ/mol (None: the last node is torsionally free).
     clamp_frame : ndarray, shape (3, 3), optional
         The clamp's target frame.
+    walls : tuple, optional
+        ``(k, skip, offsets)``: the tweezers walls (:class:`dnarod.physics.loads.Walls`, stiffness k kJ/mol/nm^2)
+        on the points ``centre + L offsets[i]`` of each node (``offsets`` (m, 3) body-frame vectors, nm: the
+        engine's particles; ``np.zeros((1, 3))`` for the node centres): the surface (z of node 0) below the points
+        of nodes ``skip..n-1``, the bead plane (z of the last node) above the first point of nodes ``0..n-1-skip``,
+        each ``k/2 d^2`` on the penetration d; their energy joins the weights.
 
     Returns
     -------
@@ -114,6 +121,8 @@ def tweezers_reference(model, temperature, force_pN, n_chains, rng, clamp_k=None
             r += ds * np.einsum("bij,bj->bi", L, xi[:, k, 3:])
             L = L @ R[:, k]
         lw = beta * F * r[:, 2]
+        if walls is not None:
+            lw -= beta * _wall_energy(model, xi, R, walls)
         torque = np.zeros(b)
         if clamp_k is not None:
             S = L @ np.asarray(clamp_frame, float).T
@@ -134,3 +143,23 @@ def tweezers_reference(model, temperature, force_pN, n_chains, rng, clamp_k=None
         m = float(w @ x)
         out[name] = (m, float(np.sqrt(np.sum(w * w * (x - m) ** 2))))
     return out
+
+
+def _wall_energy(model, xi, R, walls):
+    """Energy (kJ/mol) of the tweezers walls for a batch of chains built from node 0's pose, shape (b,)."""
+    k, skip, offsets = float(walls[0]), int(walls[1]), np.atleast_2d(np.asarray(walls[2], float))
+    b, m = xi.shape[0], xi.shape[1]
+    n = m + 1
+    L = np.broadcast_to(model.frames[0], (b, 3, 3)).copy()
+    r = np.broadcast_to(model.positions[0], (b, 3)).copy()
+    z0 = float(model.positions[0, 2])
+    zp = np.empty((b, n, len(offsets)))  # z of each node's points
+    zp[:, 0] = r[:, 2:3] + np.einsum("bj,ij->bi", L[:, 2], offsets)
+    for j in range(m):
+        r += model.ds * np.einsum("bij,bj->bi", L, xi[:, j, 3:])
+        L = L @ R[:, j]
+        zp[:, j + 1] = r[:, 2:3] + np.einsum("bj,ij->bi", L[:, 2], offsets)
+    z_end = r[:, 2]
+    e = 0.5 * k * np.sum(np.minimum(0.0, zp[:, skip:] - z0) ** 2, axis=(1, 2))
+    e += 0.5 * k * np.sum(np.maximum(0.0, zp[:, :n - skip, 0] - z_end[:, None]) ** 2, axis=1)
+    return e
