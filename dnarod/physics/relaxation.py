@@ -93,7 +93,8 @@ def slowest_modes(model, loads=(), k=6, positions=None, frames=None, temperature
 
         w2 = scipy.linalg.eigvalsh(H.toarray())
     else:
-        w2 = eigsh(H, k=m, sigma=-0.5 * scale, which="LM", return_eigenvectors=False)
+        # a fixed start vector: ARPACK's default is random, and the modes must not change from run to run
+        w2 = eigsh(H, k=m, sigma=-0.5 * scale, which="LM", return_eigenvectors=False, v0=np.ones(nf))
     w2 = np.sort(w2)
     zero = np.abs(w2) < 1e-3 * scale  # rigid-body motions (numerically ~1e-10 of the largest eigenvalue)
     unstable = int(np.sum(w2 <= -1e-3 * scale))

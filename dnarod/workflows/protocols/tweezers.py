@@ -151,8 +151,10 @@ def mode_relaxation(model, loads, temperature, friction=None):
     from dnarod.physics.relaxation import decay_rate, slowest_modes
 
     w, unstable = slowest_modes(model, tuple(loads), k=2, temperature=temperature)
-    w1 = float(w[0])
-    fr = float(np.clip(2.0 * w1, *FRICTION_RANGE)) if friction is None else float(friction)
+    # six significant digits: eigensolvers differ in the last bits between processes and thread counts, and a
+    # member must run the same steps wherever it runs (bit-for-bit reproducible samples)
+    w1 = float(f"{float(w[0]):.6g}")
+    fr = float(f"{float(np.clip(2.0 * w1, *FRICTION_RANGE)):.6g}") if friction is None else float(friction)
     lam = float(decay_rate(w1, fr))
     return dict(friction_per_ps=fr, tau_ps=1.0 / lam if lam > 0 else float("inf"), omega_1=w1, n_unstable=unstable)
 
@@ -415,7 +417,7 @@ def summarize(samples, m, cost):
     has its autocorrelation error (``_err``), autocorrelation time (``_tau_ps``), effectively independent samples
     (``_n_eff``) and, where the member is too short for it, a flag (``_flag``; the production must also span
     :data:`dnarod.analysis.statistics.RELAXATION_TIMES_REQUIRED` relaxation times of the slowest normal mode of the
-    loaded chain). ``flags`` collects them.
+    loaded chain). ``flags`` joins those of the headline observables (one string, or None).
     """
     from dnarod.analysis.statistics import estimate
 
@@ -450,7 +452,7 @@ def summarize(samples, m, cost):
         res[c + "_n_eff"], res[c + "_flag"] = e.n_eff, e.flag
         if e.flag and c in TRANSIENT_COLUMNS:
             flags.append(e.flag)
-    res["flags"] = flags
+    res["flags"] = " | ".join(flags) or None  # one string: the ensemble keeps scalars per member
     samples = {k: np.asarray(v)[t0:] for k, v in samples.items()}
     slips = np.rint(np.asarray(samples["Lk"]) - m["lk0"] - np.asarray(samples["end_turns"]))
     res["lk_slips"] = int(np.abs(slips).max())  # nonzero: the chain passed through the closure (see measure)
