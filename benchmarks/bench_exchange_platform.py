@@ -3,7 +3,8 @@ protocol's choice so far) and on the Reference platform, in the same process, wi
 rounds of ``advance`` (one exchange interval), the bead-rotation read (``follow``) and one trial energy.
 
 Each platform runs the same members (1000 bp, 1 pN, WCA + Debye-Hueckel at 0.15 M, compiled plugin where built):
-one straight (0 turns) and one plectonemic (+3.6 turns, grown for ``--grow-ns`` at 0.3 pN, the ladder's start),
+one straight (0 turns) and one plectonemic (+3.6 turns, grown for ``--grow-ns`` at 0.3 pN: a member at that force
+whose final pose the +3.6-turn member starts from),
 from the same pose and seed. Reported per platform and member: wall and CPU seconds (user and system apart) per
 simulated ns, voluntary and involuntary context switches per round, and the potential energy of the start pose on
 both platforms (they must agree: the same System). The CPU platform runs its integrator on a worker thread even
@@ -61,13 +62,19 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=2, help="alternating CPU/Reference measurements per member")
     ap.add_argument("--out", default="benchmarks/results/exchange_platform.json")
     a = ap.parse_args(argv)
+    import tempfile
+
     from dnarod.workflows.protocols.exchange import ladder_dt
-    from dnarod.workflows.protocols.tweezers import build_member, grown_start
+    from dnarod.workflows.protocols.poses import FINAL_POSE, load_pose
+    from dnarod.workflows.protocols.tweezers import build_member, run_member
 
     base = dict(n_bp=a.n_bp, force_pN=1.0, time_ns=1.0, equilibration_ns=0.0, seed=7)
     members = {"straight 0 turns": build_member({**base, "turns": 0.0})}
     t0 = time.perf_counter()
-    members["plectoneme +3.6 turns"] = grown_start(build_member({**base, "turns": 3.6}), 0.3, a.grow_ns)
+    with tempfile.TemporaryDirectory() as tmp:  # the plectoneme grown at 0.3 pN (same turns), then its pose
+        run_member({**base, "turns": 3.6, "force_pN": 0.3, "equilibration_ns": a.grow_ns, "time_ns": 0.001}, tmp)
+        pose = load_pose(Path(tmp) / FINAL_POSE)
+    members["plectoneme +3.6 turns"] = build_member({**base, "turns": 3.6, "previous_turns": 3.6}, start_pose=pose)
     grow_s = time.perf_counter() - t0
     dt = ladder_dt(list(members.values()))
     rows = []

@@ -19,7 +19,7 @@ writes ``benchmarks/results/hat_1kbp_curve.json`` (the hat-curve study's recorde
     python benchmarks/bench_hat_1kbp.py --curve runs/hat_1kbp_1pN
 
 It reads both layouts: members of the ensemble (``DIR/ensemble/members``) and of a turn sweep
-(``--start sweep``: ``DIR/members``, whose start time is taken as the result's time less its wall time).
+(``research/turn_sweeps/turn_sweep.py``, or ``--start exchange``: ``DIR/members``, whose start time is taken as the result's time less its wall time).
 
     python benchmarks/bench_hat_1kbp.py --curve runs/hat1k_sweep --out benchmarks/results/hat_1kbp_sweep.json
 

@@ -10,7 +10,7 @@ On the CPU platform with one thread (OpenMM ``Threads=1``, numba one thread), dn
 each ``bonded`` (elastic only) and ``full`` (plus excluded volume and Debye-Hueckel, today's PythonForce
 kernel in both). Rates are node-steps per CPU-second of this process (``time.process_time``) and per wall
 second, best of interleaved repeats. Then a 1 kbp duplex through the run loop with ``dnarod simulate``'s default
-reporting (a frame and an energies row every 1 ps, a checkpoint every 10 frames), full model: ns/day for both
+reporting (a frame and an energies row every 1 ps, the default checkpoint schedule), full model: ns/day for both
 paths. Then the plugin on one and two threads (wall and CPU rates). ``--install`` also times a fresh
 ``python3 -m venv .venv && .venv/bin/pip install -q -e .`` of a copy of this tree (the plugin build included).
 
@@ -85,7 +85,7 @@ def sizes(ns, budget, repeats):
 def kbp(budget):
     """1 kbp duplex, 300 K, default dt, full model, through the run loop with ``dnarod simulate``'s defaults: the
     automatic platform choice without ``--threads`` (the single-threaded Reference platform), a frame and an
-    energies row every 1 ps, a checkpoint every 10 frames (:func:`dnarod.run.loop.simulate_engine`, as
+    energies row every 1 ps, the default checkpoint schedule (:func:`dnarod.run.loop.simulate_engine`, as
     :func:`dnarod.run.run` calls it)."""
     from dnarod.core.forcefield import load_forcefield
     from dnarod.engines.openmm.simulation import RodSimulation
@@ -105,11 +105,11 @@ def kbp(budget):
         n_steps = max(fi, int(budget / per_step) // fi * fi)
         with tempfile.TemporaryDirectory() as d:
             c0, t0 = time.process_time(), time.perf_counter()
-            s = simulate_engine(sim, sim.step + n_steps, d, frame_interval=fi, energy_interval=fi,
-                                checkpoint_interval=10 * fi)
+            s = simulate_engine(sim, sim.step + n_steps, d, frame_interval=fi, energy_interval=fi)
             cpu, wall = time.process_time() - c0, time.perf_counter() - t0
         ns = n_steps * sim.dt * 1e-3
-        out[path] = dict(platform=sim.platform_name, dt_ps=sim.dt, steps=n_steps, frame_interval_steps=fi, checkpoint_interval_steps=10 * fi,
+        out[path] = dict(platform=sim.platform_name, dt_ps=sim.dt, steps=n_steps, frame_interval_steps=fi,
+                         checkpoints=s.get("checkpoints"),
                          ns_per_day_wall=ns / wall * 86400, ns_per_day_bare_cpu=sim.dt * 1e-3 / bare_cpu * 86400,
                          ns_per_day_cpu=ns / cpu * 86400, wall_s=wall, cpu_s=cpu,
                          mean_temperature=float(np.mean(s["temperatures"])))

@@ -24,18 +24,18 @@ def chains(n_frames=6, n_steps=8, seed=0):
 def test_nan_frame_is_named():
     t = chains()
     t.positions[3, 5, 1] = np.nan
-    with pytest.raises(GeometryError, match=r"frame 3 .*node 5: position is not finite"):
+    with pytest.raises(GeometryError, match=r"frame 3 .*base pair 6: position is not finite"):
         StepAnalysis(t, 0.34)
     t = chains()
     t.frames[2, 4] = np.nan
-    with pytest.raises(GeometryError, match=r"frame 2 .*node 4: frame is not finite"):
+    with pytest.raises(GeometryError, match=r"frame 2 .*base pair 5: frame is not finite"):
         TangentCorrelation(t, 0.34)
 
 
 def test_non_orthonormal_frame_is_named():
     t = chains()
     t.frames[1, 2] *= 1.01
-    with pytest.raises(GeometryError, match=r"frame 1, node 2: frame is not orthonormal"):
+    with pytest.raises(GeometryError, match=r"frame 1, base pair 3: frame is not orthonormal"):
         StepAnalysis(t, 0.34)
 
 
@@ -123,7 +123,7 @@ def test_frame_strains_names_the_frame_with_a_rotation_beyond_pi():
     pos = np.repeat(m.positions[None], 4, 0)
     frm = np.repeat(m.frames[None], 4, 0)
     frm[2, 3] = frm[2, 2] @ rotation_about_axis(np.array([1.0, 0.0, 0.0]), np.pi)
-    with pytest.raises(GeometryError, match=r"trajectory frame 2: step 2"):
+    with pytest.raises(GeometryError, match=r"trajectory frame 2: step 3 \(base pairs 3-4\)"):
         frame_strains(pos, frm, m.ds)
     Om, Ga = frame_strains(pos[[0, 1, 3]], frm[[0, 1, 3]], m.ds)
     assert Om.shape == (3, 5, 3) and np.allclose(Om, m.params.Omega0) and np.allclose(Ga, m.params.Gamma0)

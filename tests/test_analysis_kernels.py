@@ -63,7 +63,7 @@ def test_step_analysis_table_round_trip(tmp_path):
     assert len(data) == 3 * 4
     assert list(np.unique(data["frame"])) == [1, 2, 3]
     f, k = 2, 3
-    row = data[(data["frame"] == f) & (data["step"] == k)][0]
+    row = data[(data["frame"] == f) & (data["step"] == k + 1)][0]  # steps numbered from 1, as `dnarod steps`
     p = step_parameters(t.frames[f, k], t.positions[f, k], t.frames[f, k + 1], t.positions[f, k + 1])
     assert abs(row["rise_A"] - 10 * p[2]) < 1e-6 and abs(row["twist_deg"] - np.degrees(p[5])) < 1e-5
     assert row["step_type"] == "TA"

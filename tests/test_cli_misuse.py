@@ -123,7 +123,7 @@ CASES = [
     ("torque-on-free-chain", ["simulate", SEQ, "--torque", "10", "-o", "{w}/n", *QUICK], ["--torque 10", "equilibrium"],
      None),
     ("bad-trap", ["simulate", SEQ, "--trap", "x", "-o", "{w}/n", *QUICK], ["--trap", "NODE:STIFFNESS"], None),
-    ("trap-node-missing", ["simulate", SEQ, "--trap", "99:5", "-o", "{w}/n", *QUICK], ["--trap", "node 99"], None),
+    ("trap-node-missing", ["simulate", SEQ, "--trap", "99:5", "-o", "{w}/n", *QUICK], ["--trap", "base pair 99"], None),
     ("lax-with-excluded-volume", ["simulate", SEQ, "--engine", "lax", "--excluded-volume", "-o", "{w}/n", *QUICK],
      ["lax engine", "excluded volume"], None),
     ("minimize-and-equilibrium", ["simulate", SEQ, "--minimize", "--equilibrium", "-o", "{w}/n", *QUICK],

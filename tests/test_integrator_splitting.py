@@ -220,7 +220,7 @@ def test_nan_mid_run_names_step_and_node(rod20):
         integ.step(10)
     assert exc.value.step == 11
     assert exc.value.node in (6, 7)
-    assert "step 11" in str(exc.value) and f"node {exc.value.node}" in str(exc.value)
+    assert "step 11" in str(exc.value) and f"base pair {exc.value.node + 1}" in str(exc.value)
 
 
 def test_bad_parameters():

@@ -95,8 +95,8 @@ CASES = [
                                                                              "process", "pid"], _hold_lock),
     ("overwrite-folder-in-use", ["lax-run", SEQ, "-o", "{w}/busy", "--overwrite", *LAX[2:]], ["in use"], _hold_lock),
     # duplicate list entries
-    ("trap-twice-on-one-node", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--trap", "0:5", "--trap", "-10:3"],
-     ["--trap '-10:3'", "node 0 already has a trap"], None),
+    ("trap-twice-on-one-node", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--trap", "1:5", "--trap", "-10:3"],
+     ["--trap '-10:3'", "base pair 1 already has a trap"], None),
     ("protocol-turns-repeated", ["protocol", "hat", "--source", "40", "--turns", "0,0", *PROTO],
      ["--turns", "repeated values"], None),
     ("protocol-forces-repeated", ["protocol", "force-extension", "--source", "40", "--force", "1,1.0", *PROTO],
@@ -120,7 +120,7 @@ CASES = [
     ("ignore-and-map", ["pairs", str(PDB), "--ignore", "SPM", "--map", "SPM=A"], ["--ignore SPM", "--map"], None),
     # analyze: a refusal found while analysing used to follow a line already printed on stdout
     ("analyze-single-structure", ["analyze", str(PDB), "-o", "{w}/n", "--no-plots"],
-     ["355D.pdb", "1 frame(s) x 9 steps", "dnarod steps"], None),
+     ["355D.pdb", "a single frame (one structure)", "dnarod steps"], None),
     ("analyze-truncated-trajectory", ["analyze", "{w}/t.dtraj", "-o", "{w}/n", "--no-plots"],
      ["t.dtraj", "no complete frame", "truncated"], None),
     ("analyze-rna", ["analyze", "{w}/rna.pdb", "-o", "{w}/n", "--no-plots"], ["rna.pdb", "other than A, C, G, T"],
@@ -137,8 +137,9 @@ CASES = [
      ["--time (time_ns)", "more than 10000 ns"], None),
     ("protocol-equilibration-huge", ["protocol", "rings", "--delta-lk", "0", "--source", "40", *PROTO,
                                      "--equilibration", "1e12"], ["--equilibration", "more than 10000 ns"], None),
-    ("protocol-settle-huge", ["protocol", "hat", "--turns", "0", "--source", "40", "--start", "sweep", "--settle",
-                              "1e9", *PROTO], ["--settle 1e+09", "10000 ns"], None),
+    # the turn-sweep starts left the product (research/turn_sweeps): refused as an unknown choice
+    ("protocol-start-sweep-unknown", ["protocol", "hat", "--turns", "0", "--source", "40", "--start", "sweep", *PROTO],
+     ["--start", "'sweep' is not one of 'static', 'exchange'"], None),
     # a load so stiff it sets the time step (it used to be blamed on --time/--dt)
     ("rotation-clamp-huge", ["simulate", SEQ, "-o", "{w}/n", *LAX, "--clamp-first", "--rotation-clamp", "1e300"],
      ["--rotation-clamp 1e+300", "use at most"], None),
@@ -176,7 +177,7 @@ CASES = [
     ("ensemble-binary-fasta", ["ensemble", "{w}/fasta_binary.toml", "-o", "{w}/n", "--workers", "0"],
      ["binary.fa", "not a FASTA text file"], None),
     ("ensemble-protocol-without-hooks", ["ensemble", "{w}/not_a_protocol.toml", "-o", "{w}/n", "--workers", "0"],
-     ["os:getcwd", "none of build, reduce, execute"], None),
+     ["os:getcwd", "not a registered name", "known protocols"], None),
 ]
 
 

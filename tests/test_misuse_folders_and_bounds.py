@@ -127,12 +127,13 @@ def _invoke(args):
 
 
 # ---------------------------------------------------------------------------------------------------------
-# 1. validate: a report is replaced only with --overwrite; the buckling members are kept and reused
+# 1. validate: a report is replaced only with --overwrite
 def test_validate_report_is_replaced_only_with_overwrite_and_members_are_kept(tmp_path, monkeypatch):
     """A stub check (no simulation) writes a plot named after its call; the second run is refused without
     --overwrite and changes nothing, with it the report is the new one, the old plot that the new report does not
-    list is gone, and the members folder of check buckling is untouched. A folder holding only members (an
-    interrupted buckling validation) is run into without --overwrite."""
+    list is gone, and a folder of the report's that it does not list is untouched. A non-empty folder that holds
+    no report (e.g. only the members of the buckling check, which left the product for research/buckling/check)
+    is refused."""
     from dnarod import validate as V
 
     calls = []
@@ -147,7 +148,7 @@ def test_validate_report_is_replaced_only_with_overwrite_and_members_are_kept(tm
     out = tmp_path / "rep"
     args = ["validate", "--only", "helix", "-o", out]
     assert _invoke(args).exit_code == 0
-    members = out / "buckling_members" / "m1"
+    members = out / "members_kept" / "m1"
     members.mkdir(parents=True)
     (members / "result.json").write_text("{}\n")
     first = json.loads((out / "results.json").read_text())
@@ -161,11 +162,12 @@ def test_validate_report_is_replaced_only_with_overwrite_and_members_are_kept(tm
     assert not (out / "plot1.png").exists() and (out / "plot2.png").exists()
     assert (members / "result.json").read_text() == "{}\n"
     assert not (out / LOCK_NAME).exists()
-    # an interrupted buckling validation: only its members; run into again without --overwrite
+    # a folder holding only members of the buckling check (no report): not a report folder, refused
     again = tmp_path / "interrupted"
     (again / "buckling_members" / "m1").mkdir(parents=True)
-    assert _invoke(["validate", "--only", "helix", "-o", again]).exit_code == 0
-    assert (again / "results.json").exists() and (again / "buckling_members" / "m1").is_dir()
+    r = _invoke(["validate", "--only", "helix", "-o", again])
+    assert r.exit_code == 2 and "buckling_members" in r.stderr and len(calls) == 2, r.output
+    assert not (again / "results.json").exists()
 
 
 # ---------------------------------------------------------------------------------------------------------

@@ -29,13 +29,13 @@ def test_model_save_load_round_trip(tmp_path, model):
 def test_model_rejects_bad_input(tmp_path, model):
     with pytest.raises(ParameterError, match="has 11 steps, but the parameters have 10"):
         RodModel(model.positions, model.frames, model.params[:10], model.ds, model.mass, model.inertia)
-    with pytest.raises(ParameterError, match="node 3: mass must be positive"):
+    with pytest.raises(ParameterError, match="base pair 4: mass must be positive"):
         m = model.mass.copy()
         m[3] = -1
         RodModel(model.positions, model.frames, model.params, model.ds, m, model.inertia)
     pos = model.positions.copy()
     pos[4, 1] = np.nan
-    with pytest.raises(GeometryError, match="node 4: position is not finite"):
+    with pytest.raises(GeometryError, match="base pair 5: position is not finite"):
         model.with_pose(pos, model.frames)
     (tmp_path / "junk.npz").write_bytes(b"not a zip")
     with pytest.raises(ParameterError, match="junk.npz: cannot read dnarod model file"):

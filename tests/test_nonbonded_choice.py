@@ -126,15 +126,6 @@ def test_protocol_runs_members_with_the_chosen_charge(tmp_path):
     assert nb["cutoff_debye"] == 5.0 and nb["cutoff_nm"] == pytest.approx(3.94, abs=0.01)
 
 
-def test_report_says_which_P_the_buckling_check_used():
-    from dnarod.validate.report import _p_label
-
-    assert _p_label({"P_source": "closed rings of 600 and 1200 bp at sigma -0.0500: P_b = C (1 - ...)"}) \
-        == "P_b (ring pair)"
-    assert _p_label({"P_source": "closed ring 400 bp at sigma -0.0500: writhe fraction 0.6"}) == "P (single ring)"
-    assert _p_label({"P_source": "given"}) == "P (given)"
-
-
 def test_protocol_rows_through_the_ensemble_carry_the_nonbonded_record_as_scalars(tmp_path):
     """The ensemble keeps scalars per member: the members' nested non-bonded record becomes
     ``nonbonded_<key>`` columns (a nested dict failed every member of a tweezers or ring curve run on dask)."""

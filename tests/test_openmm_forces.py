@@ -191,7 +191,7 @@ def test_loads_spread_over_particles_give_the_totals():
 
 
 def test_unrealisable_inertia_is_rejected():
-    with pytest.raises(ParameterError, match="node 1: inertia"):
+    with pytest.raises(ParameterError, match="base pair 2: inertia"):
         P.triangle_radius([650, 650], [[117, 117, 234], [117, 117, 300]])
     with pytest.raises(ParameterError, match="J1 == J2"):
         P.triangle_radius([650], [[100, 117, 217]])

@@ -394,3 +394,18 @@ def test_nve_converges_to_the_exact_lax_reference(ff):
     assert errs[1][0] < 2e-5 and errs[1][1] < 5e-5 and errs[1][3] < 1e-3
     for a, b in zip(*errs):
         assert 3.5 < a / b < 4.5  # second order
+
+
+def test_blow_up_located_at_the_same_step_over_short_advances(ff):
+    """The compiled path keeps its rollback state over several short advances (a run loop's reports): a
+    blow-up is replayed from there and named at the same first bad step as when every step is checked."""
+    m = ff.model_from_sequence("ACGTACGTACGTACGTACGT")
+    strong = PullingForce(-1, [0.0, 0.0, 2e3])  # kJ/mol/nm: blows up after some hundred steps (NVE: deterministic)
+    found = []
+    for chunk in (1, 7):
+        sim = RodSimulation.create(m, integrator="verlet", temperature=0, nonbonded=False, loads=[strong], dt=0.05)
+        with pytest.raises(SimulationError) as err:
+            for _ in range(3000 // chunk):
+                sim.advance(chunk)
+        found.append((err.value.step, err.value.node, err.value.term))
+    assert found[0][0] > 100 and found[0][0] % 7 != 0 and found[0] == found[1]

@@ -56,7 +56,7 @@ def test_rotation_at_pi_is_rejected_naming_the_step():
     pos, frm, _, ds = random_chain(0, n=5)
     frm = frm.copy()
     frm[3] = frm[2] @ rotation_about_axis(np.array([0.0, 0.0, 1.0]), np.pi)
-    with pytest.raises(GeometryError, match=r"step 2.*180"):
+    with pytest.raises(GeometryError, match=r"step 3 \(base pairs 3-4\).*180"):
         strains(pos, frm, ds)
 
 
@@ -64,15 +64,15 @@ def test_bad_frames_are_named():
     frm = np.tile(np.eye(3), (4, 1, 1))
     bad = frm.copy()
     bad[2] = np.diag([1.0, 1.0, -1.0])
-    with pytest.raises(GeometryError, match="node 2.*left-handed"):
+    with pytest.raises(GeometryError, match="base pair 3.*left-handed"):
         check_frames(bad)
     bad = frm.copy()
     bad[1] *= 1.01
-    with pytest.raises(GeometryError, match="node 1.*not orthonormal"):
+    with pytest.raises(GeometryError, match="base pair 2.*not orthonormal"):
         check_frames(bad)
     bad = frm.copy()
     bad[3, 0, 0] = np.nan
-    with pytest.raises(GeometryError, match="node 3.*non-finite"):
+    with pytest.raises(GeometryError, match="base pair 4.*non-finite"):
         check_frames(bad)
 
 

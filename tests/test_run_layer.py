@@ -158,3 +158,101 @@ def test_run_killed_after_its_last_checkpoint_gets_its_final_model_on_resume(tmp
     assert done.summary["already_done"]
     got = RodModel.load(final)
     assert np.array_equal(got.positions, want.positions) and np.array_equal(got.frames, want.frames)
+
+
+def _interrupt_at(monkeypatch, step):
+    """Make the run's engine send this process a Ctrl-C (SIGINT) once it has advanced to ``step``."""
+    import os
+    import signal
+
+    import dnarod.run.api as api
+
+    make = api.make_engine
+
+    def make_interrupted(*a, **k):
+        eng = make(*a, **k)
+        advance = eng.advance
+
+        def advance_then_interrupt(n):
+            advance(n)
+            if eng.step == step:
+                os.kill(os.getpid(), signal.SIGINT)
+
+        eng.advance = advance_then_interrupt
+        return eng
+
+    monkeypatch.setattr(api, "make_engine", make_interrupted)
+
+
+@pytest.mark.parametrize("engine", ["openmm", "lax"])
+def test_ctrl_c_checkpoints_and_resume_is_bit_for_bit(tmp_path, engine, monkeypatch):
+    """By default checkpoints follow wall time (none in a short run but the last); a Ctrl-C stops the loop at
+    the step it reached, writes a checkpoint there and raises KeyboardInterrupt; the resumed run is the
+    uninterrupted one, bit for bit."""
+    base = {k: v for k, v in BASE.items() if k != "checkpoint_interval_ps"}
+    spec = RunSpec(engine=engine, time_ns=0.004, temperature=300.0, friction=1.0, velocities=True, export=False,
+                   **{**base, "platform": None if engine == "lax" else "Reference"})
+    assert spec.checkpoint_interval_ps is None and spec.checkpoint_wall_s > 0
+    run(spec, tmp_path / "full", progress=False)
+    with monkeypatch.context() as mp:
+        _interrupt_at(mp, 70)  # between frames (every 10 steps): the loop stops at a report step
+        with pytest.raises(KeyboardInterrupt):
+            run(spec, tmp_path / "part", progress=False)
+    from dnarod.core.io import read_checkpoint
+    from dnarod.run.api import CHECKPOINT_FORMATS
+
+    meta, _ = read_checkpoint(tmp_path / "part" / "checkpoint.npz", CHECKPOINT_FORMATS[engine], ())
+    assert meta["step"] == 70
+    assert load_trajectory(tmp_path / "part" / "trajectory.dtraj").step[-1] == 70
+    res = run(spec, tmp_path / "part", resume=True, progress=False)
+    assert res.resumed_from == 70 and res.summary["steps"] == 200
+    a, b = (load_trajectory(tmp_path / d / "trajectory.dtraj") for d in ("full", "part"))
+    assert list(b.step) == list(range(0, 201, 10))
+    for name in ("positions", "frames", "velocities", "angular_velocities"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert (tmp_path / "full" / "energies.csv").read_bytes() == (tmp_path / "part" / "energies.csv").read_bytes()
+
+
+def test_checkpoints_by_wall_time(tmp_path):
+    """The wall-time schedule: with a tiny interval a checkpoint follows every report, with 0 only the last;
+    an explicit checkpoint_interval (steps) overrides it; each checkpoint resumes to the same run."""
+    import time
+
+    from dnarod.engines.lax.engine import LaxEngine
+    from dnarod.run import simulate_engine
+
+    m = load_forcefield("dna-default").model_from_sequence(SEQ)
+    new = lambda: LaxEngine(m, 0.02, 300.0, 1.0, 5, (), None, None)  # noqa: E731
+    counts = {}
+    for name, kw in (("tiny", dict(checkpoint_wall_s=1e-9)), ("end", dict(checkpoint_wall_s=0)),
+                     ("default", {}), ("steps", dict(checkpoint_interval=30, checkpoint_wall_s=1e-9))):
+        out = simulate_engine(new(), 100, tmp_path / name, frame_interval=10, **kw)
+        counts[name] = out["checkpoints"]
+    # 10 reports after the start: 9 in-between checkpoints and the last; steps 30, 60, 90 and the last
+    assert counts == {"tiny": 10, "end": 1, "default": 1, "steps": 4}
+
+    # a run slower than its wall interval: checkpoints in between, each at a report step
+    class Slow(LaxEngine):
+        def advance(self, n):
+            super().advance(n)
+            time.sleep(0.02)
+
+    saved = []
+    eng = Slow(m, 0.02, 300.0, 1.0, 5, (), None, None)
+    save = eng.save_checkpoint
+    eng.save_checkpoint = lambda path, extra=None: (saved.append(eng.step), save(path, extra=extra))
+    simulate_engine(eng, 100, tmp_path / "slow", frame_interval=10, checkpoint_wall_s=0.05)
+    assert 2 <= len(saved) <= 6 and saved[-1] == 100 and all(s % 10 == 0 for s in saved)
+    # without reporters the loop advances in chunks sized by the measured rate to the next checkpoint
+    from dnarod.run.loop import run_engine
+
+    class SlowSteps(LaxEngine):
+        def advance(self, n):
+            super().advance(n)
+            time.sleep(0.001 * n)
+
+    out = run_engine(SlowSteps(m, 0.02, 300.0, 1.0, 5, (), None, None), 200, (), tmp_path / "c.npz",
+                     checkpoint_wall_s=0.05)
+    assert out["steps"] == 200 and 2 <= out["checkpoints"] <= 8
+    with pytest.raises(ParameterError, match="--checkpoint-wall"):
+        RunSpec(source=SEQ, checkpoint_wall_s=-1).check()

@@ -215,5 +215,5 @@ def test_run_check_numbers_steps_from_one_without_a_wrong_hint():
     with pytest.raises(ParameterError) as exc:
         check_start_pose(m, 300.0)
     msg = str(exc.value)
-    assert msg.startswith("step 6 of this 12-node chain (steps numbered from 1)")
-    assert "use a longer chain" not in msg and "a longer chain does not help" in msg
+    assert msg.startswith("step 6 (base pairs 6-7) of this 12-node chain")
+    assert "use a longer chain" not in msg and "not cured by a longer chain" in msg

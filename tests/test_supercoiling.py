@@ -1,5 +1,6 @@
 """Supercoiling theory (two-phase model, effective diameter, nicked-ring twist variance), the worm-like-ring Monte
-Carlo reference, soft-twist nicked rings, and the validate checks buckling / plectonemes / nicked_ring.
+Carlo reference, soft-twist nicked rings, and the validate checks plectonemes / nicked_ring (the buckling check's
+tests moved with it to research/buckling/check/tests).
 
 The check-level tests in the default run use recorded members (tests/data/supercoil: the protocol_result.json and
 samples.csv that the members wrote when the checks were run; the checks reuse a member whose settings match) so
@@ -50,35 +51,6 @@ def test_two_phase_torque_is_the_common_tangent():
     assert abs(th.marko_two_phase(A, Cs / 2, P, f, KT, L)["torque_pN_nm"] - r["torque_pN_nm"]) > 5.0
 
 
-def test_two_phase_with_a_measured_equation_of_state():
-    """A linear plectoneme equation of state (one point, tau = kT P Omega) gives Marko's closed form exactly; a
-    phase stiffer at low linking density (a second point with larger P below) raises the plateau; points whose
-    torque falls as the density rises are refused."""
-    from dnarod.core.errors import DnarodError
-    from dnarod.physics.theory.supercoil import marko_two_phase, two_phase_from_plectoneme_eos
-
-    kt, A, Cs, P = 4.1419, 50.0, 84.24, 19.77
-    m = marko_two_phase(A, Cs, P, 1.0, kt, 203.7)
-    e = two_phase_from_plectoneme_eos([0.135], [kt * P * 0.135], A, Cs, 1.0, kt, 203.7)
-    assert e["torque_pN_nm"] == pytest.approx(m["torque_pN_nm"], rel=1e-9)
-    assert e["omega_p"] == pytest.approx(m["omega_p"], rel=1e-9) and e["extrapolated"]
-    stiff = two_phase_from_plectoneme_eos([0.03, 0.135], [kt * 40.0 * 0.03, kt * P * 0.135], A, Cs, 1.0, kt, 203.7)
-    assert stiff["torque_pN_nm"] > m["torque_pN_nm"] + 1.0
-    with pytest.raises(DnarodError, match="increase together"):
-        two_phase_from_plectoneme_eos([0.03, 0.135], [6.0, 5.0], A, Cs, 1.0, kt, 203.7)
-
-
-def test_ring_pair_bulk_torque_is_kT_P_b_Omega():
-    """The pair's bulk torque equals kT P_b Omega with P_b from plectoneme_P_from_ring_pair (the same rings)."""
-    from dnarod.physics.theory.supercoil import plectoneme_P_from_ring_pair, ring_pair_bulk_torque
-
-    kt, C = 4.1419, 98.25
-    om, tau, se = ring_pair_bulk_torque(-1.924, -2.923, 136.0, -4.267, -5.856, 272.0, C, kt, 0.013, 0.017)
-    P, P_se = plectoneme_P_from_ring_pair(-1.924, -2.923, -4.267, -5.856, C, 0.013, 0.017)
-    assert om == pytest.approx(2 * np.pi * 2.933 / 136.0)
-    assert tau == pytest.approx(kt * P * om, rel=1e-9) and se == pytest.approx(kt * P_se * om, rel=1e-9)
-
-
 def test_position_entropy_torque_shift_minimises_the_free_energy():
     """kT / (L_s (Omega_p - Omega_s)) against a direct minimisation of L_s phi_s + L_p phi_p - kT ln L_s over the
     extended length at fixed linking number (quadratic phases, Marko's constants): the torque of the minimum
@@ -119,27 +91,6 @@ def test_exact_worm_like_chain_free_energy():
     assert g1 / g0 - 1 == pytest.approx(0.0297, abs=0.001)
     ex, lead = (th.marko_two_phase(A, 84.3, 17.3, 1.0, KT, 200.0, exact_wlc=e)["torque_pN_nm"] for e in (True, False))
     assert ex / lead - 1 == pytest.approx(0.0147, abs=0.001)
-
-
-def test_block_standard_error_sees_a_slow_mode():
-    """Fast noise plus a slow small-amplitude mode: the blocked error finds the slow part that the
-    autocorrelation-time window misses."""
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
-    from dnarod.validate.buckling import block_standard_error
-
-    rng = np.random.default_rng(1)
-    n, tau_slow = 4000, 60.0
-    a = math.exp(-1 / tau_slow)
-    slow = np.zeros(n)
-    for i in range(1, n):
-        slow[i] = a * slow[i - 1] + math.sqrt(1 - a * a) * rng.normal()
-    x = 3.0 * rng.normal(size=n) + 0.5 * slow
-    exact = math.sqrt((9.0 + 0.25 * (1 + a) / (1 - a)) / n)  # large-n SE of the mean
-    blocked = block_standard_error(x)
-    tau = integrated_autocorrelation_time(x)
-    naive = x.std(ddof=1) * math.sqrt(2 * tau / n)
-    assert blocked == pytest.approx(exact, rel=0.3)
-    assert naive < 0.8 * exact
 
 
 def test_bulk_P_from_a_ring_pair_cancels_the_end_loops():
@@ -292,36 +243,6 @@ def _recorded(tmp_path, name):
     return dst
 
 
-def test_buckling_check_against_marko_with_recorded_members(tmp_path, monkeypatch):
-    """600 bp at 1 pN, recorded members of 6 ns (Manning's charge): the Marko comparison passes with the model's C
-    and fails with C halved; the members are reused, not rerun.
-
-    These members decide the comparison's logic only: analysed from their equilibration start (Chodera's rule on
-    the extension) the 4.28-turn member still drifts (6 ns is far too short), so the check as a whole fails on
-    them; the calibrated-charge members below pass it.
-    """
-    from dnarod.validate.buckling import check_buckling
-
-    import dnarod.workflows.protocols.rings as rings
-    import dnarod.workflows.protocols.tweezers as tweezers
-
-    def refuse(*a, **k):
-        raise AssertionError("a recorded member was simulated again instead of reused")
-
-    monkeypatch.setattr(tweezers, "sample_member", refuse)  # the check must reuse every recorded member
-    monkeypatch.setattr(rings, "sample_ring", refuse)
-    root = _recorded(tmp_path, "buckling_600bp")
-    opts = dict(plots=False, member_root=root, time_ns=6.0, pre_turns=1.141, post_turns=(4.2786, 5.5907),
-                ring_n_bp=600, ring_delta_lk=-3, ring_time_ns=10.0, bracket=False, ring_pair=False,
-                # the recorded members' settings (one ring: logic only; run on the CPU platform, one thread)
-                nonbonded=dict(charge="manning", cutoff_debye=5.0), platform="CPU")
-    good = check_buckling(tmp_path, **opts)
-    assert good["marko"]["passed"] and not good["drift"]["settled"] and not good["passed"], good
-    bad = check_buckling(tmp_path, **opts,
-                         c_override=0.5 * good["marko"]["twist_persistence_nm"])
-    assert not bad["marko"]["passed"] and not bad["passed"]
-
-
 def test_soft_pair_energy_of_the_ring_reference():
     """The MC's soft pair energy between moved and unmoved segments equals the model's pair energy summed over
     the same site pairs (numpy, :func:`dnarod.physics.nonbonded.pair_energy`), exclusions included."""
@@ -431,30 +352,3 @@ def test_nicked_ring_check_quick_form(tmp_path):
                             harmonic_samples=0)
     assert not bad["passed"]
 
-
-def test_buckling_full_check_passes_on_recorded_calibrated_members(tmp_path, monkeypatch):
-    """The full form with the calibrated charge and the check's defaults (600 bp at 1 pN, 300-ns straight and
-    "above" twins at 2.57 and 3.59 turns, a 400/800-bp ring pair; research/buckling/r7): recorded members, reused
-    (nothing is simulated). The check passes; it fails with C halved, and the plain two-phase plateau (without the
-    single-plectoneme position entropy) misses by 1.36 pN nm against a tolerance of 1.09."""
-    import dnarod.workflows.protocols.rings as rings
-    import dnarod.workflows.protocols.tweezers as tweezers
-    from dnarod.validate.buckling import check_buckling
-
-    def refuse(*a, **k):
-        raise AssertionError("a recorded member was simulated again instead of reused")
-
-    monkeypatch.setattr(tweezers, "sample_member", refuse)
-    monkeypatch.setattr(rings, "sample_ring", refuse)
-    root = _recorded(tmp_path, "buckling_calibrated")
-    opts = dict(plots=False, member_root=root, ring_seed=7, platform="CPU")  # recorded on the CPU platform
-    good = check_buckling(tmp_path, **opts)
-    assert good["passed"] and good["drift"]["settled"] and good["ring_pair_premise"]["passed"], good["gates"]
-    mk = good["marko"]
-    assert mk["P_nm"] == pytest.approx(19.77, abs=0.01) and mk["torque_pN_nm"] == pytest.approx(12.53, abs=0.01)
-    assert good["plateau"]["mean_torque_pN_nm"] == pytest.approx(13.88, abs=0.01)
-    assert not mk["plain_passed"] and abs(mk["residual_pN_nm"]) < mk["tolerance_pN_nm"]
-    assert [b["agree"] for b in good["brackets"]] == [True, True]
-    bad = check_buckling(tmp_path, c_override=0.5 * mk["twist_persistence_nm"], **opts)
-    assert not bad["marko"]["passed"] and not bad["passed"]
-    assert not bad["pre_buckling"]["passed"]  # the quick form's gate: the pre-buckling law fails with C halved too

@@ -64,7 +64,7 @@ def check_trajectory(traj, check_spacing=True, atol=1e-6):
         bad = ~np.isfinite(arr.reshape(traj.n_frames, traj.n_nodes, -1)).all(axis=2)
         if bad.any():
             f, k = (int(i) for i in np.argwhere(bad)[0])
-            raise GeometryError(f"trajectory frame {f} (time {traj.time[f]:g} ps), node {k}: {name} is not finite "
+            raise GeometryError(f"trajectory frame {f} (time {traj.time[f]:g} ps), base pair {k + 1}: {name} is not finite "
                                 f"({int(bad.sum())} bad node poses in {int(bad.any(axis=1).sum())} frames); "
                                 f"the run that wrote it blew up or the file is corrupt; analyse the frames "
                                 f"before it with stop={f}")
@@ -72,12 +72,12 @@ def check_trajectory(traj, check_spacing=True, atol=1e-6):
     err = np.abs(np.swapaxes(F, -1, -2) @ F - np.eye(3)).max(axis=(-1, -2))
     if (err > atol).any():
         f, k = (int(i) for i in np.argwhere(err > atol)[0])
-        raise GeometryError(f"trajectory frame {f}, node {k}: frame is not orthonormal "
+        raise GeometryError(f"trajectory frame {f}, base pair {k + 1}: frame is not orthonormal "
                             f"(max |F^T F - I| = {err[f, k]:.2e} > {atol:g})")
     det = np.linalg.det(F)
     if (det < 0).any():
         f, k = (int(i) for i in np.argwhere(det < 0)[0])
-        raise GeometryError(f"trajectory frame {f}, node {k}: frame is left-handed (det = {det[f, k]:.3f})")
+        raise GeometryError(f"trajectory frame {f}, base pair {k + 1}: frame is left-handed (det = {det[f, k]:.3f})")
     if check_spacing and traj.n_frames > 2:
         dt = np.diff(traj.time)
         if (dt <= 0).any():

@@ -56,7 +56,7 @@ def plot_strain_distributions(xi, path, mean=None, cov=None, title="strain distr
 
 def plot_tangent_correlation(lags, correlation, error, ds, path, persistence_length=None, exact=None,
                              title="tangent correlation"):
-    """``<d3(k) . d3(k+n)>`` against contour distance ``n ds`` (log scale).
+    """``<d3(k)·d3(k+n)>`` against contour distance ``n ds`` (log scale).
 
     Parameters
     ----------

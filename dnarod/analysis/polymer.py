@@ -1,7 +1,7 @@
 """Polymer observables: tangent correlations and persistence length, end-to-end distance,
 and for closed (circular) chains the linking number, twist and writhe.
 
-Tangent correlation ``C(n) = <d3(k) . d3(k+n)>`` is averaged over frames and positions k;
+Tangent correlation ``C(n) = <d3(k)·d3(k+n)>`` is averaged over frames and positions k;
 for an open chain in equilibrium it is exactly ``(<R>^n)_33`` (docs/formulation.md §8) and for an
 axisymmetric step ``c^n``, so the discrete persistence length is ``l_p = -ds / ln c``; it is
 fitted as ``ln C(n) = -n ds / l_p`` by least squares through the origin. Error bars of the means over frames come
@@ -21,7 +21,7 @@ from dnarod.physics.writhe import linking_number, twist, writhe
 
 
 def tangent_correlation_frames(d3, n_max, circular=False):
-    """Per-frame tangent correlation ``C_f(n) = mean_k d3(k) . d3(k+n)``.
+    """Per-frame tangent correlation ``C_f(n) = mean_k d3(k)·d3(k+n)``.
 
     Parameters
     ----------
@@ -71,7 +71,7 @@ def fit_persistence_length(correlation, ds, min_correlation=0.1):
 
 
 class TangentCorrelation(AnalysisBase):
-    """Tangent correlation ``<d3(k) . d3(k+n)>`` and the persistence length.
+    """Tangent correlation ``<d3(k)·d3(k+n)>`` and the persistence length.
 
     Parameters
     ----------

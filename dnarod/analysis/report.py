@@ -225,12 +225,6 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
         The summary written to ``OUT/summary.json``.
     """
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.core.stepparams import to_angstrom_degrees
-    from dnarod.physics.thermal import exact_tangent_correlation
-    from dnarod.core.units import kT as thermal_kT
-    from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
-    from dnarod.analysis.steps import StepAnalysis
-    from dnarod.analysis.stiffness import StiffnessFit
 
     _check_arguments(input_path, temperature, start, stop, step, exclude_ends, n_blocks, duplex)
     out = Path(out) if out else Path(input_path).with_name(Path(input_path).stem + "_analysis")
@@ -256,8 +250,6 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     if circular and closure is None:
         from dnarod.core.strains import Closure
         closure = Closure.identity()
-    is_ring = closure is not None
-    ds = model.ds if model is not None else ff.ds
     seq = (model.sequence if model is not None else None) or traj.metadata.get("sequence") or None
     if seq is not None and len(seq) != traj.n_nodes:
         seq = None
@@ -266,6 +258,11 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
         raise DnarodError(f"{input_path}: strand I {seq[:40]}{'...' if len(seq) > 40 else ''} has bases other than "
                           f"A, C, G, T ({', '.join(bad)}: RNA or unmapped modified bases); the step analysis and its "
                           f"force-field comparison are for DNA duplexes")
+    if traj.n_frames == 1:  # a fit, a persistence length and their error bars from one frame would be noise
+        sel = "" if start is None and stop is None and step is None else " left by --start/--stop/--step"
+        raise DnarodError(f"{input_path}: a single frame{sel} (one structure): the stiffness, the persistence length "
+                          f"and their error bars need a trajectory of many frames; `dnarod steps {input_path}` gives "
+                          f"the step parameters of one structure")
     from dnarod.analysis.stiffness import MIN_SAMPLES
 
     n_used = n_steps + (1 if closed else 0) - (0 if closed else 2 * ends_asked)
@@ -273,8 +270,36 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
         raise DnarodError(f"{input_path}: {traj.n_frames} frame(s) x {n_used} steps = {traj.n_frames * n_used} "
                           f"step samples; the stiffness fit needs at least {MIN_SAMPLES}: analyse more frames (a "
                           f"single structure is one frame; `dnarod steps` gives its step parameters)")
-    for p in stale:  # overwrite: the old report's files go once the input has been read
-        p.unlink(missing_ok=True)
+    import contextlib
+
+    from dnarod.core.io import folder_lock, staged_folder
+
+    with contextlib.ExitStack() as stack:
+        stack.enter_context(folder_lock(out, what="report folder"))
+        if stale:  # overwrite: the new report is made beside the old one and replaces it only when complete
+            work = stack.enter_context(staged_folder(out, REPORT_FILES, what="analysis report"))
+        else:
+            work = out
+        return _report(input_path, traj, model, kind, ff, out, work, temperature, exclude_ends, allow_gaps,
+                       circular, closed, closure, n_steps, n_blocks, forcefield, plots, echo)
+
+
+def _report(input_path, traj, model, kind, ff, final_out, out, temperature, exclude_ends, allow_gaps, circular,
+            closed, closure, n_steps, n_blocks, forcefield, plots, echo):
+    """Write the report of :func:`analyze` into ``out`` (``final_out`` itself, or the folder a replacement of
+    the report in ``final_out`` is built in); returns the summary."""
+    from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
+    from dnarod.analysis.steps import StepAnalysis
+    from dnarod.analysis.stiffness import StiffnessFit
+    from dnarod.core.stepparams import to_angstrom_degrees
+    from dnarod.core.units import kT as thermal_kT
+    from dnarod.physics.thermal import exact_tangent_correlation
+
+    is_ring = closure is not None
+    ds = model.ds if model is not None else ff.ds
+    seq = (model.sequence if model is not None else None) or traj.metadata.get("sequence") or None
+    if seq is not None and len(seq) != traj.n_nodes:
+        seq = None
     T = float(temperature or traj.metadata.get("temperature_K") or ff.temperature)
     ends = (1 if kind == "all-atom" else 0) if exclude_ends is None else int(exclude_ends)
     if is_ring:
@@ -411,8 +436,9 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
     write_text_atomic(out / "summary.json", json.dumps(jsonable(summary), indent=2) + "\n")
     lp = summary["persistence_length_nm"]
     line = f"mean rise {mean_ad[2]:.3f} A, twist {mean_ad[5]:.2f} deg"
+    no_bar = f" (no error bar: {traj.n_frames} frame(s) are too few for an autocorrelation or block estimate)"
     if lp["one_step"] is not None and np.isfinite(lp["one_step"] or np.nan):
-        line += f"; persistence length (lag 1) {lp['one_step']:.2f} +- {lp['one_step_error']:.2f} nm"
+        line += f"; persistence length (lag 1) {_pm(lp['one_step'], lp['one_step_error'], '.2f', no_bar)}"
         if lp.get("exact_one_step") is not None:
             line += f" (model exact {lp['exact_one_step']:.2f} nm)"
         if lp.get("transient_dropped_frames"):
@@ -420,13 +446,13 @@ def analyze(input_path, topology=None, forcefield=None, out=None, circular=False
                     f"as the start's transient"
     echo(line)
     if lp["fit"] is not None and np.isfinite(lp["fit"] or np.nan):
-        echo(f"long-lag fit {lp['fit']:.1f} +- {lp['error']:.1f} nm ({lp['n_lags_fitted']} lags; converged only for "
+        echo(f"long-lag fit {_pm(lp['fit'], lp['error'], '.1f', no_bar)} ({lp['n_lags_fitted']} lags; converged only for "
              f"runs of many slowest bending relaxation times"
              + (f", here {summary['relaxation']['run_over_tau']:.3g} of them)"
                 if summary.get("relaxation", {}).get("run_over_tau") is not None else ")"))
     for w in summary["warnings"]:
         echo(f"warning: {w}")
-    echo(f"wrote {out}/ (summary.json, CSV tables, stiffness.toml, plots)")
+    echo(f"wrote {final_out}/ (summary.json, CSV tables, stiffness.toml{', plots' if plots else ''})")
     return summary
 
 
@@ -438,6 +464,14 @@ def _run_record(input_path):
     except (OSError, ValueError, AttributeError):
         return None, None
     return spec.get("start"), spec.get("loads")
+
+
+def _pm(value, err, fmt, no_bar, unit="nm"):
+    """``"value +- err unit"``, or the value, unit and ``no_bar`` when the error bar could not be estimated (never
+    "+- nan")."""
+    if err is not None and np.isfinite(err):
+        return f"{value:{fmt}} +- {err:{fmt}} {unit}"
+    return f"{value:{fmt}} {unit}{no_bar}"
 
 
 def _relaxation(traj, model, temperature, tc, exclude_ends, input_path):

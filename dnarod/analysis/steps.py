@@ -130,7 +130,7 @@ class StepAnalysis(AnalysisBase):
         xi = np.concatenate([r.Omega, r.Gamma], axis=-1).reshape(nf * m, 6)
         frame = np.repeat(self.frame_indices, m)
         time = np.repeat(r.time, m)
-        step = np.tile(np.arange(m), nf)
+        step = np.tile(np.arange(1, m + 1), nf)  # numbered from 1, as `dnarod steps` numbers them
         names = np.tile(np.array(self.names, dtype=object), nf)
         cols = ["frame", "time_ps", "step", "step_type", *STEP_COLUMNS, *STRAIN_COLUMNS]
         nums = np.concatenate([p, xi], axis=1)
@@ -147,7 +147,7 @@ class StepAnalysis(AnalysisBase):
         std = to_angstrom_degrees(r.std_step_parameters)
         rows = []
         for k, name in enumerate(self.names):
-            row = {"step": k, "step_type": name}
+            row = {"step": k + 1, "step_type": name}
             for j, col in enumerate(STEP_COLUMNS):
                 row[col] = float(mean[k, j])
                 row[col + "_std"] = float(std[k, j])

@@ -17,7 +17,7 @@ from dnarod.core.errors import DnarodError, RunWarning
 #: File-system errors that are the user's to fix (a path under a regular file, a folder where a
 #: file is expected, no permission, a full disk, a name too long): one line, exit status 2.
 USER_OS_ERRORS = {errno.ENOTDIR, errno.EISDIR, errno.EEXIST, errno.EACCES, errno.EPERM, errno.ENOSPC,
-                  errno.ENAMETOOLONG, errno.ENOENT, errno.EROFS}
+                  errno.ENAMETOOLONG, errno.ENOENT, errno.EROFS, errno.EDQUOT, errno.EFBIG}
 
 
 #: click >= 8.2 raises this for a bare group (it shows the help); older click has no such class.
@@ -99,6 +99,11 @@ class DnarodGroup(click.Group):
         except OSError as exc:
             if exc.errno not in USER_OS_ERRORS:
                 raise
+            if exc.filename and exc.errno in (errno.ENOSPC, errno.EDQUOT, errno.EFBIG):
+                from dnarod.core.io import write_failure
+
+                click.echo(f"dnarod: error: {write_failure(exc.filename, exc)}", err=True)
+                sys.exit(2)
             where = f"{exc.filename}: " if exc.filename else ""
             hint = {errno.ENOTDIR: " (a part of the path is a regular file, not a folder)",
                     errno.EISDIR: " (a folder where a file is expected)"}.get(exc.errno, "")
@@ -149,6 +154,7 @@ from dnarod.cli.simulate import lax_run as _lax_run, simulate_cmd as _simulate_c
 main.add_command(_simulate_cmd)
 main.add_command(_lax_run)
 from dnarod.cli.analyze import analyze_cmd as _analyze_cmd; main.add_command(_analyze_cmd)  # noqa: E402
+from dnarod.cli.export import export_cmd as _export_cmd; main.add_command(_export_cmd)  # noqa: E402
 from dnarod.cli.validate import validate as _validate; main.add_command(_validate)  # noqa: E402
 from dnarod.cli.ensemble import ensemble_cmd as _ensemble_cmd; main.add_command(_ensemble_cmd)  # noqa: E402
 from dnarod.cli.protocol import protocol as _protocol_cmd; main.add_command(_protocol_cmd)  # noqa: E402

@@ -152,25 +152,12 @@ def _clamp_options(default_force):
                             help="Rotation clamp stiffness, kJ/mol."),
                click.option("--start", "start", type=click.Choice(STARTS),
                             default="static", show_default=True,
-                            help="static: every member from the static pose under its loads; sweep: members run "
-                                 "as chains along the turns axis (turns >= 0 up from the smallest, turns < 0 down "
-                                 "from the largest), each from the previous turn value's final pose turned by the "
-                                 "increment, as magnets are turned in the lab; sweep-in: the same chains towards "
-                                 "zero, each begun at its largest |turns| from a plectoneme grown for 20 ns at 0.3 "
-                                 "of the force; bracket: both sweeps at once, each point the midpoint of its "
-                                 "outward and inward members with an error covering their gap; exchange: the "
-                                 "turn values of each force are the rungs of one replica-exchange ladder (swaps "
-                                 "between neighbouring rungs, the turn difference carried as twist)."),
+                            help="static: every member from the static pose under its loads; exchange: the turn "
+                                 "values of each force are the rungs of one replica-exchange ladder (swaps between "
+                                 "neighbouring rungs, the turn difference carried as twist), for hat curves past "
+                                 "buckling, where a member keeps the state it starts in."),
                click.option("--exchange-ps", "exchange_ps", type=float, default=None,
-                            help="With --start exchange: time between exchange attempts, ps (default 20)."),
-               click.option("--settle", "settle_ns", type=float, default=None,
-                            help="With --start sweep/sweep-in/bracket: equilibration of each chained member after its turn "
-                                 "increment, ns (default: 2 slowest bending relaxation times; the first member "
-                                 "of each chain uses --equilibration)."),
-               click.option("--settle-buckled", "settle_buckled_ns", type=float, default=None,
-                            help="With --start sweep/sweep-in/bracket: settle of the chained members at or past the buckling "
-                                 "point, ns (|Delta Lk at T| >= 0.8 x Marko's two-phase buckling point with the "
-                                 "model's A, C_s(F) and plectoneme P; default: --settle).")]
+                            help="With --start exchange: time between exchange attempts, ps (default 20).")]
 
     def decorate(f):
         for option in reversed(options):
@@ -180,56 +167,32 @@ def _clamp_options(default_force):
     return decorate
 
 
-def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", settle_ns=None,
-                 settle_buckled_ns=None, overwrite=False, exchange_ps=None):
+def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start="static", overwrite=False,
+                 exchange_ps=None):
     """Run a rotation-clamp protocol over forces x turns and print its curve."""
-    import math
-
-    from dnarod.workflows.protocols.curves import SWEEP_STARTS
-
     _check_run_options(workers, out)
-    if settle_ns is not None and start not in SWEEP_STARTS:
-        raise DnarodError(f"--settle {settle_ns:g}: the settle time applies to a turn sweep only; add --start sweep "
-                          f"(or sweep-in, bracket)")
-    if settle_ns is not None and not (math.isfinite(settle_ns) and settle_ns > 0):
-        raise DnarodError(f"--settle {settle_ns}: give a time in ns > 0")
-    if settle_buckled_ns is not None and start not in SWEEP_STARTS:
-        raise DnarodError(f"--settle-buckled {settle_buckled_ns:g}: the settle time applies to a turn sweep only; add "
-                          f"--start sweep (or sweep-in, bracket)")
-    if settle_buckled_ns is not None and not (math.isfinite(settle_buckled_ns) and settle_buckled_ns > 0):
-        raise DnarodError(f"--settle-buckled {settle_buckled_ns}: give a time in ns > 0")
-    from dnarod.workflows.protocols.curves import MAX_MEMBER_NS
-
-    for name, v in (("--settle", settle_ns), ("--settle-buckled", settle_buckled_ns)):
-        if v is not None and v > MAX_MEMBER_NS:
-            raise DnarodError(f"{name} {v:g}: more than {MAX_MEMBER_NS:g} ns (10 us) per member would not "
-                              f"finish here; give a shorter time")
     c = _run_protocol(kind, {"force_pN": _floats(forces, "--force"), "turns": _floats(turns, "--turns")},
                       _base(**kw, rotation_clamp_kJ_mol=clamp_k), out, workers=workers, start=start,
-                      settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns, overwrite=overwrite,
-                      exchange_ps=exchange_ps)
+                      overwrite=overwrite, exchange_ps=exchange_ps)
     _report(c, "turns", columns)
 
 
 @protocol.command("hat")
 @_clamp_options("0.5")
 @_common
-def hat_cmd(forces, turns, clamp_k, start, exchange_ps, settle_ns, settle_buckled_ns, workers, out, overwrite, **kw):
+def hat_cmd(forces, turns, clamp_k, start, exchange_ps, workers, out, overwrite, **kw):
     """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
     _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"], start, settle_ns, settle_buckled_ns, overwrite,
-                 exchange_ps)
+                 ["relative_extension", "Wr", "plectoneme_fraction"], start, overwrite, exchange_ps)
 
 
 @protocol.command("torque-turns")
 @_clamp_options("1.0")
 @_common
-def torque_turns_cmd(forces, turns, clamp_k, start, exchange_ps, settle_ns, settle_buckled_ns, workers, out, overwrite,
-                     **kw):
+def torque_turns_cmd(forces, turns, clamp_k, start, exchange_ps, workers, out, overwrite, **kw):
     """Torque on the rotation clamp vs turns at constant force."""
     _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
-                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, settle_ns,
-                 settle_buckled_ns, overwrite, exchange_ps)
+                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, overwrite, exchange_ps)
 
 
 @protocol.command("rings")

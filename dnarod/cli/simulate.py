@@ -12,7 +12,7 @@ import numpy as np
 from dnarod.core.errors import ParameterError
 
 #: ``--charge`` and ``--cutoff-debye``, shared by ``dnarod simulate`` and ``dnarod protocol`` (checked by
-#: :func:`dnarod.engines.openmm.nonbonded.nonbonded_options`).
+#: :func:`dnarod.physics.nonbonded.nonbonded_options`).
 CHARGE_OPTIONS = [
     click.option("--charge", default=None,
                  help="Non-bonded charge model: calibrated (Poisson-Boltzmann far-field charge, effective diameter "
@@ -62,11 +62,13 @@ _OPTIONS = [
     click.option("--turns", type=float, default=0.0,
                  help="Turn the rotation clamp by this many turns, at a constant rate over the run."),
     click.option("--clamp-first", is_flag=True,
-                 help="Fix node 0 in space (position and orientation): the surface of a magnetic-tweezers cell."),
+                 help="Fix the first base pair in space (position and orientation): the surface of a magnetic-tweezers "
+                      "cell."),
     click.option("--axis", type=click.Choice(["end-to-end", "z"]), default="end-to-end", show_default=True,
                  help="Axis of --pull, --torque and --rotation-clamp: the source's end-to-end direction or lab z."),
     click.option("--trap", multiple=True,
-                 help="Harmonic trap NODE:K (node from 0, K in pN/nm) at the node's start position; repeatable."),
+                 help="Harmonic trap NODE:K (NODE a base pair numbered from 1 as `dnarod steps` does, -1 the last; "
+                      "K in pN/nm) at its start position; repeatable."),
     click.option("--minimize", is_flag=True, help="Start from the static minimum under the loads."),
     click.option("--equilibrium", is_flag=True,
                  help="Start from an exact thermal-equilibrium sample of the free chain (open chains)."),
@@ -77,7 +79,11 @@ _OPTIONS = [
     click.option("--frame-interval", type=float, default=1.0, show_default=True,
                  help="Time between trajectory frames and energy rows, ps."),
     click.option("--checkpoint-interval", type=float, default=None,
-                 help="Time between checkpoints, ps [default: 10 frames]; one is always written at the end."),
+                 help="Simulated time between checkpoints, ps [default: by wall time, --checkpoint-wall]; one is "
+                      "always written at the end and on Ctrl-C."),
+    click.option("--checkpoint-wall", type=float, default=None,
+                 help="Wall-clock seconds between checkpoints when --checkpoint-interval is not given "
+                      "[default: 120]."),
     click.option("--resume", is_flag=True, help="Continue the run in --out from its checkpoint up to --time."),
     click.option("--overwrite", is_flag=True, help="Replace an earlier run in --out (its run files are removed)."),
     click.option("--seed", type=int, default=None,
@@ -99,14 +105,20 @@ def _simulate_options(f):
 
 
 def parse_trap(text, n_nodes):
-    """``"NODE:K"`` (K in pN/nm) -> (node, K); node 0-based, negative counts from the end."""
+    """``"NODE:K"`` (K in pN/nm) -> (node index from 0, K). NODE is a base pair numbered from 1, as `dnarod steps`
+    and every message number them; a negative NODE counts from the end (-1: the last)."""
     try:
         node, k = text.split(":")
         node, k = int(node), float(k)
     except ValueError:
-        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (stiffness in pN/nm), e.g. 0:50") from None
-    if not -n_nodes <= node < n_nodes:
-        raise ParameterError(f"--trap {text!r}: node {node} does not exist (the chain has {n_nodes} nodes)")
+        raise ParameterError(f"--trap {text!r}: expected NODE:STIFFNESS (a base pair numbered from 1, stiffness in "
+                             f"pN/nm), e.g. 1:50") from None
+    if node == 0:
+        raise ParameterError(f"--trap {text!r}: base pairs are numbered from 1 (1 to {n_nodes}, or -1 for the last)")
+    if not -n_nodes <= node <= n_nodes:
+        raise ParameterError(f"--trap {text!r}: base pair {node} does not exist (the chain has {n_nodes} nodes, "
+                             f"numbered from 1)")
+    node = node - 1 if node > 0 else node
     if not (np.isfinite(k) and k > 0):
         raise ParameterError(f"--trap {text!r}: the stiffness must be positive (pN/nm)")
     return node, k
@@ -116,7 +128,7 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                       friction, integrator, platform, threads, elastic, excluded_volume, electrostatics, salt, pull,
                       torque, rotation_clamp, turns, clamp_first, trap, minimize, equilibrium, frame_interval,
                       checkpoint_interval, seed, velocities, export, xtc, charge=None, cutoff_debye=None,
-                      axis="end-to-end"):
+                      axis="end-to-end", checkpoint_wall=None):
     """The :class:`~dnarod.run.RunSpec` of the ``simulate`` options (loads built from the source model)."""
     from dnarod.physics.nonbonded import nonbonded_options
     from dnarod.run.api import source_model
@@ -141,12 +153,21 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                    circular=circular, ring=ring, delta_lk=delta_lk, duplex=duplex, intrinsic=intrinsic,
                    start="minimized" if minimize else "equilibrium" if equilibrium else "intrinsic",
                    frame_interval_ps=frame_interval, checkpoint_interval_ps=checkpoint_interval, velocities=velocities,
-                   export=export, xtc=xtc, elastic=elastic, threads=threads)
+                   export=export, xtc=xtc, elastic=elastic, threads=threads,
+                   **({} if checkpoint_wall is None else dict(checkpoint_wall_s=checkpoint_wall)))
     spec.check()
     _refuse_ignored_options(spec, xtc, export)
     if pull is not None or torque is not None or rotation_clamp is not None or clamp_first or trap or turns:
         model = source_model(spec)
         traps = tuple(parse_trap(t, model.n_nodes) for t in trap)
+        if len({node % model.n_nodes for node, _ in traps}) < len(traps):  # two traps on one base pair add up silently
+            seen = {}
+            for t, (node, _) in zip(trap, traps):
+                if node % model.n_nodes in seen:
+                    raise ParameterError(f"--trap {t!r}: base pair {node % model.n_nodes + 1} already has a trap "
+                                         f"({seen[node % model.n_nodes]!r}); give one --trap per base pair with the "
+                                         f"stiffness you want")
+                seen[node % model.n_nodes] = t
         spec = spec.replace(loads=tweezers(model, pull, torque, rotation_clamp, turns,
                                            anchor="surface" if clamp_first else "ends", axis=axis, traps=traps))
     return spec

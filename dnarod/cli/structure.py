@@ -342,6 +342,3 @@ def rebuild(model_path, output, hydrogens, minimize, overwrite):
     click.echo(f"wrote {output}: {n_atoms} atoms, {2 * m.n_nodes} nucleotides")
     for line in res.report.summary():
         click.echo(f"  {line}", err=True)
-
-
-COMMANDS = (steps, pairs, build, rebuild)

@@ -18,14 +18,12 @@ from dnarod.validate import CHECKS
               help="Run only this check (repeatable).")
 @click.option("--overwrite", is_flag=True,
               help="Replace the report already in --out (report.md, results.json and its plots, when the new "
-                   "report is written); the finished members of check buckling in OUT/buckling_members are "
-                   "kept and reused. Without it a folder holding a report is refused.")
+                   "report is written). Without it a folder holding a report is refused.")
 def validate(quick, out_dir, only, overwrite):
     """Check the engines against each other and against exact results.
 
-    OUT must be new, empty, or a report folder: a folder holding a report is refused unless --overwrite; a
-    folder holding only the members of an interrupted `--only buckling` run is run into again (its finished
-    members are reused, an interrupted one resumes). Exit status 0 if every check passed, 1 otherwise.
+    OUT must be new, empty, or a report folder: a folder holding a report is refused unless --overwrite. Exit
+    status 0 if every check passed, 1 otherwise.
     """
     from dnarod.core.io import check_dir_path
     from dnarod.validate import run_validation

@@ -6,6 +6,21 @@ one type.
 """
 
 
+def base_pair(k):
+    """How a message names node ``k`` (0-based index): ``"base pair k+1"`` -- numbered from 1, as `dnarod steps`
+    and `dnarod pairs` number them (one node per base pair)."""
+    return f"base pair {int(k) + 1}"
+
+
+def step_name(k, n_nodes=None):
+    """How a message names step ``k`` (0-based index, between nodes k and k+1): ``"step k+1 (base pairs k+1-k+2)"``,
+    numbered from 1 as `dnarod steps` numbers them; the closing step of a ring of ``n_nodes`` joins the last base
+    pair to the first."""
+    k = int(k)
+    nxt = (k + 1) % n_nodes if n_nodes else k + 1
+    return f"step {k + 1} (base pairs {k + 1}-{nxt + 1})"
+
+
 class DnarodError(ValueError):
     """Base class of dnarod's errors about bad input or a failed run."""
 

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import tempfile
@@ -12,41 +13,413 @@ import numpy as np
 from dnarod.core.errors import DnarodError, ParameterError
 
 
+#: Why a write failed, in words, for the errno values that are the user's to fix (a full disk, a quota, a
+#: read-only or foreign folder, a name the file system refuses): :func:`write_failure` turns them into one line.
+WRITE_ERRNOS = {
+    errno.ENOSPC: "no space left on its disk",
+    errno.EDQUOT: "disk quota exceeded",
+    errno.EFBIG: "file too large for the file system or the file-size limit (ulimit -f)",
+    errno.EROFS: "the file system is read-only",
+    errno.EACCES: "permission denied",
+    errno.EPERM: "operation not permitted",
+    errno.ENAMETOOLONG: "file name too long for the file system",
+    errno.ENOTDIR: "a part of the path is a regular file, not a folder",
+    errno.EISDIR: "a folder is in the way",
+    errno.ENOENT: "its folder was removed while dnarod wrote into it",
+    errno.EIO: "input/output error (a failing disk or a lost network file system)",
+    errno.EMFILE: "too many open files",
+}
+#: Errors of a full disk (the message gives the free space and, where known, the size needed).
+FULL_DISK_ERRNOS = (errno.ENOSPC, errno.EDQUOT)
+#: Free space below which a writer's failure without an errno (a C library's "write error") is taken for a
+#: full disk: a few file-system blocks.
+_NEARLY_FULL = 1 << 20
+
+
+class WriteError(DnarodError):
+    """A file could not be written (a full disk, a quota, a read-only folder, a path the writer cannot take).
+
+    Attributes
+    ----------
+    path : Path
+        The file that was to be written (never a temporary name).
+    errno : int or None
+    free : int or None
+        Bytes free on the disk of ``path`` when the write failed.
+    needed : int or None
+        Bytes the write needed, where known.
+    """
+
+    def __init__(self, message, path=None, errno_=None, free=None, needed=None):
+        super().__init__(message)
+        self.path, self.errno, self.free, self.needed = path, errno_, free, needed
+
+
+def human_bytes(n):
+    """``n`` bytes in words: ``"512 B"``, ``"3.1 kB"``, ``"2.4 MB"``, ``"1.2 GB"`` (powers of 1000)."""
+    n = float(n)
+    for unit in ("B", "kB", "MB", "GB", "TB"):
+        if abs(n) < 1000 or unit == "TB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.3g} {unit}"
+        n /= 1000.0
+    return f"{n:.3g} TB"
+
+
+def disk_free(path):
+    """Bytes an unprivileged process may still write on the disk holding ``path`` (or its nearest existing
+    folder), or None if it cannot be found."""
+    p = Path(path).absolute()
+    for anc in [p, *p.parents]:
+        try:
+            st = os.statvfs(anc)
+        except OSError:
+            continue
+        return int(st.f_bavail) * int(st.f_frsize)
+    return None
+
+
+def write_failure(path, exc, needed=None, needed_bound=False, free_at_failure=None, written=None):
+    """The one-line :class:`WriteError` for a failed write of ``path`` (or None if ``exc`` is not about writing).
+
+    ``exc`` is an :class:`OSError` (a full disk, a quota, a read-only folder, ... see :data:`WRITE_ERRNOS`), a
+    :class:`UnicodeError` (a writer that cannot take the path), or the exception of a C writer that gives no
+    errno (mdtraj's ``XTC write error: 7``), which is taken for a full disk when the disk has under 1 MB (or
+    under ``needed``) free, and otherwise is not about writing (None: the caller re-raises it).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file the user will look for (not a temporary name).
+    exc : BaseException
+    needed : int, optional
+        Bytes the write needed, where known.
+    needed_bound : bool
+        ``needed`` is an upper bound (a compressed format), said so in the message.
+    free_at_failure : int, optional
+        Bytes free when the write failed (before its temporary file was removed), for a C writer's error.
+    written : int, optional
+        Bytes the failed write had written (its temporary file's size): without ``needed``, the message says
+        it needed more.
+    """
+    path = Path(path)
+    if isinstance(exc, WriteError):
+        return exc
+    free = disk_free(path.parent)
+    if free_at_failure is None:
+        free_at_failure = free
+    code = exc.errno if isinstance(exc, OSError) else None
+    if isinstance(exc, UnicodeError):
+        why = (f"a writer could not take the characters of the path ({type(exc).__name__}); choose a path of "
+               f"ASCII characters")
+        return WriteError(f"cannot write {path}: {why}", path, None, free, needed)
+    if code not in WRITE_ERRNOS:
+        nearly_full = free_at_failure is not None and free_at_failure < max(_NEARLY_FULL, needed or 0)
+        if isinstance(exc, OSError) and code is not None:
+            return None
+        if not nearly_full:
+            return None
+        code = errno.ENOSPC
+    why = WRITE_ERRNOS[code]
+    if code in FULL_DISK_ERRNOS or code == errno.EFBIG:
+        space = [] if free is None else [f"{human_bytes(free)} free"]
+        if needed:
+            space.append(f"{'up to' if needed_bound else 'about'} {human_bytes(needed)} needed")
+        elif written:
+            space.append(f"more than {human_bytes(written)} needed")
+        why += f" ({', '.join(space)})" if space else ""
+        todo = "free some space or write elsewhere (-o); the files written before are kept"
+    elif code in (errno.EROFS, errno.EACCES, errno.EPERM):
+        todo = "choose a folder you can write (-o)"
+    elif code == errno.ENAMETOOLONG:
+        todo = "choose a shorter name"
+    else:
+        todo = "choose another path"
+    return WriteError(f"cannot write {path}: {why}; {todo}", path, code, free, needed)
+
+
 @contextlib.contextmanager
-def atomic_path(path):
+def writing(path, needed=None):
+    """Turn a failed write of ``path`` inside the body into one :class:`WriteError` line (see
+    :func:`write_failure`); any other exception passes unchanged. For files written in place (an appended
+    stream such as ``trajectory.dtraj``); whole files are written with :func:`atomic_path`."""
+    try:
+        yield
+    except DnarodError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - mapped only if it is about the write
+        err = write_failure(path, exc, needed)
+        if err is None:
+            raise
+        raise err from None
+
+
+def _temp_name(name, ascii_only=False, suffix=""):
+    """Name of a temporary file beside ``name``: hidden, at most 255 bytes (a long ``name`` is cut), ASCII with
+    ``ascii_only``. ``suffix`` ends it (a writer that picks its format by the extension)."""
+    import secrets
+
+    tag = secrets.token_hex(4)
+    if ascii_only:
+        stem = "".join(c if c.isascii() and (c.isalnum() or c in "._-") else "_" for c in name)
+    else:
+        stem = name
+    room = 255 - len(f"..{tag}.tmp{suffix}".encode())
+    stem_b = stem.encode("utf-8", "surrogateescape")[:max(room, 0)]
+    stem = stem_b.decode("utf-8", "ignore")
+    return f".{stem}.{tag}.tmp{suffix}"
+
+
+@contextlib.contextmanager
+def _ascii_folder(folder):
+    """An ASCII path naming ``folder`` for a C writer that cannot encode another (mdtraj's XTC writer): the
+    folder itself if its path is ASCII, else ``/proc/self/fd/N`` of an open descriptor of it (Linux), else a
+    symbolic link in the system's temporary folder (removed afterwards)."""
+    folder = Path(folder).absolute()
+    if str(folder).isascii():
+        yield folder
+        return
+    fd = None
+    with contextlib.suppress(OSError):
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    try:
+        if fd is not None and Path(f"/proc/self/fd/{fd}").is_dir():
+            yield Path(f"/proc/self/fd/{fd}")
+            return
+        link_dir = Path(tempfile.mkdtemp(prefix="dnarod-"))
+        try:
+            link = link_dir / "d"
+            os.symlink(folder, link)
+            yield link
+        finally:
+            import shutil
+
+            shutil.rmtree(link_dir, ignore_errors=True)
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
+@contextlib.contextmanager
+def ascii_alias(*paths):
+    """ASCII paths (str) naming the existing files ``paths``, for a C reader that cannot take others (mdtraj's
+    XTC and DCD readers): a path that is ASCII already is given as is; others are reached through symbolic links,
+    with the same extension, in a temporary folder removed afterwards. ``None`` stays ``None``."""
+    if all(p is None or str(p).isascii() for p in paths):
+        yield [None if p is None else str(p) for p in paths]
+        return
+    import shutil
+
+    folder = Path(tempfile.mkdtemp(prefix="dnarod-"))
+    try:
+        out = []
+        for i, p in enumerate(paths):
+            if p is None or str(p).isascii():
+                out.append(None if p is None else str(p))
+                continue
+            suffix = "".join(c for c in Path(p).suffix if c.isascii())
+            link = folder / f"f{i}{suffix}"
+            os.symlink(Path(p).absolute(), link)
+            out.append(str(link))
+        yield out
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def atomic_path(path, needed=None, ascii=False, suffix="", needed_bound=False):
     """Yield a temporary path beside ``path``; on success rename it onto ``path``.
 
-    Readers never see a half-written file: either the old file or the complete new one.
-    On an exception the temporary file is removed and ``path`` is untouched.
+    The one way dnarod writes a whole file: readers never see a half-written file, only the old file or the
+    complete new one. On any exception the temporary file is removed and ``path`` is untouched; a failed write
+    (a full disk, a quota, a read-only folder, a writer that cannot take the path, a C writer's error on a full
+    disk) becomes one :class:`WriteError` line naming ``path`` (:func:`write_failure`), other exceptions pass
+    unchanged. The temporary name is hidden and fits the file system's 255 bytes however long ``path``'s name is.
+
+    Parameters
+    ----------
+    path : str or Path
+    needed : int, optional
+        Bytes the file will take, where known (given in the message of a full disk).
+    needed_bound : bool
+        ``needed`` is an upper bound (said so in the message).
+    ascii : bool
+        Yield a path of ASCII characters (for a writer that cannot take others: mdtraj's XTC writer).
+    suffix : str
+        End the temporary name with it (a writer that picks its format from the extension).
     """
     path = Path(path)
     bad = _first_file_component(path.parent)
     if bad is not None:
         raise DnarodError(f"cannot write {path}: {bad} is a regular file, not a folder; choose another path")
     ensure_dir(path.parent, what=f"folder of {path}")
+    name = _temp_name(path.name, ascii, suffix)
     try:
-        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+        fd = os.open(path.parent / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
     except OSError as exc:  # name the file asked for, not the temporary one (/proc, a read-only disk, ...)
+        err = write_failure(path, exc, needed, needed_bound)
+        if err is not None and exc.errno not in (errno.EACCES, errno.EPERM, errno.EROFS):
+            raise err from None
         raise DnarodError(f"cannot write {path}: no file can be created in {path.parent} ({exc.strerror or exc}); "
                           f"choose another path") from None
     os.close(fd)
+    tmp = path.parent / name
     try:
-        yield tmp
-        # mkstemp creates 0600 files; give the output the mode open() would (0666 minus the umask).
+        if ascii:
+            with _ascii_folder(path.parent) as folder:
+                yield str(folder / name)
+        else:
+            yield str(tmp)
+        # mkstemp-like 0600 file; give the output the mode open() would (0666 minus the umask).
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
+    except BaseException as exc:
+        written = free_then = None
+        with contextlib.suppress(OSError):
+            written, free_then = os.path.getsize(tmp), disk_free(path.parent)
+        with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, Exception) and not isinstance(exc, DnarodError):
+            err = write_failure(path, exc, needed, needed_bound, free_then, written)
+            if err is not None:
+                raise err from None
+        if isinstance(exc, WriteError) and exc.path is not None and Path(exc.path) == tmp:
+            raise write_failure(path, OSError(exc.errno, ""), exc.needed or needed, needed_bound) from None
         raise
 
 
 def write_text_atomic(path, text):
-    """Write a text file atomically."""
-    with atomic_path(path) as tmp:
-        Path(tmp).write_text(text)
+    """Write a text file atomically (UTF-8; :func:`atomic_path`)."""
+    data = text.encode("utf-8")
+    write_bytes_atomic(path, data)
+
+
+def write_bytes_atomic(path, data):
+    """Write ``data`` to ``path`` atomically (:func:`atomic_path`)."""
+    with atomic_path(path, needed=len(data)) as tmp:
+        with open(tmp, "wb") as fh:
+            fh.write(data)
+
+
+def check_free_space(folder, needed, what):
+    """Refuse, before any work, to write ``needed`` bytes (an estimate) into ``folder`` if its disk has less free.
+
+    Raises
+    ------
+    WriteError
+        One line naming ``what``, the estimate and the free space.
+    """
+    free = disk_free(folder)
+    if free is None or needed is None or needed <= free:
+        return
+    raise WriteError(f"{what} needs about {human_bytes(needed)} in {folder}, but its disk has {human_bytes(free)} "
+                     f"free; free some space, write elsewhere (-o), or make the output smaller", Path(folder),
+                     errno.ENOSPC, free, needed)
+
+
+#: Hidden folders in which an ``--overwrite`` builds its new output beside the old one (:func:`staged_folder`).
+STAGE_PREFIX = ".dnarod-new-"
+
+
+def _rewrite_message(exc, old, new, tail):
+    """Say ``new`` where ``exc``'s message says ``old`` (the hidden folder a replacement was built in), then
+    ``tail``."""
+    msg = str(exc).replace(str(old) + os.sep, str(new) + os.sep).replace(str(old), str(new))
+    exc.args = (msg.rstrip() + tail,) + tuple(exc.args[1:])
+    if isinstance(exc, WriteError) and exc.path is not None:
+        exc.path = Path(str(exc.path).replace(str(old), str(new)))
+
+
+def remove_stale_stages(folder):
+    """Remove the hidden folders (:data:`STAGE_PREFIX`) left in ``folder`` by an ``--overwrite`` that was killed
+    before it finished. Call it while holding ``folder``'s lock (:func:`folder_lock`): a stage of a live writer
+    would be removed too."""
+    import shutil
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return
+    for p in folder.iterdir():
+        if p.name.startswith(STAGE_PREFIX) and p.is_dir() and not p.is_symlink():
+            shutil.rmtree(p, ignore_errors=True)
+
+
+#: Hidden folders in which a long ``--overwrite`` (an ensemble, a protocol) builds its new output, kept when it
+#: stops early so that running the command again continues it (:func:`staged_folder` with ``resume_name``).
+REPLACEMENT_PREFIX = ".dnarod-replacement-"
+
+
+@contextlib.contextmanager
+def staged_folder(folder, names, what="output", resume_name=None):
+    """Build a replacement of the files ``names`` of ``folder`` beside them, and put it in place only when it
+    is complete (the atomic ``--overwrite``).
+
+    Yields a new hidden folder inside ``folder`` (same file system) for the body to write the new output
+    into. When the body ends without an exception, every file of the stage is renamed onto its name in
+    ``folder`` (renames write no data: a full disk cannot stop them) and the files of ``names`` the new output
+    does not have are removed; the stage is removed. When the body raises (a full disk, a blow-up, Ctrl-C),
+    the stage is removed and ``folder`` is untouched; a :class:`DnarodError`'s message then names the files
+    by their place in ``folder`` and says that the earlier output is unchanged. Hold ``folder``'s lock
+    (:func:`folder_lock`) around it.
+
+    Parameters
+    ----------
+    folder : str or Path
+        Holds the earlier output (created if needed).
+    names : iterable of str
+        The file names an output of this kind consists of (an old one the new output lacks is removed).
+    what : str
+        The output in words, for messages ("run", "analysis report").
+    resume_name : str, optional
+        A stage that outlives a failure: ``folder/.dnarod-replacement-<resume_name>`` is kept when the body
+        raises, and the same call (the command run again) continues in it (for outputs made of resumable parts:
+        a protocol's members). Without it the stage is a fresh hidden folder, removed on failure.
+    """
+    import shutil
+
+    folder = ensure_dir(folder)
+    remove_stale_stages(folder)
+    try:
+        if resume_name is None:
+            stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=folder))
+        else:
+            stage = folder / f"{REPLACEMENT_PREFIX}{resume_name}"
+            stage.mkdir(exist_ok=True)
+    except OSError as exc:
+        err = write_failure(folder / f"{STAGE_PREFIX}...", exc)
+        raise (err or DnarodError(f"cannot create a folder in {folder} ({exc.strerror or exc})")) from None
+    try:
+        yield stage
+    except BaseException as exc:
+        if resume_name is None:
+            shutil.rmtree(stage, ignore_errors=True)
+            tail = f" (the earlier {what} in {folder} is unchanged)"
+        else:
+            tail = (f" (the earlier {what} in {folder} is unchanged; the same command with --overwrite continues the "
+                    f"replacement kept in {stage.name})")
+        if isinstance(exc, DnarodError):
+            _rewrite_message(exc, stage, folder, tail)
+        raise
+    try:
+        new = sorted(stage.iterdir())
+        for p in new:
+            dst = folder / p.name
+            if dst.is_dir() and not dst.is_symlink():
+                shutil.rmtree(dst)
+            os.replace(p, dst)
+        made = {p.name for p in new}
+        for name in set(names) - made:  # a file of the old output the new one does not have (no stale export)
+            old = folder / name
+            if old.is_dir() and not old.is_symlink():
+                shutil.rmtree(old)
+            elif old.exists() or old.is_symlink():
+                old.unlink()
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+        if resume_name is not None:  # replacements begun with other settings and never finished
+            for p in folder.glob(f"{REPLACEMENT_PREFIX}*"):
+                shutil.rmtree(p, ignore_errors=True)
 
 
 def _first_file_component(path):
@@ -82,6 +455,8 @@ def ensure_dir(path, what="output folder"):
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
+        if exc.errno in FULL_DISK_ERRNOS:
+            raise write_failure(path, exc) from None
         raise DnarodError(f"{what} {path}: cannot create it ({exc.strerror or exc})") from None
     return path
 
@@ -151,10 +526,12 @@ def folder_lock(folder, what="output folder"):
 
             warnings.warn(f"{folder}: took over the lock left by {_describe_owner(previous)}, which ended without "
                           f"releasing it (killed?); its files are kept", RuntimeWarning, stacklevel=3)
-        fh.seek(0)
-        fh.truncate()
-        fh.write(f"{os.getpid()} {_hostname()}\n")
-        fh.flush()
+        with contextlib.suppress(OSError):  # the pid is for messages; on a full disk the lock holds without it
+            fh.seek(0)
+            fh.truncate()
+            fh.write(f"{os.getpid()} {_hostname()}\n")
+            fh.flush()
+        remove_stale_stages(folder)  # left by an --overwrite that was killed: every live stage's writer holds this lock
         yield folder
     finally:
         import fcntl
@@ -163,7 +540,8 @@ def folder_lock(folder, what="output folder"):
             if _same_file(fh, path):  # ours still: remove it while holding the lock (see _take_lock)
                 path.unlink()
         fcntl.flock(fh, fcntl.LOCK_UN)
-        fh.close()
+        with contextlib.suppress(OSError):  # a pid that could not be written (a full disk) fails again here
+            fh.close()
 
 
 def _take_lock(path):
@@ -255,7 +633,7 @@ def check_output_folder(folder, mine, kind, what="output folder"):
         return False
     if any((folder / m).exists() for m in mine):
         return True
-    entries = sorted(p.name for p in folder.iterdir() if p.name != LOCK_NAME)
+    entries = sorted(p.name for p in folder.iterdir() if p.name != LOCK_NAME and not p.name.startswith(".dnarod-"))
     if not entries:
         return False
     shown = ", ".join(entries[:4]) + (f", ... ({len(entries)} entries)" if len(entries) > 4 else "")

@@ -18,7 +18,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from dnarod.core import energy as _energy
-from dnarod.core.errors import GeometryError, ParameterError
+from dnarod.core.errors import GeometryError, ParameterError, base_pair
 from dnarod.core.parameters import StepParameters
 from dnarod.core.rotations import check_frames
 from dnarod.core.strains import Closure, chain_from_strains, strains
@@ -67,7 +67,7 @@ class RodModel:
             raise GeometryError(f"a rod needs at least 2 nodes, got {n}")
         if not np.isfinite(self.positions).all():
             k = int(np.argwhere(~np.isfinite(self.positions))[0, 0])
-            raise GeometryError(f"node {k}: position is not finite")
+            raise GeometryError(f"{base_pair(k)}: position is not finite")
         self.frames = check_frames(self.frames)
         if self.frames.shape[0] != n:
             raise GeometryError(f"{n} positions but {self.frames.shape[0]} frames")
@@ -86,7 +86,7 @@ class RodModel:
             bad = ~(np.isfinite(arr) & (arr > 0))
             if bad.any():
                 k = int(np.argwhere(bad)[0, 0])
-                raise ParameterError(f"node {k}: {name} must be positive and finite, got {arr[k]}")
+                raise ParameterError(f"{base_pair(k)}: {name} must be positive and finite, got {arr[k]}")
         if self.sequence is not None and len(self.sequence) != n:
             raise ParameterError(f"sequence has {len(self.sequence)} letters for {n} nodes")
         # Fail early on poses the strain map cannot represent (rotation >= pi between neighbours).

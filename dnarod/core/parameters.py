@@ -84,7 +84,7 @@ class StepParameters:
             raise ParameterError(f"stiffness must have shape (n_steps, 6, 6), got {K.shape}")
         if xi0.shape != (K.shape[0], 6):
             raise ParameterError(f"intrinsic strains must have shape ({K.shape[0]}, 6), got {xi0.shape}")
-        names = list(self.names) if self.names is not None else [f"step {k}" for k in range(K.shape[0])]
+        names = list(self.names) if self.names is not None else [f"step {k + 1}" for k in range(K.shape[0])]
         if len(names) != K.shape[0]:
             raise ParameterError(f"got {len(names)} step names for {K.shape[0]} steps")
         # each distinct matrix is checked once, at its first step (a sequence model has <= 16 of them)
@@ -92,11 +92,11 @@ class StepParameters:
         checked = np.empty((len(first), 6, 6))
         for u in np.argsort(first):
             k = int(first[u])
-            checked[u] = check_stiffness(K[k], name=f"step {k} ({names[k]})")
+            checked[u] = check_stiffness(K[k], name=f"step {k + 1} ({names[k]})")
         K = checked[inverse.reshape(-1)]
         if not np.isfinite(xi0).all():
             k = int(np.argwhere(~np.isfinite(xi0))[0, 0])
-            raise ParameterError(f"step {k} ({names[k]}): intrinsic strain is not finite")
+            raise ParameterError(f"step {k + 1} ({names[k]}): intrinsic strain is not finite")
         self.stiffness, self.intrinsic, self.names = K, xi0, names
 
     @property

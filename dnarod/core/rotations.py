@@ -103,7 +103,7 @@ def cayley_inverse(R, what="rotation"):
         loc = tuple(int(i) for i in idx) if R.ndim > 2 else ()
         cos_t = np.clip((np.atleast_1d(den)[tuple(idx)] - 2.0) / 2.0, -1, 1)
         raise GeometryError(
-            f"{what} {loc[0] if len(loc) == 1 else loc}: rotation between neighbouring frames is "
+            f"{_where(what, loc)}: rotation between neighbouring frames is "
             f"{np.degrees(np.arccos(cos_t)) if np.isfinite(cos_t) else 'not finite'} deg, at or beyond "
             f"180 deg, where the Cayley strain is undefined; check the frame order and orientation "
             f"(neighbouring base-pair frames turn by about 34 deg)"
@@ -154,6 +154,18 @@ def rotation_about_axis(axis, angle):
     return np.eye(3) + s * K + (1.0 - c) * (K @ K)
 
 
+def _where(what, loc):
+    """The item a message names: a step or a node numbered from 1 as `dnarod steps` does (base pair k+1, step k+1
+    between base pairs k+1 and k+2), any other ``what`` with its index as given."""
+    from dnarod.core.errors import base_pair, step_name
+
+    if len(loc) == 1 and what == "step":
+        return step_name(loc[0])
+    if len(loc) == 1 and what == "node":
+        return base_pair(loc[0])
+    return f"{what} {loc[0] if len(loc) == 1 else loc}"
+
+
 def check_frames(frames, atol=1e-6, what="node"):
     """Check that frames are proper rotations (orthonormal, right-handed, finite).
 
@@ -182,12 +194,12 @@ def check_frames(frames, atol=1e-6, what="node"):
     finite = np.isfinite(F).all(axis=(1, 2))
     if not finite.all():
         k = int(np.argmin(finite))
-        raise GeometryError(f"{what} {k}: frame has non-finite entries")
+        raise GeometryError(f"{_where(what, (k,))}: frame has non-finite entries")
     err = np.abs(np.swapaxes(F, 1, 2) @ F - np.eye(3)).max(axis=(1, 2))
     if np.any(err > atol):
         k = int(np.argmax(err))
         raise GeometryError(
-            f"{what} {k}: frame is not orthonormal (max |F^T F - I| = {err[k]:.2e} > {atol:g}); "
+            f"{_where(what, (k,))}: frame is not orthonormal (max |F^T F - I| = {err[k]:.2e} > {atol:g}); "
             f"directors must be unit, mutually orthogonal columns (re-orthonormalise, e.g. with "
             f"scipy.spatial.transform.Rotation.from_matrix)"
         )
@@ -195,7 +207,7 @@ def check_frames(frames, atol=1e-6, what="node"):
     if np.any(det < 0):
         k = int(np.argmin(det))
         raise GeometryError(
-            f"{what} {k}: frame is left-handed (det = {det[k]:.3f}); directors d1, d2, d3 must "
+            f"{_where(what, (k,))}: frame is left-handed (det = {det[k]:.3f}); directors d1, d2, d3 must "
             f"satisfy d3 = d1 x d2"
         )
     return F

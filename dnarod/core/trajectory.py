@@ -1,4 +1,5 @@
-"""Trajectories of rod nodes: the in-memory :class:`Trajectory` and the ``.dtraj`` stream format.
+"""Trajectories of rod nodes: the in-memory :class:`~dnarod.core.trajectory.Trajectory` and the ``.dtraj`` stream
+format.
 
 Both engines (OpenMM and the Lax-form integrator) write the same format, so every analysis
 runs on both.
@@ -20,7 +21,9 @@ The JSON header holds ``version``, ``n_nodes``, ``velocities``, ``precision`` an
   velocities) against 96 (144) in float64.
 * version 1 (older files, still read): every number float64.
 
-Records are appended and flushed one at a time; a reader ignores a trailing partial record, and
+Records are appended in blocks of at most :data:`BLOCK_BYTES` (one record per block when a record is larger)
+and at every :meth:`TrajectoryWriter.flush` (the run layer flushes before each checkpoint, so a checkpoint
+never refers to a frame that is not on disk); a reader ignores a trailing partial record, and
 :class:`TrajectoryWriter` with ``resume_step`` truncates to the frames at or before the
 checkpointed step, so a resumed run neither loses nor duplicates frames. The exact state a run
 resumes from is in its checkpoint, not in the trajectory.
@@ -35,12 +38,14 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.core.io import atomic_path
+from dnarod.core.io import atomic_path, writing
 
 HEADER_SIZE = 4096
 MAGIC = b"DTRAJ1 "
 VERSION = 2
 PRECISIONS = {"float32": "<f4", "float64": "<f8"}
+#: Most bytes of frames a :class:`TrajectoryWriter` holds before writing them (fewer, larger writes).
+BLOCK_BYTES = 1 << 20
 
 
 @dataclass
@@ -178,8 +183,14 @@ def load_trajectory(path):
                       header.get("metadata", {}))
 
 
+def _quiet():
+    import contextlib
+
+    return contextlib.suppress(OSError)
+
+
 class TrajectoryWriter:
-    """Append frames to a ``.dtraj`` file (version 2), one flushed record per frame.
+    """Append frames to a ``.dtraj`` file (version 2), frames written in blocks (and at every flush).
 
     Use as a context manager or call :meth:`close`. Engines' reporters call :meth:`write` with
     their state.
@@ -198,9 +209,13 @@ class TrajectoryWriter:
         own version and precision.
     precision : {"float32", "float64"}
         Storage of the node data of a new file.
+    block_bytes : int
+        Frames are held and written in blocks of at most this many bytes (at least one frame), and at every
+        :meth:`flush`.
     """
 
-    def __init__(self, path, n_nodes, velocities=False, metadata=None, resume_step=None, precision="float32"):
+    def __init__(self, path, n_nodes, velocities=False, metadata=None, resume_step=None, precision="float32",
+                 block_bytes=BLOCK_BYTES):
         self.path = Path(path)
         self.n_nodes = int(n_nodes)
         self.velocities = bool(velocities)
@@ -227,41 +242,69 @@ class TrajectoryWriter:
             text = MAGIC + json.dumps(self.header).encode("ascii")
             if len(text) >= HEADER_SIZE:
                 raise DnarodError("trajectory metadata too large for the .dtraj header (4 kB)")
-            self._fh = open(self.path, "wb")
-            self._fh.write(text.ljust(HEADER_SIZE - 1) + b"\n")
-            self._fh.flush()
-        self._rec = np.zeros(1, self._dtype)
+            with writing(self.path, HEADER_SIZE):
+                self._fh = open(self.path, "wb")
+                self._fh.write(text.ljust(HEADER_SIZE - 1) + b"\n")
+                self._fh.flush()
+        self._block = np.zeros(max(1, int(block_bytes) // self._dtype.itemsize), self._dtype)
+        # the block's fields, looked up once (a structured field lookup per frame costs more than the copy)
+        self._fields = {name: self._block[name] for name in self._dtype.names}
+        self._held = 0
 
     def write(self, step, time, positions, frames, velocities=None, angular_velocities=None):
         """Append one frame (shapes (n_nodes, 3), (n_nodes, 3, 3); nm, ps)."""
-        r = self._rec
+        f, i = self._fields, self._held
         n = self.n_nodes
         try:
-            r["step"], r["time"] = step, time
-            r["positions"][0] = np.reshape(positions, (n, 3))
-            r["frames"][0] = np.reshape(frames, (n, 3, 3))
+            if self.velocities and (velocities is None or angular_velocities is None):
+                raise DnarodError("this trajectory stores velocities: pass velocities and angular_velocities")
+            f["positions"][i] = np.reshape(positions, (n, 3))
+            f["frames"][i] = np.reshape(frames, (n, 3, 3))
             if self.velocities:
-                if velocities is None or angular_velocities is None:
-                    raise DnarodError("this trajectory stores velocities: pass velocities and angular_velocities")
-                r["velocities"][0] = np.reshape(velocities, (n, 3))
-                r["angular_velocities"][0] = np.reshape(angular_velocities, (n, 3))
+                f["velocities"][i] = np.reshape(velocities, (n, 3))
+                f["angular_velocities"][i] = np.reshape(angular_velocities, (n, 3))
+            f["step"][i], f["time"][i] = step, time
         except ValueError as exc:
             if isinstance(exc, DnarodError):
                 raise
             raise DnarodError(f"frame does not fit a {n}-node trajectory ({exc})") from None
-        self._fh.write(r.tobytes())
-        self._fh.flush()
+        self._held = i + 1
+        if self._held == len(self._block):
+            self._write_held()
+
+    def _write_held(self):
+        if self._held:
+            data = self._block[:self._held]
+            self._failed = True  # until the block is on its way (see close)
+            with writing(self.path, data.nbytes):  # a full disk: one line naming the file; the frames before are kept
+                self._fh.write(data.data)
+                self._fh.flush()
+            self._failed = False
+            self._held = 0
 
     def flush(self, sync=False):
-        """Flush buffered frames (and ``fsync`` them with ``sync``)."""
+        """Write the frames held (and ``fsync`` them with ``sync``)."""
         if not self._fh.closed:
-            self._fh.flush()
-            if sync:
-                os.fsync(self._fh.fileno())
+            self._write_held()
+            self._failed = True
+            with writing(self.path):
+                self._fh.flush()
+                if sync:
+                    os.fsync(self._fh.fileno())
+            self._failed = False
 
     def close(self):
-        if not self._fh.closed:
-            self.flush(sync=True)
+        """Flush and close; after a failed write (already reported) only close, saying nothing more."""
+        if self._fh.closed:
+            return
+        if not getattr(self, "_failed", False):
+            try:
+                self.flush(sync=True)
+            except BaseException:
+                with _quiet():
+                    self._fh.close()
+                raise
+        with _quiet():  # a failed flush leaves its bytes buffered: closing tries them again and fails again
             self._fh.close()
 
     def __enter__(self):

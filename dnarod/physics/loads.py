@@ -482,8 +482,8 @@ def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns
     axis : {"end-to-end", "z"}
         See :data:`AXES`.
     traps : sequence of (int, float)
-        ``(node, k)`` harmonic traps at the nodes' start positions, k in pN/nm (node 0-based; negative counts from
-        the end).
+        ``(node, k)`` harmonic traps at the nodes' start positions, k in pN/nm (node index from 0; negative counts
+        from the end; the command line numbers base pairs from 1).
     walls : bool
         Add the surface and bead :class:`Walls` (``anchor="surface"``, ``axis="z"`` only).
     clamp_frame : ndarray (3, 3), optional
@@ -552,14 +552,13 @@ def tweezers(model, force_pN=None, torque_pN_nm=None, rotation_clamp=None, turns
         loads.append(RotationClamp(n - 1, rotation_clamp, frame=clamp_frame, axis=a, turns=float(turns)))
     trapped = {}
     for node, k in traps:
-        text = f"{node}:{k:g}"
-        k_node = resolve_node(node, n, f"--trap {text!r}")
+        k_node = resolve_node(node, n, "trap")
         if not (np.isfinite(k) and k > 0):
-            raise ParameterError(f"--trap {text!r}: the stiffness must be positive (pN/nm)")
+            raise ParameterError(f"trap on base pair {k_node + 1}: the stiffness must be positive (pN/nm), got {k}")
         if k_node in trapped:  # two traps on one node add up silently: say so
-            raise ParameterError(f"--trap {text!r}: node {k_node} already has a trap ({trapped[k_node]!r}); give "
-                                 f"one --trap per node with the stiffness you want")
-        trapped[k_node] = text
+            raise ParameterError(f"trap on base pair {k_node + 1} given twice ({trapped[k_node]:g} and {k:g} pN/nm); "
+                                 f"give one trap per base pair with the stiffness you want")
+        trapped[k_node] = k
         loads.append(Trap(node, k * PN))
     if walls:
         loads.append(Walls())

@@ -354,9 +354,9 @@ def hessian_blocks(model, loads=(), positions=None, frames=None, mass_weighted=T
         t = np.ascontiguousarray(model.closure.t, float) if circular else np.zeros(3)
         bad = _step_hessians(pos, frm, K, xi0, model.ds, Q, t, circular, ht, hr, diag, off)
         if bad >= 0:
-            from dnarod.core.errors import GeometryError
+            from dnarod.core.errors import GeometryError, step_name
 
-            raise GeometryError(f"step {bad}: the rotation between nodes {bad} and {(bad + 1) % n} is at or beyond "
+            raise GeometryError(f"{step_name(bad, n)}: the rotation between its base pairs is at or beyond "
                                 f"180 deg; the Hessian is undefined at this pose")
         _add_external(diag, rl, frm, angles, hr)
     else:
@@ -658,7 +658,7 @@ def check_load_stiffness(model, loads, names=None, omega=None):
     for ld in stiff:
         if isinstance(ld, Trap):
             k = float(ld.k) / PN
-            parts.append(f"{names['Trap']} {ld.node}:{k:g} (pN/nm; use at most "
+            parts.append(f"{names['Trap']} {ld.node + 1 if ld.node >= 0 else ld.node}:{k:g} (pN/nm; use at most "
                          f"{k * (MAX_LOAD_OMEGA_RATIO / ratio) ** 2:.3g})")
         else:
             k = float(ld.k)

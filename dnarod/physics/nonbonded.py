@@ -122,6 +122,17 @@ BARE_LINE_CHARGE = 2.0 / 0.34
 CALIBRATED_RADIUS = 1.159
 
 
+#: Temperature (K) that sets the non-bonded energy scales (the WCA kT, the Bjerrum length) of a run at 0 K (started at
+#: rest, or NVE): the potential must not depend on how a run starts, so 0 K means these scales at 300 K.
+NONBONDED_REFERENCE_T = 300.0
+
+
+def scales_temperature(temperature):
+    """The temperature (K) the non-bonded terms are evaluated at: the run's, or :data:`NONBONDED_REFERENCE_T` at 0 K
+    (the one place this rule is written)."""
+    return float(temperature) if temperature and float(temperature) > 0 else NONBONDED_REFERENCE_T
+
+
 @dataclass
 class NonbondedSettings:
     """Settings of the non-local terms.
@@ -428,7 +439,8 @@ def _separation(i, j, n, circular):
 
 def pair_energy(r, numbers):
     """WCA + shifted Debye-Hueckel energy (kJ/mol) of node pairs at distances ``r`` (nm, any shape), with the
-    numbers of :meth:`NonbondedSettings.resolve` (the same terms as :func:`pair_kernel`)."""
+    numbers of :meth:`NonbondedSettings.resolve` (the same terms as
+    :func:`dnarod.engines.openmm.nonbonded.pair_kernel`)."""
     r = np.asarray(r, float)
     eps, sig, kap, rc = numbers["eps"], numbers["sigma"], numbers["kappa"], numbers["rc_dh"]
     with np.errstate(over="ignore", divide="ignore", invalid="ignore"):

@@ -86,7 +86,7 @@ class TweezersGeometry:
 
 
 def extension(positions, geometry):
-    """Extension along the pull axis, nm (``(r_pulled - r_anchor) . axis``); NaN without a pulling force."""
+    """Extension along the pull axis, nm (``(r_pulled - r_anchor)·axis``); NaN without a pulling force."""
     g = geometry
     if g.pulled is None:
         return float("nan")

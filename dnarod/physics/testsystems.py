@@ -243,7 +243,7 @@ class TwistedRod:
 
 
 def thermal_tangent_correlation(params, ds, temperature, n_max):
-    """Exact ``<d3(k) . d3(k+n)>``, n = 0..n_max, of the free open chain at ``temperature`` (K)
+    """Exact ``<d3(k)·d3(k+n)>``, n = 0..n_max, of the free open chain at ``temperature`` (K)
     (docs/formulation.md §8)."""
     from dnarod.physics.thermal import tangent_correlation
     from dnarod.core.units import kT

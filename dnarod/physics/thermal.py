@@ -37,6 +37,8 @@ def node_kinetic_energy(mass, inertia, velocities, angular_velocities):
 
 def kinetic_temperature(kinetic_energy, n_dof):
     """Temperature (K) of ``n_dof`` degrees of freedom holding ``kinetic_energy`` (kJ/mol); 0 if none."""
+    if type(kinetic_energy) is float:  # one value per report of a run: the same arithmetic without numpy's overhead
+        return 2.0 * kinetic_energy / (n_dof * BOLTZMANN) if n_dof > 0 else 0.0
     return 2.0 * np.asarray(kinetic_energy) / (n_dof * BOLTZMANN) if n_dof > 0 else 0.0 * np.asarray(kinetic_energy)
 
 
@@ -89,7 +91,7 @@ def mean_rotation(params: StepParameters, ds, kt, order=24):
 
 
 def tangent_correlation(params: StepParameters, ds, kt, n_max, order=24):
-    """Exact ``<d3(0) . d3(n)>`` for n = 0..n_max along an open chain starting at step 0.
+    """Exact ``<d3(0)·d3(n)>`` for n = 0..n_max along an open chain starting at step 0.
 
     Returns
     -------
@@ -106,9 +108,9 @@ def tangent_correlation(params: StepParameters, ds, kt, n_max, order=24):
 
 
 def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
-    """Exact ``<d3(k) . d3(k+n)>`` of a free open chain in equilibrium, averaged over the start node k
+    """Exact ``<d3(k)·d3(k+n)>`` of a free open chain in equilibrium, averaged over the start node k
     exactly as :class:`~dnarod.analysis.polymer.TangentCorrelation` averages (docs/formulation.md §8:
-    ``<d3(k) . d3(k+n)> = (<R_k> ... <R_{k+n-1}>)_33``).
+    ``<d3(k)·d3(k+n)> = (<R_k> <R_{k+1}> ⋯ <R_{k+n-1}>)_33``).
 
     Parameters
     ----------

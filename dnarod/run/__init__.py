@@ -1,11 +1,12 @@
 """The run layer: one engine-neutral way to run, report, checkpoint and resume a simulation.
 
-Example::
+Example (200 bp for 0.01 ns on the Lax-form engine, into the folder ``run1``):
 
-    from dnarod.run import RunSpec, run
-    result = run(RunSpec(source="ACGT" * 50, engine="lax", time_ns=0.1, excluded_volume=False,
-                         electrostatics=False), "run1")
-    result.files["trajectory"], result.summary["ns_per_day"]
+>>> from dnarod.run import RunSpec, run
+>>> result = run(RunSpec(source="ACGT" * 50, engine="lax", time_ns=0.01, excluded_volume=False,
+...                      electrostatics=False), "run1", progress=False)
+>>> result.files["trajectory"].name, result.summary["engine"]
+('trajectory.dtraj', 'lax')
 
 Modules: :mod:`.spec` (:class:`RunSpec`, fingerprint), :mod:`.engine` (engine protocol, Lax-form
 adapter, checkpoint files), :mod:`.reporters` (``.dtraj``, energies CSV, progress), :mod:`.loop`

@@ -47,9 +47,10 @@ class Engine(Protocol):
         """Integrate ``n_steps`` steps; raise :class:`~dnarod.core.errors.SimulationError` naming the step, node
         and term on a blow-up."""
 
-    def node_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    def node_state(self, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """On-step ``(positions (n, 3) nm, frames (n, 3, 3), velocities (n, 3) nm/ps lab, angular velocities
-        (n, 3) rad/ps body)``."""
+        (n, 3) rad/ps body)``; ``copy=False`` may return the engine's own arrays or read-only views, valid until
+        it advances (the run layer's reports read each state once, so they need no copies)."""
 
     def energies(self) -> dict[str, float]:
         """kJ/mol: ``potential``, ``kinetic``, ``elastic``, ``nonbonded``, ``external``; K: ``temperature``."""

@@ -7,12 +7,12 @@ shared formats, so every analysis runs on both engines:
 * ``.dtraj`` trajectory with centre velocities (lab, nm/ps) and body angular velocities (rad/ps),
   in float64 here (these functions serve the validation, which compares exact numbers; the
   ``dnarod simulate`` runs store float32);
-* energies CSV with the run layer's header (:data:`dnarod.run.ENERGY_COLUMNS`);
+* energies CSV with the run layer's header (:data:`dnarod.run.reporters.ENERGY_COLUMNS`);
 * checkpoint ``.npz`` (written atomically, every ``checkpoint_interval`` steps and at the end):
   state, step, time step and the random-number state, so a resumed run continues bit-for-bit as if
   uninterrupted; the trajectory and CSV are cut back to the checkpoint's step on resume.
 
-A blow-up (NaN, a step rotating to 180 deg) stops the run with :class:`SimulationError` naming the
+A blow-up (NaN, a step rotating to 180 deg) stops the run with :class:`~dnarod.core.errors.SimulationError` naming the
 step, the node and the quantity; everything written before stays on disk.
 """
 from __future__ import annotations
@@ -58,7 +58,7 @@ class SimulationResult:
     integrator: SplittingIntegrator
 
     def trajectory(self):
-        """The written trajectory as a :class:`Trajectory` (requires ``out``)."""
+        """The written trajectory as a :class:`~dnarod.core.trajectory.Trajectory` (requires ``out``)."""
         if self.trajectory_path is None:
             raise DnarodError("this run wrote no trajectory; pass out=PATH")
         return load_trajectory(self.trajectory_path)

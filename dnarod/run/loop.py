@@ -1,15 +1,56 @@
-"""The one run loop of both engines: advance to the next report, report, checkpoint, end with a checkpoint."""
+"""The one run loop of both engines: advance to the next report, report, checkpoint, end with a checkpoint.
+
+Checkpoints follow one of two schedules: every ``checkpoint_interval`` steps (an explicit choice), or, by
+default, by wall time: at the first report after ``checkpoint_wall_s`` seconds since the last checkpoint
+(or the start). A checkpoint costs the same whatever the step count, so a wall-time schedule keeps its
+share of the run small for small and large models alike while bounding the work an interruption loses.
+One is always written at the end, and on a Ctrl-C (SIGINT) the loop finishes the current advance and
+report, writes one and then raises :class:`KeyboardInterrupt` (a second Ctrl-C stops at once).
+"""
 from __future__ import annotations
 
+import signal
+import threading
 import time
-from pathlib import Path
 
 from dnarod.core.errors import ParameterError
 from dnarod.run.reporters import Snapshot
 
+#: Default wall time between checkpoints, s (a checkpoint is always written at the end and on Ctrl-C): the
+#: protocol samplers' interval. A checkpoint of a 1,000-node OpenMM run takes about a millisecond, so
+#: checkpointing stays far below 1 % of the run, and an interrupted run loses at most two minutes.
+CHECKPOINT_WALL_S = 120.0
+
 
 def _next_multiple(step, interval):
     return (step // interval + 1) * interval
+
+
+class _DeferredInterrupt:
+    """Catch the first SIGINT as a flag (main thread only), so the loop can stop at a consistent step;
+    a second SIGINT raises :class:`KeyboardInterrupt` at once."""
+
+    def __init__(self):
+        self.hit = False
+        self._old = None
+
+    def __enter__(self):
+        if threading.current_thread() is threading.main_thread():
+            try:
+                self._old = signal.signal(signal.SIGINT, self._handler)
+            except (ValueError, OSError):  # not settable here (an embedded interpreter)
+                self._old = None
+        return self
+
+    def _handler(self, signum, frame):
+        if self.hit:
+            raise KeyboardInterrupt
+        self.hit = True
+
+    def __exit__(self, *exc):
+        if self._old is not None:
+            signal.signal(signal.SIGINT, self._old)
+        return False
 
 
 def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interval=0, progress=None,
@@ -24,31 +65,41 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
     reporters : sequence
         Objects with ``describeNextReport(engine)``, ``due(step)``, ``report(engine, snapshot)``, ``flush()``.
     checkpoint : Path or None
-        Checkpoint file: written every ``checkpoint_interval`` steps (0: none in between), at the first report
-        after ``checkpoint_wall_s`` wall seconds since the last one, and always at the end, after the reporters
-        are flushed. Reporters with ``state()`` (and ``name``) have their state stored in it
-        (``meta["extra"]["reporters"][name]``), so they resume with the engine (:mod:`dnarod.run.sampling`).
+        Checkpoint file: written on the schedule below and always at the end, after the reporters are
+        flushed (and on a Ctrl-C, at the step the engine has reached). Reporters with ``state()`` (and ``name``)
+        have their state stored in it (``meta["extra"]["reporters"][name]``), so they resume with the engine
+        (:mod:`dnarod.run.sampling`).
+    checkpoint_interval : int
+        Steps between checkpoints (0: none on a step schedule).
     progress : ProgressReporter or None
     duration_ps : float or None
         Run length over which rotation clamps spread their turns (passed to ``engine.update_loads``).
     checkpoint_extra : dict or None
         Stored in every checkpoint's metadata.
-    checkpoint_wall_s : float or None
-        Wall seconds between checkpoints (None: by steps only).
     report_start : bool
         Report the starting state (a new run; a resumed run has it on disk).
+    checkpoint_wall_s : float or None
+        With ``checkpoint_interval`` 0: wall seconds between checkpoints (at the first report, or advance,
+        after that time since the last one); None or 0: none in between.
 
     Returns
     -------
     dict
-        ``steps`` (total), ``steps_this_run``, ``wall_s``, ``cpu_s``, ``temperatures`` (one per energy row).
+        ``steps`` (total), ``steps_this_run``, ``wall_s``, ``cpu_s``, ``checkpoints`` (written by this call),
+        ``timed_steps`` and ``timed_wall_s`` (the steps after the first advance and their wall time: a speed
+        without the kernels' first-call compile).
     """
     n_steps = int(n_steps)
     ci = int(checkpoint_interval or 0)
+    wall_every = float(checkpoint_wall_s or 0.0) if not ci else 0.0
+    if ci < 0 or not wall_every >= 0:
+        raise ParameterError(f"checkpoint intervals must be >= 0, got {checkpoint_interval} steps, "
+                             f"{checkpoint_wall_s} s")
     start = int(engine.step)
     t0, c0 = time.perf_counter(), time.process_time()
     reporters = list(reporters)
     update = getattr(engine, "update_loads", None)
+    n_checkpoints = 0
 
     def report_all():
         snap = Snapshot(engine)
@@ -59,46 +110,60 @@ def run_engine(engine, n_steps, reporters=(), checkpoint=None, checkpoint_interv
     stateful = [r for r in reporters if hasattr(r, "state")]
 
     def save():
+        nonlocal n_checkpoints, last_save
         for r in reporters:
             r.flush()
         extra = dict(checkpoint_extra or {})
         if stateful:
             extra["reporters"] = {r.name: r.state() for r in stateful}
         engine.save_checkpoint(checkpoint, extra=extra)
-        return time.perf_counter()
+        n_checkpoints += 1
+        last_save = time.perf_counter()
 
     last_save = t0
-
-    if report_start:
-        report_all()
-    while engine.step < n_steps:
-        nxt = n_steps
-        for r in reporters:
-            nxt = min(nxt, engine.step + r.describeNextReport(engine))
-        if checkpoint is not None and ci:
-            nxt = min(nxt, _next_multiple(engine.step, ci))
-        engine.advance(nxt - engine.step)
-        if update is not None:
-            update(engine.step * engine.dt, duration_ps)
-        report_all()
-        if progress is not None:
-            progress.update(engine.step)
-        if checkpoint is not None and engine.step < n_steps and (
-                (ci and engine.step % ci == 0)
-                or (checkpoint_wall_s is not None and time.perf_counter() - last_save >= checkpoint_wall_s)):
-            last_save = save()
-    if checkpoint is not None:
-        save()
-    else:
+    timed = None  # (step, wall) after the first advance: the speed leaves out the kernels' first-call compile
+    with _DeferredInterrupt() as interrupt:
+        if report_start:
+            report_all()
+        while engine.step < n_steps and not interrupt.hit:
+            nxt = n_steps
+            for r in reporters:
+                nxt = min(nxt, engine.step + r.describeNextReport(engine))
+            if checkpoint is not None and ci:
+                nxt = min(nxt, _next_multiple(engine.step, ci))
+            elif checkpoint is not None and wall_every and not reporters:
+                # without reporters to stop at, advance at most the steps that fit in the time left to the next
+                # checkpoint at the rate so far (one step first, to measure it)
+                now = time.perf_counter()
+                rate = (engine.step - start) / max(now - t0, 1e-9)
+                nxt = min(nxt, engine.step + max(1, int(rate * (wall_every - (now - last_save)))))
+            engine.advance(nxt - engine.step)
+            if timed is None:
+                timed = (int(engine.step), time.perf_counter())
+            if update is not None:
+                update(engine.step * engine.dt, duration_ps)
+            report_all()
+            if progress is not None:
+                progress.update(engine.step)
+            if checkpoint is not None and engine.step < n_steps and not interrupt.hit:
+                if (ci and engine.step % ci == 0) or (wall_every and time.perf_counter() - last_save >= wall_every):
+                    save()
         for r in reporters:
             r.flush()
-    return dict(steps=int(engine.step), steps_this_run=int(engine.step) - start,
-                wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
+        if checkpoint is not None:
+            save()
+        if interrupt.hit:
+            raise KeyboardInterrupt
+    t1 = time.perf_counter()
+    return dict(steps=int(engine.step), steps_this_run=int(engine.step) - start, wall_s=t1 - t0,
+                cpu_s=time.process_time() - c0, checkpoints=n_checkpoints,
+                timed_steps=int(engine.step) - timed[0] if timed else 0, timed_wall_s=t1 - timed[1] if timed else 0.0)
 
 
 def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval=None, checkpoint_interval=None,
                     resume=False, overwrite=False, velocities=False, precision="float32", metadata=None,
-                    observables=None, progress=False, duration_ps=None, checkpoint_extra=None, restored=False):
+                    observables=None, progress=False, duration_ps=None, checkpoint_extra=None, restored=False,
+                    checkpoint_wall_s=CHECKPOINT_WALL_S):
     """Run an engine into a folder: ``trajectory.dtraj``, ``energies.csv``, ``checkpoint.npz``, ``final_model.npz``.
 
     The engine-level form of :func:`dnarod.run.run` (which also builds the engine from a
@@ -114,7 +179,10 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
     frame_interval, energy_interval : int
         Steps between frames and between energy rows (default: the frame interval).
     checkpoint_interval : int or None
-        Steps between checkpoints (default ten frame intervals; 0: only at the end).
+        Steps between checkpoints (0: only at the end); None (default): by wall time, every
+        ``checkpoint_wall_s`` seconds.
+    checkpoint_wall_s : float
+        Wall seconds between checkpoints when ``checkpoint_interval`` is None (0: only at the end).
     resume : bool
         Continue from ``outdir/checkpoint.npz`` (read before any file is touched); the trajectory and
         CSV are cut back to its step.
@@ -143,10 +211,11 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
     outdir = ensure_dir(outdir)
     fi = int(frame_interval)
     ei = int(energy_interval or fi)
-    ci = 10 * fi if checkpoint_interval is None else int(checkpoint_interval)
-    if fi <= 0 or ei <= 0 or ci < 0:
-        raise ParameterError(f"frame and energy intervals must be positive and the checkpoint interval >= 0 steps, "
-                             f"got {fi}, {ei}, {ci}")
+    ci = 0 if checkpoint_interval is None else int(checkpoint_interval)
+    wall = float(checkpoint_wall_s or 0.0) if checkpoint_interval is None else 0.0
+    if fi <= 0 or ei <= 0 or ci < 0 or not wall >= 0:
+        raise ParameterError(f"frame and energy intervals must be positive and the checkpoint interval >= 0 steps "
+                             f"(or >= 0 s), got {fi}, {ei}, {checkpoint_interval if ci else wall}")
     traj, csv_path, chk = outdir / "trajectory.dtraj", outdir / "energies.csv", outdir / "checkpoint.npz"
     resume_step = None
     if resume:
@@ -165,7 +234,7 @@ def simulate_engine(engine, n_steps, outdir, frame_interval=100, energy_interval
         if progress:
             bar = ProgressReporter(n_steps, engine.step)
         out = run_engine(engine, n_steps, reporters, chk, ci, bar, duration_ps, checkpoint_extra,
-                         report_start=resume_step is None)
+                         report_start=resume_step is None, checkpoint_wall_s=wall)
     finally:
         for r in reporters:
             r.close()

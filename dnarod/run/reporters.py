@@ -15,6 +15,7 @@ never refers to a frame that is not on disk.
 """
 from __future__ import annotations
 
+import contextlib
 import csv
 import io
 from pathlib import Path
@@ -22,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.core.io import atomic_path
+from dnarod.core.io import atomic_path, writing
 
 #: Columns of ``energies.csv`` (both engines); observables follow when the loads define them.
 ENERGY_COLUMNS = ["step", "time_ps", "potential_kJ_mol", "kinetic_kJ_mol", "total_kJ_mol", "temperature_K",
@@ -41,9 +42,10 @@ class Snapshot:
 
     @property
     def state(self):
-        """``(positions, frames, velocities, angular_velocities)`` (on-step; see the engine protocol)."""
+        """``(positions, frames, velocities, angular_velocities)`` (on-step; see the engine protocol): the engine's
+        arrays or read-only views, valid for this report only."""
         if self._state is None:
-            self._state = self.engine.node_state()
+            self._state = self.engine.node_state(copy=False)
         return self._state
 
     @property
@@ -128,12 +130,15 @@ class EnergyReporter(_Interval):
     def __init__(self, path, interval, observables=None, resume_step=None):
         self.path = Path(path)
         self.interval = int(interval)
-        self.observables = observables
-        self.columns = ENERGY_COLUMNS + list(getattr(observables, "columns", []) if observables else [])
+        extra = list(getattr(observables, "columns", []) if observables else [])
+        self.observables = observables if extra else None  # no columns to fill: not called
+        self.columns = ENERGY_COLUMNS + extra
         rows = []
         if resume_step is not None and self.path.exists():
             with open(self.path, newline="") as fh:
-                old = list(csv.reader(fh))
+                text = fh.read()
+            # a row cut short by a full disk or a kill has no newline: drop it (the checkpoint is before it)
+            old = list(csv.reader(io.StringIO(text[:text.rfind("\n") + 1])))
             if not old or old[0] != self.columns:
                 raise DnarodError(f"{self.path}: the energies file has other columns than this run writes; "
                                   f"start a new run with --overwrite")
@@ -144,7 +149,9 @@ class EnergyReporter(_Interval):
         w.writerows(rows)
         with atomic_path(self.path) as tmp:
             Path(tmp).write_text(buf.getvalue())
-        self._fh = open(self.path, "a", newline="")
+        with writing(self.path):
+            self._fh = open(self.path, "a", newline="")
+        self._failed = False
         self._csv = csv.writer(self._fh, lineterminator="\n")
         self.temperatures = []
 
@@ -157,13 +164,26 @@ class EnergyReporter(_Interval):
         if self.observables is not None:
             obs = self.observables(snap)
             row += [repr(float(obs[c])) for c in self.observables.columns]
-        self._csv.writerow(row)
+        self._failed = True
+        with writing(self.path):
+            self._csv.writerow(row)
+        self._failed = False
 
     def flush(self):
-        self._fh.flush()
+        self._failed = True
+        with writing(self.path):
+            self._fh.flush()
+        self._failed = False
 
     def close(self):
-        if not self._fh.closed:
+        if self._fh.closed:
+            return
+        if self._failed:  # already reported; the buffered bytes would fail again
+            with contextlib.suppress(OSError):
+                self._fh.close()
+            return
+        self._failed = True
+        with writing(self.path):
             self._fh.close()
 
 

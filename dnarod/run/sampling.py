@@ -17,10 +17,7 @@ from typing import Any
 import numpy as np
 
 from dnarod.core.errors import ParameterError
-from dnarod.run.loop import run_engine
-
-#: Wall seconds between a sampling run's checkpoints (an interrupted member loses at most this much work).
-CHECKPOINT_WALL_S = 120.0
+from dnarod.run.loop import CHECKPOINT_WALL_S, run_engine
 
 
 class SampleReporter:
@@ -178,7 +175,7 @@ def run_sampling(engine: Any, sampler: SampleReporter, checkpoint: str | Path | 
     sampler : SampleReporter
     checkpoint : path, optional
         The engine's checkpoint file: written every ``checkpoint_wall_s`` wall seconds (default
-        :data:`CHECKPOINT_WALL_S`) and at the end, with the sampler's rows. If it exists, the engine and the
+        :data:`dnarod.run.loop.CHECKPOINT_WALL_S`) and at the end, with the sampler's rows. If it exists, the engine and the
         sampler resume from it, so the run ends with the samples an uninterrupted run would have.
     extra : mapping, optional
         What identifies the run (settings); stored in the checkpoint and required to match on resume.

@@ -13,6 +13,8 @@ import numpy as np
 
 from dnarod.core.errors import ParameterError
 from dnarod.core.model import model_fingerprint
+from dnarod.physics.nonbonded import scales_temperature
+from dnarod.run.loop import CHECKPOINT_WALL_S
 
 ENGINES = ("openmm", "lax")
 STARTS = ("intrinsic", "equilibrium", "minimized")
@@ -71,8 +73,12 @@ class RunSpec:
     frame_interval_ps : float
         Time between trajectory frames (and energy rows), ps; rounded to whole steps.
     checkpoint_interval_ps : float or None
-        Time between checkpoints, ps (default 10 frame intervals); a checkpoint is always
-        written at the end.
+        Simulated time between checkpoints, ps (0: only at the end); None (default): checkpoints by wall
+        time, every ``checkpoint_wall_s``. A checkpoint is always written at the end and on Ctrl-C.
+    checkpoint_wall_s : float
+        Wall-clock seconds between checkpoints when ``checkpoint_interval_ps`` is None (0: only at the end);
+        default :data:`dnarod.run.loop.CHECKPOINT_WALL_S`. Not part of the run's fingerprint: a resumed run
+        may change it.
     velocities : bool
         Also store velocities in the trajectory (doubles its size; checkpoints always keep them).
     export : bool
@@ -109,6 +115,7 @@ class RunSpec:
     start: str = "intrinsic"
     frame_interval_ps: float = 1.0
     checkpoint_interval_ps: float | None = None
+    checkpoint_wall_s: float = CHECKPOINT_WALL_S
     velocities: bool = False
     export: bool = True
     xtc: bool = True
@@ -170,6 +177,8 @@ class RunSpec:
         if self.checkpoint_interval_ps is not None:
             finite("checkpoint_interval_ps", self.checkpoint_interval_ps, lambda x: x >= 0,
                    ">= 0 ps (0: only at the end)", "--checkpoint-interval")
+        finite("checkpoint_wall_s", self.checkpoint_wall_s, lambda x: x >= 0, ">= 0 s of wall time (0: only at the end)",
+               "--checkpoint-wall")
         finite("salt", self.salt, lambda x: 0 < x <= MAX_SALT,
                f"a salt concentration in mol/L above 0 and at most {MAX_SALT:g} (Debye-Hueckel screening is "
                f"meaningless beyond)")
@@ -251,7 +260,7 @@ class RunSpec:
         extra = {k: v for k, v in (("charge", self.charge), ("cutoff_debye", self.cutoff_debye)) if v is not None}
         if check:
             return member_nonbonded(dict(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
-                                         salt_M=self.salt, temperature_K=self.temperature or 300.0, **extra))
+                                         salt_M=self.salt, temperature_K=scales_temperature(self.temperature), **extra))
         return NonbondedSettings(excluded_volume=self.excluded_volume, electrostatics=self.electrostatics,
                                  salt=self.salt, **extra)
 
@@ -320,7 +329,7 @@ def _nonbonded_fingerprint(spec, model):
     if spec.engine == "openmm" and spec.electrostatics:
         from dnarod.physics.nonbonded import nonbonded_record
 
-        rec = nonbonded_record(spec.nonbonded_settings(), model.ds, spec.temperature or 300.0)
+        rec = nonbonded_record(spec.nonbonded_settings(), model.ds, scales_temperature(spec.temperature))
         fp.update({k: rec[k] for k in CHARGE_ENTRIES})
     return fp
 

@@ -17,8 +17,8 @@ Three stages:
    than untangled from a far-off start: covalent terms with a capped repulsion first, then the
    full force field (1.2 nm non-periodic cut-off: the closure is a local fit, and a cut-off keeps
    it linear in length) at each stage with soft restraints, firm ones on the input frames, and a
-   polish with the covalent terms (bond constants x :data:`POLISH_BOND_SCALE`), repulsion and
-   firm restraints only (why: see :data:`POLISH_BOND_SCALE`). Before each stage the
+   polish with the covalent terms (bond constants x ``POLISH_BOND_SCALE``), repulsion and
+   firm restraints only (why: see ``POLISH_BOND_SCALE``). Before each stage the
    targets are the bases' current, force-field-relaxed shape refitted onto the exact placed frames
    (:func:`_retarget`), so holding a frame does not strain its ring bonds.
 3. **Windows** (duplexes longer than ``WINDOW_CORE + 2 * WINDOW_FLANK`` bp): the closure (2) is run on

@@ -158,7 +158,8 @@ def unstacked_steps(duplex):
 
 
 def describe_unstacked(duplex, k):
-    """``step 12 (...): the base-pair frames turn by 177 deg (tilt ..., roll ..., twist ... deg)``."""
+    """The line naming an unstacked step: ``NAME: the base-pair frames turn by A deg (tilt T, roll R, twist W deg)``,
+    NAME as the duplex's ``step_name(k)`` gives it."""
     F = duplex.bp_frames
     R = F[k].T @ F[k + 1]
     ang = np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1)))

@@ -72,7 +72,7 @@ def model_from_structure(path=None, forcefield="dna-default", duplex=None, model
     RodModel
         positions (n, 3) nm at the base-pair origins, frames (n, 3, 3) the base-pair frames.
         ``metadata["selection"]`` is the one-line report of the duplex taken and what was
-        dropped (:meth:`DuplexSelection.report`).
+        dropped (:meth:`~dnarod.structure.selection.DuplexSelection.report`).
     """
     from dnarod.core.parameters import StepParameters
     from dnarod.core.strains import strains

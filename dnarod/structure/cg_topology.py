@@ -57,7 +57,7 @@ def chain_and_number(k):
     """(chain ID, residue number) of node ``k`` (0-based)."""
     c = k // PER_CHAIN
     if c >= len(CHAIN_IDS):
-        raise DnarodError(f"node {k}: more than {PER_CHAIN * len(CHAIN_IDS)} base pairs do not fit PDB chain IDs; "
+        raise DnarodError(f"base pair {k + 1}: more than {PER_CHAIN * len(CHAIN_IDS)} base pairs do not fit PDB chain IDs; "
                           f"export the frames with the .dtraj trajectory instead")
     return CHAIN_IDS[c], k % PER_CHAIN + 1
 
@@ -174,7 +174,10 @@ def load_cg_trajectory(pdb_path, trajectory_path=None, arm=1.0):
 
     from dnarod.core.trajectory import Trajectory
 
-    t = md.load(str(trajectory_path), top=str(pdb_path)) if trajectory_path else md.load(str(pdb_path))
+    from dnarod.core.io import ascii_alias
+
+    with ascii_alias(pdb_path, trajectory_path) as (pdb, trj):  # mdtraj's C readers take only ASCII paths
+        t = md.load(trj, top=pdb) if trj else md.load(pdb)
     if t.n_atoms % 3:
         raise DnarodError(f"{pdb_path}: {t.n_atoms} atoms is not three beads per node; not a dnarod export")
     c, f = frames_from_beads(t.xyz.astype(float))

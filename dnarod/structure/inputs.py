@@ -94,7 +94,7 @@ def load_model(source, forcefield="dna-default", circular=False, ring=False, del
     circular : bool
         Periodic chain (screw-closed intrinsic helix) from a sequence or node count.
     ring : bool
-        Closed planar ring from a sequence or node count (:meth:`ForceField.ring`).
+        Closed planar ring from a sequence or node count (:meth:`~dnarod.core.forcefield.ForceField.ring`).
     delta_lk : int
         With ``ring``: linking number relative to the relaxed ring.
     duplex : int, optional

@@ -275,14 +275,16 @@ def write_oxdna(topology, configuration, positions, frames, sequence, new_format
             n3 = pos_of[g + 1] if g < last else -1
             n5 = pos_of[g - 1] if g > first else -1
             top.append(f"{s} {letters[g]} {n3} {n5}")
-    Path(topology).write_text("\n".join(top) + "\n")
+    from dnarod.core.io import write_text_atomic
+
+    write_text_atomic(topology, "\n".join(top) + "\n")
     out = []
     for f in range(P.shape[0]):
         out += [f"t = {time + f:g}", f"b = {box:g} {box:g} {box:g}", "E = 0 0 0"]
         for g in order:
             vals = list(r_all[f, g]) + list(a1_all[f, g]) + list(a3_all[f, g]) + [0.0] * 6
             out.append(" ".join(f"{v:.10f}" for v in vals))
-    Path(configuration).write_text("\n".join(out) + "\n")
+    write_text_atomic(configuration, "\n".join(out) + "\n")
 
 
 def looks_like_oxdna_topology(path):

@@ -1,4 +1,4 @@
-"""Pairing helpers around 3DNA's rules: helix-context pairs, multiplets, explicit pairs, classes.
+"""Pairing helpers built on 3DNA's rules: helix-context pairs, multiplets, explicit pairs, classes.
 
 The pairs themselves and their ordering into helices follow 3DNA's ``find_pair``
 (:mod:`dnarod.structure.findpair`). This module adds what dnarod does beyond those rules, each

@@ -10,7 +10,7 @@ What the reader does (and reports):
 * ignores hydrogens, water, amino acids, ions and other ligands (counted in ``skipped``);
 * a nucleotide-like residue that is not part of a DNA/RNA chain (a ligand such as cAMP, ``CMP``,
   or a free ``ATP``) is a ligand, not an unpaired nucleotide: a residue is part of a chain when
-  it is linked O3'-P to another residue (:data:`LINK_CUTOFF`) or gemmi puts it in a polymer
+  it is linked O3'-P to another residue (``LINK_CUTOFF``) or gemmi puts it in a polymer
   entity (mmCIF ``_entity``, or the PDB chain before its ``TER``); an unlinked residue of a
   non-polymer entity, or an unlinked modified residue where the entity is unknown, is a ligand;
 * modified nucleotides inside a chain (``5CM``, ``8OG``, ...) are kept as their parent base and
@@ -207,7 +207,7 @@ def _linked_residues(model):
     """Residues of ``model`` bonded O3'-P to another residue: set of (chain index, residue index).
 
     A polymer link is the covalent O3'(i)-P(j) bond between two residues (within
-    :data:`LINK_CUTOFF`); a cyclic phosphate inside one residue (cAMP) does not count.
+    ``LINK_CUTOFF``); a cyclic phosphate inside one residue (cAMP) does not count.
     """
     from scipy.spatial import cKDTree
 

@@ -12,8 +12,6 @@ Checks (by name; each module states its system, reference and tolerances):
   (:mod:`.force_extension`);
 * ``torsion`` -- C_eff(F) of a stretched chain from the torque-turns slope and from twist fluctuations,
   against each other and Moroz & Nelson (:mod:`.torsion`);
-* ``buckling`` -- plateau torque, buckling point and extension slope of a plectonemic chain against Marko's
-  two-phase model with the model's A, C and plectoneme twist stiffness (:mod:`.buckling`);
 * ``plectonemes`` -- the writhe fraction of supercoiled rings at sigma ~ -0.05 against the two-phase relation
   ``1 - P/C`` (:mod:`.plectonemes`);
 * ``nicked_ring`` -- ``<ΔLk²>`` of nicked rings (exact twist part, model writhe vs a worm-like-ring Monte Carlo
@@ -44,7 +42,6 @@ CHECKS = {
     "paper_scheme": ("paper_scheme", "check_paper_scheme"),
     "force_extension": ("force_extension", "check_force_extension"),
     "torsion": ("torsion", "check_torsion"),
-    "buckling": ("buckling", "check_buckling"),
     "plectonemes": ("plectonemes", "check_plectonemes"),
     "nicked_ring": ("nicked_ring", "check_nicked_ring"),
     "experiment": ("experiment", "check_experiment"),
@@ -66,11 +63,9 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
 
     A folder that already holds a report is refused unless ``overwrite``, before any check runs; with it the
     report (``report.md``, ``results.json``) is replaced when the new one is written and the plots the old
-    report listed but the new one does not are removed, while the members of check ``buckling``
-    (``buckling_members/``) are kept and reused. A folder that holds no report but the members of an
-    interrupted validation is run into without ``overwrite`` (the members are reused). Any other non-empty
-    folder is refused (:func:`dnarod.core.io.check_output_folder`), and while the checks run the folder is
-    locked against a second writer (:func:`dnarod.core.io.folder_lock`).
+    report listed but the new one does not are removed. Any other non-empty folder is refused
+    (:func:`dnarod.core.io.check_output_folder`), and while the checks run the folder is locked against a second
+    writer (:func:`dnarod.core.io.folder_lock`).
 
     Parameters
     ----------
@@ -99,23 +94,24 @@ def run_validation(out_dir, quick=False, checks=None, options=None, echo=None, o
     DnarodError
         An unknown check, a folder holding a report (without ``overwrite``) or anything else, a folder in use.
     """
-    from dnarod.core.io import check_output_folder, folder_lock
-    from dnarod.validate.buckling import MEMBER_FOLDER
+    from dnarod.core.io import check_output_folder, folder_lock, staged_folder
     from dnarod.validate.report import REPORT_FILES, old_report
 
     out_dir = Path(out_dir)
     names = list(checks) if checks else list(QUICK_CHECKS if quick else CHECKS)
     for n in names:
         check_function(n)  # validate names before running anything
-    check_output_folder(out_dir, (*REPORT_FILES, MEMBER_FOLDER), "validation report", what="report folder")
+    check_output_folder(out_dir, REPORT_FILES, "validation report", what="report folder")
     _refuse_old_report(out_dir, overwrite)
     with folder_lock(out_dir, what="report folder"):
         _refuse_old_report(out_dir, overwrite)  # again: another process may have finished a report here since
-        old_plots = old_report(out_dir)[1]
-        results = _run_checks(out_dir, names, quick, options, echo)
-        for p in set(old_plots) - {q for r in results["checks"].values() for q in (r.get("plots") or [])}:
-            if Path(p).name == p and p.endswith(".png"):  # the earlier report's own plots, by name, only
-                (out_dir / p).unlink(missing_ok=True)
+        # the earlier report's own plots, by name only (removed when the new report has no plot of that name)
+        old_plots = [p for p in old_report(out_dir)[1] if Path(p).name == p and p.endswith(".png")]
+        # the report is made beside the old one (a hidden folder in out_dir) and put in place when complete: an
+        # interrupted or failed validation leaves the earlier report as it was
+        options = {k: dict(v) for k, v in (options or {}).items()}
+        with staged_folder(out_dir, (*REPORT_FILES, *old_plots), what="validation report") as stage:
+            results = _run_checks(stage, names, quick, options, echo)
         return results
 
 
@@ -124,8 +120,8 @@ def _refuse_old_report(out_dir, overwrite):
 
     present = old_report(out_dir)[0]
     if present and not overwrite:
-        raise DnarodError(f"{out_dir} already holds a validation report ({present}); pass --overwrite to replace it "
-                          f"(members of check buckling in it are reused), or choose another folder with -o")
+        raise DnarodError(f"{out_dir} already holds a validation report ({present}); pass --overwrite to replace it, "
+                          f"or choose another folder with -o")
 
 
 def _run_checks(out_dir, names, quick, options, echo):

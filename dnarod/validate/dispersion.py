@@ -10,7 +10,8 @@ nm; lab rotation ``L -> Rot(e_a, eps) L``, rad) is displaced by +-eps, the parti
 rigidly, and the node forces and torques are summed from OpenMM's particle forces (both elastic
 paths: the numba ``PythonForce`` and the portable ``CustomCompoundBondForce``, Reference platform).
 With the mass matrix ``diag(m, L J L^T)`` the generalised eigenvalues are the squared normal-mode
-frequencies, compared with :meth:`TwistedRod.all_frequencies` (four branches: two stretch-twist
+frequencies, compared with :meth:`~dnarod.physics.testsystems.TwistedRod.all_frequencies` (four branches: two
+stretch-twist
 roots and the two bend/shear roots, each of the latter twice).
 """
 from __future__ import annotations

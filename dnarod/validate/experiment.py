@@ -154,8 +154,9 @@ def compare_force_extension_curve(lp_model_nm, s_model_pN, forces_pN, temperatur
 
 def compare_topoisomer_fit(c_model_nm, temperature):
     """Model bare torsional persistence length C (nm) beside C / kT of the rigidity Frank-Kamenetskii et al. (1985)
-    fitted to Horowitz & Wang's topoisomer variances (:func:`dnarod.physics.experiments.
-    topoisomer_variance_fit_reference`), reported only (no uncertainty stated). Returns a dict or None."""
+    fitted to Horowitz & Wang's topoisomer variances
+    (:func:`~dnarod.physics.experiments.topoisomer_variance_fit_reference`), reported only (no uncertainty stated).
+    Returns a dict or None."""
     from dnarod.physics import experiments as ex
     from dnarod.core.units import kT
 
@@ -193,8 +194,9 @@ def compare_cyclization_fit(lp_model_nm, c_model_nm, repeat_model_bp, temperatur
 
 
 def compare_horowitz_wang(c_model_nm, ds_nm, repeat_model_bp, temperature):
-    """The model beside the Horowitz & Wang (1984) abstract (:func:`dnarod.physics.experiments.
-    horowitz_wang_reference`, :func:`~dnarod.physics.experiments.supercoiling_free_energy_reference`), reported
+    """The model beside the Horowitz & Wang (1984) abstract
+    (:func:`~dnarod.physics.experiments.horowitz_wang_reference`,
+    :func:`~dnarod.physics.experiments.supercoiling_free_energy_reference`), reported
     only (no uncertainty stated): bare C (nm) vs their 2.9e-19 erg cm / kT; the twist-only ``N K = N / (2
     <dTw^2>) = 2 pi^2 C / ds`` (bp; continuum twist variance ``L / (4 pi^2 C)``, exact for the uniform chain to the
     Cayley-angle correction) vs their N K = 3900 RT bp of 200-bp rings, where they take the writhe contribution as
@@ -224,8 +226,9 @@ def compare_horowitz_wang(c_model_nm, ds_nm, repeat_model_bp, temperature):
 def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
     """Model stretch modulus S (pN), bare torsional persistence length C (nm, compared as kT C with kT at
     ``temperature``) and twist-stretch coupling g (pN nm, compared as g / kT) against the ranges of measured values
-    that PNAS 114:7049 (2017) Table 1 tabulates (**secondary**; :func:`dnarod.physics.experiments.
-    elastic_constant_ranges`). Reported only: a range across experiments carries no uncertainty. Returns a list of
+    that PNAS 114:7049 (2017) Table 1 tabulates (**secondary**;
+    :func:`~dnarod.physics.experiments.elastic_constant_ranges`). Reported only: a range across experiments carries
+    no uncertainty. Returns a list of
     dicts (``quantity``, ``model``, ``low``, ``high``, ``unit``, ``inside``, ...) or None when none is tabulated."""
     from dnarod.physics import experiments as ex
     from dnarod.core.units import kT

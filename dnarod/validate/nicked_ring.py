@@ -4,8 +4,8 @@ A nicked ring's linking number is free and its twist and axis shape are independ
 <ΔWr*²>`` and ``K = N / (2 <ΔLk²>)``, with the split ``Lk = Tw + Wr*`` made exactly: ``Tw`` the sum of the
 steps' Cayley twist angles and ``Wr* = Lk - Tw`` (:func:`dnarod.workflows.protocols.nicked.step_twist_sum`).
 
-* Twist part: exact from the model's step distribution (:func:`~dnarod.physics.theory.supercoil.
-  twist_variance_exact`), beside the continuum ``L / (4 pi² C)``.
+* Twist part: exact from the model's step distribution (
+  :func:`~dnarod.physics.theory.supercoil.twist_variance_exact`), beside the continuum ``L / (4 pi² C)``.
 * ``Wr*`` part, **model**: the variance of ``Wr*`` of the model's ring free to writhe, sampled with OpenMM
   (excluded volume and Debye-Hueckel at the chosen salt) by :func:`dnarod.workflows.protocols.nicked.run_nicked_member`
   (soft twist, exactly reweighted), with a block-jackknife error. ``Wr*`` needs no smoothing and carries no
@@ -22,8 +22,9 @@ the reference's own dependence on its segment length, measured at 68 nm (200 bp,
 0.00161 ± 0.00006, 0.00175 ± 0.00007, 0.00202 ± 0.00010 at 3.4, 1.7, 0.85 nm (research/supercoiling_checks/notes.md,
 "The MC's discretisation").
 
-Why ``Wr*`` and not the writhe of the axis smoothed over 10-bp blocks (:func:`dnarod.workflows.protocols.nicked.
-smoothed_axis`, still reported as ``model_wr2_axis``): that polygon, 20 vertices at 200 bp, misses about half of
+Why ``Wr*`` and not the writhe of the axis smoothed over 10-bp blocks (
+:func:`dnarod.workflows.protocols.nicked.smoothed_axis`, still reported as ``model_wr2_axis``): that polygon, 20
+vertices at 200 bp, misses about half of
 the ring's writhe.
 
 The free energy coefficient K is reported at the sampled size (model) and, from the exact twist part and the

@@ -9,7 +9,7 @@ not -3.143, for Lk = 54. The T = 0 value would understate the writhe fraction (b
 reference a linking difference the model does not have.
 
 Full form: two 600-bp rings at ΔLk = -3, one from the planar start and one from a start that writhes more than
-the model (10 ns with the bending stiffness divided by 3, :func:`dnarod.workflows.protocols.rings.bend_softened_model`),
+the model (10 ns with the bending stiffness divided by 3, :func:`bend_softened_model`, :func:`writhed_start`),
 each 40 ns after 36 ns of equilibration; their writhes must agree within ``Z_TOL`` SE (an equilibrium bracket:
 the two starts lie on either side), then they are pooled. Quick form: one 400-bp ring, 3 ns.
 
@@ -49,6 +49,56 @@ from dnarod.analysis.plots import new_figure, save_figure
 
 NAME = "plectonemes"
 Z_TOL = 3.0
+
+
+def bend_softened_model(model, factor):
+    """The model with its bending rows and columns of every step's stiffness scaled by ``1/factor``.
+
+    ``K' = S K S`` with ``S = diag(f^-1/2, f^-1/2, 1, 1, 1, 1)`` (f = ``factor``): the bending persistence
+    length falls by about f, the matrix stays positive definite, the intrinsic strains and pose are kept. A ring
+    run with it writhes more than the model's own: a start on the other side of the equilibrium from the planar
+    circle (:func:`writhed_start`).
+    """
+    from dataclasses import replace
+
+    S = np.diag([float(factor) ** -0.5] * 2 + [1.0] * 4)
+    K = np.einsum("ij,kjl,lm->kim", S, np.asarray(model.params.stiffness, float), S)
+    return replace(model, params=replace(model.params, stiffness=K))
+
+
+def writhed_start(settings, softening, ns, member_dir):
+    """The pose a ring member of ``settings`` reaches in ``ns`` ns with its bending stiffness divided by
+    ``softening`` (plectonemes cost less bending, so it writhes more than the model's ring), from the planar
+    circle; the same linking number (the dynamics conserve it).
+
+    A member run from it keeps it as ``member_dir/start_pose.npz``
+    (:func:`dnarod.workflows.protocols.rings.run_ring_member` with ``start_pose``): if that file exists it is
+    returned, so a rerun reuses the finished (or resumes the interrupted) member instead of preparing again.
+
+    Returns
+    -------
+    positions : ndarray, shape (n, 3)
+        nm.
+    frames : ndarray, shape (n, 3, 3)
+    """
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.poses import START_POSE, load_pose
+    from dnarod.workflows.protocols.tweezers import auto_friction
+
+    kept = Path(member_dir) / START_POSE
+    if kept.is_file():
+        return load_pose(kept)
+    s = dict(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, temperature_K=300.0), **settings)
+    model = load_forcefield(s.get("forcefield", "dna-default")).ring(n_nodes=int(s["n_bp"]),
+                                                                     delta_linking_number=int(s["delta_lk"]))
+    T = float(s["temperature_K"])
+    sim = RodSimulation.create(bend_softened_model(model, float(softening)), temperature=T,
+                               friction=auto_friction(model, 0.0, T), nonbonded=member_nonbonded(s),
+                               seed=int(s.get("seed", 1)) + 7919, platform=s.get("platform"))
+    sim.advance(int(round(1000.0 * float(ns) / sim.dt)))
+    return sim.node_pose()
 
 
 def _reference(L, A, C, d, dlk, n, seed, pair=None):
@@ -100,9 +150,10 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
                                salt_M=salt_M, **nb), root / f"ring{n_bp}_{delta_lk}")
     twin = None
     if bracket:  # the same ring approached from more writhe: the two must agree (equilibrium reached)
-        w = run_ring_member(dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed + 1,
-                                 temperature_K=temperature, salt_M=salt_M, start_bend_softening=writhed_softening,
-                                 start_ns=writhed_ns, **nb), root / f"ring{n_bp}_{delta_lk}_writhed")
+        ws = dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed + 1, temperature_K=temperature,
+                  salt_M=salt_M, **nb)
+        wdir = root / f"ring{n_bp}_{delta_lk}_writhed"
+        w = run_ring_member(ws, wdir, start_pose=writhed_start(ws, writhed_softening, writhed_ns, wdir))
         dw, dw_se = w["Wr"] - row["Wr"], float(np.hypot(w["Wr_err"], row["Wr_err"]))
         twin = dict(planar_start=dict(Wr=row["Wr"], Wr_err=row["Wr_err"], Wr_tau_ps=row["Wr_tau_ps"]),
                     writhed_start=dict(Wr=w["Wr"], Wr_err=w["Wr_err"], Wr_tau_ps=w["Wr_tau_ps"],

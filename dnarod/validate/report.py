@@ -91,42 +91,6 @@ def headline(name, r):
                     f"Moroz-Nelson {_fmt(r['moroz_nelson_C_eff_nm'], '.1f')} nm",
                     f"agree within {r['z_tolerance']} SE; theory {r['z_tolerance']} SE + "
                     f"{100 * r['theory_allowance_relative']:.0f}%")
-        if name == "buckling":
-            pl, mk = r["plateau"], r["marko"]
-            return (f"plateau {_fmt(pl['mean_torque_pN_nm'], '.1f')}+-{_fmt(pl['mean_torque_se'], '.1f')} pN nm vs Marko "
-                    f"two-phase {_fmt(mk['torque_pN_nm'], '.1f')}+-{_fmt(mk['torque_se_from_P'], '.1f')} pN nm (A "
-                    f"{_fmt(mk['persistence_length_nm'], '.1f')}, C_s {_fmt(mk['C_s_nm'], '.1f')}, {_p_label(mk)} "
-                    f"{_fmt(mk['P_nm'], '.1f')} nm)"
-                    + (f" + the single plectoneme's position shift "
-                       + "/".join(_fmt(x, '.2f') for x in mk['position_entropy_shift_pN_nm'])
-                       + f" pN nm: residual {_fmt(mk['residual_pN_nm'], '.2f')} (plain difference "
-                       f"{_fmt(mk['plain_difference_pN_nm'], '.2f')})" if mk.get("position_entropy_shift_pN_nm") else "")
-                    + f"; plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}"
-                    f"+-{_fmt(pl['standard_error'], '.2f')}; buckling at ΔLk {_fmt(mk['buckling_delta_lk_measured'], '.2f')}"
-                    f" (Marko {_fmt(mk['buckling_delta_lk'], '.2f')}); slope {_fmt(mk['extension_slope_measured_nm_per_turn'], '.0f')}"
-                    f" nm/turn (Marko {_fmt(mk['extension_slope_nm_per_turn'], '.0f')}); pre-buckling torque "
-                    f"{_fmt(r['pre_buckling']['torque_pN_nm'], '.1f')} vs linear law "
-                    f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm; drift z (extension, torque) of the "
-                    f"post-buckling members " + ", ".join(f"({_fmt(d['extension_z'], '.1f')}, {_fmt(d['torque_z'], '.1f')})"
-                                                          for d in r["drift"]["members"][1:])
-                    + ("; straight vs " + (r.get("bracket_start") or "grown") + " start: Δtau " + ", ".join(
-                        f"{_fmt(b['differences']['twist_torque_pN_nm']['difference'], '.2f')}"
-                        f"+-{_fmt(b['differences']['twist_torque_pN_nm']['standard_error'], '.2f')}"
-                        for b in r.get("brackets") or []) if r.get("brackets") else "")
-                    + f"; P from a ring at {_fmt(mk.get('ring_linking_density_rad_per_nm'), '.3f')} rad/nm "
-                      f"(coexistence {_fmt(mk.get('coexistence_plectoneme_density_rad_per_nm'), '.3f')})"
-                    + (f"; ring pair: mean end loops "
-                       + " / ".join(_fmt(x, '.2f') for x in (r['ring_pair_premise']['end_loops'] or [None, None]))
-                       + ", Wr drift z "
-                       + ", ".join(_fmt(z, '.1f') for z in r['ring_pair_premise']['wr_drift_z'])
-                       + f", premise {'met' if r['ring_pair_premise']['passed'] else 'NOT met'}"
-                       + (f" ({r['ring_pair_premise']['reason']})" if r['ring_pair_premise'].get('reason') else "")
-                       if r.get("ring_pair_premise") else ""),
-                    (r["scope"] + "; " if r.get("scope") else "")
-                    + f"drift |z| <= {r['z_tolerance']}; |residual| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
-                    f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE"
-                    + ("; failed: " + ", ".join(k for k, v in r["gates"].items() if not v)
-                       if r.get("gates") and not r["passed"] else ""))
         if name == "plectonemes":
             return (f"writhe fraction {_fmt(r['model_writhe_fraction'], '.3f')}+-{_fmt(r['model_writhe_fraction_err'], '.3f')}"
                     f" at sigma {_fmt(r['sigma'], '.4f')} vs worm-like ring MC {_fmt(r['reference_writhe_fraction'], '.3f')}"
@@ -157,16 +121,6 @@ def headline(name, r):
     except (KeyError, TypeError, ValueError, IndexError):
         pass
     return "see results.json", "-"
-
-
-def _p_label(marko):
-    """Which plectoneme twist stiffness the buckling check used (from its ``P_source``)."""
-    src = str(marko.get("P_source") or "")
-    if src.startswith("closed rings of"):
-        return "P_b (ring pair)"
-    if src.startswith("closed ring"):
-        return "P (single ring)"
-    return "P (given)"
 
 
 def _scalars(d, prefix=""):

@@ -8,7 +8,7 @@ terms). From the sampled frames the check measures, with block-jackknife standar
 * the reweighted covariance identity ``<dxi dxi^T W>/<W> = kT (ds K)^-1`` with
   ``W = (1 + ds^2 |Omega|^2 / 4)^2`` (all 21 independent entries; the plain covariance
   ``<dxi dxi^T>`` is reported too, it differs at O(kT));
-* the tangent correlations ``<d3(k) . d3(k+n)> = (<R>^n)_33`` for n = 1..n_max
+* the tangent correlations ``<d3(k)·d3(k+n)> = (<R>^n)_33`` for n = 1..n_max
   (:func:`dnarod.physics.thermal.tangent_correlation`);
 * the discrete persistence length ``-ds / ln <d3(k) . d3(k+1)>`` against
   :func:`dnarod.physics.thermal.persistence_length`;

@@ -283,7 +283,7 @@ def pair_parameters(nonbonded, ds, temperature, b_nm):
     numpy.ndarray
         ``(eps, sigma, rc_wca, a_dh, kappa, rc_dh, n_sub, n_exclude)``: WCA depth and Debye-Hueckel prefactor in kT
         (kT nm), lengths in nm, sites per segment, chain-distance exclusion in sites (the model's own, from
-        :meth:`NonbondedSettings.resolve`).
+        :meth:`~dnarod.physics.nonbonded.NonbondedSettings.resolve`).
     """
     from dnarod.core.units import kT
 

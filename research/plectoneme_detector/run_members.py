@@ -58,8 +58,15 @@ def _wrapped(positions, ds, *a, **k):
 
 measure.plectoneme_state = _wrapped
 t0, c0 = time.time(), time.process_time()
+grow = (settings.pop("start_force_pN", None), settings.pop("start_ns", None))  # a grown-plectoneme start
 if kind == "ring":
     from dnarod.workflows.protocols.rings import run_ring_member as run
+elif grow[0] is not None:  # until 2026-12-07 the member settings start_force_pN / start_ns
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "turn_sweeps"))  # research/turn_sweeps
+    from turn_sweep import run_grown_member
+
+    def run(s, d):
+        return run_grown_member(s, d, *grow)
 else:
     from dnarod.workflows.protocols.tweezers import run_member as run
 row = run(settings, root / name)

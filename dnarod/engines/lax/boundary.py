@@ -52,7 +52,7 @@ class BoundaryConditions:
             :class:`~dnarod.physics.loads.PullingForce`, :class:`~dnarod.physics.loads.Torque`,
             :class:`~dnarod.physics.loads.Clamp`, :class:`~dnarod.physics.loads.RotationClamp`, :class:`~dnarod.physics.loads.Trap`.
         duration_ps : float, optional
-            Run length, ps, over which :attr:`RotationClamp.turns` are spread.
+            Run length, ps, over which ``turns`` of each :class:`~dnarod.physics.loads.RotationClamp` are spread.
         """
         from dnarod.physics.loads import LOAD_TYPES
 

@@ -5,7 +5,7 @@ import json
 
 import numpy as np
 
-from dnarod.core.errors import ParameterError, SimulationError
+from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path, read_checkpoint
 from dnarod.core.model import model_fingerprint
 from dnarod.engines.lax.boundary import BoundaryConditions
@@ -94,13 +94,18 @@ class LaxEngine:
             st = self.integ.state
             ke = (np.sum(st.momenta**2, 1) / self.model.mass + np.sum(st.angular_momenta**2 / self.model.inertia, 1))
             node = int(np.argmax(np.where(np.isfinite(ke), ke, np.inf)))
-            raise SimulationError(f"simulation blew up at step {self.step}: node {node}, term 'elastic' (energy "
+            raise SimulationError(f"simulation blew up at step {self.step}: {base_pair(node)}, term 'elastic' (energy "
                                   f"not finite); reduce dt or check the loads/model", step=self.step, node=node,
                                   term="elastic")
 
-    def node_state(self):
+    def node_state(self, copy=True):
+        """On-step ``(positions (n, 3) nm, frames (n, 3, 3), velocities (n, 3) nm/ps lab, angular velocities
+        (n, 3) rad/ps body)``; ``copy=False``: positions and frames are the integrator's own arrays (valid until
+        it advances; the run layer's reports)."""
         s = self.integ.state
         v, w = s.velocities(self.model.mass, self.model.inertia)
+        if copy:
+            return s.positions.copy(), s.frames.copy(), v, w
         return s.positions, s.frames, v, w
 
     def energies(self):

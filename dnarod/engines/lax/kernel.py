@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dnarod.core.errors import GeometryError
+from dnarod.core.errors import GeometryError, step_name
 from dnarod.engines.lax.fast import compute_loads, run_steps
 from dnarod.engines.lax.fast_blocked import run_steps_blocked
 
@@ -38,7 +38,7 @@ class NumbaKernel:
         E, bad = compute_loads(state.positions, state.frames, self.K, self.xi0, self.model.ds, self.circular,
                                self.Q, self.t, self.F_ext, self.tau_ext, self.free, F, tau)
         if bad >= 0:
-            raise GeometryError(f"step {bad}: rotation between nodes {bad} and {(bad + 1) % n} is at or beyond "
+            raise GeometryError(f"{step_name(bad, n)}: the rotation between its base pairs is at or beyond "
                                 f"180 deg (or not finite)")
         return E, F, tau
 

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dnarod.core.energy import loads as _loads
-from dnarod.core.errors import DnarodError, GeometryError, SimulationError
+from dnarod.core.errors import DnarodError, GeometryError, SimulationError, base_pair, step_name
 from dnarod.core.rotations import MAX_CAYLEY_ANGLE
 from dnarod.core.strains import step_geometry
 from dnarod.core.units import kT as _kT
@@ -406,13 +406,13 @@ class SplittingIntegrator:
                 self.step_count += max(i, 0)
                 if status == 1:
                     term = "rotation between neighbouring frames"
-                    what = (f"the rotation between nodes {node} and {(node + 1) % self.model.n_nodes} is at or "
-                            f"beyond 180 deg or not finite")
+                    what = (f"the rotation of {step_name(node, self.model.n_nodes)} is at or beyond 180 deg or "
+                            f"not finite")
                 else:
                     term = "momentum"
-                    what = f"the momentum of node {node} is not finite or above {MOMENTUM_LIMIT:g}"
+                    what = f"the momentum of {base_pair(node)} is not finite or above {MOMENTUM_LIMIT:g}"
                 raise SimulationError(
-                    f"step {step}: the run blew up at node {node}: {what} (t = {step * self.dt:g} ps); reduce dt "
+                    f"time step {step}: the run blew up at {base_pair(node)}: {what} (t = {step * self.dt:g} ps); reduce dt "
                     f"(stability limit 2/omega_max) or check the initial state",
                     step=step, node=node, term=term)
             self.potential_energy = E

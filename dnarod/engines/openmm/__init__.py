@@ -8,21 +8,21 @@ inertia ``J = m l^2 (1/2, 1/2, 1)`` about (d1, d2, d3) (dna-default: 650 amu, l 
 Modules: :mod:`.particles` (node <-> particle maps), :mod:`.forces` (step energy: portable
 CustomCompoundBondForce and fast numba/PythonForce path), :mod:`.nonbonded` (WCA +
 Debye-Hueckel), :mod:`.loads` (external loads), :mod:`.system` (System from a RodModel),
-:mod:`.simulation` (the engine: advance, node state, energies, checkpoints), :mod:`.export`
+:mod:`.simulation` (the engine: advance, node state, energies, checkpoints), :mod:`dnarod.structure.export`
 (PDB/DCD/XTC for mdtraj and MDAnalysis). Runs with reporters, checkpoints and resume are the
 run layer's (:mod:`dnarod.run`, ``dnarod simulate``).
 
-Example::
+Example (20 bp pulled by its last node, 200 steps, a frame every 10 steps; a real run takes more of both):
 
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.engines.openmm import RodSimulation
-    from dnarod.physics.loads import PullingForce
-    from dnarod.run import run_engine, DtrajReporter
-    model = load_forcefield("dna-default").model_from_sequence("ACGT" * 250)
-    sim = RodSimulation.create(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])])
-    rep = DtrajReporter("run1.dtraj", model.n_nodes, interval=10)
-    run_engine(sim, 100000, [rep], checkpoint="run1.npz", checkpoint_interval=10000)
-    rep.close()
+>>> from dnarod.core.forcefield import load_forcefield
+>>> from dnarod.engines.openmm import RodSimulation
+>>> from dnarod.physics.loads import PullingForce
+>>> from dnarod.run import run_engine, DtrajReporter
+>>> model = load_forcefield("dna-default").model_from_sequence("ACGT" * 5)
+>>> sim = RodSimulation.create(model, temperature=300, loads=[PullingForce(-1, [0, 0, 3.0])], seed=1)
+>>> rep = DtrajReporter("run1.dtraj", model.n_nodes, interval=10)
+>>> _ = run_engine(sim, 200, [rep], checkpoint="run1.npz", checkpoint_interval=100)
+>>> rep.close()
 """
 _EXPORTS = {"RodSimulation": "simulation", "build_system": "system"}
 __all__ = list(_EXPORTS)

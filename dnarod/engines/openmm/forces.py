@@ -189,7 +189,7 @@ def cholesky_parameters(stiffness, intrinsic, ds, order=None):
         try:
             R[k][:, order] = np.linalg.cholesky(Kk[np.ix_(order, order)]).T
         except np.linalg.LinAlgError:
-            raise ParameterError(f"step {k}: the stiffness matrix is not positive definite; the portable path "
+            raise ParameterError(f"step {k + 1}: the stiffness matrix is not positive definite; the portable path "
                                  f"needs K = R^T R (fix the parameter set)") from None
     h = np.sqrt(0.5 * ds)
     col = np.array([2 / ds] * 3 + [1 / ds] * 3)

@@ -69,7 +69,8 @@ def build_load_forces(loads, model, radius, system, platform="CPU"):
     Parameters
     ----------
     loads : list
-        :class:`PullingForce`, :class:`Torque`, :class:`RotationClamp`, :class:`Clamp`, :class:`Trap`.
+        :class:`PullingForce`, :class:`Torque`, :class:`~dnarod.physics.loads.RotationClamp`, :class:`Clamp`,
+        :class:`Trap`.
     model : RodModel
     radius : ndarray, shape (n_nodes,)
         Triangle circumradius, nm.

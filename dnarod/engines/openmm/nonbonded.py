@@ -303,7 +303,7 @@ class NonbondedCallback:
     n_nodes : int
     circular : bool
     numbers : dict
-        From :meth:`NonbondedSettings.resolve` (``skin`` in nm, default 1.0).
+        From :meth:`~dnarod.physics.nonbonded.NonbondedSettings.resolve` (``skin`` in nm, default 1.0).
     """
 
     def __init__(self, n_nodes, circular, numbers):

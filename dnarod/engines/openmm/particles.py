@@ -76,7 +76,7 @@ def triangle_radius(mass, inertia, rtol=1e-6):
     if bad.any():
         k = int(np.argmax(bad))
         raise ParameterError(
-            f"node {k}: inertia {inertia[k].tolist()} amu nm^2 (mass {mass[k]} amu) cannot be carried by the "
+            f"base pair {k + 1}: inertia {inertia[k].tolist()} amu nm^2 (mass {mass[k]} amu) cannot be carried by the "
             f"OpenMM engine's rigid equilateral triangle, which needs J1 == J2 and J3 == J1 + J2 "
             f"(J = m l^2 (1/2, 1/2, 1)); give the model such an inertia, e.g. m l^2 (0.5, 0.5, 1)"
         )

@@ -29,7 +29,7 @@ import time
 import numpy as np
 import openmm
 
-from dnarod.core.errors import ParameterError, SimulationError
+from dnarod.core.errors import ParameterError, SimulationError, base_pair
 from dnarod.core.io import atomic_path
 from dnarod.physics import modes
 from dnarod.physics.modes import DEFAULT_OMEGA_DT, MAX_OMEGA_DT
@@ -44,9 +44,8 @@ from dnarod.engines.openmm.particles import (closure_image_positions, node_poses
                         particle_positions, particle_velocities)
 from dnarod.engines.openmm.platforms import choose_platform
 from dnarod.engines.openmm.system import build_system
+from dnarod.physics.nonbonded import scales_temperature
 
-#: Temperature (K) that sets the non-bonded energy scales (WCA kT, Bjerrum length) of a run started at 0 K.
-NONBONDED_REFERENCE_T = 300.0
 
 
 def _checked_dt(dt, omega):
@@ -120,6 +119,9 @@ class RodSimulation:
         self.context_time = time.perf_counter() - t0
         self._state_cache = None
         self._report_cache = None
+        self._rollback = None
+        self._plugin_reports = None
+        self._limit = None
         if initial_velocities is not None:
             self.set_node_velocities(*initial_velocities)
         elif self.temperature > 0:
@@ -198,7 +200,7 @@ class RodSimulation:
         # the non-bonded energy scales (WCA kT, Bjerrum length) need a temperature: a run started
         # at rest (0 K) uses the reference one, so the potential does not depend on the start
         rs = build_system(model, plat.getName(), elastic, nonbonded, loads,
-                          temperature if temperature > 0 else NONBONDED_REFERENCE_T)
+                          scales_temperature(temperature))
         for f in extra_forces:  # added before the Context exists, so every elastic path (plugin included) sees them
             rs.system.addForce(f)
         if rs.elastic == "plugin":
@@ -283,8 +285,11 @@ class RodSimulation:
         state = state or self._full_state()
         return node_poses(self.node_particles(state.getPositions(asNumpy=True)))
 
-    def node_state(self, state=None, on_step=True):
+    def node_state(self, state=None, on_step=True, copy=True):
         """``(centres, frames, velocities (lab, nm/ps), angular velocities (body, rad/ps))``.
+
+        ``copy=False`` (the run layer's reports): on the compiled path, read-only views of the node report,
+        valid until the context changes (no copies of the four arrays).
 
         OpenMM's Verlet and LangevinMiddle integrators store leapfrog velocities, half a step
         behind the positions. With ``on_step=True`` (default; used for the trajectory) they are
@@ -296,6 +301,8 @@ class RodSimulation:
             rep = self._node_report()
             if rep is not None:
                 rows = rep[0]
+                if not copy:  # the report's rows are read-only
+                    return rows[:, 0:3], rows[:, 3:12].reshape(-1, 3, 3), rows[:, 12:15], rows[:, 15:18]
                 return (rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy(), rows[:, 12:15].copy(),
                         rows[:, 15:18].copy())
         state = state or self._full_state()
@@ -332,6 +339,7 @@ class RodSimulation:
         """Forget the cached state (call after changing the context directly)."""
         self._state_cache = None
         self._report_cache = None
+        self._rollback = None
 
     def _node_report(self):
         """``(rows (n, 18), energies)`` from the compiled integrator's ``getNodeReport``, or None.
@@ -349,14 +357,18 @@ class RodSimulation:
                 return None
             rows = np.empty((self.model.n_nodes, 18))
             energies = self.integrator.getNodeReport(rows)
+            rows.flags.writeable = False  # node_state(copy=False) hands out views of it
             self._report_cache = (rows, energies)
         return self._report_cache
 
     def _reports_in_plugin(self):
-        """True if :meth:`_node_report` can be used (the compiled integrator evaluates all dnarod forces)."""
-        integ = self.integrator
-        return (self.rs.elastic == "plugin" and integ.usesFusedElasticForce()
-                and (self.rs.nonbonded_callback is None or integ.usesFusedPairForce()))
+        """True if :meth:`_node_report` can be used (the compiled integrator evaluates all dnarod forces); fixed
+        when the Context is made, so asked once."""
+        if self._plugin_reports is None:
+            integ = self.integrator
+            self._plugin_reports = bool(self.rs.elastic == "plugin" and integ.usesFusedElasticForce()
+                                        and (self.rs.nonbonded_callback is None or integ.usesFusedPairForce()))
+        return self._plugin_reports
 
     def energies(self):
         """Dict of potential energies per term (kJ/mol), plus ``potential``, ``kinetic``, ``temperature``.
@@ -429,18 +441,22 @@ class RodSimulation:
         self.invalidate()
 
     # --- checks -----------------------------------------------------------------------
+    def _energy_limit(self):
+        """Potential plus kinetic energy above which a state counts as blown up, kJ/mol."""
+        return 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
+
     def _report_healthy(self):
         e = self._node_report()[1]
         E, K = e[0] + e[1] + e[2] + e[3], e[4]
-        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
-        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < limit
+        if self._limit is None:
+            self._limit = self._energy_limit()
+        return e[5] == 1.0 and math.isfinite(E) and math.isfinite(K) and abs(E) + K < self._limit
 
     def _healthy(self, st):
         E = md_value(st.getPotentialEnergy())
         K = md_value(st.getKineticEnergy())
         p = md_value(st.getPositions(asNumpy=True))
-        limit = 1e4 * kT_of(max(self.temperature, 300.0)) * self.model.n_nodes
-        return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < limit
+        return np.isfinite(E) and np.isfinite(K) and np.isfinite(p).all() and abs(E) + K < self._energy_limit()
 
     def _diagnose(self, step):
         """Build the SimulationError for a bad current state: term, node, energies."""
@@ -471,9 +487,12 @@ class RodSimulation:
             mag[~np.isfinite(mag)] = np.inf
             node = int(np.argmax(mag))
         txt = ", ".join(f"{k} {v:.4g}" for k, v in terms.items())
-        return SimulationError(f"simulation blew up at step {step}: node {node}, term '{term}' "
+        return SimulationError(f"simulation blew up at step {step}: {base_pair(node)}, term '{term}' "
                                f"(energies kJ/mol: {txt}); reduce dt or check the loads/model",
                                step=step, node=node, term=term)
+
+    #: Most steps the compiled path keeps a rollback state for before it reads a new one (:meth:`advance`).
+    ROLLBACK_STEPS = 1000
 
     def advance(self, n_steps):
         """Integrate ``n_steps`` steps, checking for NaN/blow-up; on failure, locate the first bad step.
@@ -483,22 +502,32 @@ class RodSimulation:
         SimulationError
             Naming the step, node and energy term; the context is left at the first bad step.
         """
+        n_steps = int(n_steps)
         fast = self._reports_in_plugin()
-        # the state to go back to if the run blows up (positions and velocities are all it needs: cheap)
-        good = (self.context.getState(getPositions=True, getVelocities=True, getParameters=True) if fast
-                else self._full_state())
-        self.integrator.step(int(n_steps))
+        # The state to go back to if the run blows up. On the compiled path it is kept over several short
+        # advances (a run loop advancing a few steps per report would otherwise read it every report), up to
+        # ROLLBACK_STEPS steps back; a blow-up is then replayed from there, one step at a time.
+        if not fast:
+            self._rollback = (self.step, self._full_state())
+        elif self._rollback is None or not 0 <= self.step - self._rollback[0] < self.ROLLBACK_STEPS:
+            # positions, velocities and parameters are all it needs: cheap
+            self._rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
+                                                               getParameters=True))
+        self.integrator.step(n_steps)
+        rollback = self._rollback
         self.invalidate()
         if self._report_healthy() if fast else self._healthy(self._full_state()):
-            self.step += int(n_steps)
+            self.step += n_steps
+            self._rollback = rollback if fast else None
             return
+        good_step, good = rollback
         self.context.setState(good)
-        for i in range(int(n_steps)):
+        for i in range(self.step + n_steps - good_step):
             self.integrator.step(1)
             st = self.context.getState(getEnergy=True, getPositions=True)
             if not self._healthy(st):
-                raise self._diagnose(self.step + i + 1)
-        raise self._diagnose(self.step + int(n_steps))
+                raise self._diagnose(good_step + i + 1)
+        raise self._diagnose(self.step + n_steps)
 
     # --- checkpoints ------------------------------------------------------------------
     def save_checkpoint(self, path, n_frames=None, extra=None):

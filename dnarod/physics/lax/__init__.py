@@ -6,7 +6,7 @@
 * :mod:`.components` -- the 12 component equations (3.9) for any real lam and the s-discrete SMK
   equations (3.13), each in the paper's entrywise reading "R1" (corrected) and the covariant
   "midpoint" reading;
-* :mod:`.monodromy` -- T(lam) = U~_{N-1}...U~_0 and tr T^n;
+* :mod:`~dnarod.physics.lax.monodromy` -- T(lam) = U~_{N-1}...U~_0 and tr T^n;
 * :mod:`.cases` -- the special cases of Sections IV-V.
 
 See docs/lax.md for the corrected equations and the misprint table as implemented.

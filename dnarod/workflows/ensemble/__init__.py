@@ -7,9 +7,10 @@ checkpoint after a lost worker or an interrupted command (:mod:`dnarod.workflows
 reduced on the worker to a row of observables (:mod:`dnarod.workflows.ensemble.reduce`, or a protocol's
 own, :mod:`dnarod.workflows.ensemble.protocol`); the rows form one table (:mod:`dnarod.workflows.ensemble.results`).
 
->>> from dnarod.workflows.ensemble import Ensemble                            # doctest: +SKIP
->>> ens = Ensemble.from_toml("examples/force_extension.toml", "fx").run()  # doctest: +SKIP
->>> ens.results().to_pylist()   # doctest: +SKIP
+>>> from dnarod.workflows.ensemble import Ensemble
+>>> ens = Ensemble.from_toml("examples/quick_ensemble.toml", "quick_fx").run(workers=0, progress=False)
+>>> len(ens.results().to_pylist())   # one row per member (examples/force_extension.toml is the full-size spec)
+2
 """
 from dnarod.workflows.ensemble.cluster import WORKER_ENV, connect, local_cluster, slurm_cluster
 from dnarod.workflows.ensemble.ensemble import Ensemble

@@ -6,12 +6,14 @@ Folder layout (``outdir``)::
     spec.toml               # the spec file as given (from_toml)
     members/<id>/           # one run directory per member (see dnarod.workflows.ensemble.member)
     results.parquet, results.csv, plot_<axis>.png, summary.json
+    ensemble.log            # dask's own log records (and a local cluster's worker processes' stderr)
 
 Running again with the same spec resumes: finished members are skipped, partial ones resume
 from their checkpoints. A folder made by another spec is refused unless ``overwrite``.
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import json
 import shutil
@@ -21,7 +23,7 @@ from pathlib import Path
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.extras import require
-from dnarod.core.io import check_output_folder, write_text_atomic
+from dnarod.core.io import REPLACEMENT_PREFIX, check_output_folder, write_text_atomic
 from dnarod.workflows.ensemble.member import is_finished, member_dir, read_result, run_member
 from dnarod.core.io import RESULT
 from dnarod.workflows.ensemble.protocol import protocol_keys, resolve_protocol
@@ -30,8 +32,10 @@ from dnarod.workflows.ensemble.schema import SpecError
 from dnarod.workflows.ensemble.spec import EnsembleSpec, check_members, load_spec, parse_spec
 
 MANIFEST = "ensemble.json"
+#: Where dask's log records go while the ensemble runs (never to the terminal).
+LOG_FILE = "ensemble.log"
 #: What an overwrite removes (only what an ensemble writes).
-_OURS = ("members", MANIFEST, "spec.toml", TABLE, CSV, SUMMARY)
+_OURS = ("members", MANIFEST, "spec.toml", TABLE, CSV, SUMMARY, LOG_FILE)
 
 
 class Ensemble:
@@ -53,9 +57,12 @@ class Ensemble:
 
     Examples
     --------
-    >>> ens = Ensemble.from_toml("examples/force_extension.toml", "fx")   # doctest: +SKIP
-    >>> ens.run()                  # doctest: +SKIP
-    >>> table = ens.results()      # doctest: +SKIP
+    The small spec beside ``examples/force_extension.toml``, its members run one after another in this process:
+
+    >>> ens = Ensemble.from_toml("examples/quick_ensemble.toml", "quick_fx")
+    >>> _ = ens.run(workers=0, progress=False)     # .run(): a LocalCluster, one worker per core
+    >>> ens.results().num_rows                     # a pyarrow.Table, one row per member
+    2
     """
 
     def __init__(self, spec: EnsembleSpec, outdir, protocol=None, overwrite=False, spec_text=None, check=True):
@@ -179,27 +186,28 @@ class Ensemble:
         """Create or check the folder: same spec resumes, another spec is refused unless ``overwrite``."""
         out = self.outdir
         man = out / MANIFEST
-        if man.exists():
+        if man.exists() and getattr(self, "_replaces", None) is None:
             try:
                 old = json.loads(man.read_text())
             except ValueError:
                 old = {}
             if old.get("fingerprint") != self.fingerprint:
+                stage = out / f"{REPLACEMENT_PREFIX}{self.fingerprint[:16]}"
                 if not self.overwrite:
                     n_done = sum(1 for d in (out / "members").glob("*") if (d / RESULT).exists()) \
                         if (out / "members").is_dir() else 0
+                    going = (f"; a replacement by this spec was begun in {stage.name}: --overwrite continues it"
+                             if stage.is_dir() else "")
                     raise SpecError(f"{out}: holds ensemble {old.get('name', '?')!r} made by another spec "
                                     f"({old.get('n_members', '?')} members, {n_done} with results); use another -o "
-                                    f"folder, or --overwrite to replace it")
-                for name in _OURS:
-                    p = out / name
-                    if p.is_dir():
-                        shutil.rmtree(p)
-                    elif p.exists():
-                        p.unlink()
-                for p in out.glob("plot_*.png"):
-                    p.unlink()
-        else:
+                                    f"folder, or --overwrite to replace it{going}")
+                # overwrite: the new ensemble is made beside the old one (a hidden folder in out, named by the new
+                # spec, so that running the command again continues it) and replaces it when every member has
+                # finished (write_results); until then the old ensemble stays as it was
+                self._replaces = out
+                self.outdir = out = stage
+                man = out / MANIFEST
+        elif getattr(self, "_replaces", None) is None:
             try:
                 check_output_folder(out, (MANIFEST,), "ensemble")
             except DnarodError as exc:
@@ -221,7 +229,7 @@ class Ensemble:
 
     # ---------------------------------------------------------------------------------------
     def run(self, client=None, scheduler=None, workers=None, progress=True, timeout=10.0, window=None,
-            dashboard=False):
+            dashboard=False, security=None):
         """Run every unfinished member on dask and write the results; returns ``self``.
 
         Parameters
@@ -229,7 +237,8 @@ class Ensemble:
         client : distributed.Client, optional
             Use this client (left open). Default: ``scheduler`` or a new ``LocalCluster``.
         scheduler : str, optional
-            Address of a running dask scheduler (``tcp://HOST:PORT``).
+            Address of a running dask scheduler (``tcp://HOST:PORT``, or ``tls://HOST:PORT`` with
+            ``security``).
         workers : int, optional
             Local cluster size (default: the cores); ``0`` runs the members one after another in
             this process, without dask (debugging, or machines where worker processes cannot start).
@@ -241,17 +250,27 @@ class Ensemble:
             Members in flight at once (default ``max(32, 4 x worker threads)``); keeps the
             client's memory independent of the ensemble's size.
         dashboard : bool
-            Serve the local cluster's dask dashboard (needs bokeh); each member is a task
-            ``dnarod-member-<id>-...`` there.
+            Serve the local cluster's dask dashboard on 127.0.0.1 (needs bokeh); each member is a task
+            ``dnarod-member-<id>-...`` there. Without it a local cluster serves nothing over HTTP.
+        security : distributed.security.Security, optional
+            TLS certificates for ``scheduler``
+            (:func:`dnarod.workflows.ensemble.cluster.tls_security`).
+
+        Dask's own log records go to ``OUT/ensemble.log`` while the ensemble runs, not to the terminal;
+        a lost scheduler raises :class:`~dnarod.workflows.ensemble.cluster.SchedulerError` (one line).
         """
         from concurrent.futures import CancelledError
 
         as_completed = require("distributed", "ensemble").as_completed
         from tqdm.auto import tqdm
 
-        from dnarod.workflows.ensemble.cluster import SchedulerError, client_for
+        from distributed.comm.core import CommClosedError
+
+        from dnarod.workflows.ensemble.cluster import SchedulerError, client_for, dask_logs
 
         self.prepare()
+        logs = contextlib.ExitStack()
+        logs.enter_context(dask_logs(self.outdir / LOG_FILE))
         t0 = time.perf_counter()
         todo = self.pending()
         n_total = len(self.members)
@@ -259,7 +278,7 @@ class Ensemble:
                    disable=not progress, dynamic_ncols=True)
         failed = []
         info = {}
-        proto = self.protocol_arg
+        proto = self.protocol       # the object: workers need no registry
 
         def finished(m, rec):
             if rec.get("status") != "ok":
@@ -277,7 +296,7 @@ class Ensemble:
                     finished(m, run_member(m.id, m.settings, str(self.outdir.resolve()), proto, self.spec.analysis))
                 self.summary = self.write_results(wall_s=time.perf_counter() - t0, scheduler=None, workers=0)
                 return self
-            with client_for(client, scheduler, workers, timeout, dashboard) as c:
+            with client_for(client, scheduler, workers, timeout, dashboard, security, self.outdir / LOG_FILE) as c:
                 if dashboard or scheduler:
                     bar.write(f"dask dashboard: {c.dashboard_link}")
                 info = {"scheduler": c.scheduler.address, "workers": len(c.scheduler_info().get("workers", {}))}
@@ -302,7 +321,7 @@ class Ensemble:
                     m = by_future.pop(fut.key)
                     try:
                         rec = fut.result()
-                    except CancelledError as exc:     # the scheduler went away: stop, members stay resumable
+                    except (CancelledError, CommClosedError) as exc:   # the scheduler went away: stop, resumable
                         raise SchedulerError(f"lost the connection to the dask scheduler {info['scheduler']} "
                                              f"({type(exc).__name__}); run the same command again: finished "
                                              f"members are kept and partial ones resume") from None
@@ -312,8 +331,13 @@ class Ensemble:
                     finished(m, rec)
                     for f in submit((window or self._window(c)) - len(by_future)):
                         ac.add(f)
+        except CommClosedError as exc:        # the scheduler went away outside a result (submitting, closing)
+            raise SchedulerError(f"lost the connection to the dask scheduler {info.get('scheduler', scheduler)} "
+                                 f"({_one_line(exc)}); run the same command again: finished members are kept and "
+                                 f"partial ones resume") from None
         finally:
             bar.close()
+            logs.close()
         self.summary = self.write_results(wall_s=time.perf_counter() - t0, **info)
         return self
 
@@ -353,6 +377,19 @@ class Ensemble:
 
     def write_results(self, **extra):
         """Write the table, the plots and ``summary.json`` from the members' results; returns the summary."""
+        if getattr(self, "_replaces", None) is None:
+            return self._write_results(**extra)
+        try:
+            return self._write_results(**extra)
+        except DnarodError as exc:  # name the files by their place in the ensemble folder; the old one is kept
+            from dnarod.core.io import _rewrite_message
+
+            _rewrite_message(exc, self.outdir, self._replaces,
+                             f" (the earlier ensemble in {self._replaces} is unchanged; the same command with "
+                             f"--overwrite continues the replacement kept in {self.outdir.name})")
+            raise
+
+    def _write_results(self, **extra):
         rows = collect_rows(self.outdir, self.members)
         table = rows_to_table(rows, self._setting_keys())
         tpath, cpath = write_table(table, self.outdir)
@@ -373,7 +410,38 @@ class Ensemble:
                 "member_wall_s_total": wall, "member_cpu_s_total": cpu, **extra,
                 "files": {"table": str(tpath), "csv": str(cpath), "plots": [str(p) for p in plots]}}
         write_summary(self.outdir, info)
+        if getattr(self, "_replaces", None) is not None and not self.pending():
+            info = self._replace_old(info)
         return info
+
+    def _replace_old(self, info):
+        """Put the finished replacement (``--overwrite``) in place of the old ensemble: the old ensemble's files go
+        to a hidden folder, the new ones are renamed into the ensemble folder (renames: no data is written), the
+        hidden folders are removed."""
+        import os
+        import tempfile
+
+        final, stage = self._replaces, self.outdir
+        trash = Path(tempfile.mkdtemp(prefix=".dnarod-replaced-", dir=final))
+        for p in [*(final / n for n in _OURS), *final.glob("plot_*.png")]:
+            if p.exists() or p.is_symlink():
+                os.replace(p, trash / p.name)
+        for p in stage.iterdir():
+            os.replace(p, final / p.name)
+        shutil.rmtree(trash, ignore_errors=True)
+        for p in [stage, *final.glob(f"{REPLACEMENT_PREFIX}*")]:  # this one and any left by replacements not finished
+            shutil.rmtree(p, ignore_errors=True)
+        self.outdir, self._replaces = final, None
+        fix = lambda x: str(x).replace(str(stage), str(final))  # noqa: E731
+        info["files"] = {"table": fix(info["files"]["table"]), "csv": fix(info["files"]["csv"]),
+                         "plots": [fix(x) for x in info["files"]["plots"]]}
+        write_summary(final, info)
+        return info
+
+
+def _one_line(exc):
+    msg = " ".join(str(exc).split()) or type(exc).__name__
+    return msg if len(msg) <= 200 else msg[:200] + "..."
 
 
 def _protocol_name(p):

@@ -47,10 +47,18 @@ def is_finished(mdir, mid=None):
     return bool(r) and r.get("status") == "ok" and (mid is None or r.get("id") == mid)
 
 
+class _LogFile(logging.FileHandler):
+    """``member.log``: a record that cannot be written (a full disk) is dropped, not printed with a traceback on
+    the worker's stderr (the member's failure is recorded in its result)."""
+
+    def handleError(self, record):  # noqa: N802 - logging's name
+        pass
+
+
 @contextlib.contextmanager
 def _member_log(mdir, mid):
     """A logger writing to ``mdir/member.log`` (the run layer's ``dnarod`` log records included)."""
-    handler = logging.FileHandler(Path(mdir) / LOG)
+    handler = _LogFile(Path(mdir) / LOG)
     handler.setFormatter(logging.Formatter("%(asctime)s %(levelname)s %(name)s: %(message)s"))
     log = logging.getLogger(f"dnarod.workflows.ensemble.member.{mid}")
     log.setLevel(logging.INFO)

@@ -13,8 +13,15 @@ A *protocol* is any object (a module, a class instance, a namespace) with some o
 ``keys`` / ``analysis_keys``
     Optional dicts name -> :class:`dnarod.workflows.ensemble.schema.Key` of extra settings it reads.
 
-They run on dask workers, so they must be importable (module-level) and picklable. A spec names
-a protocol as ``"package.module:attribute"`` or by a name registered in :data:`PROTOCOLS`.
+They run on dask workers, so they must be importable (module-level) and picklable.
+
+A spec names a protocol from dnarod's registry, never by import: a name registered in this process
+(:func:`register_protocol`: ``null`` here; the protocols of :mod:`dnarod.workflows.protocols` when that
+package is imported), or an entry point that an installed package declares in the group
+``dnarod.protocols`` (dnarod declares its own single-molecule protocols there, in ``pyproject.toml``).
+The ``"module:attribute"`` form of an entry point's value (e.g. ``"dnarod.workflows.protocols:RINGS"``)
+is accepted for the same object; any other ``"module:name"`` is refused without importing anything.
+Python code may pass a protocol object itself (``Ensemble(..., protocol=obj)``).
 """
 from __future__ import annotations
 
@@ -24,13 +31,36 @@ from types import SimpleNamespace
 
 from dnarod.workflows.ensemble.schema import SpecError
 
-#: Registered protocol names -> "module:attribute".
+#: Protocols registered in this process: name -> object.
 PROTOCOLS = {}
+#: Other names of registered protocols (their ``"module:attribute"``): name -> registered name.
+ALIASES = {}
+#: The entry-point group in which installed packages declare protocols (name = "module:attribute").
+ENTRY_POINT_GROUP = "dnarod.protocols"
 
 
-def register_protocol(name, target):
-    """Register ``name`` for ``target`` (a "module:attribute" string)."""
-    PROTOCOLS[name] = target
+def register_protocol(name, protocol, aliases=()):
+    """Register the protocol object ``protocol`` as ``name`` (and as each of ``aliases``) for ensemble specs."""
+    if isinstance(protocol, str):
+        raise TypeError(f"register_protocol({name!r}, {protocol!r}): give the protocol object, not its import path")
+    PROTOCOLS[name] = _check_hooks(protocol, name)
+    for a in aliases:
+        ALIASES[a] = name
+
+
+def _entry_points():
+    """The entry points of :data:`ENTRY_POINT_GROUP` (none if the package metadata cannot be read)."""
+    from importlib.metadata import entry_points
+
+    try:
+        return list(entry_points(group=ENTRY_POINT_GROUP))
+    except Exception:  # noqa: BLE001 -- broken metadata of some installed package: no entry points
+        return []
+
+
+def known_protocols():
+    """The protocol names a spec may give: registered here or declared as entry points (sorted)."""
+    return sorted(set(PROTOCOLS) | {ep.name for ep in _entry_points()})
 
 
 def _run_api():
@@ -38,13 +68,6 @@ def _run_api():
     from dnarod.run import RunSpec, run
 
     return RunSpec, run
-
-
-def _loads_module():
-    try:
-        return importlib.import_module("dnarod.physics.loads")
-    except ImportError:
-        return importlib.import_module("dnarod.engines.openmm.loads")
 
 
 def build_runspec(settings, model_cache=None):
@@ -101,23 +124,30 @@ DEFAULT = SimpleNamespace(build=build_runspec, reduce=_default_reduce)
 
 
 def resolve_protocol(protocol):
-    """A protocol object from None (the default), an object, a registered name or "module:attribute"."""
+    """A protocol object from None (the default), an object, or a name from the registry (see the module's doc).
+
+    A name that is neither registered nor an entry point is refused in one line listing the known names,
+    without importing anything.
+    """
     if protocol is None:
         return DEFAULT
     if not isinstance(protocol, str):
         return _check_hooks(protocol, protocol)
-    target = PROTOCOLS.get(protocol, protocol)
-    if ":" not in target:
-        names = ", ".join(sorted(PROTOCOLS)) or "none"
-        raise SpecError(f"[ensemble] protocol {protocol!r}: not a registered name ({names}) nor "
-                        f"'package.module:attribute'")
-    mod, _, attr = target.partition(":")
+    name = ALIASES.get(protocol, protocol)
+    if name in PROTOCOLS:
+        return PROTOCOLS[name]
+    eps = _entry_points()
+    found = [ep for ep in eps if ep.name == protocol] or [ep for ep in eps if ep.value.strip() == protocol]
+    if not found:
+        raise SpecError(f"[ensemble] protocol {protocol!r}: not a registered name; known protocols: "
+                        f"{', '.join(known_protocols()) or 'none'} (a package adds one as an entry point in the group "
+                        f"{ENTRY_POINT_GROUP!r}; specs never import modules by name)")
+    ep = found[0]
     try:
-        obj = importlib.import_module(mod)
-        for part in attr.split("."):
-            obj = getattr(obj, part)
-    except Exception as exc:  # ImportError, AttributeError, or whatever the module raises on import
-        raise SpecError(f"[ensemble] protocol {protocol!r}: cannot import {target}: "
+        obj = ep.load()
+    except Exception as exc:  # noqa: BLE001 -- whatever the declared module raises on import
+        raise SpecError(f"[ensemble] protocol {protocol!r}: the entry point {ep.name} = {ep.value} (package "
+                        f"{getattr(ep.dist, 'name', '?')}) cannot be loaded: "
                         f"{' '.join(str(exc).split()) or type(exc).__name__}") from None
     return _check_hooks(obj, protocol)
 
@@ -150,7 +180,8 @@ def _as_keys(keys):
 
 
 def protocol_keys(protocol):
-    """Extra keys a protocol accepts: ``{"run": {...}, "analysis": {...}}`` of :class:`Key`.
+    """Extra keys a protocol accepts: ``{"run": {...}, "analysis": {...}}`` of
+    :class:`~dnarod.workflows.ensemble.schema.Key`.
 
     A protocol's ``keys`` / ``analysis_keys`` map names to :class:`~dnarod.workflows.ensemble.schema.Key`
     or simply to a type (float, int, bool, str).
@@ -182,8 +213,6 @@ def _null_execute(settings, member_dir, analysis):
 
 #: A protocol that runs nothing: its members measure scheduling overhead and client memory.
 NULL = SimpleNamespace(execute=_null_execute)
-register_protocol("null", "dnarod.workflows.ensemble.protocol:NULL")
-# the single-molecule protocols of dnarod.workflows.protocols, by name (imported only when a spec names them)
-for _name, _attr in (("force-extension", "FORCE_EXTENSION"), ("magnetic-tweezers", "MAGNETIC_TWEEZERS"),
-                     ("torque-turns", "TORQUE_TURNS"), ("rings", "RINGS")):
-    register_protocol(_name, f"dnarod.workflows.protocols:{_attr}")
+register_protocol("null", NULL, aliases=("dnarod.workflows.ensemble.protocol:NULL",))
+# dnarod's single-molecule protocols (force-extension, magnetic-tweezers, torque-turns, rings) are entry points
+# of dnarod (pyproject.toml), and registered by dnarod.workflows.protocols when it is imported

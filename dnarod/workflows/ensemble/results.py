@@ -79,7 +79,7 @@ def write_table(table, outdir):
     return outdir / TABLE, outdir / CSV
 
 
-#: Observables plotted first when present (others follow, up to :data:`MAX_PANELS`).
+#: Observables plotted first when present (others follow, up to ``MAX_PANELS``).
 PREFERRED = ["extension_nm", "end_to_end_nm", "clamp_torque_pN_nm", "lk", "measured_turns", "turns",
              "persistence_length_nm", "twist_turns", "writhe_turns", "linking_turns", "potential_kJ_mol",
              "elastic_kJ_mol", "kinetic_temperature_K"]

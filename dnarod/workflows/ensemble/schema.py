@@ -75,7 +75,8 @@ ENSEMBLE_KEYS = {k.name: k for k in [
         "cross|zip"),
     Key("zip", list, [], "groups of axes zipped together (each group then crossed with the rest)"),
     Key("replicas", int, 1, "independent seeds per combination (seed, seed+1, ...)", ">0"),
-    Key("protocol", str, None, "'package.module:attribute' or a registered name: the members' build/reduce"),
+    Key("protocol", str, None, "a registered protocol (null, force-extension, magnetic-tweezers, torque-turns, "
+                               "rings) or an entry point of the group dnarod.protocols: the members' build/reduce"),
 ]}
 
 #: ``[analysis]`` keys (how a member's run is reduced; not part of a member's identity).

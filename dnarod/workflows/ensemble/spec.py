@@ -6,7 +6,7 @@ Schema (every table optional except ``[base]``; keys and units in :mod:`dnarod.w
     name = "force-extension"
     combine = "cross"            # or "zip"; zip = [["force_pN", "turns"]] zips some axes only
     replicas = 3                 # seeds seed, seed+1, ... crossed with everything else
-    protocol = "pkg.module:obj"  # optional: the members' build/reduce (dnarod.workflows.ensemble.protocol)
+    protocol = "magnetic-tweezers"  # optional: a registered protocol (dnarod.workflows.ensemble.protocol)
 
     [base]                       # one run; units in the keys
     source = "ACGT..."           # sequence | node count | PDB/mmCIF/.npz path (relative to this file)

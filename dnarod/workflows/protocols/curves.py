@@ -16,9 +16,8 @@ import numpy as np
 from dnarod.core.errors import DnarodError
 from dnarod.run.spec import MAX_SALT, MAX_TEMPERATURE
 
-#: Start modes of the rotation-clamp protocols (see :func:`run_protocol`); the last three chain the members.
-STARTS = ("static", "sweep", "sweep-in", "bracket", "exchange")
-SWEEP_STARTS = ("sweep", "sweep-in", "bracket")
+#: Start modes of the rotation-clamp protocols (see :func:`run_protocol`).
+STARTS = ("static", "exchange")
 
 @dataclass
 class Curve:
@@ -133,7 +132,7 @@ def _checked(value, table, key):
 
 
 def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None, plots=True, start="static",
-                 settle_ns=None, settle_buckled_ns=None, overwrite=False, exchange_ps=None):
+                 overwrite=False, exchange_ps=None):
     """Run a protocol over its axes and write its curve.
 
     Parameters
@@ -147,26 +146,15 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     outdir : path
     workers : int
         Dask local workers; 0 runs the members serially in this process.
-    start : {"static", "sweep", "sweep-in", "bracket", "exchange"}
+    start : {"static", "exchange"}
         "static": every member starts from the static pose under its loads (independent members, one dask task
-        each). "sweep" (hat and torque-turns): the members of each force run as chains along the turns axis
-        away from zero, each from the previous turn value's final pose turned by the increment
-        (:mod:`dnarod.workflows.protocols.sweep`; turns >= 0 and turns < 0 are two chains, two dask tasks); members in
-        ``outdir/members/``. "sweep-in": the same chains run towards zero, each begun at its largest |turns|
-        from a plectoneme grown at a lower force. "bracket": both sweeps at once (four chains per force; members
-        in ``outdir/members/out_*`` and ``in_*``); each turn value's curve point is the midpoint of its outward
-        and inward members with an error that covers the gap between them (:func:`bracket_rows`).
-        "exchange" (hat and torque-turns): the turn values of each force are the rungs of one replica-exchange
-        ladder (:mod:`dnarod.workflows.protocols.exchange`: swaps between neighbouring rungs with the turn difference
-        carried as twist, Metropolis-accepted), run as ``workers`` dask actors; rungs in
-        ``members/exchange_*``, the ladder's acceptance and round trips in ``ladders/*/exchange.json``.
-    settle_ns : float, optional
-        With ``start="sweep"``: equilibration of each chained member after its turn increment (default two
-        slowest bending relaxation times); the first member of each chain equilibrates as a static start does.
-    settle_buckled_ns : float, optional
-        With a sweep: the settle of the chained members at or past the buckling point
-        (:func:`dnarod.workflows.protocols.sweep.buckling_turns`: Marko's two-phase model with the model's parameters and a
-        margin); default ``settle_ns`` for every member.
+        each). "exchange" (hat and torque-turns): the turn values of each force are the rungs of one
+        replica-exchange ladder (:mod:`dnarod.workflows.protocols.exchange`: swaps between neighbouring rungs with
+        the turn difference carried as twist, Metropolis-accepted), run as ``workers`` dask actors; rungs in
+        ``members/exchange_*``, the ladder's acceptance and round trips in ``ladders/*/exchange.json``. Near
+        buckling a long chain keeps the state it starts in (straight or plectonemic) for longer than a member
+        runs; exchange lets configurations change state through neighbouring rungs. (A member that continues
+        another member's final pose: :func:`dnarod.workflows.protocols.tweezers.run_member` with ``start_pose``.)
     exchange_ps : float, optional
         With ``start="exchange"``: time between exchange attempts, ps (default
         :data:`dnarod.workflows.protocols.exchange.EXCHANGE_PS`).
@@ -187,34 +175,28 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
         Bad settings, a folder of another protocol run or of something else, a folder in use (before any member
         runs), or a failed member.
     """
-    from dnarod.core.io import check_output_folder, folder_lock, jsonable
+    import json
+
+    from dnarod.core.io import check_output_folder, folder_lock, jsonable, staged_folder
     from dnarod.workflows.protocols import ensemble_hooks as hooks
-    from dnarod.workflows.protocols.folder import PROTOCOL_MARKERS, check_protocol_folder, write_protocol_record
+    from dnarod.workflows.protocols.folder import (PROTOCOL_FILES, PROTOCOL_MARKERS, check_protocol_folder,
+                                                   replaces_other_settings, write_protocol_record)
 
     proto = hooks.protocol_of(kind)
     if isinstance(workers, bool) or not isinstance(workers, int) or workers < 0:
         raise DnarodError(f"workers {workers!r}: give a number of dask workers >= 0 (0: one after another in this "
                           f"process)")
     if start not in STARTS:
-        raise DnarodError(f"start {start!r}: choose 'static' (every member from the static pose), 'sweep' "
-                          f"(members chained along the turns axis away from zero), 'sweep-in' (towards zero) or "
-                          f"'bracket' (both sweeps, combined)")
+        raise DnarodError(f"start {start!r}: choose 'static' (every member from the static pose) or 'exchange' "
+                          f"(the turn values of each force as the rungs of one replica-exchange ladder)")
     if start == "exchange" or exchange_ps is not None:
         from dnarod.workflows.protocols.exchange import check_exchange
 
         check_exchange(kind, start, axes, exchange_ps)
-    if start in SWEEP_STARTS:
-        from dnarod.workflows.protocols.sweep import check_sweep
-
-        check_sweep(kind, settle_ns, settle_buckled_ns)
-    elif settle_ns is not None or settle_buckled_ns is not None:
-        which = "settle" if settle_ns is not None else "settle_buckled"
-        raise DnarodError(f"{which} {settle_ns if settle_ns is not None else settle_buckled_ns} ns: the settle time "
-                          f"applies to a turn sweep only (start 'sweep', 'sweep-in' or 'bracket')")
     if not isinstance(outdir, (str, Path)) or not str(outdir).strip():
         raise DnarodError(f"output folder {outdir!r}: give a folder path (-o DIR)")
     # the settings every member shares, as given (protocol.json; the defaults below are the protocol's own)
-    shared = jsonable(dict(base, start=start, settle_ns=settle_ns, settle_buckled_ns=settle_buckled_ns))
+    shared = jsonable(dict(base, start=start))
     if exchange_ps is not None:  # (absent otherwise: the records of earlier runs stay valid)
         shared["exchange_ps"] = float(exchange_ps)
     base = dict(base)
@@ -228,39 +210,68 @@ def run_protocol(kind, axes, base, outdir, workers=2, progress=True, client=None
     check_protocol_folder(outdir, kind, shared, overwrite)
     with folder_lock(outdir):
         check_protocol_folder(outdir, kind, shared, overwrite)  # again: another process may have written it since
-        curve = _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
-                             settle_buckled_ns, proto, exchange_ps)
+        if overwrite and replaces_other_settings(outdir, kind, shared):
+            # made beside the old run (kept there if stopped: the same command continues it) and put in place when
+            # its curve is written: until then the old run stays as it was
+            import hashlib
+
+            tag = hashlib.sha256(json.dumps([kind, shared], sort_keys=True).encode()).hexdigest()[:16]
+            with staged_folder(outdir, PROTOCOL_FILES, what="protocol run", resume_name=tag) as work:
+                curve = _run_members(kind, axes, base, members, work, workers, progress, client, plots, start, proto,
+                                     exchange_ps)
+                write_protocol_record(work, kind, shared)
+            curve.files = {k: outdir / Path(v).name for k, v in curve.files.items()}
+            return curve
+        curve = _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, proto,
+                             exchange_ps)
         write_protocol_record(outdir, kind, shared)
     return curve
 
 
-def _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, settle_ns,
-                 settle_buckled_ns, proto, exchange_ps=None):
+def _run_members(kind, axes, base, members, outdir, workers, progress, client, plots, start, proto, exchange_ps=None):
     """The members of :func:`run_protocol` (run or reused) and the curve written from them."""
     if start == "exchange":
         from dnarod.workflows.protocols.exchange import run_ladders
 
         rows = run_ladders(kind, axes, members, outdir, workers, progress, client, exchange_ps)
-    elif start == "bracket":
-        both = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns,
-                          settle_buckled_ns=settle_buckled_ns, directions=(False, True))
-        rows = bracket_rows([r for r in both if r["sweep_direction"] == "out"],
-                            [r for r in both if r["sweep_direction"] == "in"], [k for k in axes if k != "turns"])
-        members_rows = sorted(both, key=lambda r: (r["sweep_direction"], r.get("turns") or 0.0))
-        _write_csv(members_rows, outdir / "members.csv")
-    elif start in ("sweep", "sweep-in"):
-        rows = _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, start == "sweep-in",
-                          settle_buckled_ns)
     elif workers:
         rows = _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client)
     else:
         rows = []
         for i, m in enumerate(members):
-            mdir = outdir / "members" / _member_name(m, axes)
+            mdir = outdir / "members" / member_name(m, axes)
             row = proto.execute(m, mdir)
             rows.append(dict(row, **{k: m[k] for k in axes}))
+    return write_curve(kind, rows, base, outdir, plots)
+
+
+def write_curve(kind, rows, base, outdir, plots=True):
+    """Write a protocol's curve from its member rows: ``outdir/curve.csv`` (and ``curve.png``).
+
+    The rows are sorted along the protocol's x axis and put on the model's zero at the run's temperature
+    (:func:`_thermal_corrections`; rings also get ``Tw_minus_Tw0``), in place. :func:`run_protocol` ends with it;
+    members run another way (e.g. chained from each other's final poses with
+    :func:`dnarod.workflows.protocols.tweezers.run_member`) are written into a curve the same way.
+
+    Parameters
+    ----------
+    kind : {"force_extension", "magnetic_tweezers", "torque_turns", "rings"}
+    rows : list of dict
+        One member's result each (:func:`dnarod.workflows.protocols.tweezers.summarize` or a ring member's row),
+        with the axis values.
+    base : dict
+        The settings the members share (``source``, ``forcefield``, ``temperature_K``): the model whose thermal
+        zero the corrections use.
+    outdir : path
+    plots : bool
+
+    Returns
+    -------
+    Curve
+    """
     from dnarod.workflows.protocols.ensemble_hooks import protocol_of
 
+    outdir = Path(outdir)
     x = protocol_of(kind).plot.x
     rows.sort(key=lambda r: (r.get(x) if r.get(x) is not None else 0.0))
     for r in rows:
@@ -309,140 +320,13 @@ def _thermal_corrections(kind, base, rows):
             r["twist_torque_pN_nm_raw"] = r["twist_torque_pN_nm"]
             r["twist_torque_pN_nm"] = r["twist_torque_pN_nm"] - off
             r["twist_torque_offset_pN_nm"], r["twist_torque_offset_err_pN_nm"] = off, off_se
-            for side in ("_out", "_in"):  # a bracketed point's two members (start "bracket")
-                if r.get("twist_torque_pN_nm" + side) is not None:
-                    r["twist_torque_pN_nm" + side] -= off
             if r.get("twist_torque_pN_nm_err") is not None:
                 r["twist_torque_pN_nm_err"] = float(np.hypot(r["twist_torque_pN_nm_err"], off_se))
 
 
-def _member_name(m, axes):
+def member_name(m, axes):
+    """A member's folder name from its axis values (``force_pN+2_turns+0.5``)."""
     return "_".join(f"{k}{m[k]:+g}" if isinstance(m[k], (int, float)) else f"{k}{m[k]}" for k in axes) or "member"
-
-
-def _run_sweep(kind, axes, members, outdir, workers, progress, client, settle_ns, inward=False,
-               settle_buckled_ns=None, directions=None):
-    """Run the members as turn-sweep chains (one per force and side of zero turns; one dask task each); with
-    ``settle_buckled_ns`` the chained members at or past the buckling point (per force and temperature) settle
-    that long instead of ``settle_ns``, and a chain head at or past it (an inward sweep's) equilibrates at least
-    that long. ``directions`` (a tuple of ``inward`` flags) runs several sweeps at once, their members in
-    ``members/out_*`` and ``members/in_*``; every row carries ``sweep_direction`` ("out" or "in")."""
-    from dnarod.workflows.protocols.sweep import buckling_estimate, member_settles, run_chain, sweep_chains
-
-    others = [k for k in axes if k != "turns"]
-    groups = {}
-    for m in members:
-        groups.setdefault(tuple(m.get(k) for k in others), []).append(m)
-    chains = []
-    for group in groups.values():
-        by_turns = {float(m.get("turns") or 0.0): m for m in group}
-        est = None
-        if settle_buckled_ns is not None:
-            m0 = group[0]
-            est = buckling_estimate(m0.get("source"), m0.get("force_pN"), m0.get("temperature_K") or 300.0,
-                                    m0.get("forcefield") or "dna-default")
-        for inw in (directions if directions is not None else (inward,)):
-            prefix = ("in_" if inw else "out_") if directions is not None else ""
-            for chain in sweep_chains(by_turns, inw):
-                ms = [by_turns[t] for t in chain]
-                settles = (member_settles(chain, settle_ns, settle_buckled_ns, (est["turns_lo"], est["turns_hi"]))
-                           if est else settle_ns)
-                head_past = est is not None and not (est["turns_lo"] < chain[0] < est["turns_hi"])
-                head_eq = settle_buckled_ns if head_past else None
-                chains.append((ms, [str(outdir / "members" / (prefix + _member_name(m, axes))) for m in ms],
-                               settles, est, inw, head_eq))
-    out = []
-    if not workers and client is None:
-        for ms, dirs, settles, est, inw, head_eq in chains:
-            out.append((ms, run_chain(kind, ms, dirs, settles, inw, head_eq), est, inw))
-    else:
-        from dnarod.workflows.ensemble.cluster import client_for
-
-        with client_for(client, None, workers) as c:
-            futs = [c.submit(run_chain, kind, ms, dirs, settles, inw, head_eq, pure=False)
-                    for ms, dirs, settles, est, inw, head_eq in chains]
-            for (ms, _, _, est, inw, _), f in zip(chains, futs):
-                out.append((ms, f.result(), est, inw))
-    rows = []
-    for ms, results, est, inw in out:
-        for m, r in zip(ms, results):
-            row = dict(r, **{k: m[k] for k in axes}, sweep_direction="in" if inw else "out")
-            if est:
-                row.update(buckling_delta_lk_marko=est["buckling_delta_lk"], buckled_settle_from_turns_lo=
-                           est["turns_lo"], buckled_settle_from_turns_hi=est["turns_hi"])
-            rows.append(row)
-    return rows
-
-
-#: Observables a bracketed curve point combines from its outward and inward members (each with its ``_err``).
-BRACKET_KEYS = ("relative_extension", "extension_nm", "Wr", "Tw", "Lk", "twist_torque_pN_nm", "clamp_torque_pN_nm",
-                "plectoneme_fraction", "plectoneme_length_nm", "plectonemic", "end_turns")
-#: Per-member cost columns a bracketed point sums over its two members.
-BRACKET_COSTS = ("wall_s", "cpu_s", "n_steps")
-
-
-def bracket_rows(out_rows, in_rows, group_keys=("force_pN",)):
-    """One curve point per turn value from an outward and an inward sweep member (``start="bracket"``).
-
-    An outward member starts from the previous, smaller turn value's pose (its plectoneme too small, or none
-    yet) and an inward one from the next larger turn value's (its plectoneme too large). If each relaxes
-    towards equilibrium without overshooting, the equilibrium lies between the two, so the point is their
-    midpoint ``m = (a + b)/2`` with an error that covers half the gap as well as the members' own standard
-    errors: ``err = sqrt(((a - b)/2)^2 + (err_a^2 + err_b^2)/4)``. Where the two directions agree the error is
-    the statistical one; where a member is still relaxing (or stuck straight past buckling) it is the gap. Near
-    buckling the two may sit in different long-lived states (straight and plectonemic), in either order (the
-    1-kbp run of round 8, docs/protocols.md): then the midpoint is no better than a guess and the error, half the
-    gap, says so.
-
-    Parameters
-    ----------
-    out_rows, in_rows : list of dict
-        Member results (:func:`dnarod.workflows.protocols.tweezers.summarize` plus the axes), one per (group, turns).
-    group_keys : sequence of str
-        The other axes (``force_pN``): members match on them and on ``turns``.
-
-    Returns
-    -------
-    list of dict
-        The outward row's settings with, for every key ``k`` of :data:`BRACKET_KEYS` both have: ``k`` (midpoint),
-        ``k_err``, ``k_out``, ``k_in``, ``k_out_err``, ``k_in_err`` and ``k_gap_z`` (gap / its standard error);
-        ``relative_extension_rel_err`` (err / midpoint) and ``relative_extension_half_gap_rel``; costs summed.
-        A turn value with only one direction is refused (run both).
-    """
-    import math
-
-    key = lambda r: tuple(float(r[k]) for k in group_keys) + (round(float(r["turns"]), 9),)
-    ins = {key(r): r for r in in_rows}
-    outs = {key(r): r for r in out_rows}
-    if set(ins) != set(outs):
-        odd = sorted(set(ins) ^ set(outs))
-        raise DnarodError(f"bracket: turn values {[k[-1] for k in odd]} have a member in one sweep direction only")
-    rows = []
-    for k in sorted(outs):
-        a, b = outs[k], ins[k]
-        row = {kk: v for kk, v in a.items() if kk not in ("sweep_direction", "start", "previous_turns", "seed")}
-        row.update(start="bracket: outward and inward turn sweeps", sweep_direction="both",
-                   start_out=a.get("start"), start_in=b.get("start"), seed_out=a.get("seed"), seed_in=b.get("seed"))
-        for c in BRACKET_KEYS:
-            if a.get(c) is None or b.get(c) is None:
-                continue
-            va, vb = float(a[c]), float(b[c])
-            ea, eb = float(a.get(c + "_err") or 0.0), float(b.get(c + "_err") or 0.0)
-            row.update({c: 0.5 * (va + vb), c + "_err": math.sqrt((0.5 * (va - vb)) ** 2 + 0.25 * (ea * ea + eb * eb)),
-                        c + "_out": va, c + "_in": vb, c + "_out_err": ea, c + "_in_err": eb,
-                        c + "_gap_z": (va - vb) / math.hypot(ea, eb) if (ea or eb) else None})
-            for t in ("_tau_ps", "_err_tau"):
-                row.pop(c + t, None)
-        if row.get("relative_extension"):
-            m = row["relative_extension"]
-            row["relative_extension_rel_err"] = row["relative_extension_err"] / abs(m)
-            row["relative_extension_half_gap_rel"] = 0.5 * abs(row["relative_extension_out"]
-                                                               - row["relative_extension_in"]) / abs(m)
-        for c in BRACKET_COSTS:
-            if a.get(c) is not None and b.get(c) is not None:
-                row[c] = a[c] + b[c]
-        rows.append(row)
-    return rows
 
 
 def _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client):

@@ -49,9 +49,9 @@ def _member_platform(settings):
 def member_seed(seed, *key):
     """A distinct, reproducible seed for one member: from the curve's ``seed`` and the member's ``key``.
 
-    Members of one curve share the base seed; run with it unchanged, the members of a turn sweep (each
-    continuing the previous member's pose) would restart the same noise stream, and two members of a static
-    curve would draw the same noise. The member's seed is the first four bytes of the SHA-256 of
+    Members of one curve share the base seed; run with it unchanged, members that continue each other's poses
+    (:func:`dnarod.workflows.protocols.tweezers.run_member` with ``start_pose``) would restart the same noise
+    stream, and two members of a static curve would draw the same noise. The member's seed is the first four bytes of the SHA-256 of
     ``[seed, *key]`` (JSON; floats as ``repr``) in [1, 2^31 - 1]: the same base seed and key always give the
     same seed (so a member's cache key and resume are reproducible), different keys different streams.
 
@@ -60,7 +60,7 @@ def member_seed(seed, *key):
     seed : int
         The curve's (base) seed.
     *key : str, int or float
-        What tells the member apart (protocol kind, force in pN, turns, sweep direction, ...).
+        What tells the member apart (protocol kind, force in pN, turns, how it starts, ...).
 
     Returns
     -------

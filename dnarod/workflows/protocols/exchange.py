@@ -1,8 +1,9 @@
 """Replica exchange along the turns of a tweezers ladder (``dnarod protocol hat|torque-turns --start exchange``).
 
 Why. Near buckling a long chain under a rotation clamp is bistable (straight or plectonemic), and the two states
-outlive any member a hat curve can afford: at 1 kbp and 1 pN a 210-ns member keeps the state it started in
-(round 8, ``docs/protocols.md``), so independent members or turn sweeps report the start, not the equilibrium.
+outlive any member a hat curve can afford (at 1 kbp and 1 pN a member of a few hundred ns can keep the state it
+started in), so independent members, or members continuing each other's poses along the turns, report their
+start, not the equilibrium.
 Replica exchange along the turns axis lets each rung's configuration change state through its neighbours: a
 plectoneme carried to fewer turns dissolves there, a straight chain carried to more turns buckles there, and
 each comes back when the Metropolis test lets it.
@@ -12,7 +13,7 @@ rotation-clamp target turned by ``n_i`` about z). Every ``exchange_ps`` all repl
 pairs ``(i, i+1)`` with ``i`` of the round's parity (even, odd, even, ...) attempt a swap.
 
 Move. A swap carries the configuration ``X`` of rung ``i`` to rung ``i+1`` with ``delta = n_{i+1} - n_i``
-turns added as twist spread along the chain (:func:`dnarod.workflows.protocols.sweep.add_turns`: node ``k`` of ``n``
+turns added as twist spread along the chain (:func:`dnarod.workflows.protocols.poses.add_turns`: node ``k`` of ``n``
 turned about its own d3 by ``2 pi delta k/(n-1)``; centres, so the non-bonded and wall terms, are unchanged), and
 the configuration ``Y`` of rung ``i+1`` to rung ``i`` with ``-delta``. The body angular velocities turn with
 the frames (``Omega' = Q^T Omega``; centre velocities unchanged), so the map is the cotangent lift of a fixed
@@ -30,7 +31,8 @@ post-buckling plateau the extra turns go into writhe, so the twist added by the 
 accepted almost always. Each pair's measured acceptance is reported.
 
 Observables are sampled per rung (whichever replica holds it), as a member's are
-(:func:`dnarod.workflows.protocols.tweezers.observe`), and each rung is written as a member folder (``samples.csv``,
+(the member's ``observe`` in :mod:`dnarod.workflows.protocols.tweezers`), and each rung is written as a member
+folder (``samples.csv``,
 ``protocol_result.json``, ``final_pose.npz``) beside ``exchange.json`` (acceptance per pair, replica round
 trips, labels). Runs checkpoint every :data:`CHECKPOINT_WALL_S` wall seconds and resume from the last complete
 checkpoint (same settings); a finished ladder is reused.
@@ -76,7 +78,7 @@ def twist_move(frames, omega_body, delta_turns):
     -------
     frames, omega_body : ndarray
         Node ``k`` turned about its own d3 by ``phi_k = 2 pi delta k / (n - 1)``
-        (:func:`dnarod.workflows.protocols.sweep.add_turns`), ``Omega'_k = Q(phi_k)^T Omega_k`` so that the lab angular
+        (:func:`dnarod.workflows.protocols.poses.add_turns`), ``Omega'_k = Q(phi_k)^T Omega_k`` so that the lab angular
         velocity is unchanged. ``twist_move(*twist_move(F, W, d), -d)`` returns ``(F, W)``.
     """
     from dnarod.workflows.protocols.poses import add_turns
@@ -193,10 +195,9 @@ def twist_ramp_mismatch(params, angle=0.7):
     ``(Gamma1, Gamma2)`` rotate about d3 (the Cayley vector and the body shear of a step are vectors in node
     ``k``'s frame). Where the energy is not invariant under that turn (unequal bending or shear stiffnesses,
     in-plane strains coupled to twist or extension, an intrinsic bend or shear), the rungs are not images of each
-    other under the map and swaps cost energy in proportion to the turn squared: on ``olson1998`` (40 bp, two-rung
-    ladders measured in round 10) 0.6 % of swaps 0.1 turns apart were accepted, 35-40 % at 0.03 turns (the case
-    ``tests/test_protocol_exchange.py`` runs), against 70 % on ``dna-default`` at 0.1 turns. The rule stays exact;
-    only the acceptance falls.
+    other under the map and swaps cost energy in proportion to the turn squared, so few swaps between rungs far
+    apart are accepted (on ``olson1998``, 40 bp, far fewer at 0.1 turns than on ``dna-default``; the acceptance
+    measured on two-rung ladders: docs/misuse.md). The rule stays exact; only the acceptance falls.
 
     Parameters
     ----------
@@ -237,13 +238,10 @@ class ReplicaGroup:
     settings : list of dict
         Tweezers member settings of every rung (:func:`dnarod.workflows.protocols.tweezers.build_member`), in rung order.
     rids : list of int
-        The replicas of this group; replica ``r`` starts on rung ``r``.
-    grow : bool
-        Run the grown-plectoneme starts of the rungs whose settings ask for one (``start_force_pN``,
-        ``start_ns``); False when the replicas are restored from checkpoints next.
+        The replicas of this group; replica ``r`` starts on rung ``r``, from that rung's static pose.
     """
 
-    def __init__(self, settings, rids, grow=True):
+    def __init__(self, settings, rids):
         from dnarod.workflows.protocols.measure import detector_distances
         from dnarod.workflows.protocols.tweezers import build_member
         from dnarod.physics.nonbonded import member_nonbonded
@@ -255,13 +253,7 @@ class ReplicaGroup:
         self.dt = ladder_dt(self.members)
         self.replicas = {}
         for r in rids:
-            m = self.members[r]
-            s = m["settings"]
-            if grow and s.get("start_force_pN") is not None and s.get("start_ns"):
-                from dnarod.workflows.protocols.tweezers import grown_start
-
-                m = grown_start(m, s["start_force_pN"], s["start_ns"])  # a plectoneme grown at a lower force
-            self.replicas[int(r)] = _Replica(r, r, m, self.rungs, self.dt)
+            self.replicas[int(r)] = _Replica(r, r, self.members[r], self.rungs, self.dt)
         s0 = self.members[0]["settings"]
         self.sep_nm, self.contact_nm = detector_distances(member_nonbonded(s0), float(s0["temperature_K"]),
                                                           self.members[0]["model"].ds)
@@ -312,7 +304,8 @@ class ReplicaGroup:
         return self._timed(go)
 
     def sample(self):
-        """One sample per replica: ``{label: row}`` (:func:`dnarod.workflows.protocols.tweezers.observe`)."""
+        """One sample per replica: ``{label: row}`` (the member's ``observe`` in
+        :mod:`dnarod.workflows.protocols.tweezers`)."""
         from dnarod.workflows.protocols.tweezers import observe_tweezers as observe
 
         def go():
@@ -458,10 +451,10 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
 
         c = stack.enter_context(client_for(client, None, n_groups))
         stack.enter_context(c.as_current())  # actor proxies find their client through it
-        futs = [c.submit(ReplicaGroup, settings, rids, resume is None, actor=True, pure=False) for rids in rid_groups]
+        futs = [c.submit(ReplicaGroup, settings, rids, actor=True, pure=False) for rids in rid_groups]
         groups = [f.result() for f in futs]  # built at once, one per worker
     else:
-        groups = [_Local(ReplicaGroup(settings, rids, resume is None)) for rids in rid_groups]
+        groups = [_Local(ReplicaGroup(settings, rids)) for rids in rid_groups]
     with stack:
         infos = [g.info().result() for g in groups]
         dts = sorted({d for i in infos for d in i["dt_ps"]})
@@ -558,7 +551,7 @@ def run_ladder(settings, outdir, names, workers=0, client=None, exchange_ps=EXCH
                 last_ck = time.perf_counter()
         if bar is not None:
             bar.close()
-        cpu = cpu_before + group_cpu()  # the groups' processes, their set-up (grown starts) included
+        cpu = cpu_before + group_cpu()  # the groups' processes, their set-up included
         wall = wall_before + time.perf_counter() - t0
         poses = {}
         for f in [g.poses() for g in groups]:
@@ -619,14 +612,12 @@ def run_ladders(kind, axes, members, outdir, workers, progress, client, exchange
     """Run each ladder of a protocol (one per value of the axes other than the turns; rungs = the turns) and
     return the curve rows (:func:`dnarod.workflows.protocols.curves.run_protocol` with ``start="exchange"``).
 
-    Start: a rung at or past the buckling point of Marko's two-phase model with the model's parameters
-    (:func:`dnarod.workflows.protocols.sweep.buckling_estimate`, margin 1) starts from a plectoneme grown for
-    :data:`~dnarod.workflows.protocols.sweep.GROW_NS` at :data:`~dnarod.workflows.protocols.sweep.GROW_FORCE_FRACTION` of the force,
-    the others from the static pose under their loads, so the ladder's equilibration begins with both states.
+    Start: every rung from the static pose under its loads; past buckling thermal noise takes it to the
+    plectonemic state during the ladder's equilibration (as it does an independent member), and the swaps carry
+    either state along the ladder.
     """
     from dnarod.workflows.protocols import ensemble_hooks as hooks
-    from dnarod.workflows.protocols.curves import _member_name
-    from dnarod.workflows.protocols.sweep import GROW_FORCE_FRACTION, GROW_NS, buckling_estimate
+    from dnarod.workflows.protocols.curves import member_name
 
     proto = {"magnetic_tweezers": hooks.MAGNETIC_TWEEZERS, "torque_turns": hooks.TORQUE_TURNS}[kind]
     others = [k for k in axes if k != "turns"]
@@ -637,18 +628,13 @@ def run_ladders(kind, axes, members, outdir, workers, progress, client, exchange
     outdir = Path(outdir)
     for key, ms in ladders.items():
         ms = sorted(ms, key=lambda m: float(m.get("turns") or 0.0))
-        m0 = ms[0]
-        est = buckling_estimate(m0.get("source"), m0.get("force_pN"), m0.get("temperature_K") or 300.0,
-                                m0.get("forcefield") or "dna-default", margin=1.0)
         settings = []
         for m in ms:
             s = proto.member_settings(m)
             s["seed"] = hooks.member_seed(s["seed"], "exchange")
-            if not (est["turns_lo"] < float(s["turns"]) < est["turns_hi"]):
-                s.update(start_force_pN=GROW_FORCE_FRACTION * float(s["force_pN"]), start_ns=GROW_NS)
             settings.append(s)
-        ladder = outdir / "ladders" / (_member_name(ms[0], others) if others else "ladder")
-        names = [str(outdir / "members" / ("exchange_" + _member_name(m, axes))) for m in ms]
+        ladder = outdir / "ladders" / (member_name(ms[0], others) if others else "ladder")
+        names = [str(outdir / "members" / ("exchange_" + member_name(m, axes))) for m in ms]
         seed = hooks.member_seed(int(ms[0].get("seed") or 1), "exchange", *[str(k) for k in key])
         res = run_ladder(settings, ladder, names, workers=workers, client=client,
                          exchange_ps=EXCHANGE_PS if exchange_ps is None else float(exchange_ps), seed=seed,

@@ -25,7 +25,8 @@ def _describe(key, old, new):
 
 def check_protocol_folder(out, kind, settings, overwrite=False):
     """Refuse ``out`` if it holds a protocol run with another ``kind`` or other ``settings`` (a JSON-safe
-    dict of the settings shared by every member), unless ``overwrite``. Nothing is written."""
+    dict of the settings shared by every member), unless ``overwrite``. A setting recorded as None counts as
+    not given. Nothing is written."""
     p = Path(out) / MANIFEST
     if not p.is_file():
         return
@@ -35,7 +36,11 @@ def check_protocol_folder(out, kind, settings, overwrite=False):
     except (OSError, ValueError, KeyError, TypeError):
         raise DnarodError(f"{p}: not a readable protocol record; choose another -o folder (or remove the file)") \
             from None
-    if overwrite or (old_kind == kind and old_settings == settings):
+    if not isinstance(old_settings, dict):
+        raise DnarodError(f"{p}: not a readable protocol record; choose another -o folder (or remove the file)")
+    # a setting recorded as None and one not recorded are the same (records of settings since removed stay valid)
+    same = all(old_settings.get(k) == settings.get(k) for k in set(old_settings) | set(settings))
+    if overwrite or (old_kind == kind and same):
         return
     if old_kind != kind:
         what = f"a {old_kind} run, not {kind}"
@@ -53,3 +58,20 @@ def write_protocol_record(out, kind, settings):
 
     write_text_atomic(Path(out) / MANIFEST, json.dumps({"format": "dnarod-protocol", "kind": kind,
                                                         "settings": settings}, indent=1, sort_keys=True) + "\n")
+
+
+def replaces_other_settings(out, kind, settings):
+    """True if ``out`` holds a protocol record of another ``kind`` or other ``settings`` (an ``--overwrite``
+    then makes the new run beside it: :func:`dnarod.workflows.protocols.run_protocol`)."""
+    p = Path(out) / MANIFEST
+    if not p.is_file():
+        return False
+    try:
+        old = json.loads(p.read_text())
+        return (old["kind"], old["settings"]) != (kind, settings)
+    except (OSError, ValueError, KeyError, TypeError):
+        return True
+
+
+#: What a protocol writes into its folder (an ``--overwrite`` with other settings replaces exactly these).
+PROTOCOL_FILES = (MANIFEST, "curve.csv", "curve.png", "members.csv", "members", "ensemble", "ladders")

@@ -21,25 +21,16 @@ clamp act on the last node, both along the lab z axis.
   **The distances follow the model's non-bonded terms** (:func:`detector_distances`): the contact distance is
   ``CONTACT_PER_DIAMETER = 2.6`` effective diameters of the model's pair energy at its salt and temperature
   (:func:`dnarod.physics.theory.supercoil.effective_diameter`), the minimum separation ``max(25 nm, 2 x``
-  contact distance). Measured (``benchmarks/detector_r7``: 400-bp tweezers members at 1 pN past buckling, 400- and
-  600-bp rings at sigma -0.079 / -0.088): the distance from each node to its nearest node 25 nm or more along the
-  chain peaks at the superhelix's strand separation, 2.4-3.1 nm with Manning's charge (d_eff 2.31 nm) and
-  5.1-5.9 nm with the calibrated charge (5.00 nm): 1.0-1.35 and 1.0-1.2 d_eff, so it scales with d_eff (a little
-  tighter, in d_eff, at the calibrated charge: its 5-25 % quantiles are 0.9-1.7 d_eff, Manning's 1.0-2.9). The multiple
-  2.6 is the one the earlier fixed 6 nm was for Manning's charge (6.01 nm with its 5-Debye-length cutoff: those
-  runs read what they read, within 0.001), so the detector reaches as far into the superhelix at either charge:
-  13.0 nm (separation 26 nm) for the calibrated charge at 0.15 M. The fraction then counts the plectoneme with
-  most of its end loop, as the extension does: on tweezers members 0.38 and 0.47 at 2.4 and 3.4 turns, against
-  ``1 - x/(zeta L)`` = 0.42 and 0.48 and a geometric plectoneme (loop included) of 0.39-0.41 and 0.44-0.45 (the
-  fixed 6 nm read 0.13 and 0.22, less than the interwound part alone, 0.22-0.30); on rings, whose end loops are
-  wide at this charge, it reads more than the part outside the loops (600-bp ring: 0.80, where that part is
-  0.35-0.40 and the fixed 6 nm read 0.36). Past ``min_separation_nm = 2 x`` the contact distance a chain comes
-  back within the contact distance only through a loop, so a stretched chain reads no contact and the free coil's
-  random self-approaches stay rare (exact equilibrium samples of the free chain, no excluded volume, 500 per
-  length: 0.1 % of the nodes of 300-600-bp chains at 13 / 26 nm, under 1 % of the samples flagged; more for long
-  coils, 0.4 % / 1.5 % of the nodes and 2.4 % / 13 % of the samples at 1 / 2 kbp, against 0.1 % / 0.4 % and
-  1.4 % / 1.6 % with the fixed 6 nm). Without non-bonded terms the WCA diameter stands for d_eff. An explicit
-  ``contact_distance_nm`` / ``min_separation_nm`` (the earlier fixed 6 nm / 25 nm) is used as given.
+  contact distance). Why: the superhelix's two strands sit about one effective diameter apart (the distance from
+  a node to its nearest node 25 nm or more along the chain peaks at 1.0-1.35 d_eff for both charge models), so
+  the contact distance scales with d_eff; 2.6 d_eff is the reach the earlier fixed 6 nm had for Manning's charge,
+  so the detector reaches as far into the superhelix at either charge (13.0 nm, separation 26 nm, for the
+  calibrated charge at 0.15 M) and counts a tweezers plectoneme with most of its end loop, as the extension does.
+  Past ``min_separation_nm = 2 x`` the contact distance a chain comes back within the contact distance only
+  through a loop, so a stretched chain reads no contact and a free coil's random self-approaches stay rare (more
+  for long coils: a few per cent of the samples of a 1-kbp free coil are flagged). Without non-bonded terms the
+  WCA diameter stands for d_eff. An explicit ``contact_distance_nm`` / ``min_separation_nm`` is used as given.
+  The members, free-coil samples and tables behind the rule: ``research/plectoneme_detector`` in the repository.
 
 Units: nm, turns, pN nm.
 """

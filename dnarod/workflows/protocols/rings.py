@@ -40,7 +40,7 @@ def _settings(s):
     out = dict(n_bp=600, forcefield="dna-default", sequence=None, delta_lk=0, time_ns=1.0, equilibration_ns=None,
                temperature_K=300.0, salt_M=0.15, seed=1, friction_per_ps=None, sample_ps=None, platform=None,
                threads=None, electrostatics=True, excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE,
-               start_bend_softening=None, start_ns=None)
+               start_pose_sha256=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown ring setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -60,18 +60,21 @@ def check_ring(delta_lk, lk0):
                           f"calibration; use |delta_lk| <= {int(MAX_SIGMA * lk0)}")
 
 
-def bend_softened_model(model, factor):
-    """The model with its bending rows and columns of every step's stiffness scaled by ``1/factor``.
+def _ring_from_pose(model, pose):
+    """``model`` at ``pose`` (positions, frames), refused (one line) unless it is a pose of this ring with its
+    linking number (Tw + Wr within 0.05 turns of the planar start's; the dynamics conserve it)."""
+    from dnarod.physics.writhe import twist, writhe
 
-    ``K' = S K S`` with ``S = diag(f^-1/2, f^-1/2, 1, 1, 1, 1)`` (f = ``factor``): the bending persistence
-    length falls by about f, the matrix stays positive definite, the intrinsic strains and pose are kept.
-    Used only to prepare starts (a ring that writhes more than the model's own).
-    """
-    from dataclasses import replace
-
-    S = np.diag([float(factor) ** -0.5] * 2 + [1.0] * 4)
-    K = np.einsum("ij,kjl,lm->kim", S, np.asarray(model.params.stiffness, float), S)
-    return replace(model, params=replace(model.params, stiffness=K))
+    pos, frm = (np.asarray(a, float) for a in pose)
+    if pos.shape != model.positions.shape or frm.shape != model.frames.shape:
+        raise DnarodError(f"start pose of {len(pos)} nodes for a ring of {model.n_nodes}: a ring member starts only "
+                          f"from a pose of its own ring")
+    lk0 = twist(model.positions, model.frames[:, :, 0]) + writhe(model.positions)
+    lk = twist(pos, frm[:, :, 0]) + writhe(pos)
+    if abs(lk - lk0) > 0.05:
+        raise DnarodError(f"start pose with linking number {lk:.3f}, not the member's {lk0:.3f}: a closed ring keeps "
+                          f"its linking number, so a start pose must have it")
+    return model.with_pose(pos, frm)
 
 
 def cached_member(member_dir, key):
@@ -123,16 +126,6 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
     sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
                            max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
     nb = member_nonbonded(s)
-    resuming = checkpoint is not None and Path(checkpoint).exists()
-    if s.get("start_bend_softening") and s.get("start_ns") and not resuming:
-        # start "from above": run first with the bending stiffness divided by start_bend_softening (plectonemes
-        # cost less bending, so the ring writhes more), then continue with the model from that pose
-        soft = bend_softened_model(model, float(s["start_bend_softening"]))
-        psim = RodSimulation.create(soft, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb,
-                             seed=int(s["seed"]) + 7919, threads=s["threads"])
-        psim.advance(int(round(1000.0 * float(s["start_ns"]) / psim.dt)))
-        model = model.with_pose(*psim.node_pose())
-        del psim
     sim = RodSimulation.create(model, temperature=T, friction=fr, platform=s["platform"], nonbonded=nb, seed=int(s["seed"]),
                         threads=s["threads"])
     dt = sim.dt
@@ -172,8 +165,22 @@ def write_member(member_dir, done, key, columns, out, res):
     write_text_atomic(done, json.dumps(jsonable({"settings": key, "result": res}), indent=1) + "\n")
 
 
-def run_ring_member(settings, member_dir, progress=None):
-    """Run (or reuse) one ring member; writes ``samples.csv`` and ``protocol_result.json``, returns the row."""
+def run_ring_member(settings, member_dir, progress=None, start_pose=None):
+    """Run (or reuse) one ring member; writes ``samples.csv`` and ``protocol_result.json``, returns the row.
+
+    Parameters
+    ----------
+    settings : dict
+        Ring member settings (``n_bp`` or ``sequence``, ``delta_lk``, ``time_ns``, ``seed``, ...; see ``_settings``).
+    member_dir : path
+        The member's folder; a finished member there with the same settings is returned without rerunning, an
+        interrupted one resumes from its checkpoint.
+    progress : callable, optional
+    start_pose : tuple of ndarray, optional
+        ``(positions (n, 3) nm, frames (n, 3, 3))``: a pose of the same ring with the same linking number (e.g.
+        one prepared under other conditions, to approach equilibrium from another side) to start from instead
+        of the planar circle. Its SHA-256 joins the member's key and it is written as ``start_pose.npz``.
+    """
     from dnarod.analysis.statistics import estimate
     from dnarod.core.forcefield import load_forcefield
     from dnarod.core.io import jsonable
@@ -182,9 +189,13 @@ def run_ring_member(settings, member_dir, progress=None):
     from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.workflows.protocols.measure import detector_distances, plectoneme_end_loops, plectoneme_state
 
+    if start_pose is not None:
+        from dnarod.workflows.protocols.poses import pose_sha256
+
+        settings = dict(settings, start_pose_sha256=pose_sha256(*start_pose))
     s = _settings(settings)
     # start options left unset are not part of the key (members recorded before they existed stay valid)
-    key = jsonable({k: v for k, v in s.items() if not (k in ("start_bend_softening", "start_ns") and v is None)})
+    key = jsonable({k: v for k, v in s.items() if not (k == "start_pose_sha256" and v is None)})
     cached, done = cached_member(member_dir, key)
     if cached is not None:
         return cached
@@ -194,6 +205,11 @@ def run_ring_member(settings, member_dir, progress=None):
     check_ring(s["delta_lk"], tw0)
     model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
                     delta_linking_number=int(s["delta_lk"]))
+    if start_pose is not None:
+        from dnarod.workflows.protocols.poses import START_POSE, save_pose
+
+        model = _ring_from_pose(model, start_pose)
+        save_pose(Path(member_dir) / START_POSE, model.positions, model.frames)
     T = float(s["temperature_K"])
     lp = persistence_length(model.params, model.ds, kT(T))
     # the plectoneme detector's distances follow the member's non-bonded terms and salt

@@ -11,9 +11,10 @@ uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), r
 :func:`dnarod.physics.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
 per step carries the turns, and the other strains follow the linear constitutive law ``K dxi = (0, 0, tau, 0, 0, F)``
 (twist-stretch coupling included). Past buckling this state is unstable and thermal noise takes the chain
-into its plectonemic state during equilibration. A member of a turn sweep starts instead from the previous turn
-value's final pose with the increment added as twist (``build_member(..., start_pose=...)``,
-:mod:`dnarod.workflows.protocols.sweep`).
+into its plectonemic state during equilibration. A member can start instead from a given pose, e.g. another
+member's final pose (``final_pose.npz``), with the turns it was sampled at (``previous_turns``): the difference is
+added as twist (``build_member(..., start_pose=...)``, :func:`dnarod.workflows.protocols.poses.add_turns`), so a
+series of members can continue each other's configurations.
 
 Friction and equilibration (:func:`mode_relaxation`): the equilibrium does not depend on the friction, so it is
 chosen to decorrelate fast: ``zeta = 2 omega_1``, critical damping of the slowest normal mode of the member's own
@@ -167,7 +168,7 @@ def _settings(s):
                equilibration_ns=None, temperature_K=300.0, salt_M=0.15, seed=1, clamp_k_kJ_mol=DEFAULT_CLAMP_K,
                friction_per_ps=None, sample_ps=None, platform=None, threads=None, electrostatics=True,
                excluded_volume=True, charge=DEFAULT_CHARGE, cutoff_debye=DEFAULT_CUTOFF_DEBYE, elastic="auto",
-               start_force_pN=None, start_ns=None, previous_turns=None, start_pose_sha256=None)
+               previous_turns=None, start_pose_sha256=None)
     unknown = set(s) - set(out)
     if unknown:
         raise DnarodError(f"unknown tweezers setting(s) {sorted(unknown)}; known: {sorted(out)}")
@@ -184,9 +185,9 @@ def build_member(settings, start_pose=None):
     settings : dict
         Member settings (see ``_settings``).
     start_pose : tuple of ndarray, optional
-        ``(positions (n, 3) nm, frames (n, 3, 3))``: the final pose of the member at ``settings["previous_turns"]``
-        (a turn sweep, :mod:`dnarod.workflows.protocols.sweep`). The member starts from it with ``turns - previous_turns``
-        added as twist (:func:`dnarod.workflows.protocols.sweep.add_turns`) instead of from the static pose; equilibration
+        ``(positions (n, 3) nm, frames (n, 3, 3))``: a pose of the same chain sampled at ``settings["previous_turns"]``
+        turns (e.g. another member's final pose). The member starts from it with ``turns - previous_turns`` added as
+        twist (:func:`dnarod.workflows.protocols.poses.add_turns`) instead of from the static pose; equilibration
         then defaults to two slowest bending relaxation times.
 
     Returns
@@ -219,18 +220,14 @@ def build_member(settings, start_pose=None):
         from dnarod.workflows.protocols.poses import add_turns
 
         if s["previous_turns"] is None:
-            raise DnarodError("a start pose from a sweep needs previous_turns (the turns it was sampled at)")
-        if s["start_force_pN"] is not None:
-            raise DnarodError("start_force_pN with a sweep's start pose: a member starts either from the previous turn "
-                              "value's pose or from a plectoneme grown at a lower force, not both")
+            raise DnarodError("a start pose needs previous_turns (the turns it was sampled at)")
         pos, frm = (np.asarray(a, float) for a in start_pose)
         if pos.shape != start.positions.shape or frm.shape != start.frames.shape:
-            raise DnarodError(f"start pose of {len(pos)} nodes for a chain of {start.n_nodes}: the sweep's members "
-                              f"must share the source")
+            raise DnarodError(f"start pose of {len(pos)} nodes for a chain of {start.n_nodes}: a member starts only "
+                              f"from a pose of its own chain (the same source)")
         dt_ = turns - float(s["previous_turns"])
         start = start.with_pose(*add_turns(pos, frm, dt_))
-        start_info = (f"final pose at {float(s['previous_turns']):+g} turns turned by {dt_:+g} turns "
-                      f"(turn sweep)")
+        start_info = f"given pose sampled at {float(s['previous_turns']):+g} turns, turned by {dt_:+g} turns"
     from dnarod.physics.statics import solve_static
 
     # the exact static equilibrium under the loads (a few Newton steps from the helix; the walls, added below, do not
@@ -270,16 +267,6 @@ def _member_simulation(m, model, dt=None):
     return RodSimulation.create(model, temperature=float(s["temperature_K"]), friction=m["friction"], platform=s["platform"],
                          nonbonded=nb, loads=m["loads"], seed=int(s["seed"]), threads=s["threads"],
                          elastic=s["elastic"], dt=dt)
-
-
-def grown_start(m, force_pN, ns):
-    """The member ``m`` (from :func:`build_member`) started from a plectoneme grown for ``ns`` ns at the lower
-    force ``force_pN`` (pN; same turns and clamp target, so the same linking number): "from above", a bracket of
-    the equilibrium with the straight start."""
-    pre = build_member({**m["settings"], "force_pN": force_pN, "start_force_pN": None, "start_ns": None})
-    psim = _member_simulation(pre, pre["model"])
-    psim.advance(int(round(1000.0 * float(ns) / psim.dt)))
-    return {**m, "model": m["model"].with_pose(*psim.node_pose())}
 
 
 def observe_tweezers(positions, frames, model, end_turns, clamp_target, clamp_k, sep_nm, contact_nm):
@@ -360,7 +347,7 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
         ``progress(i, n)`` after each sample.
     checkpoint : path, optional
         The member's checkpoint (the engine's format, with the samples): written every ``checkpoint_wall_s`` wall
-        seconds (default :data:`dnarod.run.sampling.CHECKPOINT_WALL_S`) and at the end; if it exists at the start
+        seconds (default :data:`dnarod.run.loop.CHECKPOINT_WALL_S`) and at the end; if it exists at the start
         (same settings), the member resumes from it, so an interrupted member gives the samples an uninterrupted
         one would. Removed by :func:`run_member` once the member is written.
     pose_out : path, optional
@@ -371,9 +358,6 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     from dnarod.workflows.protocols.measure import detector_distances
 
     s = m["settings"]
-    if s["start_force_pN"] is not None and s["start_ns"] and not (checkpoint is not None and Path(checkpoint).exists()):
-        # start "from above": a longer plectoneme grown at a lower force (same turns, same clamp target)
-        m = grown_start(m, s["start_force_pN"], s["start_ns"])
     model = m["model"]
     sim = _member_simulation(m, model)
     dt = sim.dt
@@ -425,11 +409,8 @@ def summarize(samples, m, cost):
     L0 = m["model"].ds * m["model"].n_steps
     res = {k: s[k] for k in ("n_bp", "force_pN", "turns", "temperature_K", "salt_M", "seed")}
     res["turns"] = m["turns"] if s["turns"] is not None else None
-    start = m["start"]
-    if s.get("start_force_pN") is not None and s.get("start_ns"):
-        start += f", begun after {s['start_ns']} ns at {s['start_force_pN']} pN (grown plectoneme)"
     res["previous_turns"] = s.get("previous_turns")
-    res.update(start=start, contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
+    res.update(start=m["start"], contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
                tau_bend_estimate_ps=m["tau_ps"], slowest_mode_omega=m.get("slowest_mode_omega"),
                relaxation_from="normal modes of the member's static pose with its loads (dnarod.physics.relaxation)",
                equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
@@ -470,7 +451,7 @@ def summarize(samples, m, cost):
 
 def run_member(settings, member_dir, progress=None, start_pose=None):
     """Run (or reuse) one tweezers member in ``member_dir``: writes ``samples.csv``, ``final_pose.npz`` and
-    ``protocol_result.json`` (and ``start_pose.npz`` for a member of a turn sweep).
+    ``protocol_result.json`` (and ``start_pose.npz`` for a member started from a given pose).
 
     A finished member (``protocol_result.json`` present with the same settings) is returned without rerunning.
     With ``start_pose`` (see :func:`build_member`) the key also holds the pose's SHA-256, so the member is
@@ -486,7 +467,7 @@ def run_member(settings, member_dir, progress=None, start_pose=None):
     done = member_dir / "protocol_result.json"
     # start options left unset are not part of the key (members recorded before they existed stay valid)
     key = jsonable({k: v for k, v in m["settings"].items()
-                    if not (k in ("start_force_pN", "start_ns", "previous_turns", "start_pose_sha256") and v is None)})
+                    if not (k in ("previous_turns", "start_pose_sha256") and v is None)})
     if done.exists():
         old = json.loads(done.read_text())
         if old.get("settings") == key:

@@ -2,7 +2,7 @@
 python long_member.py OUT.npz TURNS TIME_NS SEED [grown] [n_bp] [force]"""
 import sys, time, os, json
 import numpy as np
-from dnarod.workflows.protocols.tweezers import COLUMNS, _member_simulation, build_member, grown_start
+from dnarod.workflows.protocols.tweezers import COLUMNS, _member_simulation, build_member
 from dnarod.workflows.protocols.measure import clamp_torque_z, plectoneme_state, rotation_about_z, twisting_moment
 from dnarod.physics.observables import twist_writhe_open
 
@@ -12,12 +12,13 @@ n_bp = int(sys.argv[6]) if len(sys.argv) > 6 else 600
 force = float(sys.argv[7]) if len(sys.argv) > 7 else 1.0
 s = dict(n_bp=n_bp, force_pN=force, turns=turns, time_ns=time_ns, temperature_K=300.0, seed=seed,
          sample_ps=200.0)
-if grown:
-    s.update(start_force_pN=0.3, start_ns=20.0)
 m = build_member(s)
 t0, c0 = time.perf_counter(), time.process_time()
-if grown:
-    m = grown_start(m, 0.3, 20.0)
+if grown:  # a plectoneme grown 20 ns at 0.3 pN (same turns and clamp target), as tweezers.grown_start did
+    pre = build_member(dict(s, force_pN=0.3))
+    psim = _member_simulation(pre, pre["model"])
+    psim.advance(int(round(20000.0 / psim.dt)))
+    m = {**m, "model": m["model"].with_pose(*psim.node_pose())}
 model = m["model"]
 sim = _member_simulation(m, model)
 dt = sim.dt

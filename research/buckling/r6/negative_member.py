@@ -5,9 +5,12 @@ Usage: python negative_member.py OUT_DIR TURNS TIME_NS   (e.g. runs/neg_r6 2.567
 """
 import sys
 import time
+from pathlib import Path
 
 from dnarod.workflows.protocols.tweezers import run_member
-from dnarod.validate.buckling import member_plan
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "check"))  # research/buckling/check
+from buckling_check import member_plan  # noqa: E402
 
 out, turns, time_ns = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
 plan = member_plan(time_ns=time_ns, bracket=False, P_nm=20.0)  # P_nm: no rings in the plan

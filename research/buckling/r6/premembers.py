@@ -2,7 +2,7 @@
 
 Usage: python premembers.py ROOT WORKER_NAME [quick] [claims=NAME] [key=value ...]
 
-Every process walks the same plan (:func:`dnarod.validate.buckling.member_plan`, the very settings the check
+Every process walks the same plan (:func:`buckling_check.member_plan` in research/buckling/check, the very settings the check
 uses) in order and claims each member by creating ``ROOT/.claims[_NAME]/<folder>`` (atomic mkdir): start two processes
 and they share the members. ``check_buckling(member_root=ROOT, ...)`` with the same options then reuses the
 finished members. Options ``key=value`` go to ``member_plan`` (numbers parsed as Python literals).
@@ -22,7 +22,9 @@ from pathlib import Path
 import numpy as np
 
 import dnarod.workflows.protocols.measure as measure
-from dnarod.validate.buckling import member_plan, run_planned
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "check"))  # research/buckling/check
+from buckling_check import member_plan, run_planned  # noqa: E402
 
 root, worker = Path(sys.argv[1]), sys.argv[2]
 quick = "quick" in sys.argv[3:]

@@ -2,7 +2,8 @@
 its zero-torque offset). Usage: python an.py MEMBER_FOLDER... (reads samples.csv, or the checkpoint of a running member)."""
 import sys, numpy as np
 sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[3]))
-from dnarod.validate.buckling import block_standard_error as bse
+sys.path.insert(0, str(__import__('pathlib').Path(__file__).resolve().parents[1] / 'check'))  # research/buckling/check
+from buckling_check import block_standard_error as bse
 from dnarod.core.forcefield import load_forcefield
 from dnarod.workflows.protocols.measure import twisting_moment_offset
 

@@ -7,8 +7,10 @@ from dnarod.core.forcefield import load_forcefield
 from dnarod.physics.thermal import relaxed_ribbon_twist
 from dnarod.core.units import kT
 from dnarod.core.units import PN
-from dnarod.validate.buckling import block_standard_error as bse, drift_z
-from dnarod.physics.theory.supercoil import ring_pair_bulk_torque, two_phase_from_plectoneme_eos, plectoneme_P_from_ring_pair
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'check'))  # research/buckling/check
+from buckling_check import block_standard_error as bse, drift_z
+from buckling_theory import ring_pair_bulk_torque, two_phase_from_plectoneme_eos
+from dnarod.physics.theory.supercoil import plectoneme_P_from_ring_pair
 from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson
 from dnarod.physics.thermal import persistence_length
 ff = load_forcefield('dna-default'); T = 300.0; kt = kT(T) / PN

@@ -66,8 +66,11 @@ def times(root):
 
 
 def marko_line(turns, force_pN=1.0, n_bp=1000):
-    """Marko's two-phase x/L against turns (the model's A, C_s(F), P; long-chain extension; see sweep.py)."""
-    from dnarod.workflows.protocols.sweep import buckling_estimate
+    """Marko's two-phase x/L against turns (the model's A, C_s(F), P; long-chain extension; see turn_sweep.py)."""
+    import sys
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "turn_sweeps"))  # research/turn_sweeps
+    from turn_sweep import buckling_estimate
     from dnarod.core.units import kT
     from dnarod.core.units import PN
     from dnarod.physics.theory.supercoil import marko_two_phase

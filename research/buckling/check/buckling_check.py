@@ -1,5 +1,12 @@
-"""Check ``buckling``: buckling and the plectonemic plateau of a chain in magnetic tweezers against Marko's
+"""The buckling check: buckling and the plectonemic plateau of a chain in magnetic tweezers against Marko's
 two-phase model with the model's own A, C and plectoneme twist stiffness P.
+
+Research code (``research/buckling/check``; until 2026-12-07 it was ``dnarod.validate.buckling``, check ``buckling``
+of ``dnarod validate``). It runs on the product's public API: tweezers members
+(:func:`dnarod.workflows.protocols.tweezers.run_member`, from the static pose or from a given pose), ring members
+(:func:`dnarod.workflows.protocols.rings.run_ring_member`) and the theory of
+:mod:`dnarod.physics.theory.supercoil`. Command: ``python research/buckling/check/run_buckling.py OUT [--quick] [KEY=VALUE
+...]``.
 
 System: an open ``dna-default`` chain in magnetic tweezers at constant force (node 0 clamped, rotation clamp and
 force on the last node, surface and bead walls; :mod:`dnarod.workflows.protocols.tweezers`), OpenMM engine, WCA +
@@ -76,7 +83,7 @@ Pass, each with the measured standard errors (``Z_TOL`` = 3 of them) and nothing
    0.35 and 0.59 pN nm at 2.57 and 3.59 turns here); the error-weighted mean residual is compared. The plain
    difference (plateau - tau*) is reported beside it (``plain_difference_pN_nm``, ``plain_passed``).
 
-**Round 7** (``benchmarks/buckling_r7``; the defaults are the form run there): the round-6 plateau (14.7-14.9 pN
+**Round 7** (``research/buckling/r7``; the defaults are the form run there): the round-6 plateau (14.7-14.9 pN
 nm) was measured on a plectoneme still growing: a 1200-bp member from the grown start loses extension and gains
 writhe through 200 ns while its torque falls, and a larger plectoneme (a 7.19-turn pose turned back to 5.13
 turns) reads 10.5 pN nm against 14.0. With twins from the straight start and from a larger plectoneme (the
@@ -96,7 +103,7 @@ small-amplitude mode under fast noise that the autocorrelation-time window misse
 (:func:`block_standard_error`). The full form runs 400 ns of production per member (each twin at 2.57 turns:
 747-752 s CPU); with 150 ns the 2.57-turn twins disagreed (not settled), with 400 ns they agree
 (10.34 +- 0.28 and 10.32 +- 0.38 pN nm; Manning's charge). With the calibrated charge (round 6, a reduced full
-form: 200-ns twins, 600/1200-bp rings, the long one after 100 ns; ``benchmarks/buckling_r6``) the check fails:
+form: 200-ns twins, 600/1200-bp rings, the long one after 100 ns; ``research/buckling/r6``) the check fails:
 plateau 14.71 +- 0.37 / 14.91 +- 0.38 pN nm at 2.57 / 3.59 turns (flat), the 2.57-turn twins disagree (13.25 +-
 0.61 vs 15.50 +- 0.45, z 3.0; one plectoneme each, its end loop mid-chain in one and near the bead in the
 other), the 1200-bp ring branches (premise), Marko 13.55 +- 0.24 with the biased pair P_b. Cost there (CPU
@@ -104,13 +111,11 @@ time, load average 8-16): 600-bp twin 397-538 CPU-s per 200 ns (+ 11.5 ns equili
 for the grown start), 1200-bp ring 1012 CPU-s per 200 ns, 600-bp ring 168 CPU-s per 76 ns.
 
 Members: :func:`member_plan` lists the members the check runs with given options (folders, settings, seeds);
-members run in advance with exactly those settings (e.g. in two processes, ``benchmarks/buckling_r6/
-premembers.py``) into the member root are reused. Without ``member_root`` the members live in
-``<report folder>/buckling_members`` (:data:`MEMBER_FOLDER`), so running the check again into the same report
-folder (``dnarod validate --only buckling -o SAME``) reuses the finished members and resumes an interrupted one
-from its checkpoint; once the folder holds a finished report, the rerun needs ``--overwrite`` (which replaces
-the report and keeps the members; :func:`dnarod.validate.run_validation`). The pre-buckling member has no plectoneme and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending
-relaxation times) in the full form.
+members run in advance with exactly those settings (e.g. in two processes, ``research/buckling/r6/premembers.py``)
+into the member root are reused. Without ``member_root`` the members live in ``<report folder>/buckling_members``
+(:data:`MEMBER_FOLDER`), so running the check again into the same report folder (``run_buckling.py SAME``) reuses the
+finished members and resumes an interrupted one from its checkpoint. The pre-buckling member has no plectoneme
+and runs ``PRE_TIME_NS`` (100 ns, ~40 slowest bending relaxation times) in the full form.
 
 The buckling point (pre-buckling linear law met by the plateau torque) and the extension slope are reported
 beside Marko's values but not tested: the two-phase model leaves out the plectoneme end loop, which shifts
@@ -281,7 +286,8 @@ def ring_series(member_dir, column):
 
 
 def ring_pair_premise(short_dir, long_dir, loop_tol=None, z_tol=Z_TOL):
-    """Whether two ring members can give the bulk P (:func:`plectoneme_P_from_ring_pair`): both settled (the
+    """Whether two ring members can give the bulk P
+    (:func:`~dnarod.physics.theory.supercoil.plectoneme_P_from_ring_pair`): both settled (the
     means of Wr over the halves of each production agree within ``z_tol`` blocked SE) and with the same
     number of plectoneme end loops on average (``|<n_long> - <n_short>| <= loop_tol``, :data:`LOOP_TOL`; the
     per-sample count :func:`dnarod.workflows.protocols.measure.plectoneme_end_loops`, column ``end_loops``). A ring
@@ -322,7 +328,8 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
     root), ``settings`` (the member's settings dict) and ``role`` (``"ring"``, ``"ring_pair"``, ``"pre"``,
     ``"post"``, ``"post_grown"``, ``"above_source"``, ``"post_above"``) with ``index`` (0 pre-buckling, 1 and 2
     post-buckling). A ``"post_above"`` member starts from the final pose of the ``"above_source"`` member named
-    by its ``start_from`` (:func:`run_planned`). Members run in advance with exactly these settings into the
+    by its ``start_from`` (:func:`run_planned`); a ``"post_grown"`` member starts from a plectoneme grown as its
+    ``grow`` entry says (:func:`run_grown_member`). Members run in advance with exactly these settings into the
     member root (e.g. in parallel processes) are reused by the check. Same keywords as :func:`check_buckling`;
     ``platform`` (an OpenMM platform name; default the automatic choice) goes into every member's settings, so
     members recorded on one platform are reused only by a check asked to run on it.
@@ -384,12 +391,14 @@ def member_plan(quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns
             if twin and above:
                 extra, role, suffix = dict(previous_turns=t_src), "post_above", "_above"
             elif twin:
-                extra, role, suffix = dict(start_force_pN=grown_force_pN, start_ns=grown_ns), "post_grown", "_grown"
+                extra, role, suffix = {}, "post_grown", "_grown"
             e = dict(kind="tweezers", role=role, index=i, folder=f"turns{t:+.3f}" + suffix,
                      settings=dict(n_bp=n_bp, force_pN=force_pN, turns=t, time_ns=pre_time_ns if i == 0 else time_ns,
                                    temperature_K=temperature, seed=seed + i + (10 if twin else 0), **extra, **nb))
             if role == "post_above":
                 e["start_from"] = src_folder
+            if role == "post_grown":  # grown for grown_ns at grown_force_pN first (:func:`run_grown_member`)
+                e["grow"] = dict(force_pN=grown_force_pN, time_ns=grown_ns)
             plan.append(e)
     return plan
 
@@ -410,8 +419,34 @@ def run_planned(entry, member_root, progress=None):
                               f"(run the plan in order)")
         return run_member(entry["settings"], Path(member_root) / entry["folder"], progress=progress,
                           start_pose=load_pose(src))
+    if entry.get("grow"):
+        return run_grown_member(entry["settings"], Path(member_root) / entry["folder"], entry["grow"]["force_pN"],
+                                entry["grow"]["time_ns"], progress=progress)
     fn = run_ring_member if entry["kind"] == "ring" else run_member
     return fn(entry["settings"], Path(member_root) / entry["folder"], progress=progress)
+
+
+def run_grown_member(settings, member_dir, grow_force_pN, grow_ns, progress=None):
+    """A tweezers member started from a plectoneme grown at a lower force ("from above" the equilibrium).
+
+    First a member of the same settings at ``grow_force_pN`` runs ``grow_ns`` ns (all of it equilibration, a
+    few samples; same turns and clamp target, so the same linking number) in ``member_dir/grow``; then the member
+    runs from its final pose (:func:`dnarod.workflows.protocols.tweezers.run_member` with ``start_pose`` and
+    ``previous_turns`` = its own turns), equilibrating as long as from the static pose (five slowest bending
+    relaxation times) unless ``equilibration_ns`` is given. Both are reused when finished.
+    """
+    from pathlib import Path
+
+    from dnarod.workflows.protocols.poses import FINAL_POSE, load_pose
+    from dnarod.workflows.protocols.tweezers import build_member, run_member
+
+    member_dir = Path(member_dir)
+    grow = dict(settings, force_pN=float(grow_force_pN), equilibration_ns=float(grow_ns), time_ns=0.001)
+    run_member(grow, member_dir / "grow")
+    s = dict(settings, previous_turns=float(settings.get("turns") or 0.0))
+    if s.get("equilibration_ns") is None:
+        s["equilibration_ns"] = build_member(settings)["equilibration_ps"] / 1000.0
+    return run_member(s, member_dir, progress=progress, start_pose=load_pose(member_dir / "grow" / FINAL_POSE))
 
 
 def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None, post_turns=None, time_ns=None,
@@ -442,7 +477,9 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     from dnarod.physics.thermal import relaxed_ribbon_twist
     from dnarod.core.errors import DnarodError
     from dnarod.physics.theory.supercoil import (effective_diameter, marko_two_phase, plectoneme_P_from_ring_pair,
-                                   plectoneme_P_from_rings_with_loops, plectoneme_position_torque_shift)
+                                                 plectoneme_position_torque_shift)
+
+    from buckling_theory import plectoneme_P_from_rings_with_loops
     from dnarod.physics.theory.torsion import bare_twist_persistence, moroz_nelson
 
     t0 = time.perf_counter()
@@ -702,3 +739,60 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
         res["plots"] = [save_figure(fig, out_dir, "buckling.png")]
     res["runtime_s"] = time.perf_counter() - t0
     return res
+
+
+def _fmt(x, spec=".3g"):
+    try:
+        return format(float(x), spec)
+    except (TypeError, ValueError):
+        return str(x)
+
+
+def headline(r):
+    """``(measured, tolerance)``: one-line strings summing up a result of :func:`check_buckling` (as the
+    validation report's table had them)."""
+    pl, mk = r["plateau"], r["marko"]
+    return (f"plateau {_fmt(pl['mean_torque_pN_nm'], '.1f')}+-{_fmt(pl['mean_torque_se'], '.1f')} pN nm vs Marko "
+            f"two-phase {_fmt(mk['torque_pN_nm'], '.1f')}+-{_fmt(mk['torque_se_from_P'], '.1f')} pN nm (A "
+            f"{_fmt(mk['persistence_length_nm'], '.1f')}, C_s {_fmt(mk['C_s_nm'], '.1f')}, {_p_label(mk)} "
+            f"{_fmt(mk['P_nm'], '.1f')} nm)"
+            + (" + the single plectoneme's position shift "
+               + "/".join(_fmt(x, '.2f') for x in mk['position_entropy_shift_pN_nm'])
+               + f" pN nm: residual {_fmt(mk['residual_pN_nm'], '.2f')} (plain difference "
+               f"{_fmt(mk['plain_difference_pN_nm'], '.2f')})" if mk.get("position_entropy_shift_pN_nm") else "")
+            + f"; plateau torques differ by {_fmt(pl['torque_difference_pN_nm'], '.2f')}"
+            f"+-{_fmt(pl['standard_error'], '.2f')}; buckling at ΔLk {_fmt(mk['buckling_delta_lk_measured'], '.2f')}"
+            f" (Marko {_fmt(mk['buckling_delta_lk'], '.2f')}); slope {_fmt(mk['extension_slope_measured_nm_per_turn'], '.0f')}"
+            f" nm/turn (Marko {_fmt(mk['extension_slope_nm_per_turn'], '.0f')}); pre-buckling torque "
+            f"{_fmt(r['pre_buckling']['torque_pN_nm'], '.1f')} vs linear law "
+            f"{_fmt(r['pre_buckling']['linear_law_pN_nm'], '.1f')} pN nm; drift z (extension, torque) of the "
+            f"post-buckling members " + ", ".join(f"({_fmt(d['extension_z'], '.1f')}, {_fmt(d['torque_z'], '.1f')})"
+                                                  for d in r["drift"]["members"][1:])
+            + ("; straight vs " + (r.get("bracket_start") or "grown") + " start: Δtau " + ", ".join(
+                f"{_fmt(b['differences']['twist_torque_pN_nm']['difference'], '.2f')}"
+                f"+-{_fmt(b['differences']['twist_torque_pN_nm']['standard_error'], '.2f')}"
+                for b in r.get("brackets") or []) if r.get("brackets") else "")
+            + f"; P from a ring at {_fmt(mk.get('ring_linking_density_rad_per_nm'), '.3f')} rad/nm "
+              f"(coexistence {_fmt(mk.get('coexistence_plectoneme_density_rad_per_nm'), '.3f')})"
+            + ("; ring pair: mean end loops "
+               + " / ".join(_fmt(x, '.2f') for x in (r['ring_pair_premise']['end_loops'] or [None, None]))
+               + ", Wr drift z "
+               + ", ".join(_fmt(z, '.1f') for z in r['ring_pair_premise']['wr_drift_z'])
+               + f", premise {'met' if r['ring_pair_premise']['passed'] else 'NOT met'}"
+               + (f" ({r['ring_pair_premise']['reason']})" if r['ring_pair_premise'].get('reason') else "")
+               if r.get("ring_pair_premise") else ""),
+            (r["scope"] + "; " if r.get("scope") else "")
+            + f"drift |z| <= {r['z_tolerance']}; |residual| <= {r['z_tolerance']} SE + truncation {_fmt(mk['theory_truncation_pN_nm'], '.2f')} "
+            f"pN nm (= {_fmt(mk['tolerance_pN_nm'], '.2f')}); |dtau| <= {r['z_tolerance']} SE"
+            + ("; failed: " + ", ".join(k for k, v in r["gates"].items() if not v)
+               if r.get("gates") and not r["passed"] else ""))
+
+
+def _p_label(marko):
+    """Which plectoneme twist stiffness the buckling check used (from its ``P_source``)."""
+    src = str(marko.get("P_source") or "")
+    if src.startswith("closed rings of"):
+        return "P_b (ring pair)"
+    if src.startswith("closed ring"):
+        return "P (single ring)"
+    return "P (given)"
