@@ -85,7 +85,7 @@ def writhed_start(settings, softening, ns, member_dir):
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.physics.nonbonded import member_nonbonded
     from dnarod.workflows.protocols.poses import START_POSE, load_pose
-    from dnarod.workflows.protocols.tweezers import auto_friction
+    from dnarod.workflows.protocols.tweezers import mode_relaxation
 
     kept = Path(member_dir) / START_POSE
     if kept.is_file():
@@ -94,8 +94,11 @@ def writhed_start(settings, softening, ns, member_dir):
     model = load_forcefield(s.get("forcefield", "dna-default")).ring(n_nodes=int(s["n_bp"]),
                                                                      delta_linking_number=int(s["delta_lk"]))
     T = float(s["temperature_K"])
+    relaxed = load_forcefield(s.get("forcefield", "dna-default")).ring(n_nodes=int(s["n_bp"]), delta_linking_number=0)
+    # critical damping of the relaxed closed ring's slowest mode (dnarod.physics.relaxation)
+    friction = mode_relaxation(relaxed, (), T)["friction_per_ps"]
     sim = RodSimulation.create(bend_softened_model(model, float(softening)), temperature=T,
-                               friction=auto_friction(model, 0.0, T), nonbonded=member_nonbonded(s),
+                               friction=friction, nonbonded=member_nonbonded(s),
                                seed=int(s.get("seed", 1)) + 7919, platform=s.get("platform"))
     sim.advance(int(round(1000.0 * float(ns) / sim.dt)))
     return sim.node_pose()
