@@ -203,8 +203,16 @@ def run_ring_member(settings, member_dir, progress=None, start_pose=None):
     tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
     tw0 = intrinsic_turns(tw0_model)
     check_ring(s["delta_lk"], tw0)
+    # delta_lk counts from the relaxed ring at the member's temperature: its linking number is the integer nearest
+    # the thermal relaxed twist plus delta_lk (the same integer as from the 0 K twist unless the ~0.4-turn-per-kbp
+    # offset crosses a half turn)
+    from dnarod.physics.loads import torque_free_offset
+
+    T = float(s["temperature_K"])
+    offset = torque_free_offset(tw0_model, T)
+    shift = int(round(tw0 + offset)) - int(round(tw0))
     model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
-                    delta_linking_number=int(s["delta_lk"]))
+                    delta_linking_number=int(s["delta_lk"]) + shift)
     if start_pose is not None:
         from dnarod.workflows.protocols.poses import START_POSE, save_pose
 
@@ -244,12 +252,14 @@ def run_ring_member(settings, member_dir, progress=None, start_pose=None):
             flags.append(e.flag)
     res["flags"] = " | ".join(flags) or None  # one string: the ensemble keeps scalars per member
     res["lk_integer"] = int(np.rint(out["Lk"]).min()) if np.ptp(np.rint(out["Lk"])) == 0 else None
-    res["delta_lk_measured"] = res["Lk"] - round(tw0)
+    res["delta_lk_measured"] = res["Lk"] - round(tw0 + offset)
+    res["turns_offset_0K"] = offset  # relaxed twist at T less the 0 K intrinsic twist
     from dnarod.physics.thermal import relaxed_ribbon_twist as thermal_relaxed_twist
 
     # the linking difference that supercoils the ring is relative to the relaxed ring's mean twist at T
     res["relaxed_twist_thermal"], res["relaxed_twist_thermal_err"] = thermal_relaxed_twist(model, T)
     d = res["Lk"] - res["relaxed_twist_thermal"]
+    res["delta_lk_thermal"] = d  # the supercoiling: Lk less the relaxed ring's twist at T (not an integer)
     res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
     res["writhe_fraction_err"] = (abs(res["Wr_err"] / d) if res["writhe_fraction"] is not None else None)
     write_member(member_dir, done, key, COLUMNS, out, res)

@@ -6,6 +6,12 @@ below the bead (:class:`dnarod.physics.loads.Walls`; without them the chain unwi
 rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` whose target is the last
 node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free (force-extension).
 
+Turns count from the torque-free state at the member's temperature, as magnet turns do: ``turns = 0`` is the
+chain's relaxed twist at T (:func:`dnarod.physics.loads.torque_free_offset`: the thermal mean twist of the free
+steps, about 0.42 turns below the 0 K intrinsic twist for 1 kbp at 300 K), so the chain carries
+``turns + turns_offset_0K`` turns from its 0 K intrinsic twist; ``delta_lk`` is ``Lk`` less the relaxed linking
+number at T, ``delta_lk_0K`` less the 0 K one, and ``turns_offset_0K`` is reported beside them.
+
 Start ("relaxed under load"): the uniformly strained straight helix that is the static equilibrium of a
 uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), refined by
 :func:`dnarod.physics.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
@@ -38,7 +44,7 @@ import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.units import PN
-from dnarod.physics.loads import MAX_FORCE_PN, MAX_SIGMA, intrinsic_turns
+from dnarod.physics.loads import MAX_FORCE_PN, MAX_SIGMA, intrinsic_turns, torque_free_offset
 
 DEFAULT_CLAMP_K = 250.0  # kJ/mol: ~100 kT, clamp angle fluctuations ~0.1 rad
 
@@ -209,13 +215,17 @@ def build_member(settings, start_pose=None):
     check_tweezers(s["force_pN"], s["turns"], rotation_clamp=clamp, lk0=lk0)
     turns = float(s["turns"] or 0.0)
     T = float(s["temperature_K"])
-    start = strained_helix(model, s["force_pN"], turns)
+    # turns count from the torque-free state at T (as magnet turns do): the chain carries turns + offset from its
+    # intrinsic twist at 0 K (offset ~ -0.42 turns for 1 kbp at 300 K)
+    offset = torque_free_offset(model, T) if clamp else 0.0
+    turns_0K = turns + offset
+    start = strained_helix(model, s["force_pN"], turns_0K)
     # the one tweezers set-up: node 0 on the surface, the bead pulled along +z; the start pose already carries the
     # turns, so the clamp holds the start's last frame (turns=0 here)
     target = start.frames[-1].copy() if clamp else None
     loads = list(tweezers(start, s["force_pN"], None, float(s["clamp_k_kJ_mol"]) if clamp else None, 0.0,
                           anchor="surface", axis="z", clamp_frame=target))
-    ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
+    ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` (from the torque-free state)
     if start_pose is not None:
         from dnarod.workflows.protocols.poses import add_turns
 
@@ -232,7 +242,7 @@ def build_member(settings, start_pose=None):
 
     # the exact static equilibrium under the loads (a few Newton steps from the helix; the walls, added below, do not
     # touch the straight pose): the static start, and the pose whose normal modes set the relaxation time
-    static, info = solve_static(strained_helix(model, s["force_pN"], turns), loads)
+    static, info = solve_static(strained_helix(model, s["force_pN"], turns_0K), loads)
     if start_pose is None:
         start = static
         start_info = f"static equilibrium under the loads (dnarod.physics.statics, {info['iterations']} Newton steps)"
@@ -250,7 +260,7 @@ def build_member(settings, start_pose=None):
     return dict(settings=s, model=start, loads=loads, clamp_target=target, friction=fr, tau_ps=tau, start=start_info,
                 ref_frame=ref_frame, slowest_mode_omega=rel["omega_1"], start_unstable_modes=rel["n_unstable"],
                 equilibration_ps=eq, production_ps=prod, sample_ps=sample, lk0=lk0,
-                persistence_length_nm=lp, turns=turns)
+                persistence_length_nm=lp, turns=turns, turns_offset_0K=offset, lk_T=lk0 + offset)
 
 
 def _member_simulation(m, model, dt=None):
@@ -435,11 +445,16 @@ def summarize(samples, m, cost):
             flags.append(e.flag)
     res["flags"] = " | ".join(flags) or None  # one string: the ensemble keeps scalars per member
     samples = {k: np.asarray(v)[t0:] for k, v in samples.items()}
-    slips = np.rint(np.asarray(samples["Lk"]) - m["lk0"] - np.asarray(samples["end_turns"]))
+    lk_T = m.get("lk_T", m["lk0"])  # the linking number of the torque-free state at T (end_turns count from it)
+    slips = np.rint(np.asarray(samples["Lk"]) - lk_T - np.asarray(samples["end_turns"]))
     res["lk_slips"] = int(np.abs(slips).max())  # nonzero: the chain passed through the closure (see measure)
     res["relative_extension"] = res["extension_nm"] / L0
     res["relative_extension_err"] = res["extension_nm_err"] / L0
-    res["delta_lk"] = res["Lk"] - m["lk0"]
+    # linking difference from the torque-free state at T (the supercoiling); the 0 K offset beside it
+    res["delta_lk"] = res["Lk"] - lk_T
+    res["delta_lk_0K"] = res["Lk"] - m["lk0"]
+    res["turns_offset_0K"] = m.get("turns_offset_0K", 0.0)
+    res["relaxed_twist_thermal"] = lk_T
     res["writhe_fraction"] = res["Wr"] / res["delta_lk"] if abs(res["delta_lk"]) > 0.25 else None
     res["writhe_fraction_err"] = (math.hypot(res["Wr_err"], res["writhe_fraction"] * res["Lk_err"]) / abs(res["delta_lk"])
                                   if res["writhe_fraction"] is not None else None)
