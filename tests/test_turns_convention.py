@@ -42,7 +42,7 @@ def test_clamp_at_the_offset_is_torque_free_and_at_0K_is_not():
         target = rotation_about_axis(Z, 2 * np.pi * t) @ m.frames[-1]
         r = tweezers_reference(m, 300.0, 2.0, 60000, np.random.default_rng(5), 10 * kT(300.0), target)
         torques[name] = r["clamp_torque_pN_nm"]
-    (t_T, se_T), (t_0, se_0) = torques["T"], torques["0K"]
+    (t_T, _), (t_0, se_0) = torques["T"], torques["0K"]
     assert t_0 > 20 * se_0  # at the 0 K twist the chain is overwound at 300 K (about +1 pN nm for 16 bp)
     assert abs(t_T) < 0.15 * t_0  # at the offset the torque is gone but for a small clamp-geometry residual
 

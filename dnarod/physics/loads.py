@@ -478,7 +478,10 @@ def torque_free_offset(model, temperature):
 
     p = model.params
     th0 = 2.0 * np.arctan(0.5 * model.ds * p.intrinsic[:, 2])
-    return float(np.sum(mean_twist_angles(p, model.ds, kT(T)) - th0) / (2.0 * np.pi))
+    off = float(np.sum(mean_twist_angles(p, model.ds, kT(T)) - th0) / (2.0 * np.pi))
+    # ten decimals: the quadrature's BLAS sums differ in the last bits with the thread count (dask workers run one
+    # thread), and a member must start from the same pose in any process (bit-for-bit reproducible samples)
+    return round(off, 10)
 
 
 def intrinsic_turns(model):
