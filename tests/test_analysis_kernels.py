@@ -90,9 +90,16 @@ def test_tangent_correlation_blocks_and_persistence_fit():
     t = random_trajectory(6, n_frames=20, n_nodes=10)
     tc = TangentCorrelation(t, 0.34, n_blocks=4).run()
     r = tc.results
-    blocks = np.array([r.per_frame[i:i + 5].mean(axis=0) for i in range(0, 20, 5)])
-    assert np.allclose(r.correlation_blocks, blocks, atol=1e-15)
-    assert np.allclose(r.correlation_err, blocks.std(axis=0, ddof=1) / 2, atol=1e-15)
+    t0 = r.dropped_frames
+    kept = r.per_frame[t0:]
+    blocks = np.array([b.mean(axis=0) for b in np.array_split(kept, 4)])
+    assert np.allclose(r.correlation_blocks, blocks, atol=1e-15)  # the blocks of the long-lag fit's error
+    assert np.allclose(r.correlation, kept.mean(axis=0), atol=1e-15)
+    # each lag's error is the one estimator's over the kept frames (dnarod.analysis.statistics.estimate)
+    from dnarod.analysis.statistics import estimate
+
+    assert r.correlation_err[1] == pytest.approx(estimate(r.per_frame[:, 1]).error, rel=1e-12)
+    assert r.correlation_err[3] == pytest.approx(estimate(kept[:, 3], transient=False).error, rel=1e-12)
     # lp from the fit ln C(n) = -n ds / lp over the leading lags with C > 0.1
     C = r.correlation
     use = [n for n in range(1, len(C)) if all(C[1:n + 1] > 0.1)]
@@ -106,10 +113,12 @@ def test_end_to_end_matches_loop():
     ee = EndToEnd(t, n_blocks=3).run()
     d = [np.sqrt(sum((t.positions[f, -1, i] - t.positions[f, 0, i]) ** 2 for i in range(3))) for f in range(12)]
     assert np.allclose(ee.results.distance, d, atol=1e-14)
-    assert ee.results.mean == pytest.approx(np.mean(d), abs=1e-14)
+    assert ee.results.mean == pytest.approx(np.mean(d[ee.results.mean_estimate.n_dropped:]), abs=1e-14)
     assert ee.results.mean_square == pytest.approx(np.mean(np.square(d)), abs=1e-13)
-    means = [np.mean(d[i:i + 4]) for i in (0, 4, 8)]
-    assert ee.results.mean_err == pytest.approx(np.std(means, ddof=1) / np.sqrt(3), rel=1e-12)
+    from dnarod.analysis.statistics import estimate
+
+    e = estimate(d)  # the one estimator (12 frames: flagged as too short for an error bar)
+    assert ee.results.mean_err == pytest.approx(e.error, rel=1e-12) and ee.results.mean_estimate.flag is not None
 
 
 def test_block_helpers_against_hand_computation():

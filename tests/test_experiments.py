@@ -166,7 +166,9 @@ def test_experiment_check_passes_with_the_model_and_fails_with_wrong_parameters(
     assert set(r["not_compared"]) == set(ex.MISSING) | {"writhe_fraction_model"}
     # the model's effective diameter at 0.15 M is calibrated to the 5.0 nm Poisson-Boltzmann value: gating
     assert r["model_effective_diameter_nm"] == pytest.approx(5.0, abs=0.03)
-    assert r["effective_diameter"]["agrees"] and r["effective_diameter_gating"] and not r["disagreements"]
+    assert r["effective_diameter"]["agrees"] and r["effective_diameter_gating"]
+    # the one reported disagreement: dna-default has no twist-bend coupling (G = 0 against a fitted 40 +- 10 nm)
+    assert len(r["disagreements"]) == 1 and "twist-bend" in r["disagreements"][0]
     for kw in (dict(lp_override=44.0), dict(lp_override=62.0), dict(c_override=60.0), dict(c_override=150.0),
                dict(writhe_fraction_model=(0.5, 0.02, "wrong")), dict(d_override=4.45), dict(d_override=5.55)):
         assert not check_experiment(tmp_path, plots=False, **kw)["passed"], kw

@@ -229,15 +229,21 @@ def test_torque_turns_curve_short_chain(tmp_path):
     rows = (tmp_path / "tt" / "curve.csv").read_text().splitlines()
     assert len(rows) == 3 and "twist_torque_pN_nm" in rows[0] and "twist_torque_pN_nm_raw" in rows[0]
     # the curve's torque is on the model's zero at T: the raw twisting moment less its free-chain reading, and its
-    # linking difference is counted from the relaxed twist at T (both computed independently here)
-    from dnarod.workflows.protocols.measure import twisting_moment_offset
+    # linking difference is counted from the relaxed twist at T (both computed independently here): the members count
+    # their turns from it (delta_lk equals delta_lk_thermal), the exact offset agreeing with the sampled relaxed twist
+    from dnarod.physics.loads import intrinsic_turns, torque_free_offset
     from dnarod.physics.thermal import relaxed_ribbon_twist
+    from dnarod.workflows.protocols.measure import twisting_moment_offset
 
     off, _ = twisting_moment_offset(m, 300.0)
-    lk_T, _ = relaxed_ribbon_twist(m, 300.0)
+    lk_T = intrinsic_turns(m) + torque_free_offset(m, 300.0)
+    sampled, se = relaxed_ribbon_twist(m, 300.0)
+    assert lk_T == pytest.approx(sampled, abs=4 * se)
     for r in (lo, hi):
         assert r["twist_torque_pN_nm_raw"] - r["twist_torque_pN_nm"] == pytest.approx(off, abs=1e-9)
         assert r["delta_lk_thermal"] == pytest.approx(r["Lk"] - lk_T, abs=1e-9)
+        assert r["delta_lk"] == pytest.approx(r["delta_lk_thermal"], abs=1e-9)
+        assert r["turns_offset_0K"] == pytest.approx(torque_free_offset(m, 300.0))
     # so the torque vanishes where the linking difference does (the old T = 0 pair read ~+2.4 pN nm there)
     w = -lo["delta_lk_thermal"] / (hi["delta_lk_thermal"] - lo["delta_lk_thermal"])
     tau0 = (1 - w) * lo["twist_torque_pN_nm"] + w * hi["twist_torque_pN_nm"]

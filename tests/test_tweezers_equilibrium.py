@@ -96,7 +96,7 @@ def test_integrated_autocorrelation_time_of_ar1():
 def test_analyze_headlines_lag1_and_warns_on_short_runs(tmp_path, run_ps, warns):
     model = FF.model_from_sequence(n_nodes=301)
     model.save(tmp_path / "final_model.npz")
-    n = 40
+    n = 80  # 80 independent frames: enough for an unflagged error bar (50 effective samples)
     traj = sample_trajectory(model, n, seed=7, time_step=run_ps / (n - 1))
     traj.metadata = {"temperature_K": 300.0, "friction_per_ps": 1.0}
     traj.save(tmp_path / "run.dtraj")

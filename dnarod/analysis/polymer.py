@@ -4,8 +4,10 @@ and for closed (circular) chains the linking number, twist and writhe.
 Tangent correlation ``C(n) = <d3(k)·d3(k+n)>`` is averaged over frames and positions k;
 for an open chain in equilibrium it is exactly ``(<R>^n)_33`` (docs/formulation.md §8) and for an
 axisymmetric step ``c^n``, so the discrete persistence length is ``l_p = -ds / ln c``; it is
-fitted as ``ln C(n) = -n ds / l_p`` by least squares through the origin. Error bars are
-block averages over frames (``n_blocks`` contiguous blocks).
+fitted as ``ln C(n) = -n ds / l_p`` by least squares through the origin. Error bars of the means over frames come
+from their autocorrelation, the start's transient dropped (:func:`dnarod.analysis.statistics.estimate`); those of
+the long-lag fit from ``n_blocks`` contiguous blocks. Modes slower than a run do not show in any error bar computed
+from it: :func:`lag1_slow_modes` adds their share to the lag-1 value's error from the chain's normal modes.
 
 Units: nm, dimensionless correlations; Lk, Tw, Wr in turns.
 """
@@ -93,10 +95,14 @@ class TangentCorrelation(AnalysisBase):
     persistence_length, persistence_length_err : float
         nm (fit), block standard error.
     persistence_length_one_step, persistence_length_one_step_err : float
-        ``-ds / ln C(1)``, nm, and its block standard error. This lag-1 estimate is exact for a
-        uniform chain (docs/formulation.md §8) and converges with the fast local modes; the long-lag fit
-        needs runs much longer than the slowest bending relaxation time
-        (:func:`bending_relaxation_time`).
+        ``-ds / ln C(1)``, nm, and its standard error from the autocorrelation of the per-frame ``C(1)``
+        (:func:`dnarod.analysis.statistics.estimate`). This lag-1 estimate is exact for a uniform chain
+        (docs/formulation.md §8), but a run's value still carries the modes slower than the run: their share of
+        the error and the bias of a start that was not an equilibrium sample are :func:`lag1_slow_modes`'s.
+    persistence_length_one_step_estimate, lag1_estimate : Estimate
+        The full estimates (transient dropped, n_eff, tau, flag) of lp and of ``C(1)``.
+    dropped_frames : int
+        Frames dropped at the start as transient (all lags).
     n_fit : int
     """
 
@@ -124,19 +130,27 @@ class TangentCorrelation(AnalysisBase):
         self.results.per_frame = tangent_correlation_frames(d3, self.n_max, self.circular)
 
     def _conclude(self):
+        from dnarod.analysis.statistics import estimate, function_estimate
+
         r = self.results
         C = r.per_frame
         r.lags = np.arange(self.n_max + 1)
-        r.correlation = C.mean(axis=0)
-        blocks = block_estimates(C, self.n_blocks)
+        # the headline, lag 1: the mean of the per-frame values with an autocorrelation error, the start's
+        # transient dropped (dnarod.analysis.statistics.estimate); the same frames for every lag
+        c1 = estimate(C[:, 1], what="lag-1 tangent correlation")
+        t0 = c1.n_dropped
+        r.lag1_estimate = c1
+        r.dropped_frames = t0
+        Ck = C[t0:]
+        r.correlation = Ck.mean(axis=0)
+        r.correlation_err = np.array([estimate(Ck[:, j], transient=False).error for j in range(Ck.shape[1])])
+        r.correlation_err[1] = c1.error
+        lp1 = function_estimate(c1, lambda c: -self.ds / np.log(c) if 0 < c < 1 else np.nan)
+        r.persistence_length_one_step_estimate = lp1
+        r.persistence_length_one_step = lp1.mean
+        r.persistence_length_one_step_err = lp1.error
+        blocks = block_estimates(Ck, self.n_blocks)
         r.correlation_blocks = blocks
-        r.correlation_err = standard_error(blocks)
-        c1 = r.correlation[1]
-        r.persistence_length_one_step = float(-self.ds / np.log(c1)) if 0 < c1 < 1 else np.nan
-        c1b = blocks[:, 1]
-        lp1b = np.where((c1b > 0) & (c1b < 1), -self.ds / np.log(np.clip(c1b, 1e-300, 1 - 1e-16)), np.nan)
-        r.persistence_length_one_step_err = float(standard_error(lp1b[:, None])[0]) if np.isfinite(lp1b).all() \
-            else np.nan
         if self.circular:
             r.persistence_length, r.n_fit, r.persistence_length_err = np.nan, 0, np.nan
             return
@@ -168,12 +182,15 @@ class EndToEnd(AnalysisBase):
         self.results.distance = np.linalg.norm(positions[:, -1] - positions[:, 0], axis=-1)
 
     def _conclude(self):
+        from dnarod.analysis.statistics import estimate
+
         r = self.results
         d = r.distance
-        r.mean = float(d.mean())
-        r.mean_err = float(standard_error(block_estimates(d, self.n_blocks)))
-        r.mean_square = float((d * d).mean())
-        r.mean_square_err = float(standard_error(block_estimates(d * d, self.n_blocks)))
+        e = estimate(d, what="end-to-end distance")
+        r.mean_estimate = e
+        r.mean, r.mean_err = e.mean, e.error
+        e2 = estimate(d * d, what="squared end-to-end distance")
+        r.mean_square, r.mean_square_err = e2.mean, e2.error
 
 
 class LinkingNumber(AnalysisBase):
@@ -306,13 +323,17 @@ def bending_relaxation_time(contour_length, persistence_length, temperature, mas
     return float(1.0 / lam)
 
 
-def relaxation_warning(run_time, tau, n_required=RELAXATION_TIMES_REQUIRED):
-    """One-line warning if ``run_time`` (ps) is shorter than ``n_required`` relaxation times ``tau`` (ps); else None."""
+def relaxation_warning(run_time, tau, n_required=RELAXATION_TIMES_REQUIRED, slow_error_nm=None):
+    """One-line warning if ``run_time`` (ps) is shorter than ``n_required`` relaxation times ``tau`` (ps); else None.
+    ``slow_error_nm``: the share of the modes slower than the run in the lag-1 persistence length's error."""
     if not np.isfinite(tau) or run_time >= n_required * tau:
         return None
+    share = (f"; the lag-1 persistence length's error includes their share, +-{slow_error_nm:.2f} nm, from the "
+             f"normal modes" if slow_error_nm is not None else "")
     return (f"the run ({run_time:.4g} ps) is {run_time / tau:.3g} of the slowest bending relaxation time "
-            f"tau_1 = {tau:.4g} ps (fewer than {n_required:g}): long-lag tangent correlations, the long-lag "
-            f"persistence-length fit and their block error bars are not converged; trust the lag-1 value")
+            f"tau_1 = {tau:.4g} ps (fewer than {n_required:g}): modes slower than the run hardly move in it, so no "
+            f"error bar computed from its frames sees them{share}; long-lag tangent correlations and the long-lag "
+            f"persistence-length fit are not converged")
 
 
 def integrated_autocorrelation_time(x, c=5.0):
@@ -349,3 +370,98 @@ def integrated_autocorrelation_time(x, c=5.0):
         if W >= c * 0.5 * taus[W]:
             return float(max(0.5 * taus[W], 0.5))
     return float(max(0.5 * taus[-1], 0.5))
+
+
+#: Modes whose squared amplitude decorrelates more slowly than this fraction of the run are counted by
+#: :func:`lag1_slow_modes` (faster ones show in the run's own autocorrelation error).
+SLOW_MODE_FRACTION = 0.05
+
+
+def _mean_variance_factor(tau, T):
+    """Variance of the time average over ``T`` of a stationary process with autocorrelation ``exp(-t/tau)``, in units
+    of its variance: ``2 r - 2 r^2 (1 - exp(-1/r))``, ``r = tau/T`` (1 for a frozen process, ``2 tau/T`` for a fast
+    one)."""
+    r = np.asarray(tau, float) / float(T)
+    with np.errstate(over="ignore", divide="ignore", invalid="ignore"):
+        out = 2.0 * r - 2.0 * r * r * (-np.expm1(-1.0 / r))
+    return np.where(np.isfinite(r), np.clip(out, 0.0, 1.0), 1.0)
+
+
+def lag1_slow_modes(model, temperature, friction, t_start_ps, t_end_ps, equilibrium_start, exclude_ends=0,
+                    max_modes=512):
+    """What the modes slower than a run do to its lag-1 tangent correlation: their share of the error of the run's
+    mean and, for a start that was not an equilibrium sample, their bias.
+
+    The free chain's bending modes (normal modes of its intrinsic pose, :mod:`dnarod.physics.relaxation`) each hold
+    the same share of the bending: a mode of angular frequency omega and amplitude a has bending energy
+    ``omega^2 a^2/2`` with mean kT/2, so the sum of squared bend angles it contributes is ``(ds/lp) omega^2 a^2/kT``
+    whatever the mode. The per-frame lag-1 correlation ``C(1) = 1 - sum_k theta_k^2/(2M)`` therefore takes from each
+    of the ``2 M`` bending modes of M steps the same share of its exact mean deficit ``1 - <C(1)>`` and of its exact
+    frame-to-frame variance (:func:`dnarod.physics.thermal.lag1_moments`; the steps are independent). The squared
+    amplitude of a mode relaxing at rate lambda decorrelates in ``1/(2 lambda)``, so over a run of duration T its
+    share of the variance of the run's mean is ``var_share h(1/(2 lambda), T)`` (:func:`_mean_variance_factor`):
+    the whole share for a mode frozen over the run, a fraction ``1/(lambda T)`` for a fast one. The modes slower
+    than :data:`SLOW_MODE_FRACTION` of the run are summed here (faster ones show in the run's own autocorrelation
+    error); a straight start has their amplitudes at 0, so their deficit ``mu_share exp(-2 lambda t)`` is missing
+    from ``1 - C(1)`` at time t: the bias of the run's mean, averaged over the frames kept.
+
+    Parameters
+    ----------
+    model : RodModel
+        The chain (an open chain; its intrinsic pose is used).
+    temperature : float
+        K.
+    friction : float
+        Langevin collision rate of the run, 1/ps.
+    t_start_ps, t_end_ps : float
+        Time of the first and last frame averaged, counted from the run's start (ps).
+    equilibrium_start : bool
+        The run began from an exact equilibrium sample (``start="equilibrium"``): no bias.
+    exclude_ends : int
+        Steps left out at each end by the analysis.
+    max_modes : int
+        Most modes computed.
+
+    Returns
+    -------
+    dict
+        ``variance_c1`` (added variance of the mean C(1)), ``bias_c1`` (expected C(1) excess of the run's mean),
+        ``n_slow_modes``, ``tau_slowest_ps`` (the slowest mode's amplitude relaxation time), ``run_over_tau``,
+        ``friction_per_ps``.
+    """
+    from dnarod.core.strains import chain_from_strains
+    from dnarod.core.units import kT
+    from dnarod.physics.relaxation import relaxation_times
+    from dnarod.physics.thermal import lag1_moments
+
+    if model.closure is not None:
+        raise DnarodError("lag1_slow_modes is for open chains")
+    p = model.params
+    xi0 = p.intrinsic
+    pos, frm = chain_from_strains(xi0[:, :3], xi0[:, 3:], model.ds)
+    straight = model.with_pose(pos, frm)
+    mu, var = lag1_moments(p, model.ds, kT(temperature))
+    e = int(exclude_ends)
+    sel = slice(e, p.n_steps - e) if e else slice(None)
+    M = len(mu[sel])
+    n_modes = 2 * M
+    var_share = float(var[sel].sum()) / M ** 2 / n_modes
+    mu_share = float(1.0 - mu[sel].mean()) / n_modes
+    T = max(float(t_end_ps) - float(t_start_ps), 1e-12)
+    k = 16
+    while True:
+        r = relaxation_times(straight, (), friction, k=min(k, 6 * model.n_nodes - 7), temperature=temperature)
+        tau2 = 0.5 * r["tau_ps"]  # squared amplitudes decorrelate twice as fast
+        if tau2[-1] < SLOW_MODE_FRACTION * T or k >= max_modes or len(tau2) < k:
+            break
+        k *= 2
+    slow = tau2 >= SLOW_MODE_FRACTION * T
+    variance = var_share * float(_mean_variance_factor(tau2[slow], T).sum())
+    bias = 0.0
+    if not equilibrium_start:
+        lam2 = 1.0 / np.where(np.isfinite(tau2), tau2, np.inf)  # 2 lambda
+        with np.errstate(divide="ignore", invalid="ignore"):
+            avg = np.where(lam2 > 0, (np.exp(-lam2 * t_start_ps) - np.exp(-lam2 * t_end_ps)) / (lam2 * T), 1.0)
+        bias = mu_share * float(avg.sum())
+    return dict(variance_c1=variance, bias_c1=bias, n_slow_modes=int(slow.sum()), tau_slowest_ps=r["tau_slowest_ps"],
+                run_over_tau=T / r["tau_slowest_ps"], friction_per_ps=float(friction), modes_computed=len(tau2))

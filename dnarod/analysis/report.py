@@ -360,17 +360,36 @@ def _report(input_path, traj, model, kind, ff, final_out, out, temperature, excl
                 [{"lag": int(n), "s_nm": float(n * ds), "correlation": float(r.correlation[n]),
                   "error": float(r.correlation_err[n]),
                   **({"exact": float(exact[n])} if exact is not None else {})} for n in r.lags])
+    lp1 = r.persistence_length_one_step_estimate
+    dt_frame = float(np.median(np.diff(traj.time))) if traj.n_frames > 1 else float("nan")
     summary["persistence_length_nm"] = {"one_step": r.persistence_length_one_step,
                                         "one_step_error": r.persistence_length_one_step_err,
+                                        "one_step_error_run": lp1.error,
+                                        "one_step_error_slow_modes": 0.0,
+                                        "transient_dropped_frames": r.dropped_frames,
+                                        "transient_dropped_ps": (float(traj.time[r.dropped_frames] - traj.time[0])
+                                                                 if traj.n_frames > 1 else 0.0),
+                                        "frames_averaged": lp1.n_samples, "n_effective": lp1.n_eff,
+                                        "autocorrelation_time_ps": lp1.tau * dt_frame, "flag": lp1.flag,
                                         "fit": r.persistence_length, "error": r.persistence_length_err,
                                         "n_lags_fitted": r.n_fit,
-                                        "headline": "one_step (lag 1); the long-lag fit needs runs much longer "
-                                                    "than the slowest bending relaxation time"}
-    summary["warnings"] = []
+                                        "headline": "one_step (lag 1): mean over the frames after the start's "
+                                                    "transient; its error from their autocorrelation plus the share "
+                                                    "of the modes slower than the run (normal modes); the long-lag "
+                                                    "fit needs runs much longer than the slowest bending relaxation "
+                                                    "time"}
+    summary["warnings"] = [lp1.flag] if lp1.flag else []
     if not is_ring and model is not None and kind != "all-atom":
-        summary["relaxation"] = _relaxation(traj, model, T, r.persistence_length_one_step)
-        if summary["relaxation"].get("warning"):
-            summary["warnings"].append(summary["relaxation"]["warning"])
+        rel = _relaxation(traj, model, T, tc, ends, Path(input_path))
+        summary["relaxation"] = rel
+        lp_rec = summary["persistence_length_nm"]
+        if rel.get("lag1_error_slow_modes_nm") is not None:
+            lp_rec["one_step_error_slow_modes"] = rel["lag1_error_slow_modes_nm"]
+            lp_rec["one_step_error"] = float(np.hypot(lp1.error, rel["lag1_error_slow_modes_nm"]))
+            lp_rec["start_bias_expected_nm"] = rel["lag1_start_bias_nm"]
+        for key in ("warning", "start_warning"):
+            if rel.get(key):
+                summary["warnings"].append(rel[key])
     if exact is not None and len(exact) > 1:
         summary["persistence_length_nm"]["exact_one_step"] = float(-ds / np.log(exact[1]))
     summary["files"]["tangent_correlation"] = "tangent_correlation.csv"
@@ -417,11 +436,14 @@ def _report(input_path, traj, model, kind, ff, final_out, out, temperature, excl
     write_text_atomic(out / "summary.json", json.dumps(jsonable(summary), indent=2) + "\n")
     lp = summary["persistence_length_nm"]
     line = f"mean rise {mean_ad[2]:.3f} A, twist {mean_ad[5]:.2f} deg"
-    no_bar = f" (no error bar: {traj.n_frames} frames are too few for {n_blocks} blocks)"
+    no_bar = f" (no error bar: {traj.n_frames} frame(s) are too few for an autocorrelation or block estimate)"
     if lp["one_step"] is not None and np.isfinite(lp["one_step"] or np.nan):
         line += f"; persistence length (lag 1) {_pm(lp['one_step'], lp['one_step_error'], '.2f', no_bar)}"
         if lp.get("exact_one_step") is not None:
             line += f" (model exact {lp['exact_one_step']:.2f} nm)"
+        if lp.get("transient_dropped_frames"):
+            line += (f"; the first {lp['transient_dropped_frames']} frames ({lp['transient_dropped_ps']:.4g} ps) "
+                     f"dropped as the start's transient")
     echo(line)
     if lp["fit"] is not None and np.isfinite(lp["fit"] or np.nan):
         echo(f"long-lag fit {_pm(lp['fit'], lp['error'], '.1f', no_bar)} ({lp['n_lags_fitted']} lags; converged only "
@@ -434,6 +456,16 @@ def _report(input_path, traj, model, kind, ff, final_out, out, temperature, excl
     return summary
 
 
+def _run_record(input_path):
+    """``(start, loads)`` of the run that wrote ``input_path`` (its ``run.json`` beside it), or ``(None, None)``."""
+    f = Path(input_path).parent / "run.json"
+    try:
+        spec = json.loads(f.read_text()).get("spec", {})
+    except (OSError, ValueError, AttributeError):
+        return None, None
+    return spec.get("start"), spec.get("loads")
+
+
 def _pm(value, err, fmt, no_bar, unit="nm"):
     """``"value +- err unit"``, or the value, unit and ``no_bar`` when the error bar could not be estimated (never
     "+- nan")."""
@@ -442,23 +474,52 @@ def _pm(value, err, fmt, no_bar, unit="nm"):
     return f"{value:{fmt}} {unit}{no_bar}"
 
 
-def _relaxation(traj, model, temperature, lp):
-    """Slowest bending relaxation time of the analysed chain and the run-length warning (summary entry)."""
-    from dnarod.analysis.polymer import RELAXATION_TIMES_REQUIRED, bending_relaxation_time, relaxation_warning
+def _relaxation(traj, model, temperature, tc, exclude_ends, input_path):
+    """Slowest relaxation time of the analysed chain (its normal modes at the run's friction), the share of the modes
+    slower than the run in the lag-1 persistence length's error, the bias a start that was not an equilibrium
+    sample leaves in it, and the run-length warnings (summary entry)."""
+    from dnarod.analysis.polymer import RELAXATION_TIMES_REQUIRED, lag1_slow_modes, relaxation_warning
 
+    r = tc.results
+    lp = r.persistence_length_one_step
     friction = traj.metadata.get("friction_per_ps")
     run_time = float(traj.time[-1] - traj.time[0]) if traj.n_frames > 1 else 0.0
-    L = model.ds * (traj.n_nodes - 1)
-    rho = float(np.mean(model.mass)) / model.ds
-    out = {"formula": "tau_1 = 1/(zeta/2 - sqrt(zeta^2/4 - omega_1^2)), omega_1^2 = A beta_1^4/rho, beta_1 L = 4.730 "
-                      "(free ends), A = kT lp; overdamped: zeta rho L^4/(A 4.730^4)",
-           "contour_length_nm": L, "mass_per_length_amu_per_nm": rho, "run_time_ps": run_time,
-           "required_relaxation_times": RELAXATION_TIMES_REQUIRED}
+    start, loads = _run_record(input_path)
+    out = {"method": "normal modes of the chain's intrinsic pose (dnarod.physics.relaxation) at the run's friction; "
+                     "slow-mode share and start bias of the lag-1 value: dnarod.analysis.polymer.lag1_slow_modes",
+           "contour_length_nm": model.ds * (traj.n_nodes - 1), "run_time_ps": run_time,
+           "required_relaxation_times": RELAXATION_TIMES_REQUIRED, "start": start}
     if friction is None or not np.isfinite(lp or np.nan):
         out["tau_ps"] = None
         out["note"] = "no friction in the trajectory metadata: relaxation time not estimated"
         return out
-    tau = bending_relaxation_time(L, lp, temperature, rho, float(friction))
+    if float(friction) <= 0:
+        out["tau_ps"] = None
+        out["note"] = ("a constant-energy (NVE) run: its modes exchange energy only through anharmonic couplings; "
+                       "relaxation times and the slow modes' share of the error are not estimated")
+        return out
+    if loads:
+        out["tau_ps"] = None
+        out["note"] = "a loaded chain: the free chain's modes do not describe it; slow-mode terms not estimated"
+        return out
+    t0 = r.dropped_frames
+    sm = lag1_slow_modes(model, temperature, float(friction), float(traj.time[t0]), float(traj.time[-1]),
+                         equilibrium_start=(start == "equilibrium"), exclude_ends=exclude_ends)
+    c1 = r.lag1_estimate.mean
+    dlp = model.ds / (c1 * np.log(c1) ** 2)  # d(-ds/ln c)/dc
+    tau = sm["tau_slowest_ps"]
+    err_slow = float(np.sqrt(sm["variance_c1"]) * dlp)
+    bias = float(sm["bias_c1"] * dlp)
     out.update(friction_per_ps=float(friction), tau_ps=tau, run_over_tau=run_time / tau if np.isfinite(tau) else 0.0,
-               warning=relaxation_warning(run_time, tau))
+               n_slow_modes=sm["n_slow_modes"], lag1_error_slow_modes_nm=err_slow, lag1_start_bias_nm=bias,
+               warning=relaxation_warning(run_time, tau, slow_error_nm=err_slow))
+    total = float(np.hypot(r.persistence_length_one_step_err, err_slow))
+    if start != "equilibrium" and abs(bias) > total:
+        how = f"the start ({start})" if start else "a start that was not an equilibrium sample (the run's start is " \
+                                                   "not recorded: no run.json beside the trajectory)"
+        out["start_warning"] = (f"not equilibrated: {how} leaves the slowest modes unrelaxed, and over the frames "
+                                f"averaged they bias the lag-1 persistence length by {bias:+.2f} nm (expected from "
+                                f"the normal modes), more than its error +-{total:.2f} nm; start from an "
+                                f"equilibrium sample (simulate --equilibrium) or run much longer than the slowest "
+                                f"relaxation time {tau:.3g} ps")
     return out

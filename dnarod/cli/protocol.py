@@ -75,6 +75,10 @@ def _common(f):
         click.option("--temperature", "temperature_K", type=float, default=300.0, show_default=True, help="K."),
         click.option("--salt", "salt_M", type=float, default=0.15, show_default=True, help="Monovalent salt, mol/L."),
         click.option("--seed", type=int, default=1, show_default=True),
+        click.option("--excluded-volume/--no-excluded-volume", default=True, show_default=True,
+                     help="WCA excluded volume between nodes far apart along the chain."),
+        click.option("--electrostatics/--no-electrostatics", default=True, show_default=True,
+                     help="Debye-Hueckel electrostatics (both off: a bare worm-like chain)."),
         *CHARGE_OPTIONS,
         click.option("--workers", type=int, default=2, show_default=True,
                      help="Dask local workers (0: run members one after another in this process)."),
@@ -93,9 +97,13 @@ def _common(f):
 
 
 def _base(source, forcefield, time_ns, equilibration_ns, temperature_K, salt_M, seed, charge=None, cutoff_debye=None,
-          **extra):
+          excluded_volume=True, electrostatics=True, **extra):
     b = dict(source=str(source), forcefield=forcefield, time_ns=time_ns, temperature_K=temperature_K, salt_M=salt_M,
              seed=seed, **extra)
+    if not excluded_volume:  # only when switched off: a curve recorded with the defaults keeps its settings
+        b["excluded_volume"] = False
+    if not electrostatics:
+        b["electrostatics"] = False
     if equilibration_ns is not None:
         b["equilibration_ns"] = equilibration_ns
 

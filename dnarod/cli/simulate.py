@@ -70,7 +70,10 @@ _OPTIONS = [
     click.option("--rotation-clamp", type=float, default=None,
                  help="Clamp the last node's orientation, stiffness kJ/mol."),
     click.option("--turns", type=float, default=0.0,
-                 help="Turn the rotation clamp by this many turns, at a constant rate over the run."),
+                 help="Turn the rotation clamp by this many turns, at a constant rate over the run, counted from "
+                      "the torque-free state at --temperature (as magnet turns are): the clamp's target starts "
+                      "turned by the 0 K offset, turns_offset_0K in run.json (about -0.42 turns for 1 kbp at "
+                      "300 K)."),
     click.option("--clamp-first", is_flag=True,
                  help="Fix the first base pair in space (position and orientation): the surface of a magnetic-tweezers "
                       "cell."),
@@ -175,8 +178,16 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
                                          f"({seen[node % model.n_nodes]!r}); give one --trap per base pair with the "
                                          f"stiffness you want")
                 seen[node % model.n_nodes] = t
+        # turns count from the torque-free state at the run's temperature: the clamp's target starts turned by the
+        # 0 K offset (dnarod.physics.loads.torque_free_offset), recorded in run.json (spec extra)
+        from dnarod.physics.loads import torque_free_offset
+
+        offset = torque_free_offset(model, spec.temperature) if rotation_clamp is not None else 0.0
         spec = spec.replace(loads=tweezers(model, pull, torque, rotation_clamp, turns,
-                                           anchor="surface" if clamp_first else "ends", axis=axis, traps=traps))
+                                           anchor="surface" if clamp_first else "ends", axis=axis, traps=traps,
+                                           turns_offset=offset),
+                            extra={**dict(spec.extra), **({"turns_offset_0K": offset} if rotation_clamp is not None
+                                                          else {})})
     return spec
 
 
@@ -223,6 +234,9 @@ def _report(result, spec):
              f"cutoff {nb['cutoff']:.3g} nm"
              + (f" ({nb['rc_dh'] * nb['kappa']:.3g} Debye lengths)" if nb.get("rc_dh") else "")
              + f", chain exclusion {nb['n_exclude']} bp")
+    if spec.extra.get("turns_offset_0K") is not None:
+        echo(f"turns counted from the torque-free state at {spec.temperature:g} K: the clamp started "
+             f"{spec.extra['turns_offset_0K']:+.4f} turns (turns_offset_0K) from the chain's 0 K intrinsic twist")
     echo(f"wall: {s['wall_s']:.1f} s (CPU {s['cpu_s']:.1f} s)  speed: {s['ns_per_day']:.4g} ns/day  "
          f"mean kinetic temperature: {s['mean_temperature_K']:.1f} K")
     echo("wrote: " + ", ".join(str(p) for p in result.files.values()))

@@ -268,6 +268,34 @@ def structural_transition_torques():
     return out
 
 
+#: MD conversion of the units of ``sourced_mechanics.csv``: (factor, MD unit).
+_SOURCED_UNITS = {"nm": (1.0, "nm"), "1": (1.0, "1"), "pN": (PN, "kJ/mol/nm"), "pN nm": (PN, "kJ/mol")}
+
+
+def sourced_mechanics(quantity=None):
+    """The values of ``sourced_mechanics.csv`` (compiled with the page and quote each was read in), in MD units:
+    the low-force salt dependence of C_eff (Kriegel et al. 2017), the twist-bend coupling G fitted to torque data
+    (Nomidis et al. 2017), Bryant et al.'s (2003) anharmonic twist fit b/a, the twist-stretch coupling below 30 pN
+    attributed to Gross et al. (2011) (secondary) and the stretch modulus attributed to Wang et al. (1997) (weak).
+    ``verification`` holds the label (P-abs, P-fig, S, T, weak), where it was read and the verbatim quote; a force or
+    salt stated as a bound (``<3``) is kept in ``conditions`` only."""
+    out = []
+    for r in read_table("sourced_mechanics.csv"):
+        if quantity is not None and r["quantity"] != quantity:
+            continue
+        f, unit = _SOURCED_UNITS[r["unit"]]
+        unc = _f(r.get("uncertainty"))
+        try:
+            force = float(r["force_pN"])
+        except (TypeError, ValueError):
+            force = None
+        row = dict(r, verification=f"item {r['item']} ({r['label']}); read in {r['where']}: \"{r['quote']}\" "
+                                   f"({r['verification']})")
+        out.append(_m(row, r["quantity"], float(r["value"]) * f, unit, None if unc is None else unc * f,
+                      force_pN=force, salt_M=_f(r.get("salt_M")), approximate=r.get("approximate") == "yes"))
+    return out
+
+
 @dataclass(frozen=True)
 class WLCCurve:
     """Extensible worm-like-chain curve a source draws with its measured force-extension data.

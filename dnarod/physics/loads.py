@@ -33,11 +33,12 @@ import numpy.typing as npt
 from dnarod.core.errors import ParameterError
 from dnarod.core.rotations import rotation_about_axis
 from dnarod.core.model import RodModel
-from dnarod.core.units import PN
+from dnarod.core.units import PN, kT
+from dnarod.physics.thermal import mean_twist_angles
 
 __all__ = ["PullingForce", "Torque", "RotationClamp", "Clamp", "Trap", "LOAD_TYPES", "as_md", "resolve_node",
-           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "MAX_FORCE_PN", "MAX_SIGMA", "Walls",
-           "tweezers", "pull_axis", "ANCHORS", "AXES"]
+           "resolve_loads", "ResolvedLoads", "clamp_angle", "intrinsic_turns", "torque_free_offset", "MAX_FORCE_PN",
+           "MAX_SIGMA", "Walls", "tweezers", "pull_axis", "ANCHORS", "AXES"]
 
 
 def _md_units() -> dict[str, Any]:
@@ -127,6 +128,10 @@ class RotationClamp:
         Total turns applied linearly over a run (positive: right-handed about ``axis``).
     turns_per_ns : float, optional
         Turning rate instead of ``turns`` (turns per ns).
+    offset_turns : float
+        Turns by which the target at angle 0 is turned about ``axis`` from ``frame`` (or the node's starting
+        frame) before the run: the 0 K offset of turns counted from the torque-free state at the run's
+        temperature (:func:`torque_free_offset`; ``tweezers(..., turns_from="torque_free")``).
     """
 
     node: int
@@ -135,6 +140,16 @@ class RotationClamp:
     axis: npt.ArrayLike | None = None
     turns: float = 0.0
     turns_per_ns: float | None = None
+    offset_turns: float = 0.0
+
+    def target0(self, start_frame: npt.ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """The target at angle 0 (3, 3) and the unit axis (3,) for a node whose starting frame is ``start_frame``."""
+        frame = np.asarray(start_frame if self.frame is None else self.frame, float)
+        axis = frame[:, 2] if self.axis is None else np.asarray(self.axis, float)
+        axis = axis / np.linalg.norm(axis)
+        if self.offset_turns:
+            frame = rotation_about_axis(axis, 2.0 * np.pi * self.offset_turns) @ frame
+        return frame, axis
 
     def __post_init__(self) -> None:
         self.k = as_md(self.k, "torque", (), f"rotation clamp stiffness on node {self.node}")
@@ -150,6 +165,9 @@ class RotationClamp:
             if np.linalg.norm(a) == 0:
                 raise ParameterError(f"rotation clamp axis of node {self.node} must be a nonzero vector")
             self.axis = a / np.linalg.norm(a)
+        self.offset_turns = float(self.offset_turns)
+        if not np.isfinite(self.offset_turns):
+            raise ParameterError(f"rotation clamp offset_turns of node {self.node} must be finite")
         self.turns = float(self.turns)
         if not np.isfinite(self.turns):
             raise ParameterError(f"rotation clamp turns of node {self.node} must be finite, got {self.turns}")
@@ -426,9 +444,8 @@ def resolve_loads(loads: Any, model: RodModel, positions: np.ndarray | None = No
             if k in seen_rc:
                 raise ParameterError(f"RotationClamp on node {load.node}: the node already has a rotation clamp")
             seen_rc.add(k)
-            frame0 = frm[k].copy() if load.frame is None else np.asarray(load.frame, float)
-            axis = frame0[:, 2].copy() if load.axis is None else np.asarray(load.axis, float)
-            out.rotation_clamps.append(ResolvedClamp(k, float(load.k), frame0, axis / np.linalg.norm(axis), load))
+            frame0, axis = load.target0(frm[k])
+            out.rotation_clamps.append(ResolvedClamp(k, float(load.k), frame0.copy(), axis.copy(), load))
     return out
 
 
@@ -441,6 +458,33 @@ MAX_FORCE_PN = 50.0
 #: structures (overwinding) under tension; the rod's quadratic twist energy is far outside its calibration at
 #: 10 % and its Cayley twist coordinate stays regular only below 180 degrees per step.
 MAX_SIGMA = 0.1
+
+
+def torque_free_offset(model: RodModel, temperature: float) -> float:
+    """Turns from the intrinsic twist at 0 K to the torque-free state at ``temperature``.
+
+    The sum over the steps of the exact thermal mean of each Cayley twist angle less its intrinsic value, over
+    2 pi (:func:`dnarod.physics.thermal.mean_twist_angles`; the Haar measure of the step rotations and the
+    concavity of the angle in the strain pull the mean below the intrinsic twist): about -0.42 turns for 1 kbp of
+    ``dna-default`` at 300 K, where a chain held at the 0 K twist carries about +2.4 pN nm. It agrees with the
+    sampled relaxed ribbon twist (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`) within its error and is
+    exact and noise-free. Turns counted from the torque-free state (as magnet turns and other codes count them)
+    are the turns from 0 K less this offset: ``turns_0K = turns + offset``. 0 at 0 K.
+
+    Returns
+    -------
+    float
+        Turns (negative for DNA at room temperature).
+    """
+    T = float(temperature)
+    if not T > 0:
+        return 0.0
+    p = model.params
+    th0 = 2.0 * np.arctan(0.5 * model.ds * p.intrinsic[:, 2])
+    off = float(np.sum(mean_twist_angles(p, model.ds, kT(T)) - th0) / (2.0 * np.pi))
+    # ten decimals: the quadrature's BLAS sums differ in the last bits with the thread count (dask workers run one
+    # thread), and a member must start from the same pose in any process (bit-for-bit reproducible samples)
+    return round(off, 10)
 
 
 def intrinsic_turns(model: RodModel) -> float:
@@ -470,7 +514,7 @@ def pull_axis(model: RodModel, axis: str = "end-to-end") -> np.ndarray:
 def tweezers(model: RodModel, force_pN: float | None = None, torque_pN_nm: float | None = None,
              rotation_clamp: float | None = None, turns: float = 0.0, anchor: str = "ends",
              axis: str = "end-to-end", traps: Sequence[tuple[int, float]] = (), walls: bool = False,
-             clamp_frame: np.ndarray | None = None) -> tuple[Any, ...]:
+             clamp_frame: np.ndarray | None = None, turns_offset: float = 0.0) -> tuple[Any, ...]:
     """The loads of a tweezers set-up: the one way dnarod pulls and twists a chain (``dnarod simulate``, ensemble
     members and the protocols all build their loads here).
 
@@ -498,6 +542,10 @@ def tweezers(model: RodModel, force_pN: float | None = None, torque_pN_nm: float
         Add the surface and bead :class:`Walls` (``anchor="surface"``, ``axis="z"`` only).
     clamp_frame : ndarray (3, 3), optional
         Target of the rotation clamp (default: the last node's frame when the engine starts).
+    turns_offset : float
+        Turns the clamp's target is turned by before the run (``RotationClamp.offset_turns``): with
+        :func:`torque_free_offset` of the model at the run's temperature, ``turns`` count from the torque-free
+        state at that temperature (as magnet turns do) instead of from the intrinsic twist at 0 K.
 
     Returns
     -------
@@ -557,7 +605,8 @@ def tweezers(model: RodModel, force_pN: float | None = None, torque_pN_nm: float
     if torque_pN_nm is not None:
         loads.append(Torque(n - 1, torque_pN_nm * PN * a))
     if rotation_clamp is not None:
-        loads.append(RotationClamp(n - 1, rotation_clamp, frame=clamp_frame, axis=a, turns=float(turns)))
+        loads.append(RotationClamp(n - 1, rotation_clamp, frame=clamp_frame, axis=a, turns=float(turns),
+                                   offset_turns=float(turns_offset)))
     trapped: dict[int, float] = {}
     for node, k in traps:
         k_node = resolve_node(node, n, "trap")

@@ -174,6 +174,11 @@ class NonbondedSettings:
     n_exclude: int | None = None
     skin: float = DEFAULT_SKIN
 
+    @property
+    def active(self):
+        """Whether any non-bonded term is on (both off: a bare chain, no non-bonded force at all)."""
+        return bool(self.excluded_volume or self.electrostatics)
+
     def resolve(self, ds, temperature):
         """Numbers used by the kernel: dict of eps, sigma, wca cutoff, DH prefactor, kappa, cutoffs."""
         for name in ("diameter", "salt", "dielectric", "cutoff_debye"):
@@ -189,7 +194,9 @@ class NonbondedSettings:
         rc_dh = self.cutoff_debye / kappa if self.electrostatics else 0.0
         rc_wca = 2 ** (1 / 6) * self.diameter if self.excluded_volume else 0.0
         cutoff = max(rc_dh, rc_wca)
-        n_ex = int(math.ceil(cutoff / ds)) if self.n_exclude is None else int(self.n_exclude)
+        # both terms off (a bare chain): nothing interacts, the exclusion is only a number (neighbours are bonded)
+        n_ex = (max(int(math.ceil(cutoff / ds)), 1) if self.n_exclude is None else int(self.n_exclude)) if \
+            self.active else max(1 if self.n_exclude is None else int(self.n_exclude), 1)
         if n_ex < 1:
             raise ParameterError(f"n_exclude must be at least 1 (neighbours are bonded), got {n_ex}")
         return dict(eps=kt if self.excluded_volume else 0.0, sigma=self.diameter, rc_wca=rc_wca,

@@ -248,6 +248,102 @@ def compare_elastic_ranges(s_model_pN, c_model_nm, g_model_pN_nm, temperature):
     return rows or None
 
 
+def model_twist_bend_coupling(temperature, forcefield="dna-default"):
+    """Twist-bend coupling G (nm) of a uniform chain of ``forcefield``: the larger bend-twist off-diagonal entry of
+    its rotational stiffness with the translations relaxed (:func:`dnarod.physics.thermal.bend_twist_schur`), over
+    kT at ``temperature``; 0 for a model whose bending does not couple to twist (``dna-default``)."""
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.units import kT
+    from dnarod.physics.thermal import bend_twist_schur
+
+    S = bend_twist_schur(load_forcefield(forcefield).model_from_sequence(n_nodes=4).params.stiffness[0])
+    return float(max(abs(S[0, 2]), abs(S[1, 2])) / kT(temperature))
+
+
+#: Why a measured value is outside what the elastic rod model represents (listed by :func:`sourced_comparisons`).
+OUTSIDE_MODEL = {
+    "overwinding_transition_torque": "a structural transition (overwound B-DNA becomes P-DNA, the backbones inside and "
+                                     "the bases outside); the rod has one B form with a harmonic twist energy, so its "
+                                     "torque grows with the turns without limit: torques above it are not DNA's",
+    "underwinding_transition_torque": "a structural transition (unwound B-DNA melts or turns into left-handed forms); "
+                                      "the rod keeps its B form at any negative torque",
+    "overstretching": "a structural transition (S-DNA or strand separation near 65-70 pN, 1.7 times longer, lower at "
+                      "low salt); the rod's stretching is harmonic, and dnarod refuses forces above "
+                      "dnarod.physics.loads.MAX_FORCE_PN",
+    "anharmonic_twist_b_over_a": "the rod's twist energy is harmonic (a constant C); an anharmonic C(dtheta) = a - "
+                                 "b dtheta/N is not in the model",
+    "effective_torsional_stiffness_salt_relative_change": "the model's elastic constants do not depend on salt and its "
+                                                          "non-bonded terms act only between nodes farther apart than "
+                                                          "their cutoff, so the C_eff(F) of a stretched, unbuckled "
+                                                          "chain is the same at every salt (the model's change: 0)",
+    "persistence_length_vs_salt": "the model's bending persistence length does not depend on salt (the electrostatic "
+                                  "stiffening is inside the elastic constants, fitted at one salt); it is gated only "
+                                  "at the check's salt against the measurements bracketing it",
+    "twist_bend_coupling_G": "dna-default has no twist-bend coupling (isotropic bending, G = 0 by construction); the "
+                             "value is a fit of the TWLC+G theory to torque data, so it is reported as a difference of "
+                             "the force field, not gated",
+}
+
+
+def sourced_comparisons(lp_nm, c_nm, s_pN, g_pN_nm, G_nm, temperature, forces_pN=(0.3, 1.0, 3.0)):
+    """The newly sourced values (:func:`dnarod.physics.experiments.sourced_mechanics`, the structural transitions,
+    overstretching and the persistence length's salt series) placed against the model: each entry names the
+    measured value, where it was read, the model's value where it has one, and whether it is reported or outside
+    the model's reach (:data:`OUTSIDE_MODEL` says why). Nothing here gates: none of these states an uncertainty
+    but G, which is a theory-dependent fit (the gated comparisons are the check's bending, C_eff and C ones).
+
+    Returns
+    -------
+    dict
+        ``reported`` and ``outside`` (lists of dicts), ``disagreements`` (lines for values the model misses by more
+        than ``Z_TOL`` stated uncertainties).
+    """
+    from dnarod.core.units import PN, kT
+    from dnarod.physics import experiments as ex
+    from dnarod.physics.theory.torsion import moroz_nelson
+
+    kt_pn = kT(temperature) / PN
+    reported, outside, disagreements = [], [], []
+
+    def entry(m, value_md_to_shown, unit, **kw):
+        return dict(quantity=m.quantity, measured=m.value * value_md_to_shown,
+                    uncertainty=None if m.uncertainty is None else m.uncertainty * value_md_to_shown, unit=unit,
+                    conditions=m.conditions, source=ex.cite_short(m.source), where=m.verification, url=m.url, **kw)
+
+    for m in ex.sourced_mechanics():
+        q = m.quantity
+        if q == "twist_bend_coupling_G":
+            z = abs(G_nm - m.value) / m.uncertainty
+            outside.append(entry(m, 1.0, "nm", model=G_nm, z=float(z), why=OUTSIDE_MODEL[q]))
+            if z > Z_TOL:
+                disagreements.append(f"twist-bend coupling G {G_nm:g} nm (dna-default has none) vs {m.value:g}+-"
+                                     f"{m.uncertainty:g} nm fitted to torque data ({ex.cite_short(m.source)})")
+        elif q == "twist_stretch_coupling_g":
+            reported.append(entry(m, 1.0 / PN, "pN nm", model=float(g_pN_nm),
+                                  kind="reported: secondary, no uncertainty stated"))
+        elif q == "stretch_modulus_S":
+            reported.append(entry(m, 1.0 / PN, "pN", model=float(s_pN),
+                                  kind="reported: a weak secondary attribution, no uncertainty stated"))
+        elif q == "effective_torsional_stiffness_salt_relative_change":
+            ceff = [float(moroz_nelson(c_nm, lp_nm, f, kt_pn)) for f in forces_pN]
+            outside.append(entry(m, 1.0, "relative", model=0.0, why=OUTSIDE_MODEL[q],
+                                 model_C_eff_nm={f"{f:g} pN": c for f, c in zip(forces_pN, ceff)}))
+        else:
+            outside.append(entry(m, 1.0, "1", model=None, why=OUTSIDE_MODEL.get(q, "not represented by the model")))
+    for m in ex.structural_transition_torques():
+        outside.append(entry(m, 1.0 / PN, "pN nm", model=None, force_pN=m.force_pN, why=OUTSIDE_MODEL[m.quantity]))
+    for r in ex.read_table("overstretching.csv"):
+        outside.append(dict(quantity="overstretching", measured=float(r["force_pN"]), uncertainty=None, unit="pN",
+                            salt_M=ex._f(r.get("salt_M")), source=ex.cite_short(r["source"]), where=r.get("where"),
+                            url=r.get("url"), model=None, why=OUTSIDE_MODEL["overstretching"]))
+    series = sorted(ex.persistence_lengths(), key=lambda m: m.salt_M)
+    outside.append(dict(quantity="persistence_length_vs_salt", unit="nm", model=float(lp_nm),
+                        measured={f"{1000 * m.salt_M:g} mM": m.value for m in series},
+                        source="; ".join(sorted({ex.cite_short(m.source) for m in series})),
+                        why=OUTSIDE_MODEL["persistence_length_vs_salt"]))
+    return dict(reported=reported, outside=outside, disagreements=disagreements)
+
+
 def model_helix_constants(forcefield="dna-default"):
     """``(helical repeat bp per turn, twist-stretch coupling g pN nm, rise ds nm)`` of a uniform chain of
     ``forcefield``: the
@@ -355,13 +451,16 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
     ranges = compare_elastic_ranges(S, C, g_model, temperature)
     hw = compare_horowitz_wang(C, ds_model, repeat, temperature)
 
+    G_model = model_twist_bend_coupling(temperature, forcefield)
+    sourced = sourced_comparisons(lp, C, S, g_model, G_model, temperature)
+
     not_compared = {k: f"no value could be read: {v}" for k, v in ex.MISSING.items()}
     if writhe is None:
         not_compared["writhe_fraction_model"] = ("no model writhe fraction in this run (check plectonemes gives it "
                                                  "when run together with this check)")
     if diameter is None:
         not_compared["effective_diameter_reference"] = f"no effective diameter read for {salt_M} M"
-    disagreements = []
+    disagreements = list(sourced["disagreements"])
     if diameter is not None and not diameter["agrees"]:
         disagreements.append(f"effective diameter {d_model:.2f} nm vs {diameter['reference_nm']:g} nm "
                              f"({diameter['kind']}, {1000 * salt_M:g} mM): ratio {diameter['ratio']:.2f}")
@@ -377,6 +476,8 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                topoisomer_fit=topo, cyclization_fit=cyclization, elastic_constant_ranges=ranges, horowitz_wang=hw,
                model_helical_repeat_bp=repeat, model_twist_stretch_pN_nm=g_model, model_effective_diameter_nm=d_model,
                effective_diameter_gating=bool(gate_effective_diameter), disagreements=disagreements,
+               sourced_reported=sourced["reported"], outside_model=sourced["outside"],
+               model_twist_bend_coupling_nm=G_model,
                z_tolerance=Z_TOL, theory_allowance_relative=THEORY_ALLOWANCE, writhe_rounding=WRITHE_ROUNDING,
                diameter_tolerance_nm=DIAMETER_PRECISION_NM + DIAMETER_QUADRATURE_NM, not_compared=not_compared,
                notes=["Measured values and where they were read: data/README.md (data/experimental/).",
@@ -401,6 +502,8 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                                    f"{'inside' if q['inside'] else 'OUTSIDE'} the measured range "
                                    f"{q['low']:.4g} to {q['high']:.4g} (secondary, {q['source']})"
                                    for q in ranges) + "." if ranges else ""),
+                      "Outside the model's reach (listed, not compared): "
+                      + "; ".join(f"{o['quantity']} ({o['source']}): {o['why']}" for o in sourced["outside"]) + ".",
                       "Effective diameter: the reference is computed (Poisson-Boltzmann), not measured; the model's "
                       "Debye-Hueckel line charge is calibrated to it at 0.15 M (dnarod.engines.openmm.nonbonded), so "
                       "at 0.15 M this checks the calibration ("

@@ -50,7 +50,7 @@ from dnarod.analysis.plots import new_figure, save_figure
 from dnarod.core.forcefield import load_forcefield
 from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
 from dnarod.workflows.protocols.poses import START_POSE, load_pose
-from dnarod.workflows.protocols.tweezers import auto_friction
+from dnarod.workflows.protocols.tweezers import mode_relaxation
 from dnarod.analysis.polymer import integrated_autocorrelation_time
 from dnarod.validate.wlc_ring_mc import sample_ring_writhe, pair_parameters
 from dnarod.physics.loads import intrinsic_turns
@@ -99,8 +99,11 @@ def writhed_start(settings, softening, ns, member_dir):
     model = load_forcefield(s.get("forcefield", "dna-default")).ring(n_nodes=int(s["n_bp"]),
                                                                      delta_linking_number=int(s["delta_lk"]))
     T = float(s["temperature_K"])
+    relaxed = load_forcefield(s.get("forcefield", "dna-default")).ring(n_nodes=int(s["n_bp"]), delta_linking_number=0)
+    # critical damping of the relaxed closed ring's slowest mode (dnarod.physics.relaxation)
+    friction = mode_relaxation(relaxed, (), T)["friction_per_ps"]
     sim = RodSimulation.create(bend_softened_model(model, float(softening)), temperature=T,
-                               friction=auto_friction(model, 0.0, T), nonbonded=member_nonbonded(s),
+                               friction=friction, nonbonded=member_nonbonded(s),
                                seed=int(s.get("seed", 1)) + 7919, platform=s.get("platform"))
     sim.advance(int(round(1000.0 * float(ns) / sim.dt)))
     return sim.node_pose()
@@ -140,7 +143,7 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     ring, L, A, C, d_eff = rc["ring"], rc["L"], rc["A"], rc["C"], rc["d_eff"]
     A_ref = A if a_override is None else float(a_override)
     C_ref = C if c_override is None else float(c_override)
-    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt_M, **nb))
+    terms = member_nonbonded({"excluded_volume": True, "electrostatics": True, "salt_M": salt_M, **nb})
     pair = pair_parameters(terms, ring.ds, temperature, 3.4)
     row = run_ring_member(dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed, temperature_K=temperature,
                                salt_M=salt_M, **nb), root / f"ring{n_bp}_{delta_lk}")

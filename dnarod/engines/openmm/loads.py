@@ -132,9 +132,7 @@ def build_load_forces(loads, model, radius, system, platform="CPU"):
         f.setName("dnarod traps")
         system.addForce(f)
     for k, rc in rclamps:
-        frame = model.frames[k] if rc.frame is None else np.asarray(rc.frame, float)
-        axis = frame[:, 2] if rc.axis is None else np.asarray(rc.axis, float)
-        axis = axis / np.linalg.norm(axis)
+        frame, axis = rc.target0(model.frames[k])  # the target at angle 0, its 0 K offset included
         pre = f"dnarod_clamp{k}_"
         terms = [f"(a{a}{c} - {pre}T{'xyz'.index(c) + 1}{a})^2" for a in (1, 2, 3) for c in "xyz"]
         expr = "; ".join([f"0.25*{pre}k*({' + '.join(terms)})"] + _director_defs(1, 2, 3, "ua", "va"))

@@ -270,7 +270,8 @@ def ring_constants(n_bp, temperature, salt_M, forcefield="dna-default", nonbonde
         effective diameter of the model's WCA + Debye-Hückel pair energy at ``salt_M``, nm; ``nonbonded``: a dict
         with ``charge`` and/or ``cutoff_debye`` for other terms than the defaults, as in the members' settings).
     """
-    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=salt_M, **dict(nonbonded or {})))
+    terms = member_nonbonded({"excluded_volume": True, "electrostatics": True, "salt_M": salt_M,
+                              **dict(nonbonded or {})})
     ff = load_forcefield(forcefield)
     ring = ff.ring(n_nodes=n_bp, delta_linking_number=0)
     return dict(ff=ff, ring=ring, L=ring.ds * n_bp, A=persistence_length(ring.params, ring.ds, kT(temperature)),

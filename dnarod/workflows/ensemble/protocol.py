@@ -76,7 +76,8 @@ def build_runspec(settings, model_cache=None):
     Loads: ``clamp_first`` -> ``Clamp(0)``; ``force_pN`` -> ``PullingForce`` on the last node
     along the initial end-to-end axis (and the opposite force on node 0 unless clamped);
     ``torque_pN_nm`` -> ``Torque`` on the last node about that axis; ``rotation_clamp_kJ_mol``
-    with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run. ``model_cache`` (a
+    with ``turns`` -> ``RotationClamp`` of the last node turned ``turns`` times over the run, counted from the
+    torque-free state at ``temperature_K`` (its target starts turned by the 0 K offset). ``model_cache`` (a
     dict) keeps the models loaded for the loads, so checking many members of one source loads it once.
     """
     from dnarod.structure.inputs import load_model  # loads scipy.spatial: not at the CLI's start-up
@@ -95,9 +96,14 @@ def build_runspec(settings, model_cache=None):
         # the one tweezers set-up (dnarod.physics.loads.tweezers), with the command line's checks (overstretching, a
         # torque with no equilibrium, turns without a clamp, loads on a closed ring)
 
+        # turns count from the torque-free state at the member's temperature (the clamp starts turned by the 0 K
+        # offset, dnarod.physics.loads.torque_free_offset)
+        from dnarod.physics.loads import torque_free_offset
+
+        offset = torque_free_offset(model, s.get("temperature_K", 300.0)) if rclamp is not None else 0.0
         loads = list(tweezers(model, force or None, torque or None, rclamp, s.get("turns", 0.0),
                               anchor="surface" if s.get("clamp_first") else "ends",
-                              axis=s.get("axis", "end-to-end")))
+                              axis=s.get("axis", "end-to-end"), turns_offset=offset))
     kw = dict(source=s["source"], forcefield=s.get("forcefield", "dna-default"), engine=s.get("engine", "openmm"),
               time_ns=s.get("time_ns", 1.0), temperature=s.get("temperature_K", 300.0),
               friction=s.get("friction_per_ps", 1.0), dt=s.get("dt_ps"), seed=s.get("seed"), loads=tuple(loads),

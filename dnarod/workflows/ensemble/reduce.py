@@ -1,14 +1,16 @@
 """The default reduction of one finished run to a row of observables (runs on the worker).
 
-Every value ``X`` comes with ``X_err``, its block standard error (``blocks`` contiguous blocks
-of the frames after ``discard_ns``; :func:`dnarod.analysis.base.block_estimates`):
+Every value ``X`` comes with ``X_err``, its standard error from :func:`dnarod.analysis.statistics.estimate` over the
+frames after ``discard_ns`` (autocorrelation of the series, the start's remaining transient dropped; ``flags``
+names the values whose run is too short for an error bar; the ``blocks`` setting is the number of blocks of the
+long-lag persistence-length fit, not used by this row):
 
 * every column of ``energies.csv`` other than ``step`` and ``time_ps`` (energies kJ/mol, the
   kinetic temperature as ``kinetic_temperature_K`` and, when loads define them, extension nm,
   turns, clamp torque pN nm, Lk);
 * ``end_to_end_nm`` (open chains), from the trajectory;
 * ``persistence_length_nm``: the lag-1 estimate ``-ds / ln <d3(k).d3(k+1)>`` (nm), error
-  propagated from the block error of the correlation;
+  propagated from the error of the mean correlation;
 * ``twist_turns``, ``writhe_turns``, ``linking_turns`` for rings (identity closure).
 
 Plus ``n_frames`` and ``analysed_ns``. The client never loads a trajectory.
@@ -21,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.analysis.base import block_estimates, standard_error
 from dnarod.core.errors import DnarodError
 from dnarod.analysis.polymer import EndToEnd, LinkingNumber, TangentCorrelation
 from dnarod.core.model import RodModel
@@ -32,10 +33,15 @@ from dnarod.core.trajectory import load_trajectory
 RENAME = {"temperature_K": "kinetic_temperature_K"}
 
 
-def mean_err(values, blocks):
-    """(mean, block standard error) of a 1-D series; the error is NaN with fewer than 2 blocks."""
-    v = np.asarray(values, float)
-    return float(v.mean()), float(standard_error(block_estimates(v, blocks)))
+def mean_err(values, blocks=None, flags=None, what="value"):
+    """(mean, standard error) of a 1-D series by :func:`dnarod.analysis.statistics.estimate`; its flag, if any, is
+    appended to ``flags`` (``blocks`` is accepted for callers of the block version and not used)."""
+    from dnarod.analysis.statistics import estimate
+
+    e = estimate(values, what=what)
+    if flags is not None and e.flag:
+        flags.append(e.flag)
+    return e.mean, e.error
 
 
 def read_energies(path):
@@ -70,6 +76,7 @@ def reduce_run(member_dir, settings, analysis):
     blocks = int(analysis.get("blocks", 10))
     t0 = 1000.0 * float(analysis.get("discard_ns", 0.0))
     out = {}
+    flags = []
     e = read_energies(d / "energies.csv")
     keep = e["time_ps"] >= t0 if "time_ps" in e else slice(None)
     for name, col in e.items():
@@ -78,7 +85,7 @@ def reduce_run(member_dir, settings, analysis):
         name = RENAME.get(name, name)
         col = col[keep]
         if col.size:
-            out[name], out[name + "_err"] = mean_err(col, blocks)
+            out[name], out[name + "_err"] = mean_err(col, flags=flags, what=name)
     traj = load_trajectory(d / "trajectory.dtraj")
     sel = np.nonzero(traj.time >= t0)[0]
     if sel.size == 0:
@@ -93,10 +100,14 @@ def reduce_run(member_dir, settings, analysis):
     if not circular:
         ee = EndToEnd(traj, n_blocks=blocks).run().results
         out["end_to_end_nm"], out["end_to_end_nm_err"] = ee.mean, ee.mean_err
+        if ee.mean_estimate.flag:
+            flags.append(ee.mean_estimate.flag)
     # lags wrap around a ring only; a periodic (screw-closed) chain's last and first nodes are not neighbours
     # in one frame, so its lag-1 pairs are the open chain's
     tc = TangentCorrelation(traj, model.ds, n_max=1, n_blocks=blocks, circular=ring).run().results
     c, dc = float(tc.correlation[1]), float(tc.correlation_err[1])
+    if tc.lag1_estimate.flag:
+        flags.append(tc.lag1_estimate.flag)
     if 0 < c < 1:
         out["persistence_length_nm"] = -model.ds / math.log(c)
         out["persistence_length_nm_err"] = model.ds / (c * math.log(c) ** 2) * dc
@@ -105,5 +116,6 @@ def reduce_run(member_dir, settings, analysis):
     if ring:
         lk = LinkingNumber(traj).run().results
         for name, series in (("twist_turns", lk.twist), ("writhe_turns", lk.writhe), ("linking_turns", lk.linking)):
-            out[name], out[name + "_err"] = mean_err(series, blocks)
+            out[name], out[name + "_err"] = mean_err(series, flags=flags, what=name)
+    out["flags"] = " | ".join(flags) or None
     return out

@@ -295,11 +295,12 @@ def _thermal_corrections(kind, base, rows):
     ``twist_torque_pN_nm`` becomes the twisting moment less what it reads on a chain under no torque
     (:func:`dnarod.workflows.protocols.measure.twisting_moment_offset`, about -1.2 pN nm for ``dna-default`` at 300 K;
     the raw mean stays in ``twist_torque_pN_nm_raw``), and ``delta_lk_thermal`` is ``Lk`` less the relaxed linking
-    number at T (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`; ``delta_lk`` stays relative to the T = 0 sum of
-    intrinsic twist angles). The clamp torque needs no correction. Members keep their own raw results.
+    number at T (tweezers: :func:`dnarod.physics.loads.torque_free_offset`, from which members count their turns,
+    so it equals their ``delta_lk``; rings: the relaxed ring's twist at T, ``relaxed_twist_thermal``). The clamp
+    torque needs no correction. Members keep their own raw results.
     """
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.thermal import relaxed_ribbon_twist
+    from dnarod.physics.loads import intrinsic_turns, torque_free_offset
     from dnarod.workflows.protocols.measure import twisting_moment_offset
 
     if not rows:
@@ -314,7 +315,8 @@ def _thermal_corrections(kind, base, rows):
                 r["delta_lk_thermal"] = r["Lk"] - r["relaxed_twist_thermal"]
         return
     model = ff.model_from_sequence(seq, n_nodes=n_nodes)
-    lk_T, lk_T_se = relaxed_ribbon_twist(model, T)
+    # the torque-free linking number at T: the one tweezers members count their turns from (exact, no error)
+    lk_T, lk_T_se = intrinsic_turns(model) + torque_free_offset(model, T), 0.0
     off, off_se = twisting_moment_offset(model, T) if kind != "force_extension" else (None, None)
     for r in rows:
         if r.get("Lk") is not None:

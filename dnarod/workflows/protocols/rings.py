@@ -90,11 +90,12 @@ def cached_member(member_dir, key):
 
 
 def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per_ns, max_sample_ps, min_samples,
-                progress=None, checkpoint=None, checkpoint_wall_s=None):
+                progress=None, checkpoint=None, checkpoint_wall_s=None, relaxation_model=None):
     """Run one ring member (closed or nicked) on the run layer and sample it: the plan both ring protocols share.
 
-    Friction: :func:`~dnarod.workflows.protocols.tweezers.auto_friction` unless ``s["friction_per_ps"]`` is set;
-    equilibration: five slowest bending relaxation times (``s["equilibration_ns"]`` overrides); a sample
+    Friction: critical damping of the slowest normal mode of the closed ring (``relaxation_model``'s pose, default
+    ``model``'s; :func:`~dnarod.workflows.protocols.tweezers.mode_relaxation`) unless ``s["friction_per_ps"]`` is
+    set; equilibration: five relaxation times of that mode (``s["equilibration_ns"]`` overrides); a sample
     every ``min(tau * tau_fraction, time / samples_per_ns)`` ps, clipped to [1, ``max_sample_ps``]
     (``s["sample_ps"]`` overrides), at least ``min_samples`` samples. Each sample has ``time_ps``, ``Tw``,
     ``Wr``, ``Lk`` (turns) and ``radius_of_gyration_nm``; ``record(positions, frames) -> dict`` gives the caller's
@@ -110,17 +111,17 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
         ``elastic_path`` and ``nonbonded`` (the terms' record, :func:`dnarod.physics.nonbonded.nonbonded_record`:
         charge model, e per node, cutoff in Debye lengths and nm).
     """
-    from dnarod.analysis.polymer import bending_relaxation_time
     from dnarod.engines.openmm.simulation import RodSimulation
     from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
     from dnarod.physics.writhe import twist, writhe
     from dnarod.run.sampling import SampleReporter, run_sampling
-    from dnarod.workflows.protocols.tweezers import auto_friction
+    from dnarod.workflows.protocols.tweezers import mode_relaxation
 
     T = float(s["temperature_K"])
-    fr = auto_friction(model, 0.0, T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
+    # the modes of the closed ring itself (a ring relaxes as a closed chain, not as one free at both ends)
+    rel = mode_relaxation(model if relaxation_model is None else relaxation_model, (), T, s["friction_per_ps"])
+    fr, tau = rel["friction_per_ps"], rel["tau_ps"]
     L = model.ds * model.n_nodes
-    tau = bending_relaxation_time(L, lp, T, float(np.mean(model.mass)) / model.ds, fr)
     eq = 5.0 * tau if s["equilibration_ns"] is None else 1000.0 * float(s["equilibration_ns"])
     sample = float(np.clip(min(tau * tau_fraction, 1000.0 * float(s["time_ns"]) / samples_per_ns), 1.0,
                            max_sample_ps)) if s["sample_ps"] is None else float(s["sample_ps"])
@@ -147,7 +148,8 @@ def sample_ring(model, s, lp, columns, record=None, *, tau_fraction, samples_per
                        progress=progress)
     wall, cpu = res["wall_s"], res["cpu_s"]
     steps = n_eq + n_samp * stride
-    run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, equilibration_ps=n_eq * dt,
+    run = dict(contour_length_nm=L, friction_per_ps=fr, tau_bend_estimate_ps=tau, slowest_mode_omega=rel["omega_1"],
+               equilibration_ps=n_eq * dt,
                production_ps=n_samp * stride * dt, wall_s=wall, cpu_s=cpu, dt_ps=dt, n_steps=steps,
                n_samples=n_samp, sample_ps=stride * dt, ns_per_day=steps * dt * 1e-3 / wall * 86400.0,
                stride=stride, elastic_path=sim.rs.elastic, nonbonded=nonbonded_record(nb, model.ds, T))
@@ -180,7 +182,7 @@ def run_ring_member(settings, member_dir, progress=None, start_pose=None):
         one prepared under other conditions, to approach equilibrium from another side) to start from instead
         of the planar circle. Its SHA-256 joins the member's key and it is written as ``start_pose.npz``.
     """
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
+    from dnarod.analysis.statistics import estimate
     from dnarod.core.forcefield import load_forcefield
     from dnarod.core.io import jsonable
     from dnarod.physics.thermal import persistence_length
@@ -202,8 +204,16 @@ def run_ring_member(settings, member_dir, progress=None, start_pose=None):
     tw0_model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]), delta_linking_number=0)
     tw0 = intrinsic_turns(tw0_model)
     check_ring(s["delta_lk"], tw0)
+    # delta_lk counts from the relaxed ring at the member's temperature: its linking number is the integer nearest
+    # the thermal relaxed twist plus delta_lk (the same integer as from the 0 K twist unless the ~0.4-turn-per-kbp
+    # offset crosses a half turn)
+    from dnarod.physics.loads import torque_free_offset
+
+    T = float(s["temperature_K"])
+    offset = torque_free_offset(tw0_model, T)
+    shift = int(round(tw0 + offset)) - int(round(tw0))
     model = ff.ring(s["sequence"], n_nodes=None if s["sequence"] else int(s["n_bp"]),
-                    delta_linking_number=int(s["delta_lk"]))
+                    delta_linking_number=int(s["delta_lk"]) + shift)
     if start_pose is not None:
         from dnarod.workflows.protocols.poses import START_POSE, save_pose
 
@@ -223,27 +233,36 @@ def run_ring_member(settings, member_dir, progress=None, start_pose=None):
 
     ckpt = Path(member_dir) / "member_checkpoint.npz"
     out, run = sample_ring(model, s, lp, COLUMNS, record, tau_fraction=0.1, samples_per_ns=200.0,
-                           max_sample_ps=200.0, min_samples=4, progress=progress, checkpoint=ckpt)
+                           max_sample_ps=200.0, min_samples=4, progress=progress, checkpoint=ckpt,
+                           relaxation_model=tw0_model)
     stride, dt = run.pop("stride"), run["dt_ps"]
     run.pop("elastic_path")
     res = dict(n_bp=model.n_nodes, delta_lk=int(s["delta_lk"]), temperature_K=T, salt_M=float(s["salt_M"]),
                seed=int(s["seed"]), intrinsic_turns=tw0, sigma=int(s["delta_lk"]) / tw0,
                plectoneme_contact_nm=contact_nm, plectoneme_min_separation_nm=sep_nm, **run)
+    # the start's transient, detected on the writhe (the slow observable of a ring), is dropped from every column
+    t0 = estimate(out["Wr"], what="Wr").n_dropped if len(out["Wr"]) >= 4 else 0
+    res["transient_dropped_samples"], res["transient_dropped_ps"] = int(t0), float(t0 * stride * dt)
+    flags = []
     for c in COLUMNS[1:]:
-        x = out[c]
-        res[c] = float(x.mean())
-        b = np.array([v.mean() for v in np.array_split(x, 10 if len(x) >= 20 else max(2, len(x) // 2))])
-        res[c + "_err"] = float(b.std(ddof=1) / np.sqrt(len(b)))
-        t = integrated_autocorrelation_time(x)
-        res[c + "_tau_ps"] = float(t * stride * dt) if np.isfinite(t) else None
+        e = estimate(np.asarray(out[c], float)[t0:], transient=False, what=c,
+                     relaxation_samples=run["tau_bend_estimate_ps"] / (stride * dt))
+        res[c], res[c + "_err"], res[c + "_n_eff"], res[c + "_flag"] = e.mean, e.error, e.n_eff, e.flag
+        res[c + "_tau_ps"] = float(e.tau * stride * dt) if np.isfinite(e.tau) else None
+        if e.flag and c in ("Wr", "Tw"):
+            flags.append(e.flag)
+    res["flags"] = " | ".join(flags) or None  # one string: the ensemble keeps scalars per member
     res["lk_integer"] = int(np.rint(out["Lk"]).min()) if np.ptp(np.rint(out["Lk"])) == 0 else None
-    res["delta_lk_measured"] = res["Lk"] - round(tw0)
+    res["delta_lk_measured"] = res["Lk"] - round(tw0 + offset)
+    res["turns_offset_0K"] = offset  # relaxed twist at T less the 0 K intrinsic twist
     from dnarod.physics.thermal import relaxed_ribbon_twist as thermal_relaxed_twist
 
     # the linking difference that supercoils the ring is relative to the relaxed ring's mean twist at T
     res["relaxed_twist_thermal"], res["relaxed_twist_thermal_err"] = thermal_relaxed_twist(model, T)
     d = res["Lk"] - res["relaxed_twist_thermal"]
+    res["delta_lk_thermal"] = d  # the supercoiling: Lk less the relaxed ring's twist at T (not an integer)
     res["writhe_fraction"] = res["Wr"] / d if abs(d) > 0.25 else None
+    res["writhe_fraction_err"] = (abs(res["Wr_err"] / d) if res["writhe_fraction"] is not None else None)
     write_member(member_dir, done, key, COLUMNS, out, res)
     ckpt.unlink(missing_ok=True)
     return jsonable(res)

@@ -7,6 +7,12 @@ rotation-clamped protocols, an orientation restraint ``E = k (1 - cos theta)`` w
 node's start frame turned by ``turns`` about z (the magnets). Without a rotation clamp the bead end is torsionally free
 (force-extension).
 
+Turns count from the torque-free state at the member's temperature, as magnet turns do: ``turns = 0`` is the
+chain's relaxed twist at T (:func:`dnarod.physics.loads.torque_free_offset`: the thermal mean twist of the free
+steps, about 0.42 turns below the 0 K intrinsic twist for 1 kbp at 300 K), so the chain carries
+``turns + turns_offset_0K`` turns from its 0 K intrinsic twist; ``delta_lk`` is ``Lk`` less the relaxed linking
+number at T, ``delta_lk_0K`` less the 0 K one, and ``turns_offset_0K`` is reported beside them.
+
 Start ("relaxed under load"): the uniformly strained straight helix that is the static equilibrium of a
 uniform chain under tension F with ``turns`` applied (:func:`strained_helix`), refined by
 :func:`dnarod.physics.statics.solve_static` under the member's loads (two Newton steps for dna-default): the twist
@@ -17,12 +23,15 @@ member's final pose (``final_pose.npz``), with the turns it was sampled at (``pr
 added as twist (``build_member(..., start_pose=...)``, :func:`dnarod.workflows.protocols.poses.add_turns`), so a
 series of members can continue each other's configurations.
 
-Friction (:func:`auto_friction`): the equilibrium does not depend on it, so it is chosen to decorrelate
-fast: ``zeta = 2 omega_1``, critical damping of the slowest bending mode of the chain under tension
-(``omega_1^2 = (A q^4 + F q^2)/rho``, ``q = 4.730/L``); the slowest linear relaxation time is then
-``~1/omega_1`` instead of ``zeta rho/(A q^4)`` at the default 1/ps (see
-:func:`dnarod.analysis.polymer.bending_relaxation_time`). The *measured* integrated autocorrelation times of
-extension and torque are reported with every member and set the statistical errors.
+Friction and equilibration (:func:`mode_relaxation`): the equilibrium does not depend on the friction, so it is
+chosen to decorrelate fast: ``zeta = 2 omega_1``, critical damping of the slowest normal mode of the member's own
+start pose with its loads (:mod:`dnarod.physics.relaxation`: node 0 clamped, the bead pulled, the rotation clamp;
+the tension is in the Hessian of the pose under the force), whose relaxation time is then ``1/omega_1``. A chain
+clamped at the surface with a laterally free bead relaxes several times more slowly than the same chain free at
+both ends (the formula :func:`dnarod.analysis.polymer.bending_relaxation_time` assumes). The default equilibration
+is five of these relaxation times (two after a sweep's turn increment). Every mean is stated with the error of
+:func:`dnarod.analysis.statistics.estimate` (autocorrelation, the start's transient dropped and reported, flagged
+when the member is too short for it), see :func:`summarize`.
 
 Units: pN, pN nm and nm at this interface (converted to MD units inside), ps, K.
 """
@@ -36,7 +45,7 @@ import numpy as np
 
 from dnarod.core.errors import DnarodError
 from dnarod.core.units import PN
-from dnarod.physics.loads import MAX_FORCE_PN, MAX_SIGMA, intrinsic_turns
+from dnarod.physics.loads import MAX_FORCE_PN, MAX_SIGMA, intrinsic_turns, torque_free_offset
 
 DEFAULT_CLAMP_K = 250.0  # kJ/mol: ~100 kT, clamp angle fluctuations ~0.1 rad
 
@@ -123,18 +132,39 @@ def strained_helix(model, force_pN, turns):
     return model.with_pose(pos, frm)
 
 
-def auto_friction(model, force_pN, temperature, lp=None):
-    """Collision rate (1/ps) critically damping the slowest bending mode under tension, in [1e-4, 1]."""
-    from dnarod.analysis.polymer import FREE_FREE_BETA1_L
-    from dnarod.physics.thermal import persistence_length
-    from dnarod.core.units import kT
+#: Collision rates the automatic friction is kept within, 1/ps.
+FRICTION_RANGE = (1e-4, 1.0)
 
-    lp = persistence_length(model.params, model.ds, kT(temperature)) if lp is None else lp
-    L = model.ds * model.n_steps
-    q = FREE_FREE_BETA1_L / L
-    rho = float(np.mean(model.mass)) / model.ds
-    w1 = math.sqrt((kT(temperature) * lp * q ** 4 + float(force_pN) * PN * q * q) / rho)
-    return float(np.clip(2.0 * w1, 1e-4, 1.0))
+
+def mode_relaxation(model, loads, temperature, friction=None):
+    """Friction and slowest relaxation time of a member from the normal modes of its start pose with its loads.
+
+    Parameters
+    ----------
+    model : RodModel
+        The start pose (a static equilibrium of ``loads``).
+    loads : sequence
+        The member's loads (walls aside: they do not touch the straight start).
+    temperature : float
+        K.
+    friction : float, optional
+        1/ps; default: ``2 omega_1`` (critical damping of the slowest mode) within :data:`FRICTION_RANGE`.
+
+    Returns
+    -------
+    dict
+        ``friction_per_ps``, ``tau_ps`` (the slowest mode's relaxation time at that friction), ``omega_1``
+        (rad/ps) and ``n_unstable`` (directions in which the start pose is unstable: past buckling).
+    """
+    from dnarod.physics.relaxation import decay_rate, slowest_modes
+
+    w, unstable = slowest_modes(model, tuple(loads), k=2, temperature=temperature)
+    # six significant digits: eigensolvers differ in the last bits between processes and thread counts, and a
+    # member must run the same steps wherever it runs (bit-for-bit reproducible samples)
+    w1 = float(f"{float(w[0]):.6g}")
+    fr = float(f"{float(np.clip(2.0 * w1, *FRICTION_RANGE)):.6g}") if friction is None else float(friction)
+    lam = float(decay_rate(w1, fr))
+    return dict(friction_per_ps=fr, tau_ps=1.0 / lam if lam > 0 else float("inf"), omega_1=w1, n_unstable=unstable)
 
 
 def _settings(s):
@@ -173,7 +203,6 @@ def build_member(settings, start_pose=None):
         ``model`` (start pose), ``loads``, ``clamp_target`` (3, 3) or None, ``friction``, ``tau_ps``,
         ``equilibration_ps``, ``production_ps``, ``sample_ps``, ``lk0`` and the resolved settings.
     """
-    from dnarod.analysis.polymer import bending_relaxation_time
     from dnarod.core.forcefield import load_forcefield
     from dnarod.physics.loads import Walls, tweezers
     from dnarod.physics.thermal import persistence_length
@@ -187,14 +216,17 @@ def build_member(settings, start_pose=None):
     check_tweezers(s["force_pN"], s["turns"], rotation_clamp=clamp, lk0=lk0)
     turns = float(s["turns"] or 0.0)
     T = float(s["temperature_K"])
-    start = strained_helix(model, s["force_pN"], turns)
-    F = float(s["force_pN"]) * PN
+    # turns count from the torque-free state at T (as magnet turns do): the chain carries turns + offset from its
+    # intrinsic twist at 0 K (offset ~ -0.42 turns for 1 kbp at 300 K)
+    offset = torque_free_offset(model, T) if clamp else 0.0
+    turns_0K = turns + offset
+    start = strained_helix(model, s["force_pN"], turns_0K)
     # the one tweezers set-up: node 0 on the surface, the bead pulled along +z; the start pose already carries the
     # turns, so the clamp holds the start's last frame (turns=0 here)
     target = start.frames[-1].copy() if clamp else None
     loads = list(tweezers(start, s["force_pN"], None, float(s["clamp_k_kJ_mol"]) if clamp else None, 0.0,
                           anchor="surface", axis="z", clamp_frame=target))
-    ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` applied
+    ref_frame = start.frames[-1].copy()  # the bead node's frame with exactly ``turns`` (from the torque-free state)
     if start_pose is not None:
         from dnarod.workflows.protocols.poses import add_turns
 
@@ -207,19 +239,19 @@ def build_member(settings, start_pose=None):
         dt_ = turns - float(s["previous_turns"])
         start = start.with_pose(*add_turns(pos, frm, dt_))
         start_info = f"given pose sampled at {float(s['previous_turns']):+g} turns, turned by {dt_:+g} turns"
-    else:
-        start_info = "strained helix (linear constitutive law)"
-        try:  # refine to the exact static equilibrium under the loads (a few Newton steps from the helix)
-            from dnarod.physics.statics import solve_static
+    from dnarod.physics.statics import solve_static
 
-            start, info = solve_static(start, loads)  # the walls (added below) do not touch the straight start
-            start_info = (f"static equilibrium under the loads (dnarod.physics.statics, "
-                          f"{info['iterations']} Newton steps)")
-        except ImportError:
-            pass
+    # the exact static equilibrium under the loads (a few Newton steps from the helix; the walls, added below, do not
+    # touch the straight pose): the static start, and the pose whose normal modes set the relaxation time
+    static, info = solve_static(strained_helix(model, s["force_pN"], turns_0K), loads)
+    if start_pose is None:
+        start = static
+        start_info = (f"static equilibrium under the loads (dnarod.physics.statics, "
+                      f"{info['iterations']} Newton steps)")
     lp = persistence_length(model.params, model.ds, kT(T))
-    fr = auto_friction(model, s["force_pN"], T, lp) if s["friction_per_ps"] is None else float(s["friction_per_ps"])
-    tau = bending_relaxation_time(model.ds * model.n_steps, lp, T, float(np.mean(model.mass)) / model.ds, fr, F)
+    # relaxation from the modes of the member's own pose and loads (not of a chain free at both ends)
+    rel = mode_relaxation(static, loads, T, s["friction_per_ps"])
+    fr, tau = rel["friction_per_ps"], rel["tau_ps"]
     eq = (2.0 if start_pose is not None else 5.0) * tau if s["equilibration_ns"] is None \
         else 1000.0 * float(s["equilibration_ns"])
     prod = 1000.0 * float(s["time_ns"])
@@ -228,9 +260,9 @@ def build_member(settings, start_pose=None):
         else float(s["sample_ps"])
     loads.append(Walls())
     return dict(settings=s, model=start, loads=loads, clamp_target=target, friction=fr, tau_ps=tau, start=start_info,
-                ref_frame=ref_frame,
+                ref_frame=ref_frame, slowest_mode_omega=rel["omega_1"], start_unstable_modes=rel["n_unstable"],
                 equilibration_ps=eq, production_ps=prod, sample_ps=sample, lk0=lk0,
-                persistence_length_nm=lp, turns=turns)
+                persistence_length_nm=lp, turns=turns, turns_offset_0K=offset, lk_T=lk0 + offset)
 
 
 def _member_simulation(m, model, dt=None):
@@ -370,9 +402,21 @@ def sample_member(m, progress=None, checkpoint=None, checkpoint_wall_s=None, pos
     return out["samples"], cost
 
 
+#: Observables whose transients set the frames dropped from every column (the headline observables).
+TRANSIENT_COLUMNS = ("extension_nm", "Wr", "twist_torque_pN_nm")
+
+
 def summarize(samples, m, cost):
-    """Means, block standard errors and integrated autocorrelation times of a member's samples."""
-    from dnarod.analysis.polymer import integrated_autocorrelation_time
+    """Means of a member's samples with their errors from :func:`dnarod.analysis.statistics.estimate`.
+
+    The start's transient is detected on the headline observables (:data:`TRANSIENT_COLUMNS`) and the latest of
+    their ends is dropped from every column (``transient_dropped_samples``, ``transient_dropped_ps``); each mean then
+    has its autocorrelation error (``_err``), autocorrelation time (``_tau_ps``), effectively independent samples
+    (``_n_eff``) and, where the member is too short for it, a flag (``_flag``; the production must also span
+    :data:`dnarod.analysis.statistics.RELAXATION_TIMES_REQUIRED` relaxation times of the slowest normal mode of the
+    loaded chain). ``flags`` joins those of the headline observables (one string, or None).
+    """
+    from dnarod.analysis.statistics import estimate
 
     s = m["settings"]
     L0 = m["model"].ds * m["model"].n_steps
@@ -380,27 +424,47 @@ def summarize(samples, m, cost):
     res["turns"] = m["turns"] if s["turns"] is not None else None
     res["previous_turns"] = s.get("previous_turns")
     res.update(start=m["start"], contour_length_nm=L0, lk0=m["lk0"], friction_per_ps=m["friction"],
-               tau_bend_estimate_ps=m["tau_ps"],
+               tau_bend_estimate_ps=m["tau_ps"], slowest_mode_omega=m.get("slowest_mode_omega"),
+               relaxation_from="normal modes of the member's static pose with its loads (dnarod.physics.relaxation)",
                equilibration_ps=m["equilibration_ps"], production_ps=m["production_ps"], **cost)
     dt_s = cost["sample_ps"]
+    n = len(samples["extension_nm"])
+    t0 = max(estimate(np.asarray(samples[c], float), what=c).n_dropped for c in TRANSIENT_COLUMNS
+             if np.isfinite(np.asarray(samples[c], float)).all()) if n >= 4 else 0
+    res["transient_dropped_samples"], res["transient_dropped_ps"] = int(t0), float(t0 * dt_s)
+    flags = []
     for c in COLUMNS[1:]:
-        x = np.asarray(samples[c], float)
-        res[c] = float(x.mean())
-        nb = 10 if len(x) >= 20 else max(2, len(x) // 2)
-        b = np.array([v.mean() for v in np.array_split(x, nb)])
-        res[c + "_err"] = float(b.std(ddof=1) / np.sqrt(nb))
-        tau = integrated_autocorrelation_time(x)
-        res[c + "_tau_ps"] = float(tau * dt_s) if np.isfinite(tau) else None
-        if np.isfinite(tau):
-            res[c + "_err_tau"] = float(x.std(ddof=1) * np.sqrt(2.0 * tau / len(x)))
-    slips = np.rint(np.asarray(samples["Lk"]) - m["lk0"] - np.asarray(samples["end_turns"]))
+        x = np.asarray(samples[c], float)[t0:]
+        if not np.isfinite(x).all():  # the twisting moment is NaN where every step is in a plectoneme
+            x = x[np.isfinite(x)]
+        if len(x) == 0:
+            res[c], res[c + "_err"], res[c + "_tau_ps"], res[c + "_n_eff"], res[c + "_flag"] = (None,) * 5
+            continue
+        e = estimate(x, transient=False, what=c, relaxation_samples=m["tau_ps"] / dt_s)
+        res[c], res[c + "_err"] = e.mean, e.error
+        res[c + "_tau_ps"] = float(e.tau * dt_s) if np.isfinite(e.tau) else None
+        res[c + "_n_eff"], res[c + "_flag"] = e.n_eff, e.flag
+        if e.flag and c in TRANSIENT_COLUMNS:
+            flags.append(e.flag)
+    res["flags"] = " | ".join(flags) or None  # one string: the ensemble keeps scalars per member
+    samples = {k: np.asarray(v)[t0:] for k, v in samples.items()}
+    lk_T = m.get("lk_T", m["lk0"])  # the linking number of the torque-free state at T (end_turns count from it)
+    slips = np.rint(np.asarray(samples["Lk"]) - lk_T - np.asarray(samples["end_turns"]))
     res["lk_slips"] = int(np.abs(slips).max())  # nonzero: the chain passed through the closure (see measure)
     res["relative_extension"] = res["extension_nm"] / L0
     res["relative_extension_err"] = res["extension_nm_err"] / L0
-    res["delta_lk"] = res["Lk"] - m["lk0"]
+    # linking difference from the torque-free state at T (the supercoiling); the 0 K offset beside it
+    res["delta_lk"] = res["Lk"] - lk_T
+    res["delta_lk_0K"] = res["Lk"] - m["lk0"]
+    res["turns_offset_0K"] = m.get("turns_offset_0K", 0.0)
+    res["relaxed_twist_thermal"] = lk_T
     res["writhe_fraction"] = res["Wr"] / res["delta_lk"] if abs(res["delta_lk"]) > 0.25 else None
-    res["n_effective_extension"] = (len(samples["extension_nm"]) * dt_s / (2.0 * res["extension_nm_tau_ps"])
-                                    if res.get("extension_nm_tau_ps") else None)
+    res["writhe_fraction_err"] = (
+        math.hypot(res["Wr_err"], res["writhe_fraction"] * res["Lk_err"]) / abs(res["delta_lk"])
+        if res["writhe_fraction"] is not None else None)
+    res["extension_sd_nm"] = float(np.std(samples["extension_nm"], ddof=1)) if len(samples["extension_nm"]) > 1 \
+        else None
+    res["n_effective_extension"] = res["extension_nm_n_eff"]
     return res
 
 

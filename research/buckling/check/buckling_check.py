@@ -508,7 +508,7 @@ def check_buckling(out_dir, quick=False, n_bp=None, force_pN=1.0, pre_turns=None
     # relaxed linking number of the chain at T (mean ribbon twist of its free steps; below the T = 0 lk0)
     lk0_T, lk0_T_se = relaxed_ribbon_twist(model, temperature)
     nb = dict(nonbonded or {})  # member settings "charge" / "cutoff_debye" (default: the model's non-bonded terms)
-    terms = member_nonbonded(dict(excluded_volume=True, electrostatics=True, salt_M=0.15, **nb))
+    terms = member_nonbonded({"excluded_volume": True, "electrostatics": True, "salt_M": 0.15, **nb})
     ring = ring2 = premise = P_loops = None
     P_single = P_single_err = None
     rings = {e["role"]: e for e in plan if e["kind"] == "ring"}
