@@ -1,11 +1,11 @@
 """The Monte Carlo engine: equilibrium sampling of the exact rod model behind the run layer.
 
 :class:`MCEngine` samples ``exp(-E/kT)`` on SE(3)^n with the energy the OpenMM engine integrates: the exact
-SMK elastic energy, the excluded-volume and Debye-Hueckel pairs of :mod:`dnarod.openmm.nonbonded` (same
-functional form, exclusions, cutoffs and charge), the loads of :mod:`dnarod.loads` (pulling force, dead torque,
-rotation clamp, trap, clamp) and, for magnetic tweezers, the surface and bead walls of
-:mod:`dnarod.openmm.walls` (:class:`TweezersWalls`). The moves and their detailed balance are described in
-:mod:`dnarod.engines.mc.kernels`.
+SMK elastic energy, the excluded-volume and Debye-Hueckel pairs of :mod:`dnarod.physics.nonbonded` (same
+functional form, exclusions, cutoffs and charge), the loads of :mod:`dnarod.physics.loads` (pulling force, dead
+torque, rotation clamp, trap, clamp) and the magnetic-tweezers walls (:class:`dnarod.physics.loads.Walls`, on the
+particles the OpenMM engine carries each node with, :mod:`dnarod.engines.openmm.walls`). The moves, their detailed
+balance and the topology they keep are described in :mod:`dnarod.engines.mc.kernels`.
 
 Time. The engine satisfies the run layer's engine protocol (:mod:`dnarod.run.engine`) with one *step* = one
 *sweep* = ``n_nodes`` attempted moves (of the types mixed by ``moves``), and ``dt = 1``: the run layer's
@@ -13,13 +13,15 @@ picoseconds count sweeps (``--time 1`` ns = 1000 sweeps, ``--frame-interval 10``
 There are no velocities: :meth:`MCEngine.node_state` reports zeros, :meth:`MCEngine.energies` a kinetic energy
 of 0 and a temperature of NaN (a Monte Carlo state has no kinetic temperature).
 
-Amplitudes are tuned towards :data:`TARGET_ACCEPTANCE` during the first ``tune_sweeps`` sweeps only (adapting
-them later would break detailed balance); those sweeps belong to the equilibration.
+Amplitudes (per move type and segment-length octave) are tuned towards :data:`TARGET_ACCEPTANCE` during the first
+``tune_sweeps`` sweeps only (adapting them later would break detailed balance); those sweeps belong to the
+equilibration.
 """
 from __future__ import annotations
 
 import json
 import math
+
 import numpy as np
 
 from dnarod.core.errors import ParameterError, SimulationError
@@ -29,22 +31,24 @@ from dnarod.engines.mc import kernels as kn
 
 #: Acceptance the amplitudes are tuned towards.
 TARGET_ACCEPTANCE = 0.4
-#: Move types, in the order of :func:`dnarod.engines.mc.kernels.sweep`.
-MOVE_TYPES = ("node", "crankshaft", "pivot", "twist")
-#: Default mix of move types (fractions of the attempted moves), open and circular chains.
-DEFAULT_MOVES = {"node": 0.6, "crankshaft": 0.2, "pivot": 0.05, "twist": 0.15}
+#: Move types, in the order of :mod:`dnarod.engines.mc.kernels` (``MT_*``).
+MOVE_TYPES = ("node", "crankshaft", "pivot", "hinge", "twist")
+#: Default mixes of move types (fractions of the attempted moves). A chain held at one end (the tweezers surface)
+#: relaxes its extension and bead position by hinge-pair moves (the far end translates without turning), its shape
+#: by crankshafts, its twist by segment twists.
+DEFAULT_MOVES = {"node": 0.3, "crankshaft": 0.3, "pivot": 0.0, "hinge": 0.25, "twist": 0.15}
 #: Open chain without a clamped node: pivots (whole-chain turns included) relax its orientation and shape.
-DEFAULT_MOVES_FREE = {"node": 0.3, "crankshaft": 0.3, "pivot": 0.4, "twist": 0.0}
-DEFAULT_MOVES_RING = {"node": 0.6, "crankshaft": 0.25, "pivot": 0.0, "twist": 0.15}
-#: Nodes per bounding-sphere block of the non-bonded pair search.
-BLOCK_SIZE = 16
+DEFAULT_MOVES_FREE = {"node": 0.2, "crankshaft": 0.3, "pivot": 0.3, "hinge": 0.1, "twist": 0.1}
+DEFAULT_MOVES_RING = {"node": 0.4, "crankshaft": 0.45, "pivot": 0.0, "hinge": 0.0, "twist": 0.15}
 #: A chord longer than this many times the intrinsic rise is refused when the excluded volume is on (part of the
 #: topology criterion, kernels module docstring): at 1.9 times the stretch energy of dna-default is 33 kT.
 CHORD_LIMIT = 1.9
+#: Attempts of one (type, length octave) after which its amplitude is adjusted during tuning.
+TUNE_ATTEMPTS = 20
 
 
 class MCEngine:
-    """Metropolis Monte Carlo sampler of a :class:`~dnarod.model.RodModel` (run-layer engine ``"mc"``).
+    """Metropolis Monte Carlo sampler of a :class:`~dnarod.core.model.RodModel` (run-layer engine ``"mc"``).
 
     Parameters
     ----------
@@ -55,17 +59,18 @@ class MCEngine:
     loads : sequence
         :mod:`dnarod.physics.loads` dataclasses, the tweezers :class:`~dnarod.physics.loads.Walls` included.
     nonbonded : NonbondedSettings, bool or None
-        Non-bonded terms (``True``: the defaults of :class:`~dnarod.openmm.nonbonded.NonbondedSettings`;
-        ``False``/``None``: none).
+        Non-bonded terms (``True``: the defaults of :class:`~dnarod.physics.nonbonded.NonbondedSettings`;
+        ``False``/``None``, or both terms off: none).
     seed : int or None
     moves : dict, optional
         Fractions of the move types (:data:`MOVE_TYPES`), normalised.
     amplitudes : dict, optional
-        Starting amplitudes: ``node_nm``, ``node_rad``, ``crankshaft_rad``, ``pivot_rad``, ``twist_rad``.
+        Starting amplitudes: ``node_nm``, ``node_rad``, and ``crankshaft_rad``, ``pivot_rad``, ``hinge_rad``,
+        ``twist_rad`` (every segment length).
     tune_sweeps : int
         Sweeps during which the amplitudes are tuned (0: never).
     max_segment : int, optional
-        Largest segment (nodes) of crankshaft, pivot and twist moves (default: the whole chain).
+        Largest segment (nodes) of crankshaft, pivot, hinge and twist moves (default: the whole chain).
     duration_ps : float, optional
         Run length (sweeps) over which rotation clamps' ``turns`` are spread.
     """
@@ -76,8 +81,8 @@ class MCEngine:
 
     def __init__(self, model, temperature=300.0, loads=(), nonbonded=None, seed=None, moves=None,
                  amplitudes=None, tune_sweeps=200, max_segment=None, duration_ps=None):
-        from dnarod.physics.loads import resolve_loads
         from dnarod.core.units import kT
+        from dnarod.physics.loads import resolve_loads
 
         self.model = model
         T = float(temperature)
@@ -88,6 +93,8 @@ class MCEngine:
         self.loads = tuple(loads or ())
         self.duration_ps = duration_ps
         n = model.n_nodes
+        if n < 3:
+            raise ParameterError(f"the Monte Carlo engine needs a chain of at least 3 nodes, got {n}")
         circ = model.closure is not None
         self.pos = np.ascontiguousarray(model.positions, float).copy()
         self.frm = np.ascontiguousarray(model.frames, float).copy()
@@ -100,10 +107,9 @@ class MCEngine:
         # loads
         rl = resolve_loads(self.loads, model)
         self.resolved = rl
-        self.movable = ~rl.clamped
+        self.movable = np.ascontiguousarray(~rl.clamped)
+        self.clamp_prefix = np.concatenate([[0], np.cumsum(rl.clamped)]).astype(np.int64)
         self.force = np.ascontiguousarray(rl.force, float).copy()
-        if np.any(rl.torque[rl.clamped] != 0):
-            raise ParameterError("a torque on a clamped node is absorbed by the clamp")
         self.trap_k = np.zeros(n)
         self.trap_c = np.zeros((n, 3))
         for k, kk, c in rl.traps:
@@ -119,13 +125,10 @@ class MCEngine:
         nz = self.tq_mag > 0
         self.tq_axis[nz] = rl.torque[nz] / self.tq_mag[nz, None]
         self.tq_ref = self.frm.copy()
-        self.ext = np.zeros(n, np.int8)
-        self.ext[(np.abs(self.force).sum(axis=1) > 0) | (self.trap_k > 0)] = 1
-        self.ext[(self.rc_k > 0) | (self.tq_mag > 0)] = 2
-        self._work_i = np.zeros(3 * n + 8, np.int64)
-        self._work_f = np.zeros((n + 2, 8))
         self.tq_last = np.zeros(n)
         self.tq_phi = np.zeros(n)
+        has_load = (np.abs(self.force).sum(axis=1) > 0) | (self.trap_k > 0) | (self.rc_k > 0) | (self.tq_mag > 0)
+        self.ext_nodes = np.flatnonzero(has_load & self.movable).astype(np.int64)
         # walls: the tweezers surface (node 0's start z) and bead planes, on the particles of the OpenMM engine's
         # triangle (circumradius sqrt(J3 / m), dnarod.engines.openmm.particles) so that both engines share one energy
         self.walls = rl.walls
@@ -151,19 +154,18 @@ class MCEngine:
             nonbonded = NonbondedSettings()
         self.nonbonded = nonbonded if nonbonded and (nonbonded.excluded_volume or nonbonded.electrostatics) else None
         kt = kT(T)
-        fp = np.zeros(15)
-        ip = np.zeros(10, np.int64)
+        fp = np.zeros(kn.N_F)
+        ip = np.zeros(kn.N_I, np.int64)
         fp[kn.F_DS] = model.ds
         fp[kn.F_KT] = kt
         ip[kn.I_N] = n
         ip[kn.I_CIRC] = int(circ)
-        ip[kn.I_BS] = BLOCK_SIZE
+        ip[kn.I_LEAF] = kn.LEAF
         ip[kn.I_IDCLOS] = int(identity_closure)
         ip[kn.I_AXI] = int(_axisymmetric(self.K, self.xi0))
         self.numbers = None
         rise = model.ds * float(np.max(self.xi0[:, 5]))
         fp[kn.F_LMAX] = CHORD_LIMIT * rise
-        fp[kn.F_DMAX] = np.inf
         if self.nonbonded is not None:
             nb = self.nonbonded.resolve(model.ds, T)
             self.numbers = nb
@@ -182,18 +184,21 @@ class MCEngine:
                 # 4 (s6^2 - s6) + 1 = HARD_CORE_KT  ->  s6 = (1 + sqrt(HARD_CORE_KT)) / 2
                 s6 = 0.5 * (1.0 + math.sqrt(kn.HARD_CORE_KT))
                 fp[kn.F_RHC] = nb["sigma"] / s6 ** (1.0 / 6.0)
-                dmax = 2.0 * (fp[kn.F_RHC] - fp[kn.F_LMAX])
-                if not dmax > 0.05 * model.ds:
+                if not fp[kn.F_RHC] > 1.05 * fp[kn.F_LMAX]:
                     raise ParameterError(
                         f"the excluded-volume diameter {nb['sigma']:g} nm is too small against the chords "
-                        f"({fp[kn.F_LMAX]:.3g} nm) for topology-preserving Monte Carlo moves; use a diameter of at least "
-                        f"{3.2 * fp[kn.F_LMAX]:.2g} nm")
-                fp[kn.F_DMAX] = dmax
+                        f"({fp[kn.F_LMAX]:.3g} nm) for topology-preserving Monte Carlo moves; use a diameter of at "
+                        f"least {1.05 * fp[kn.F_LMAX] * s6 ** (1.0 / 6.0):.2g} nm")
         if rl.walls is not None:
             ip[kn.I_WALLS] = 1
             ip[kn.I_SKIP] = int(rl.walls.skip)
             fp[kn.F_WZ0] = self.z_surface
             fp[kn.F_WK] = float(rl.walls.k)
+            fp[kn.F_PRAD] = float(self.radius.max())
+        self.P, self.tlo, self.thi = kn.tree_ranges(n, kn.LEAF)
+        ip[kn.I_P] = self.P
+        self.tcen = np.zeros((2 * self.P, 3))
+        self.trad = np.zeros(2 * self.P)
         self.ip, self.fp = ip, fp
         self.topology_preserved = bool(ip[kn.I_EV])
         # moves
@@ -204,7 +209,7 @@ class MCEngine:
                 raise ParameterError(f"unknown Monte Carlo move(s) {sorted(unknown)}; choose from {', '.join(MOVE_TYPES)}")
             mix = {k: float(moves.get(k, 0.0)) for k in MOVE_TYPES}
         if circ:
-            mix["pivot"] = 0.0
+            mix["pivot"] = mix["hinge"] = 0.0
         p = np.array([max(0.0, mix.get(k, 0.0)) for k in MOVE_TYPES])
         if not p.sum() > 0:
             raise ParameterError("the Monte Carlo move mix has no move with a positive fraction")
@@ -213,14 +218,21 @@ class MCEngine:
         self.p_cum[-1] = 1.0
         self.amp = self._default_amplitudes(kt)
         if amplitudes:
-            for i, key in enumerate(("node_nm", "node_rad", "crankshaft_rad", "pivot_rad", "twist_rad")):
-                if key in amplitudes:
-                    self.amp[i] = float(amplitudes[key])
+            for key, v in amplitudes.items():
+                if key == "node_nm":
+                    self.amp[kn.MT_NODE, 0] = float(v)
+                elif key == "node_rad":
+                    self.amp[kn.MT_NODE, 1] = float(v)
+                elif key.endswith("_rad") and key[:-4] in MOVE_TYPES[1:]:
+                    self.amp[MOVE_TYPES.index(key[:-4]), :] = float(v)
+                else:
+                    raise ParameterError(f"unknown Monte Carlo amplitude {key!r}")
         self._cap_amplitudes()
         ms = n if max_segment is None else max(1, int(max_segment))
-        self.lmax = np.array([1, ms, ms, ms], np.int64)
+        self.lmax = np.array([1, ms, ms, ms, ms], np.int64)
         self.tune_sweeps = int(tune_sweeps)
-        self.counts = np.zeros((4, 2), np.int64)
+        self.counts = np.zeros((kn.N_TYPES, kn.N_BINS, 2), np.int64)
+        self.tune_counts = np.zeros((kn.N_TYPES, kn.N_BINS, 2), np.int64)
         self.rng = kn.rng_seed(self.seed)
         self.step = 0
         self.n_moves = int(n)
@@ -247,16 +259,19 @@ class MCEngine:
         a = float(np.max(K[:, :3, :3].diagonal(axis1=1, axis2=2)))
         s_r = math.sqrt(kt * ds / (2.0 * c))
         s_w = math.sqrt(kt / (2.0 * a / ds + ds * float(np.min(K[:, 3:5, 3:5].diagonal(axis1=1, axis2=2)))))
-        return np.array([1.5 * s_r, 2.0 * s_w, 2.0 * s_w, 0.5 * s_w, 3.0 * s_w, 0.0])
+        amp = np.zeros((kn.N_TYPES, kn.N_BINS))
+        amp[kn.MT_NODE, 0] = 1.5 * s_r
+        amp[kn.MT_NODE, 1] = 2.0 * s_w
+        amp[kn.MT_CRANK] = 2.0 * s_w
+        amp[kn.MT_PIVOT] = 0.5 * s_w
+        amp[kn.MT_HINGE] = 1.0 * s_w
+        amp[kn.MT_TWIST] = 3.0 * s_w
+        return amp
 
     def _cap_amplitudes(self):
-        dmax = self.fp[kn.F_DMAX]
-        if math.isfinite(dmax):
-            self.amp[0] = min(self.amp[0], 0.9 * dmax / math.sqrt(3.0))
-        self.amp[1] = min(self.amp[1], 0.5)
-        self.amp[2] = min(self.amp[2], 1.0)
-        self.amp[3] = min(self.amp[3], 0.5)
-        self.amp[4] = min(self.amp[4], 1.0)
+        self.amp[kn.MT_NODE, 0] = min(self.amp[kn.MT_NODE, 0], 0.5)
+        self.amp[kn.MT_NODE, 1] = min(self.amp[kn.MT_NODE, 1], 1.0)
+        np.minimum(self.amp[1:], math.pi, out=self.amp[1:])
 
     def _setup_caches(self):
         n = self.model.n_nodes
@@ -266,20 +281,22 @@ class MCEngine:
                                  self.Qc, self.tc, self.estep)
         if not np.isfinite(el):
             k = int(np.argmax(~np.isfinite(self.estep)))
-            raise ParameterError(f"step {k} of the start pose rotates at or beyond the Cayley limit")
-        self.enode = np.array([self._node_external(k, self.pos[k], self.frm[k]) for k in range(n)])
-        nbk = max(1, -(-n // BLOCK_SIZE))
-        self.bc = np.zeros((nbk, 3))
-        self.br = np.zeros(nbk)
-        kn.update_blocks(self.pos, 0, nbk - 1, BLOCK_SIZE, self.bc, self.br)
+            raise ParameterError(f"step {k + 1} of the start pose rotates at or beyond the Cayley limit (steps "
+                                 f"numbered from 1)")
+        self.enode = np.zeros(n)
+        for k in self.ext_nodes:
+            self.enode[k] = self._node_loads(k, self.pos[k], self.frm[k])
+        self.esurf = np.zeros(n)
+        self.ebead = np.zeros(n)
+        e_w = kn.wall_energies(self.pos, self.frm, self.radius, self.ip, self.fp, self.esurf, self.ebead) \
+            if self.ip[kn.I_WALLS] else 0.0
+        kn.tree_build(self.pos, self.P, self.tlo, self.thi, self.tcen, self.trad)
         e_nb = kn.nonbonded_total(self.pos, self.ip, self.fp)[0] if self.ip[kn.I_NB] else 0.0
-        e_ext = float(self.enode.sum()) + kn.bead_energy(self.pos, self.frm, self.radius, self.ip, self.fp)
-        self.running = np.array([el, e_nb, e_ext])
+        self.running = np.array([el, e_nb, float(self.enode.sum()) + e_w])
 
-    def _node_external(self, k, r, L):
-        return kn.node_external(k, r, L, self.model.n_nodes, self.force, self.trap_k, self.trap_c, self.rc_k,
-                                self.rc_T, self.tq_mag, self.tq_axis, self.tq_ref, self.tq_last, self.tq_phi,
-                                self.radius, self.ip, self.fp)
+    def _node_loads(self, k, r, L):
+        return kn.node_loads(int(k), r, L, self.force, self.trap_k, self.trap_c, self.rc_k, self.rc_T, self.tq_mag,
+                             self.tq_axis, self.tq_ref, self.tq_last, self.tq_phi)
 
     # --- sampling -------------------------------------------------------------------------------------------------------
     def advance(self, n_steps):
@@ -288,51 +305,69 @@ class MCEngine:
         n_steps = int(n_steps)
         while n_steps > 0:
             if self.step < self.tune_sweeps:
-                chunk = min(n_steps, 10, self.tune_sweeps - self.step)
+                chunk = min(n_steps, 5, self.tune_sweeps - self.step)
                 before = self.counts.copy()
                 self._sweeps(chunk)
-                self._tune(self.counts - before)
+                self.tune_counts += self.counts - before
+                self._tune()
             else:
                 chunk = n_steps
                 self._sweeps(chunk)
             n_steps -= chunk
 
     def _sweeps(self, n):
-        rc = kn.sweep(self.pos, self.frm, self.K, self.xi0, self.Qc, self.tc, self.movable, self.ext, self.force, self.trap_k,
-                      self.trap_c, self.rc_k, self.rc_T, self.tq_mag, self.tq_axis, self.tq_ref, self.tq_last,
-                      self.tq_phi, self.radius, self.ip, self.fp, self.estep, self.enode, self.bc, self.br, self.rng,
-                      int(n) * self.n_moves, self.p_cum, self.amp, self.lmax, self.counts, self.running,
-                      self._work_i, self._work_f)
+        rc = kn.sweep(self.pos, self.frm, self.K, self.xi0, self.Qc, self.tc, self.movable, self.clamp_prefix,
+                      self.ext_nodes, self.force, self.trap_k, self.trap_c, self.rc_k, self.rc_T, self.tq_mag,
+                      self.tq_axis, self.tq_ref, self.tq_last, self.tq_phi, self.radius, self.ip, self.fp, self.estep,
+                      self.enode, self.esurf, self.ebead, self.tlo, self.thi, self.tcen, self.trad, self.rng,
+                      int(n) * self.n_moves, self.p_cum, self.amp, self.lmax, self.counts, self.running)
         self.step += int(n)
         if rc != 0 or not np.isfinite(self.running).all():
+            bad = int(np.argmax(~np.isfinite(self.running))) if not np.isfinite(self.running).all() else 0
             raise SimulationError(f"Monte Carlo sweep {self.step}: a non-finite energy was accepted (term "
-                                  f"{['elastic', 'nonbonded', 'external'][int(np.argmax(~np.isfinite(self.running)))]})",
-                                  step=self.step, node=-1, term="elastic")
+                                  f"{['elastic', 'nonbonded', 'external'][bad]})", step=self.step, node=-1,
+                                  term=["elastic", "nonbonded", "external"][bad])
 
-    def _tune(self, c):
-        for t in range(4):
-            att, acc = c[t]
-            if att < 20:
-                continue
-            f = math.exp(2.0 * (acc / att - TARGET_ACCEPTANCE))
-            idx = (0, 1) if t == 0 else ((2,), (3,), (4,))[t - 1]
-            for i in idx:
-                self.amp[i] *= f
+    def _tune(self):
+        c = self.tune_counts
+        for t in range(kn.N_TYPES):
+            for b in range(kn.N_BINS):
+                att, acc = c[t, b]
+                if att < TUNE_ATTEMPTS:
+                    continue
+                f = math.exp(2.0 * (acc / att - TARGET_ACCEPTANCE))
+                if t == kn.MT_NODE:
+                    self.amp[t, :2] *= f
+                else:
+                    self.amp[t, b] *= f
+                c[t, b] = 0
         self._cap_amplitudes()
 
     def acceptance(self):
         """Accepted fraction of each move type so far (dict; NaN for a type never tried)."""
-        return {name: (float(self.counts[t, 1] / self.counts[t, 0]) if self.counts[t, 0] else float("nan"))
+        tot = self.counts.sum(axis=1)
+        return {name: (float(tot[t, 1] / tot[t, 0]) if tot[t, 0] else float("nan"))
                 for t, name in enumerate(MOVE_TYPES)}
 
     def amplitudes(self):
-        """Current move amplitudes (dict: nm or rad)."""
-        return dict(zip(("node_nm", "node_rad", "crankshaft_rad", "pivot_rad", "twist_rad"), self.amp[:5].tolist()))
+        """Current move amplitudes (dict: ``node_nm``, ``node_rad``, and per move type the amplitude (rad) of each
+        segment-length octave that was tried, ``{"1": a, "2-3": b, ...}``)."""
+        out = {"node_nm": float(self.amp[0, 0]), "node_rad": float(self.amp[0, 1])}
+        tot = self.counts.sum(axis=0)
+        for t, name in enumerate(MOVE_TYPES[1:], start=1):
+            out[f"{name}_rad"] = {(f"{2 ** b}" if b == 0 else f"{2 ** b}-{2 ** (b + 1) - 1}"): float(self.amp[t, b])
+                                  for b in range(kn.N_BINS) if self.counts[t, b, 0] > 0}
+        del tot
+        return out
 
     # --- engine protocol ------------------------------------------------------------------------------------------------
     def node_state(self):
         n = self.model.n_nodes
         return self.pos.copy(), self.frm.copy(), np.zeros((n, 3)), np.zeros((n, 3))
+
+    def node_pose(self):
+        """Positions (n, 3) nm and frames (n, 3, 3) (copies)."""
+        return self.pos.copy(), self.frm.copy()
 
     def energies(self):
         """kJ/mol per term, recomputed from the pose: elastic, nonbonded, external (loads and walls), potential;
@@ -340,8 +375,10 @@ class MCEngine:
         el = kn.elastic_energies(self.pos, self.frm, self.K, self.xi0, self.model.ds, self.model.closure is not None,
                                  self.Qc, self.tc, np.empty(self.model.n_steps))
         nb = kn.nonbonded_total(self.pos, self.ip, self.fp)[0] if self.ip[kn.I_NB] else 0.0
-        ext = sum(self._node_external(k, self.pos[k], self.frm[k]) for k in range(self.model.n_nodes))
-        ext += kn.bead_energy(self.pos, self.frm, self.radius, self.ip, self.fp)
+        ext = sum(self._node_loads(k, self.pos[k], self.frm[k]) for k in self.ext_nodes)
+        if self.ip[kn.I_WALLS]:
+            n = self.model.n_nodes
+            ext += kn.wall_energies(self.pos, self.frm, self.radius, self.ip, self.fp, np.empty(n), np.empty(n))
         return dict(elastic=float(el), nonbonded=float(nb), external=float(ext), potential=float(el + nb + ext),
                     kinetic=0.0, temperature=float("nan"))
 
@@ -359,24 +396,25 @@ class MCEngine:
                 self.rc_T[rc.node] = rc.target(clamp_angle(rc.load, time_ps, d))
                 changed = True
         if changed:
-            self.enode[:] = [self._node_external(k, self.pos[k], self.frm[k]) for k in range(self.model.n_nodes)]
-            self.running[2] = float(self.enode.sum()) + kn.bead_energy(self.pos, self.frm, self.radius, self.ip,
-                                                                         self.fp)
+            for k in self.ext_nodes:
+                self.enode[k] = self._node_loads(k, self.pos[k], self.frm[k])
+            self.running[2] = float(self.enode.sum()) + float(self.esurf.sum() + self.ebead.sum())
 
     def save_checkpoint(self, path, extra=None):
         """Pose, sweep count, random-number state, amplitudes, counters and the torque angles, atomically (npz)."""
-        meta = dict(format="dnarod-mc-checkpoint", version=1, step=self.step, n_nodes=self.model.n_nodes,
+        meta = dict(format="dnarod-mc-checkpoint", version=2, step=self.step, n_nodes=self.model.n_nodes,
                     fingerprint=self.fingerprint, temperature=self.temperature, seed=self.seed,
                     moves=self.moves, extra=extra or {})
         with atomic_path(path) as tmp:
             with open(tmp, "wb") as fh:
                 np.savez(fh, positions=self.pos, frames=self.frm, rng=self.rng, amp=self.amp, counts=self.counts,
-                         tq_phi=self.tq_phi, tq_last=self.tq_last, rc_T=self.rc_T, meta=np.array(json.dumps(meta)))
+                         tune_counts=self.tune_counts, tq_phi=self.tq_phi, tq_last=self.tq_last, rc_T=self.rc_T,
+                         meta=np.array(json.dumps(meta)))
 
     def load_checkpoint(self, path):
         """Restore a checkpoint of :meth:`save_checkpoint` for this model and temperature; returns its metadata."""
-        meta, a = read_checkpoint(path, "dnarod-mc-checkpoint",
-                                  ("positions", "frames", "rng", "amp", "counts", "tq_phi", "tq_last", "rc_T"))
+        keys = ("positions", "frames", "rng", "amp", "counts", "tune_counts", "tq_phi", "tq_last", "rc_T")
+        meta, a = read_checkpoint(path, "dnarod-mc-checkpoint", keys)
         n = self.model.n_nodes
         if meta.get("n_nodes") != n or meta.get("fingerprint") != self.fingerprint or a["positions"].shape != (n, 3):
             raise ParameterError(f"{path}: checkpoint belongs to another model ({meta.get('n_nodes')} nodes, "
@@ -384,11 +422,14 @@ class MCEngine:
         if not math.isclose(float(meta.get("temperature", -1)), self.temperature, rel_tol=1e-12):
             raise ParameterError(f"{path}: checkpoint was written at {meta.get('temperature')} K, this run samples "
                                  f"at {self.temperature} K")
+        if a["amp"].shape != self.amp.shape or a["counts"].shape != self.counts.shape:
+            raise ParameterError(f"{path}: checkpoint of another version of the Monte Carlo engine; start a new run")
         self.pos[...] = a["positions"]
         self.frm[...] = a["frames"]
         self.rng[...] = a["rng"].astype(np.uint64)
         self.amp[...] = a["amp"]
         self.counts[...] = a["counts"]
+        self.tune_counts[...] = a["tune_counts"]
         self.tq_phi[...] = a["tq_phi"]
         self.tq_last[...] = a["tq_last"]
         self.rc_T[...] = a["rc_T"]
@@ -403,8 +444,6 @@ def _axisymmetric(K, xi0, tol=1e-12):
     if np.abs(xi0[:, [0, 1, 3, 4]]).max(initial=0.0) > tol:
         return False
     scale = max(1.0, float(np.abs(K).max()))
-    # invariance under R = diag(Rz(phi), Rz(phi)) for all phi: K_xx = K_yy, K_xy = -K_yx, no x/y-z coupling
-    idx_xy = [(0, 1), (3, 4), (0, 4), (3, 1)]
     for (i, j) in [(0, 1), (3, 4)]:
         if np.abs(K[:, i, i] - K[:, j, j]).max() > tol * scale:
             return False
@@ -412,7 +451,7 @@ def _axisymmetric(K, xi0, tol=1e-12):
         for j in (2, 5):
             if np.abs(K[:, i, j]).max() > tol * scale or np.abs(K[:, j, i]).max() > tol * scale:
                 return False
-    for (i, j) in idx_xy:
+    for (i, j) in [(0, 1), (3, 4), (0, 4), (3, 1)]:
         if np.abs(K[:, i, j]).max() > tol * scale or np.abs(K[:, j, i]).max() > tol * scale:
             return False
     # the x-x coupling of the two vectors (K[0, 3] and K[1, 4]) must be equal

@@ -1,41 +1,71 @@
-"""Numba kernels of the Monte Carlo engine: energies of the exact model and the move loop.
+"""Numba kernels of the Monte Carlo engine: energies of the exact model, a bounding-sphere tree, and the move loop.
 
 Why our own kernels: no library samples SE(3)^N rods with the exact SMK (Cayley-strain) energy; the energy
-of a move must be computed locally (only the steps and node pairs it changes) in compiled code to be useful.
+of a move must be computed locally (only the steps, node pairs and wall contacts it changes) in compiled code.
 
+Energy
+------
 The state is the pose (positions ``pos`` (n, 3) nm, frames ``frm`` (n, 3, 3), directors as columns). The energy
 is the sum of
 
 * the elastic energy of every step, ``ds H`` (:func:`step_energy`, the arithmetic of
-  :func:`dnarod.kernels.step_loads`);
+  :func:`dnarod.core.kernels.step_loads`);
 * the non-bonded pairs (WCA + shifted Debye-Hueckel between node centres, chain separation > ``n_ex``, the
-  functional form of :func:`dnarod.openmm.nonbonded.pair_kernel`);
-* the external energy of each node (:func:`node_external`): dead pulling force ``-F . r``, trap, rotation clamp
+  functional form of :func:`dnarod.engines.openmm.nonbonded.pair_kernel`);
+* the loads of each node (:func:`node_loads`): dead pulling force ``-F . r``, trap, rotation clamp
   ``k (3 - tr(T^T L)) / 2``, dead torque ``-|tau| phi`` (phi the unwrapped swing-twist angle about the torque
-  axis, as :class:`dnarod.openmm.loads.TorqueCallback`), and the tweezers surface wall on the node's three
-  particles (:mod:`dnarod.openmm.walls`);
-* the tweezers bead wall between the first particle of every node and the last node's centre.
+  axis, as :class:`dnarod.engines.openmm.loads.TorqueCallback`);
+* the tweezers walls of :mod:`dnarod.engines.openmm.walls`: the surface plane under the three particles of nodes
+  ``skip .. n-1`` (:func:`surface_energy`) and the bead plane through the last node's centre above the first
+  particle of nodes ``0 .. n-1-skip`` (:func:`bead_term`).
 
-Moves (one call of :func:`sweep` attempts ``n_moves`` of them, types drawn with the probabilities ``p``):
+Moves
+-----
+One call of :func:`sweep` attempts ``n_moves`` moves, types drawn with fixed probabilities:
 
 0. *node*: one free node translated (uniform in a cube) and rotated (Cayley map of a vector uniform in a ball)
    about its centre;
 1. *crankshaft*: nodes ``i+1 .. j-1`` rotated rigidly about the axis through nodes i and j (ends fixed);
 2. *pivot*: the tail ``k .. n-1`` (or the head ``0 .. k``) of an open chain rotated rigidly about node k's centre
-   (k = 0 or n-1: the whole chain, by any angle);
-3. *twist*: the frames of nodes ``a .. b`` turned by one angle about their own d3 (positions fixed).
+   about a random axis (the whole chain: any angle);
+3. *hinge pair* ("constrained pivot", the move of PolyMC's ``MCS_PivCon``, Skoruppa and Carlon): nodes
+   ``a .. b`` rotated rigidly about node a's centre and the rest of the chain, ``b+1 .. n-1``, translated with
+   node b, so that only steps ``a-1`` and ``b`` bend: the far end moves without turning (a rotation-clamped bead
+   keeps its orientation), which is what relaxes the extension of a chain held at both ends by a surface and a bead;
+4. *twist*: the frames of nodes ``a .. b`` turned by one angle about their own d3 (positions fixed).
 
-Every proposal is symmetric with respect to the invariant (Haar x Lebesgue) measure of SE(3)^n, and rotation
-amplitudes are capped by a quantity the move leaves invariant (the largest distance of a moved node from the
-rotation axis or point), so Metropolis acceptance ``min(1, exp(-dE/kT))`` samples ``exp(-E/kT)`` exactly.
+Segment lengths are drawn log-uniformly (every length scale equally often) independently of the state, and every
+proposal is symmetric with respect to the invariant (Haar x Lebesgue) measure of SE(3)^n (the inverse move has the
+same probability), so Metropolis acceptance ``min(1, exp(-dE/kT))`` samples ``exp(-E/kT)`` exactly. Amplitudes
+depend only on the move type and the segment length's octave (:func:`length_bin`).
 
-Topology (when the excluded volume is on): a move is rejected if a moved node comes within ``r_hc`` of a node it
-interacts with (chain separation > ``n_ex``), where ``r_hc`` is the distance at which the WCA energy exceeds
-:data:`HARD_CORE_KT` kT (its Boltzmann factor underflows double precision, so nothing is lost), or if it makes a
-step's chord longer than ``l_max``; and no node moves along a path longer than ``delta_max = 2 (r_hc - l_max)``.
-Then no segment of the chain passes through another non-excluded segment during the move (a point of the moved
-polyline that touched the fixed one half-way would be within ``delta_max / 2`` of it at the start or the end,
-while every such distance is at least ``r_hc - l_max``), so linking numbers and knot types are kept.
+A move is a partition of the chain into at most :data:`MAX_SEG` index segments, each carried by one *motion*
+(fixed; rotation about an axis through a point; translation along the arc of a point rotating about an axis;
+straight translation with a turn about the node's own centre; body twist). Only steps between segments of
+different motions, wall contacts of moved nodes (or of all nodes when the bead plane moves), and pairs of nodes
+in differently moving segments change their energy.
+
+Bounding-sphere tree
+--------------------
+Leaves hold :data:`LEAF` consecutive nodes; the tree is complete over a power of two of leaves (implicit binary
+heap: node t has children 2t, 2t+1, root 1), each node a sphere enclosing its nodes' centres. The pairs a move
+changes are found by a dual-tree descent restricted to the index ranges of two segments; a pair of tree nodes is
+skipped when every pair of nodes in it is excluded along the chain, or when their spheres, each grown by a bound
+on its nodes' displacement (:func:`disp_bound`), are farther apart than the cut-off. The walls are found by a
+descent on the z extent of the spheres. For a stretched chain both cost O(log n) per move instead of O(moved
+nodes); after an accepted move the spheres of the leaves it touched and their ancestors are recomputed.
+
+Topology (when the excluded volume is on)
+-----------------------------------------
+A move is rejected if a moved node comes within ``r_hc`` of a node it interacts with (chain separation > n_ex),
+where ``r_hc`` is the distance at which the WCA energy exceeds :data:`HARD_CORE_KT` kT (its Boltzmann factor
+underflows double precision, so nothing is lost) at the end of the move *or at any point of its continuous path*:
+the relative path of two nodes is an arc of a rotation (rigid and hinge-pair moves) or a straight line (node
+moves), whose distance of closest approach is computed exactly (:func:`arc_min2`). Chords of changed steps stay
+below ``l_max < r_hc`` (the chords a move changes are longest at one end of its path). Then no segment of the
+chain passes through another non-excluded one during the move (two crossing segments of chords <= l_max would
+bring two of their end nodes within l_max), so linking numbers and knot types are kept, whatever the size of the
+move.
 """
 from __future__ import annotations
 
@@ -49,6 +79,26 @@ from dnarod.core.kernels import _DEN_LIMIT
 #: WCA energy (kT) beyond which a pair is a hard-core overlap: exp(-700) underflows to 1e-304.
 HARD_CORE_KT = 700.0
 _SQ3H = 0.8660254037844386
+
+# float parameter pack
+F_DS, F_KT, F_EPS, F_S2, F_RCWCA, F_ADH, F_KAPPA, F_RCDH, F_SHIFT, F_CUT, F_RHC, F_LMAX, F_WZ0, F_WK, F_PRAD = range(15)
+N_F = 15
+# int parameter pack
+I_N, I_CIRC, I_NEX, I_NB, I_EV, I_WALLS, I_SKIP, I_LEAF, I_AXI, I_IDCLOS, I_P = range(11)
+N_I = 11
+# move types
+MT_NODE, MT_CRANK, MT_PIVOT, MT_HINGE, MT_TWIST = range(5)
+N_TYPES = 5
+#: Amplitude bins per move type: octaves of the segment length (bin b holds lengths 2^b .. 2^(b+1) - 1).
+N_BINS = 24
+# motion kinds
+K_FIXED, K_ROT, K_TRANSARC, K_LINEAR, K_TWIST = range(5)
+#: Most segments (and motions, fixed included) of one move.
+MAX_SEG = 5
+MAX_MOT = 3
+#: Nodes per leaf of the bounding-sphere tree.
+LEAF = 8
+_STACK = 256
 
 # --- random numbers: xoshiro256+ (state: 4 uint64), saved in checkpoints ---------------------------------------------
 
@@ -110,6 +160,27 @@ def _rotation(axis0, axis1, axis2, ang, R):
     R[2, 0] = t * axis2 * axis0 - s * axis1
     R[2, 1] = t * axis2 * axis1 + s * axis0
     R[2, 2] = c + t * axis2 * axis2
+
+
+@njit(cache=True)
+def segment_length(s, lmax):
+    """A segment length in 1..lmax, log-uniformly distributed."""
+    ln = int(math.exp(rng_uniform(s) * math.log(lmax + 1.0)))
+    if ln > lmax:
+        ln = lmax
+    if ln < 1:
+        ln = 1
+    return ln
+
+
+@njit(cache=True, inline="always")
+def length_bin(ln):
+    """Octave of a segment length (0 for 1, 1 for 2-3, 2 for 4-7, ...)."""
+    b = 0
+    while ln > 1 and b < N_BINS - 1:
+        ln >>= 1
+        b += 1
+    return b
 
 
 # --- elastic energy ----------------------------------------------------------------------------------------------------
@@ -177,10 +248,6 @@ def elastic_energies(pos, frm, K, xi0, ds, circular, Qc, tc, out):
 
 
 # --- non-bonded ----------------------------------------------------------------------------------------------------------
-# fp layout (floats): see :func:`pack_floats` in engine.py
-F_DS, F_KT, F_EPS, F_S2, F_RCWCA, F_ADH, F_KAPPA, F_RCDH, F_SHIFT, F_CUT, F_RHC, F_LMAX, F_DMAX, F_WZ0, F_WK = range(15)
-# ip layout (ints)
-I_N, I_CIRC, I_NEX, I_NB, I_EV, I_WALLS, I_SKIP, I_BS, I_AXI, I_IDCLOS = range(10)
 
 
 @njit(cache=True, inline="always")
@@ -197,6 +264,23 @@ def pair_energy(r2, fp):
     if r < fp[F_RCDH]:
         e += fp[F_ADH] * math.exp(-fp[F_KAPPA] * r) / r - fp[F_SHIFT]
     return e
+
+
+@njit(cache=True, inline="always")
+def pair_force_over_r(r2, fp):
+    """``-dE/dr / r`` of a pair at squared distance r2 (kJ/mol/nm^2): the force on j from i is this times
+    ``r_j - r_i``."""
+    cut = fp[F_CUT]
+    if r2 >= cut * cut:
+        return 0.0
+    r = math.sqrt(r2)
+    f = 0.0
+    if r < fp[F_RCWCA]:
+        s6 = (fp[F_S2] / r2) ** 3
+        f += 24.0 * fp[F_EPS] * (2.0 * s6 * s6 - s6) / r2
+    if r < fp[F_RCDH]:
+        f += fp[F_ADH] * math.exp(-fp[F_KAPPA] * r) * (fp[F_KAPPA] * r + 1.0) / (r2 * r)
+    return f
 
 
 @njit(cache=True, inline="always")
@@ -231,91 +315,396 @@ def nonbonded_total(pos, ip, fp):
     return E, math.sqrt(dmin2)
 
 
+# --- bounding-sphere tree ----------------------------------------------------------------------------------------------
+
+
+def tree_ranges(n, leaf=LEAF):
+    """Index ranges of the tree nodes: ``(P, lo (2P,), hi (2P,))`` with P leaves (a power of two); an empty node
+    has lo > hi."""
+    nl = max(1, -(-n // leaf))
+    P = 1
+    while P < nl:
+        P *= 2
+    lo = np.full(2 * P, 1, np.int64)
+    hi = np.zeros(2 * P, np.int64)
+    for b in range(P):
+        a = b * leaf
+        if a < n:
+            lo[P + b] = a
+            hi[P + b] = min(n, a + leaf) - 1
+    for t in range(P - 1, 0, -1):
+        l_, r_ = 2 * t, 2 * t + 1
+        if lo[l_] <= hi[l_]:
+            lo[t] = lo[l_]
+            hi[t] = hi[r_] if lo[r_] <= hi[r_] else hi[l_]
+    return P, lo, hi
+
+
+@njit(cache=True, inline="always")
+def _leaf_sphere(pos, t, tlo, thi, tcen, trad):
+    lo = tlo[t]
+    hi = thi[t]
+    if lo > hi:
+        trad[t] = -1.0
+        return
+    cx = 0.0
+    cy = 0.0
+    cz = 0.0
+    for i in range(lo, hi + 1):
+        cx += pos[i, 0]
+        cy += pos[i, 1]
+        cz += pos[i, 2]
+    inv = 1.0 / (hi - lo + 1)
+    cx *= inv
+    cy *= inv
+    cz *= inv
+    rr = 0.0
+    for i in range(lo, hi + 1):
+        dx = pos[i, 0] - cx
+        dy = pos[i, 1] - cy
+        dz = pos[i, 2] - cz
+        d2 = dx * dx + dy * dy + dz * dz
+        if d2 > rr:
+            rr = d2
+    tcen[t, 0] = cx
+    tcen[t, 1] = cy
+    tcen[t, 2] = cz
+    trad[t] = math.sqrt(rr) * (1.0 + 1e-12) + 1e-12
+
+
+@njit(cache=True, inline="always")
+def _merge_sphere(t, tcen, trad):
+    a = 2 * t
+    b = 2 * t + 1
+    ra = trad[a]
+    rb = trad[b]
+    if rb < 0.0 or ra < 0.0:
+        s = a if rb < 0.0 else b
+        tcen[t, 0] = tcen[s, 0]
+        tcen[t, 1] = tcen[s, 1]
+        tcen[t, 2] = tcen[s, 2]
+        trad[t] = trad[s]
+        return
+    dx = tcen[b, 0] - tcen[a, 0]
+    dy = tcen[b, 1] - tcen[a, 1]
+    dz = tcen[b, 2] - tcen[a, 2]
+    d = math.sqrt(dx * dx + dy * dy + dz * dz)
+    if d + rb <= ra:
+        s = a
+    elif d + ra <= rb:
+        s = b
+    else:
+        R = 0.5 * (d + ra + rb)
+        f = (R - ra) / d
+        tcen[t, 0] = tcen[a, 0] + f * dx
+        tcen[t, 1] = tcen[a, 1] + f * dy
+        tcen[t, 2] = tcen[a, 2] + f * dz
+        trad[t] = R * (1.0 + 1e-12)
+        return
+    tcen[t, 0] = tcen[s, 0]
+    tcen[t, 1] = tcen[s, 1]
+    tcen[t, 2] = tcen[s, 2]
+    trad[t] = trad[s]
+
+
 @njit(cache=True)
-def update_blocks(pos, b0, b1, bs, bc, br):
-    """Bounding spheres (centre bc (nb, 3), radius br (nb,)) of blocks b0..b1 of ``bs`` consecutive nodes."""
-    n = pos.shape[0]
-    for b in range(b0, b1 + 1):
-        lo = b * bs
-        hi = min(n, lo + bs)
-        mid = (lo + hi - 1) // 2
+def tree_build(pos, P, tlo, thi, tcen, trad):
+    """All spheres from the positions."""
+    for t in range(P, 2 * P):
+        _leaf_sphere(pos, t, tlo, thi, tcen, trad)
+    for t in range(P - 1, 0, -1):
+        _merge_sphere(t, tcen, trad)
+
+
+@njit(cache=True)
+def tree_update(pos, i_lo, i_hi, leaf, P, tlo, thi, tcen, trad):
+    """Spheres of the leaves holding nodes i_lo..i_hi and of their ancestors."""
+    a = P + i_lo // leaf
+    b = P + i_hi // leaf
+    for t in range(a, b + 1):
+        _leaf_sphere(pos, t, tlo, thi, tcen, trad)
+    a >>= 1
+    b >>= 1
+    while a >= 1:
+        for t in range(a, b + 1):
+            _merge_sphere(t, tcen, trad)
+        a >>= 1
+        b >>= 1
+
+
+# --- motions -----------------------------------------------------------------------------------------------------------
+# motion m (0 .. MAX_MOT-1; m = 0 is always the fixed one): mkind (M,), mR (M, 3, 3) rotation of positions about mc
+# (kind ROT) or of frames (ROT, LINEAR), mc (M, 3) centre, mt (M, 3) translation (TRANSARC, LINEAR), mu (M, 3) axis and
+# mth (M,) angle of the path's rotation (ROT, TRANSARC; TWIST: the twist angle), mq (M, 3) the point whose arc the
+# translation follows (TRANSARC), mb (M,) displacement bound factor 2|sin(th/2)| (ROT) or |t| (TRANSARC, LINEAR).
+
+
+@njit(cache=True, inline="always")
+def move_point(m, x0, x1, x2, mkind, mR, mc, mt):
+    k = mkind[m]
+    if k == K_ROT:
+        p0 = x0 - mc[m, 0]
+        p1 = x1 - mc[m, 1]
+        p2 = x2 - mc[m, 2]
+        return (mc[m, 0] + mR[m, 0, 0] * p0 + mR[m, 0, 1] * p1 + mR[m, 0, 2] * p2,
+                mc[m, 1] + mR[m, 1, 0] * p0 + mR[m, 1, 1] * p1 + mR[m, 1, 2] * p2,
+                mc[m, 2] + mR[m, 2, 0] * p0 + mR[m, 2, 1] * p1 + mR[m, 2, 2] * p2)
+    if k == K_TRANSARC or k == K_LINEAR:
+        return x0 + mt[m, 0], x1 + mt[m, 1], x2 + mt[m, 2]
+    return x0, x1, x2
+
+
+@njit(cache=True, inline="always")
+def move_frame(m, L, mkind, mR, mth, out):
+    """New frame of a node with frame L under motion m, into out (3, 3)."""
+    k = mkind[m]
+    if k == K_ROT or k == K_LINEAR:
         for a in range(3):
-            bc[b, a] = pos[mid, a]
-        rr = 0.0
-        for i in range(lo, hi):
-            dx = pos[i, 0] - bc[b, 0]
-            dy = pos[i, 1] - bc[b, 1]
-            dz = pos[i, 2] - bc[b, 2]
-            d2 = dx * dx + dy * dy + dz * dz
-            if d2 > rr:
-                rr = d2
-        br[b] = math.sqrt(rr)
+            for b in range(3):
+                out[a, b] = mR[m, a, 0] * L[0, b] + mR[m, a, 1] * L[1, b] + mR[m, a, 2] * L[2, b]
+    elif k == K_TWIST:
+        c = math.cos(mth[m])
+        s = math.sin(mth[m])
+        for a in range(3):
+            out[a, 0] = c * L[a, 0] + s * L[a, 1]
+            out[a, 1] = -s * L[a, 0] + c * L[a, 1]
+            out[a, 2] = L[a, 2]
+    else:
+        for a in range(3):
+            for b in range(3):
+                out[a, b] = L[a, b]
+
+
+@njit(cache=True, inline="always")
+def disp_bound(m, x0, x1, x2, r, mkind, mc, mu, mb):
+    """Largest displacement, along the move's path, of any point within r of (x0, x1, x2) under motion m (nm): for
+    a rotation ``2 |sin(th/2)|`` times the largest distance from the axis."""
+    k = mkind[m]
+    if k == K_ROT:
+        d0 = x0 - mc[m, 0]
+        d1 = x1 - mc[m, 1]
+        d2 = x2 - mc[m, 2]
+        pr = d0 * mu[m, 0] + d1 * mu[m, 1] + d2 * mu[m, 2]
+        return mb[m] * (math.sqrt(max(0.0, d0 * d0 + d1 * d1 + d2 * d2 - pr * pr)) + r)
+    if k == K_TRANSARC or k == K_LINEAR:
+        return mb[m]
+    return 0.0
+
+
+@njit(cache=True, inline="always")
+def rel_bound(m1, a0, a1, a2, ra, m2, b0, b1, b2, rb, mkind, mc, mu, mq, mb):
+    """Bound on the change, along the move's path, of the vector between a point within ra of a (motion m1) and a
+    point within rb of b (motion m2) (nm). A rotation and the translation that follows its point q move relative
+    to each other as a rotation about the axis through q."""
+    k1 = mkind[m1]
+    k2 = mkind[m2]
+    if k1 == K_ROT and k2 == K_TRANSARC:
+        d0 = a0 - mq[m2, 0]
+        d1 = a1 - mq[m2, 1]
+        d2 = a2 - mq[m2, 2]
+        pr = d0 * mu[m1, 0] + d1 * mu[m1, 1] + d2 * mu[m1, 2]
+        return mb[m1] * (math.sqrt(max(0.0, d0 * d0 + d1 * d1 + d2 * d2 - pr * pr)) + ra)
+    if k2 == K_ROT and k1 == K_TRANSARC:
+        d0 = b0 - mq[m1, 0]
+        d1 = b1 - mq[m1, 1]
+        d2 = b2 - mq[m1, 2]
+        pr = d0 * mu[m2, 0] + d1 * mu[m2, 1] + d2 * mu[m2, 2]
+        return mb[m2] * (math.sqrt(max(0.0, d0 * d0 + d1 * d1 + d2 * d2 - pr * pr)) + rb)
+    return disp_bound(m1, a0, a1, a2, ra, mkind, mc, mu, mb) + disp_bound(m2, b0, b1, b2, rb, mkind, mc, mu, mb)
+
+
+@njit(cache=True, inline="always")
+def arc_min2(a0, a1, a2, b0, b1, b2, u0, u1, u2, th):
+    """``min |R_u(phi) a - b|^2`` over phi between 0 and th (|th| <= pi), R_u(phi) the rotation about the unit u."""
+    ap = a0 * u0 + a1 * u1 + a2 * u2
+    bp = b0 * u0 + b1 * u1 + b2 * u2
+    x0 = a0 - ap * u0
+    x1 = a1 - ap * u1
+    x2 = a2 - ap * u2
+    y0 = b0 - bp * u0
+    y1 = b1 - bp * u1
+    y2 = b2 - bp * u2
+    base = (ap - bp) * (ap - bp) + x0 * x0 + x1 * x1 + x2 * x2 + y0 * y0 + y1 * y1 + y2 * y2
+    A = x0 * y0 + x1 * y1 + x2 * y2
+    B = (u1 * x2 - u2 * x1) * y0 + (u2 * x0 - u0 * x2) * y1 + (u0 * x1 - u1 * x0) * y2
+    fmax = max(A, A * math.cos(th) + B * math.sin(th))
+    ps = math.atan2(B, A)
+    lo = min(0.0, th)
+    hi = max(0.0, th)
+    if lo <= ps <= hi:
+        fmax = math.sqrt(A * A + B * B)
+    d2 = base - 2.0 * fmax
+    return d2 if d2 > 0.0 else 0.0
 
 
 @njit(cache=True)
-def nonbonded_delta(pos, newpos, mv, nmv, moved, delta, bc, br, ip, fp):
-    """Non-bonded energy change (kJ/mol) of moving nodes ``mv[:nmv]`` to ``newpos[:nmv]`` (every node moves by at
-    most ``delta`` nm); ``inf`` if a moved node comes within the hard core of a node it interacts with.
-    ``moved`` (n,) bool marks the moved nodes. Pairs are found through the block bounding spheres."""
+def path_min2(m1, x, m2, y, mkind, mc, mt, mu, mth, mq):
+    """Squared distance of closest approach, along the move's path, of a node at x (3,) carried by motion m1 and
+    one at y carried by m2 (one of them fixed, or a rotation and the translation that follows it); -1 for a pair
+    of motions no move produces."""
+    k1 = mkind[m1]
+    k2 = mkind[m2]
+    if k1 == K_FIXED or k1 == K_TWIST:
+        m1, m2 = m2, m1
+        k1, k2 = k2, k1
+        x, y = y, x
+    if k2 == K_FIXED or k2 == K_TWIST:
+        if k1 == K_ROT:
+            return arc_min2(x[0] - mc[m1, 0], x[1] - mc[m1, 1], x[2] - mc[m1, 2], y[0] - mc[m1, 0],
+                            y[1] - mc[m1, 1], y[2] - mc[m1, 2], mu[m1, 0], mu[m1, 1], mu[m1, 2], mth[m1])
+        if k1 == K_TRANSARC:
+            a0 = mq[m1, 0] - mc[m1, 0]
+            a1 = mq[m1, 1] - mc[m1, 1]
+            a2 = mq[m1, 2] - mc[m1, 2]
+            return arc_min2(a0, a1, a2, y[0] - x[0] + a0, y[1] - x[1] + a1, y[2] - x[2] + a2, mu[m1, 0], mu[m1, 1],
+                            mu[m1, 2], mth[m1])
+        if k1 == K_LINEAR:
+            d0 = x[0] - y[0]
+            d1 = x[1] - y[1]
+            d2 = x[2] - y[2]
+            tt = mt[m1, 0] * mt[m1, 0] + mt[m1, 1] * mt[m1, 1] + mt[m1, 2] * mt[m1, 2]
+            s = 0.0
+            if tt > 0.0:
+                s = -(d0 * mt[m1, 0] + d1 * mt[m1, 1] + d2 * mt[m1, 2]) / tt
+                s = min(1.0, max(0.0, s))
+            d0 += s * mt[m1, 0]
+            d1 += s * mt[m1, 1]
+            d2 += s * mt[m1, 2]
+            return d0 * d0 + d1 * d1 + d2 * d2
+        return -1.0
+    if k1 == K_TRANSARC and k2 == K_ROT:
+        m1, m2 = m2, m1
+        k1, k2 = k2, k1
+        x, y = y, x
+    if k1 == K_ROT and k2 == K_TRANSARC:
+        # the tail follows the arc of q about the rotation's own axis: relative path R(phi) (x - q) vs (y - q)
+        return arc_min2(x[0] - mq[m2, 0], x[1] - mq[m2, 1], x[2] - mq[m2, 2], y[0] - mq[m2, 0], y[1] - mq[m2, 1],
+                        y[2] - mq[m2, 2], mu[m1, 0], mu[m1, 1], mu[m1, 2], mth[m1])
+    return -1.0
+
+
+@njit(cache=True)
+def nonbonded_delta(pos, nseg, slo, shi, smid, mkind, mR, mc, mt, mu, mth, mq, mb, tlo, thi, tcen, trad, ip, fp,
+                    stack):
+    """Non-bonded energy change (kJ/mol) of a move (segments and motions as in :func:`sweep`); ``inf`` if two
+    interacting nodes come within the hard core at its end or along its path (module docstring)."""
     n = pos.shape[0]
-    bs = ip[I_BS]
-    nb = bc.shape[0]
     circ = ip[I_CIRC] == 1
     nex = ip[I_NEX]
     ev = ip[I_EV] == 1
-    rhc2 = fp[F_RHC] * fp[F_RHC]
-    reach = fp[F_CUT] + delta
+    P = ip[I_P]
+    cut = fp[F_CUT]
+    cut2 = cut * cut
+    rhc = fp[F_RHC]
+    rhc2 = rhc * rhc
+    x = np.empty(3)
+    y = np.empty(3)
     dE = 0.0
-    s = 0
-    while s < nmv:
-        b1 = mv[s] // bs
-        e = s
-        while e < nmv and mv[e] // bs == b1:
-            e += 1
-        # moved nodes mv[s:e] lie in block b1
-        for b2 in range(nb):
-            dx = bc[b2, 0] - bc[b1, 0]
-            dy = bc[b2, 1] - bc[b1, 1]
-            dz = bc[b2, 2] - bc[b1, 2]
-            lim = reach + br[b1] + br[b2]
-            if dx * dx + dy * dy + dz * dz > lim * lim:
+    for s1 in range(nseg):
+        m1 = smid[s1]
+        for s2 in range(s1 + 1, nseg):
+            m2 = smid[s2]
+            if m1 == m2:
                 continue
-            lo = b2 * bs
-            hi = min(n, lo + bs)
-            for t in range(s, e):
-                i = mv[t]
-                # interacting partners j: nex < |i - j| (and, on a ring, |i - j| < n - nex): two index intervals
-                for half in range(2):
-                    if half == 0:
-                        ja = lo
-                        jb = min(hi, i - nex)
-                        if circ:
-                            ja = max(lo, i - n + nex + 1)
-                    else:
-                        ja = max(lo, i + nex + 1)
-                        jb = hi
-                        if circ:
-                            jb = min(hi, i + n - nex)
-                    for j in range(ja, jb):
-                        if moved[j]:
+            k1 = mkind[m1]
+            k2 = mkind[m2]
+            if (k1 == K_FIXED or k1 == K_TWIST) and (k2 == K_FIXED or k2 == K_TWIST):
+                continue
+            sp = 1
+            stack[0, 0] = 1
+            stack[0, 1] = 1
+            while sp > 0:
+                sp -= 1
+                ta = stack[sp, 0]
+                tb = stack[sp, 1]
+                alo = max(tlo[ta], slo[s1])
+                ahi = min(thi[ta], shi[s1])
+                if alo > ahi:
+                    continue
+                blo = max(tlo[tb], slo[s2])
+                bhi = min(thi[tb], shi[s2])
+                if blo > bhi:
+                    continue
+                # segments are ordered along the chain: every j - i lies in [blo - ahi, bhi - alo]
+                if bhi - alo <= nex or (circ and blo - ahi >= n - nex):
+                    continue
+                ra = trad[ta]
+                rb = trad[tb]
+                dx = tcen[tb, 0] - tcen[ta, 0]
+                dy = tcen[tb, 1] - tcen[ta, 1]
+                dz = tcen[tb, 2] - tcen[ta, 2]
+                gap = math.sqrt(dx * dx + dy * dy + dz * dz) - ra - rb
+                if gap < cut:
+                    pass  # interacting before the move
+                else:
+                    # after the move: the spheres move rigidly with their segments' motions
+                    a0, a1, a2 = move_point(m1, tcen[ta, 0], tcen[ta, 1], tcen[ta, 2], mkind, mR, mc, mt)
+                    b0, b1, b2 = move_point(m2, tcen[tb, 0], tcen[tb, 1], tcen[tb, 2], mkind, mR, mc, mt)
+                    if math.sqrt((b0 - a0) ** 2 + (b1 - a1) ** 2 + (b2 - a2) ** 2) - ra - rb >= cut:
+                        # on the way: within the displacement bounds, against the hard core only
+                        if not ev:
                             continue
-                        ax = pos[j, 0] - newpos[t, 0]
-                        ay = pos[j, 1] - newpos[t, 1]
-                        az = pos[j, 2] - newpos[t, 2]
-                        r2n = ax * ax + ay * ay + az * az
-                        if ev and r2n < rhc2:
-                            return np.inf
-                        ox = pos[j, 0] - pos[i, 0]
-                        oy = pos[j, 1] - pos[i, 1]
-                        oz = pos[j, 2] - pos[i, 2]
-                        dE += pair_energy(r2n, fp) - pair_energy(ox * ox + oy * oy + oz * oz, fp)
-        s = e
+                        if gap - rel_bound(m1, tcen[ta, 0], tcen[ta, 1], tcen[ta, 2], ra, m2, tcen[tb, 0],
+                                           tcen[tb, 1], tcen[tb, 2], rb, mkind, mc, mu, mq, mb) >= rhc:
+                            continue
+                la = ta >= P
+                lb = tb >= P
+                if la and lb:
+                    nb0, nb1, nb2 = move_point(m2, tcen[tb, 0], tcen[tb, 1], tcen[tb, 2], mkind, mR, mc, mt)
+                    for i in range(alo, ahi + 1):
+                        x[0] = pos[i, 0]
+                        x[1] = pos[i, 1]
+                        x[2] = pos[i, 2]
+                        yi0, yi1, yi2 = move_point(m1, x[0], x[1], x[2], mkind, mR, mc, mt)
+                        # node i against leaf b's sphere, before, after and (hard core) on the way
+                        gi = math.sqrt((tcen[tb, 0] - x[0]) ** 2 + (tcen[tb, 1] - x[1]) ** 2
+                                       + (tcen[tb, 2] - x[2]) ** 2) - rb
+                        if gi >= cut and math.sqrt((nb0 - yi0) ** 2 + (nb1 - yi1) ** 2 + (nb2 - yi2) ** 2) - rb >= cut:
+                            if not ev or gi - rel_bound(m1, x[0], x[1], x[2], 0.0, m2, tcen[tb, 0], tcen[tb, 1],
+                                                        tcen[tb, 2], rb, mkind, mc, mu, mq, mb) >= rhc:
+                                continue
+                        j0 = max(blo, i + nex + 1)
+                        j1 = min(bhi, i + n - nex - 1) if circ else bhi
+                        for j in range(j0, j1 + 1):
+                            y[0] = pos[j, 0]
+                            y[1] = pos[j, 1]
+                            y[2] = pos[j, 2]
+                            d0 = (y[0] - x[0]) ** 2 + (y[1] - x[1]) ** 2 + (y[2] - x[2]) ** 2
+                            yj0, yj1, yj2 = move_point(m2, y[0], y[1], y[2], mkind, mR, mc, mt)
+                            d1 = (yj0 - yi0) ** 2 + (yj1 - yi1) ** 2 + (yj2 - yi2) ** 2
+                            if ev:
+                                if d1 < rhc2:
+                                    return np.inf
+                                # the relative path is an arc (or a line) whose points lie within its chord of the
+                                # start
+                                rel = math.sqrt((yj0 - yi0 - y[0] + x[0]) ** 2 + (yj1 - yi1 - y[1] + x[1]) ** 2
+                                                + (yj2 - yi2 - y[2] + x[2]) ** 2)
+                                if math.sqrt(d0) - rel < rhc:
+                                    pm = path_min2(m1, x, m2, y, mkind, mc, mt, mu, mth, mq)
+                                    if pm < rhc2:
+                                        return np.inf
+                            if d0 < cut2:
+                                dE -= pair_energy(d0, fp)
+                            if d1 < cut2:
+                                dE += pair_energy(d1, fp)
+                elif lb or (not la and ra >= rb):
+                    stack[sp, 0] = 2 * ta
+                    stack[sp, 1] = tb
+                    stack[sp + 1, 0] = 2 * ta + 1
+                    stack[sp + 1, 1] = tb
+                    sp += 2
+                else:
+                    stack[sp, 0] = ta
+                    stack[sp, 1] = 2 * tb
+                    stack[sp + 1, 0] = ta
+                    stack[sp + 1, 1] = 2 * tb + 1
+                    sp += 2
     return dE
 
 
-# --- external energy --------------------------------------------------------------------------------------------------
+# --- external energy ---------------------------------------------------------------------------------------------------
 # per-node load tables: force (n, 3); trap_k (n,), trap_c (n, 3); rc_k (n,), rc_T (n, 3, 3); tq_mag (n,),
-# tq_axis (n, 3), tq_ref (n, 3, 3), tq_last (n,), tq_phi (n,); radius (n,)
+# tq_axis (n, 3), tq_ref (n, 3, 3), tq_last (n,), tq_phi (n,); radius (n,) particle circumradius (walls)
 
 
 @njit(cache=True, inline="always")
@@ -339,12 +728,10 @@ def wrap_pi(d):
     return (d + math.pi) % (2.0 * math.pi) - math.pi
 
 
-@njit(cache=True, inline="always")
-def node_external(k, r, L, n, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis, tq_ref, tq_last, tq_phi,
-                  radius, ip, fp):
-    """External energy (kJ/mol) of node k at pose (r (3,), L (3, 3)): loads and the surface wall (the bead wall is
-    separate: :func:`bead_energy`). A dead torque contributes ``-|tau| phi`` with phi continued from the node's
-    current unwrapped angle."""
+@njit(cache=True)
+def node_loads(k, r, L, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis, tq_ref, tq_last, tq_phi):
+    """Load energy (kJ/mol) of node k at pose (r (3,), L (3, 3)) (the walls are separate). A dead torque contributes
+    ``-|tau| phi`` with phi continued from the node's current unwrapped angle."""
     E = -(force[k, 0] * r[0] + force[k, 1] * r[1] + force[k, 2] * r[2])
     if trap_k[k] > 0.0:
         dx = r[0] - trap_c[k, 0]
@@ -360,88 +747,215 @@ def node_external(k, r, L, n, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis
     if tq_mag[k] > 0.0:
         ang = swing_twist_angle(L, tq_ref[k], tq_axis[k])
         E -= tq_mag[k] * (tq_phi[k] + wrap_pi(ang - tq_last[k]))
-    if ip[I_WALLS] == 1 and k >= ip[I_SKIP]:
-        z0 = fp[F_WZ0]
-        l = radius[k]
-        zc = r[2]
-        for p in range(3):
-            if p == 0:
-                z = zc + l * L[2, 0]
-            elif p == 1:
-                z = zc + l * (-0.5 * L[2, 0] + _SQ3H * L[2, 1])
-            else:
-                z = zc + l * (-0.5 * L[2, 0] - _SQ3H * L[2, 1])
-            d = z - z0
-            if d < 0.0:
-                E += 0.5 * fp[F_WK] * d * d
+    return E
+
+
+@njit(cache=True, inline="always")
+def surface_energy(k, z, L20, L21, l, ip, fp):
+    """Surface-wall energy (kJ/mol) of node k's three particles (centre height z, frame entries L[2, 0], L[2, 1],
+    circumradius l)."""
+    if ip[I_WALLS] != 1 or k < ip[I_SKIP]:
+        return 0.0
+    z0 = fp[F_WZ0]
+    E = 0.0
+    for p in range(3):
+        if p == 0:
+            zp = z + l * L20
+        elif p == 1:
+            zp = z + l * (-0.5 * L20 + _SQ3H * L21)
+        else:
+            zp = z + l * (-0.5 * L20 - _SQ3H * L21)
+        d = zp - z0
+        if d < 0.0:
+            E += 0.5 * fp[F_WK] * d * d
     return E
 
 
 @njit(cache=True, inline="always")
 def bead_term(k, zfirst, zc, n, ip, fp):
     """Bead-wall energy of node k's first particle at height zfirst below the last node's centre zc."""
-    if k >= n - ip[I_SKIP]:
+    if ip[I_WALLS] != 1 or k >= n - ip[I_SKIP]:
         return 0.0
     d = zfirst - zc
     return 0.5 * fp[F_WK] * d * d if d > 0.0 else 0.0
 
 
 @njit(cache=True)
-def bead_energy(pos, frm, radius, ip, fp):
-    """The whole bead wall (kJ/mol)."""
+def wall_energies(pos, frm, radius, ip, fp, esurf, ebead):
+    """Per-node surface and bead wall energies into esurf, ebead (n,); returns their total (kJ/mol)."""
     n = pos.shape[0]
-    if ip[I_WALLS] != 1:
-        return 0.0
     zc = pos[n - 1, 2]
     E = 0.0
     for k in range(n):
-        E += bead_term(k, pos[k, 2] + radius[k] * frm[k, 2, 0], zc, n, ip, fp)
+        esurf[k] = surface_energy(k, pos[k, 2], frm[k, 2, 0], frm[k, 2, 1], radius[k], ip, fp)
+        ebead[k] = bead_term(k, pos[k, 2] + radius[k] * frm[k, 2, 0], zc, n, ip, fp)
+        E += esurf[k] + ebead[k]
     return E
+
+
+@njit(cache=True, inline="always")
+def _mid_of(k, nseg, slo, shi, smid):
+    for s in range(nseg):
+        if slo[s] <= k <= shi[s]:
+            return smid[s]
+    return 0
+
+
+@njit(cache=True)
+def wall_delta(pos, frm, radius, nseg, slo, shi, smid, mkind, mR, mc, mt, mth, esurf, ebead, tlo, thi, tcen, trad,
+               ip, fp, stack, wnode, wsurf, wbead, Lt):
+    """Wall energy change (kJ/mol) of a move and the number of nodes whose wall energies it changes (their index,
+    new surface and bead energies into wnode, wsurf, wbead)."""
+    n = pos.shape[0]
+    P = ip[I_P]
+    z0 = fp[F_WZ0]
+    pr = fp[F_PRAD]
+    mbd = _mid_of(n - 1, nseg, slo, shi, smid)
+    zc_old = pos[n - 1, 2]
+    zc_new = move_point(mbd, pos[n - 1, 0], pos[n - 1, 1], pos[n - 1, 2], mkind, mR, mc, mt)[2]
+    bead_moved = zc_new != zc_old
+    zlow = min(zc_old, zc_new)
+    dE = 0.0
+    nw = 0
+    for s in range(nseg):
+        m = smid[s]
+        moved = mkind[m] != K_FIXED
+        if not moved and not bead_moved:
+            continue
+        lo_s = slo[s]
+        hi_s = shi[s]
+        sp = 1
+        stack[0, 0] = 1
+        while sp > 0:
+            sp -= 1
+            t = stack[sp, 0]
+            lo = max(tlo[t], lo_s)
+            hi = min(thi[t], hi_s)
+            if lo > hi:
+                continue
+            r = trad[t]
+            cz = tcen[t, 2]
+            if moved:
+                # old sphere against the old planes, or the moved sphere (rigidly carried) against the new ones
+                near = (cz - r - pr < z0) or (cz + r + pr > zc_old)
+                if not near:
+                    nz = move_point(m, tcen[t, 0], tcen[t, 1], cz, mkind, mR, mc, mt)[2]
+                    near = (nz - r - pr < z0) or (nz + r + pr > zc_new)
+            else:
+                near = cz + r + pr > zlow
+            if not near:
+                continue
+            if t >= P:
+                for i in range(lo, hi + 1):
+                    if moved:
+                        y0, y1, y2 = move_point(m, pos[i, 0], pos[i, 1], pos[i, 2], mkind, mR, mc, mt)
+                        move_frame(m, frm[i], mkind, mR, mth, Lt)
+                        es = surface_energy(i, y2, Lt[2, 0], Lt[2, 1], radius[i], ip, fp)
+                        eb = bead_term(i, y2 + radius[i] * Lt[2, 0], zc_new, n, ip, fp)
+                    else:
+                        es = esurf[i]
+                        eb = bead_term(i, pos[i, 2] + radius[i] * frm[i, 2, 0], zc_new, n, ip, fp)
+                    if es != esurf[i] or eb != ebead[i]:
+                        dE += es + eb - esurf[i] - ebead[i]
+                        wnode[nw] = i
+                        wsurf[nw] = es
+                        wbead[nw] = eb
+                        nw += 1
+            else:
+                stack[sp, 0] = 2 * t
+                stack[sp + 1, 0] = 2 * t + 1
+                sp += 2
+    return dE, nw
 
 
 # --- the move loop ------------------------------------------------------------------------------------------------------
 
 
 @njit(cache=True)
-def _segment_length(s, lmax):
-    """A segment length in 1..lmax, log-uniformly distributed."""
-    ln = 1 + int(math.exp(rng_uniform(s) * math.log(lmax + 1.0)) - 1.0)
-    if ln > lmax:
-        ln = lmax
-    if ln < 1:
-        ln = 1
-    return ln
+def _set_rot(m, ax0, ax1, ax2, ang, cx, cy, cz, mkind, mR, mc, mt, mu, mth, mq, mb):
+    mkind[m] = K_ROT
+    _rotation(ax0, ax1, ax2, ang, mR[m])
+    mc[m, 0] = cx
+    mc[m, 1] = cy
+    mc[m, 2] = cz
+    mu[m, 0] = ax0
+    mu[m, 1] = ax1
+    mu[m, 2] = ax2
+    mth[m] = ang
+    mb[m] = 2.0 * abs(math.sin(0.5 * ang))
+    for a in range(3):
+        mt[m, a] = 0.0
+        mq[m, a] = 0.0
 
 
 @njit(cache=True)
-def sweep(pos, frm, K, xi0, Qc, tc, movable, ext, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis, tq_ref,
-          tq_last, tq_phi, radius, ip, fp, estep, enode, bc, br, rng, n_moves, p_cum, amp, lmax, counts, energy,
-          work_i, work_f):
+def _range_segments(lo, ln, n, circ, mid, slo, shi, smid):
+    """Segments of a chain whose nodes lo .. lo+ln-1 (mod n on a ring) move with motion ``mid`` and the rest is fixed
+    (motion 0); returns their number."""
+    hi = lo + ln - 1
+    ns = 0
+    if hi < n:
+        if lo > 0:
+            slo[ns] = 0
+            shi[ns] = lo - 1
+            smid[ns] = 0
+            ns += 1
+        slo[ns] = lo
+        shi[ns] = hi
+        smid[ns] = mid
+        ns += 1
+        if hi < n - 1:
+            slo[ns] = hi + 1
+            shi[ns] = n - 1
+            smid[ns] = 0
+            ns += 1
+    else:  # wraps past node 0 (rings only)
+        slo[ns] = 0
+        shi[ns] = hi - n
+        smid[ns] = mid
+        ns += 1
+        if hi - n + 1 <= lo - 1:
+            slo[ns] = hi - n + 1
+            shi[ns] = lo - 1
+            smid[ns] = 0
+            ns += 1
+        slo[ns] = lo
+        shi[ns] = n - 1
+        smid[ns] = mid
+        ns += 1
+    return ns
+
+
+@njit(cache=True)
+def sweep(pos, frm, K, xi0, Qc, tc, movable, clamp_prefix, ext_nodes, force, trap_k, trap_c, rc_k, rc_T, tq_mag,
+          tq_axis, tq_ref, tq_last, tq_phi, radius, ip, fp, estep, enode, esurf, ebead, tlo, thi, tcen, trad, rng,
+          n_moves, p_cum, amp, lmax, counts, energy):
     """Attempt ``n_moves`` Monte Carlo moves (module docstring); the state arrays are updated in place.
 
     Parameters (beyond the pose and the load tables)
     ----------
-    ext : (n,) int8, 0 for a node without external energy, 1 with a position-only one (force, trap), 2 with a
-        frame-dependent one (rotation clamp, torque); the walls are handled separately
-    estep : (m,) energy of every step;  enode : (n,) external energy of every node (both kept current)
-    bc, br : block bounding spheres (kept current)
+    movable : (n,) bool;  clamp_prefix : (n + 1,) int, clamped nodes before each index
+    ext_nodes : (n_ext,) int, the nodes with a load
+    estep : (m,) energy of every step;  enode : (n,) load energy of every node;  esurf, ebead : (n,) wall energies
+        of every node (all kept current)
+    tlo, thi, tcen, trad : the bounding-sphere tree (kept current)
     rng : uint64 (4,) xoshiro256+ state
-    p_cum : (4,) cumulative probabilities of the move types 0..3
-    amp : (6,) amplitudes: node translation (nm, half cube side), node rotation (rad, Cayley ball radius),
-        crankshaft, pivot and twist angles (rad)
-    lmax : (4,) int, largest segment (nodes) of moves 1..3
-    counts : (4, 2) int64, attempted and accepted moves per type (incremented)
-    energy : (3,) elastic, non-bonded, external running totals (kJ/mol, incremented by accepted changes)
-    work_i : (3 n + 8,) int64 and work_f : (n + 2, 8) float64 scratch
+    p_cum : (N_TYPES,) cumulative probabilities of the move types
+    amp : (N_TYPES, N_BINS) amplitudes by type and segment-length octave: rad, except the node move (amp[0, 0]
+        translation half-width, nm; amp[0, 1] Cayley ball radius, rad)
+    lmax : (N_TYPES,) int, largest segment (nodes) of each type
+    counts : (N_TYPES, N_BINS, 2) int64, attempted and accepted moves (incremented)
+    energy : (3,) elastic, non-bonded, external (loads and walls) running totals (kJ/mol, incremented)
 
     Returns
     -------
     int
-        0, or -1 if a non-finite energy was accepted (never expected).
+        0, or -1 if a non-finite energy was accepted (never expected), or -2 if a move produced a pair of motions
+        the topology check does not know (a bug).
     """
     n = pos.shape[0]
     circ = ip[I_CIRC] == 1
-    m = n if circ else n - 1
+    m_steps = n if circ else n - 1
     ds = fp[F_DS]
     beta = 1.0 / fp[F_KT]
     has_nb = ip[I_NB] == 1
@@ -449,227 +963,223 @@ def sweep(pos, frm, K, xi0, Qc, tc, movable, ext, force, trap_k, trap_c, rc_k, r
     ev = ip[I_EV] == 1
     axi = ip[I_AXI] == 1
     idclos = ip[I_IDCLOS] == 1
+    leaf = ip[I_LEAF]
     lmax2 = fp[F_LMAX] * fp[F_LMAX]
-    dmax = fp[F_DMAX]
-    mv = work_i[0:n]
-    where = work_i[n:2 * n]
-    steps = work_i[2 * n:3 * n + 8]
-    newpos = work_f[:, 0:3]
-    newenode = work_f[:, 3]
-    newstep = work_f[:, 4]
-    zfirst = work_f[:, 5]
-    moved = np.zeros(n, np.bool_)
-    newfrm = np.empty((n, 3, 3))
-    R = np.empty((3, 3))
+    n_ext = ext_nodes.shape[0]
+    n_mov = 0
+    for i in range(n):
+        if movable[i]:
+            n_mov += 1
+    movlist = np.empty(max(1, n_mov), np.int64)
+    q_ = 0
+    for i in range(n):
+        if movable[i]:
+            movlist[q_] = i
+            q_ += 1
+    slo = np.zeros(MAX_SEG, np.int64)
+    shi = np.zeros(MAX_SEG, np.int64)
+    smid = np.zeros(MAX_SEG, np.int64)
+    mkind = np.zeros(MAX_MOT, np.int64)
+    mR = np.zeros((MAX_MOT, 3, 3))
+    mc = np.zeros((MAX_MOT, 3))
+    mt = np.zeros((MAX_MOT, 3))
+    mu = np.zeros((MAX_MOT, 3))
+    mth = np.zeros(MAX_MOT)
+    mq = np.zeros((MAX_MOT, 3))
+    mb = np.zeros(MAX_MOT)
+    stack = np.zeros((_STACK, 2), np.int64)
+    wnode = np.zeros(n, np.int64)
+    wsurf = np.zeros(n)
+    wbead = np.zeros(n)
+    steps = np.zeros(n + 4, np.int64)
+    newstep = np.zeros(n + 4)
+    newext = np.zeros(max(1, n_ext))
     u = np.empty(3)
-    rimg = np.empty(3)
-    Limg = np.empty((3, 3))
+    R = np.empty((3, 3))
     rl = np.empty(3)
     Ll = np.empty((3, 3))
     rr = np.empty(3)
     Lr = np.empty((3, 3))
     Lt = np.empty((3, 3))
+    rimg = np.empty(3)
+    Limg = np.empty((3, 3))
     for it in range(n_moves):
         x = rng_uniform(rng)
-        mt = 0
-        while mt < 3 and x >= p_cum[mt]:
-            mt += 1
-        counts[mt, 0] += 1
-        nmv = 0
-        rigid = True
-        delta = 0.0
+        mt_ = 0
+        while mt_ < N_TYPES - 1 and x >= p_cum[mt_]:
+            mt_ += 1
+        mkind[0] = K_FIXED
+        nseg = 0
+        bin_ = 0
         ok = True
-        cx = 0.0
-        cy = 0.0
-        cz = 0.0
-        cph = 1.0
-        sph = 0.0
-        # ---- propose: moved nodes mv[:nmv]; rigid moves: x -> R (x - c) + c + shift; twist: L -> L Rz(phi) -------
-        if mt == 0:
-            k = int(rng_uniform(rng) * n)
-            if not movable[k]:
+        # ---- propose: segments (slo, shi, smid) and motions 1, 2 ---------------------------------------------
+        if mt_ == MT_NODE:
+            if n_mov == 0:
                 continue
-            mv[0] = k
-            nmv = 1
+            k = movlist[int(rng_uniform(rng) * n_mov)]
             while True:
                 for a in range(3):
                     u[a] = 2.0 * rng_uniform(rng) - 1.0
                 if u[0] * u[0] + u[1] * u[1] + u[2] * u[2] <= 1.0:
                     break
-            w0 = amp[1] * u[0]
-            w1 = amp[1] * u[1]
-            w2 = amp[1] * u[2]
-            q = 1.0 + 0.25 * (w0 * w0 + w1 * w1 + w2 * w2)
-            R[0, 0] = 1.0 - 0.5 * (w1 * w1 + w2 * w2) / q
-            R[1, 1] = 1.0 - 0.5 * (w0 * w0 + w2 * w2) / q
-            R[2, 2] = 1.0 - 0.5 * (w0 * w0 + w1 * w1) / q
-            R[0, 1] = (-w2 + 0.5 * w0 * w1) / q
-            R[1, 0] = (w2 + 0.5 * w0 * w1) / q
-            R[0, 2] = (w1 + 0.5 * w0 * w2) / q
-            R[2, 0] = (-w1 + 0.5 * w0 * w2) / q
-            R[1, 2] = (-w0 + 0.5 * w1 * w2) / q
-            R[2, 1] = (w0 + 0.5 * w1 * w2) / q
-            d2 = 0.0
+            w0 = amp[0, 1] * u[0]
+            w1 = amp[0, 1] * u[1]
+            w2 = amp[0, 1] * u[2]
+            qq = 1.0 + 0.25 * (w0 * w0 + w1 * w1 + w2 * w2)
+            mkind[1] = K_LINEAR
+            mR[1, 0, 0] = 1.0 - 0.5 * (w1 * w1 + w2 * w2) / qq
+            mR[1, 1, 1] = 1.0 - 0.5 * (w0 * w0 + w2 * w2) / qq
+            mR[1, 2, 2] = 1.0 - 0.5 * (w0 * w0 + w1 * w1) / qq
+            mR[1, 0, 1] = (-w2 + 0.5 * w0 * w1) / qq
+            mR[1, 1, 0] = (w2 + 0.5 * w0 * w1) / qq
+            mR[1, 0, 2] = (w1 + 0.5 * w0 * w2) / qq
+            mR[1, 2, 0] = (-w1 + 0.5 * w0 * w2) / qq
+            mR[1, 1, 2] = (-w0 + 0.5 * w1 * w2) / qq
+            mR[1, 2, 1] = (w0 + 0.5 * w1 * w2) / qq
+            tn = 0.0
             for a in range(3):
-                dd = amp[0] * (2.0 * rng_uniform(rng) - 1.0)
-                newpos[0, a] = pos[k, a] + dd
-                d2 += dd * dd
-            delta = math.sqrt(d2)
-        elif mt == 1 or mt == 2:
-            if mt == 1:
-                ln = _segment_length(rng, min(lmax[1], n - 2))
-                if circ:
-                    i0 = int(rng_uniform(rng) * n)
-                    j0 = (i0 + ln + 1) % n
-                    if not idclos and i0 + ln + 1 >= n:
-                        continue
+                mt[1, a] = amp[0, 0] * (2.0 * rng_uniform(rng) - 1.0)
+                tn += mt[1, a] * mt[1, a]
+                mc[1, a] = pos[k, a]
+            mb[1] = math.sqrt(tn)
+            nseg = _range_segments(k, 1, n, circ, 1, slo, shi, smid)
+        elif mt_ == MT_CRANK or mt_ == MT_TWIST:
+            cap = n - 2 if mt_ == MT_CRANK else n
+            if circ and mt_ == MT_TWIST:
+                cap = n - 1
+            ln = segment_length(rng, min(lmax[mt_], cap))
+            if ln < 1 or ln > cap:
+                continue
+            bin_ = length_bin(ln)
+            if circ:
+                a0 = int(rng_uniform(rng) * n)
+                if mt_ == MT_CRANK:
+                    a0 = (a0 + 1) % n  # the moved nodes follow hinge node a0 - 1
+                if not idclos and a0 + ln > n:
+                    continue
+            else:
+                if mt_ == MT_CRANK:
+                    a0 = 1 + int(rng_uniform(rng) * (n - 1 - ln))
                 else:
-                    if ln > n - 2:
-                        continue
-                    i0 = int(rng_uniform(rng) * (n - 1 - ln))
-                    j0 = i0 + ln + 1
-                for t in range(ln):
-                    mv[t] = (i0 + 1 + t) % n
-                nmv = ln
+                    a0 = int(rng_uniform(rng) * (n - ln + 1))
+            hi0 = a0 + ln - 1
+            if hi0 < n:
+                if clamp_prefix[hi0 + 1] - clamp_prefix[a0] > 0:
+                    continue
+            elif clamp_prefix[n] - clamp_prefix[a0] + clamp_prefix[hi0 - n + 1] > 0:
+                continue
+            ang = amp[mt_, bin_] * (2.0 * rng_uniform(rng) - 1.0)
+            if mt_ == MT_TWIST:
+                mkind[1] = K_TWIST
+                mth[1] = ang
+                mb[1] = 0.0
+            else:
+                i0 = (a0 - 1) % n
+                j0 = (a0 + ln) % n
                 ax0 = pos[j0, 0] - pos[i0, 0]
                 ax1 = pos[j0, 1] - pos[i0, 1]
                 ax2 = pos[j0, 2] - pos[i0, 2]
                 an = math.sqrt(ax0 * ax0 + ax1 * ax1 + ax2 * ax2)
                 if an == 0.0:
                     continue
-                ax0 /= an
-                ax1 /= an
-                ax2 /= an
-                cx = pos[i0, 0]
-                cy = pos[i0, 1]
-                cz = pos[i0, 2]
-                amax = amp[2]
-            else:
-                if circ:
-                    continue
-                kp = int(rng_uniform(rng) * n)
-                if rng_uniform(rng) < 0.5:
-                    # the tail kp .. n-1 (node kp turns about its own centre; the hinge is step kp-1)
-                    nmv = n - kp
-                    if nmv > lmax[2]:
-                        continue
-                    for t in range(nmv):
-                        mv[t] = kp + t
-                else:
-                    # the head kp .. 0 (the hinge is step kp)
-                    nmv = kp + 1
-                    if nmv > lmax[2]:
-                        continue
-                    for t in range(nmv):
-                        mv[t] = kp - t
-                _unit_vector(rng, u)
-                ax0 = u[0]
-                ax1 = u[1]
-                ax2 = u[2]
-                cx = pos[kp, 0]
-                cy = pos[kp, 1]
-                cz = pos[kp, 2]
-                amax = amp[3]
-            rho2 = 0.0
-            for t in range(nmv):
-                i = mv[t]
-                if not movable[i]:
-                    ok = False
-                    break
-                px = pos[i, 0] - cx
-                py = pos[i, 1] - cy
-                pz = pos[i, 2] - cz
-                d2 = px * px + py * py + pz * pz
-                if mt == 1:
-                    pr = px * ax0 + py * ax1 + pz * ax2
-                    d2 -= pr * pr
-                if d2 > rho2:
-                    rho2 = d2
-            if not ok:
-                continue
-            rho = math.sqrt(rho2)
-            if nmv == n:
-                # the whole chain turned rigidly: no step changes and no part passes another, any angle will do
-                amax = math.pi
-            elif ev and rho * amax > dmax:
-                amax = dmax / rho
-            ang = amax * (2.0 * rng_uniform(rng) - 1.0)
-            delta = rho * abs(ang)
-            _rotation(ax0, ax1, ax2, ang, R)
-            for t in range(nmv):
-                i = mv[t]
-                px = pos[i, 0] - cx
-                py = pos[i, 1] - cy
-                pz = pos[i, 2] - cz
-                newpos[t, 0] = cx + R[0, 0] * px + R[0, 1] * py + R[0, 2] * pz
-                newpos[t, 1] = cy + R[1, 0] * px + R[1, 1] * py + R[1, 2] * pz
-                newpos[t, 2] = cz + R[2, 0] * px + R[2, 1] * py + R[2, 2] * pz
-        else:
-            ln = _segment_length(rng, min(lmax[3], n))
+                _set_rot(1, ax0 / an, ax1 / an, ax2 / an, ang, pos[i0, 0], pos[i0, 1], pos[i0, 2], mkind, mR, mc,
+                         mt, mu, mth, mq, mb)
+            nseg = _range_segments(a0, ln, n, circ, 1, slo, shi, smid)
+        elif mt_ == MT_PIVOT:
             if circ:
-                a0 = int(rng_uniform(rng) * n)
-                if not idclos and a0 + ln > n:
-                    continue
-            else:
-                a0 = int(rng_uniform(rng) * (n - ln + 1))
-            ang = amp[4] * (2.0 * rng_uniform(rng) - 1.0)
-            cph = math.cos(ang)
-            sph = math.sin(ang)
-            nmv = ln
-            rigid = False
-            for t in range(ln):
-                i = (a0 + t) % n
-                mv[t] = i
-                if not movable[i]:
-                    ok = False
-                    break
-                newpos[t, 0] = pos[i, 0]
-                newpos[t, 1] = pos[i, 1]
-                newpos[t, 2] = pos[i, 2]
-            if not ok:
                 continue
-        # ---- energy change ------------------------------------------------------------------------------------------
-        for t in range(nmv):
-            i = mv[t]
-            moved[i] = True
-            where[i] = t
-        same = rigid or (axi and mt == 3)
+            kp = int(rng_uniform(rng) * n)
+            if rng_uniform(rng) < 0.5:
+                lo = kp
+                ln = n - kp
+            else:
+                lo = 0
+                ln = kp + 1
+            if ln > lmax[MT_PIVOT] or clamp_prefix[lo + ln] - clamp_prefix[lo] > 0:
+                continue
+            bin_ = length_bin(ln)
+            _unit_vector(rng, u)
+            amax = math.pi if ln == n else amp[MT_PIVOT, bin_]
+            ang = amax * (2.0 * rng_uniform(rng) - 1.0)
+            _set_rot(1, u[0], u[1], u[2], ang, pos[kp, 0], pos[kp, 1], pos[kp, 2], mkind, mR, mc, mt, mu, mth, mq,
+                     mb)
+            nseg = _range_segments(lo, ln, n, circ, 1, slo, shi, smid)
+        else:  # MT_HINGE
+            if circ:
+                continue
+            a0 = int(rng_uniform(rng) * n)
+            ln = segment_length(rng, min(lmax[MT_HINGE], n))
+            b0 = min(a0 + ln - 1, n - 1)
+            if clamp_prefix[n] - clamp_prefix[a0] > 0:
+                continue
+            bin_ = length_bin(b0 - a0 + 1)
+            _unit_vector(rng, u)
+            ang = amp[MT_HINGE, bin_] * (2.0 * rng_uniform(rng) - 1.0)
+            _set_rot(1, u[0], u[1], u[2], ang, pos[a0, 0], pos[a0, 1], pos[a0, 2], mkind, mR, mc, mt, mu, mth,
+                     mq, mb)
+            if a0 > 0:
+                slo[nseg] = 0
+                shi[nseg] = a0 - 1
+                smid[nseg] = 0
+                nseg += 1
+            slo[nseg] = a0
+            shi[nseg] = b0
+            smid[nseg] = 1
+            nseg += 1
+            if b0 < n - 1:
+                mkind[2] = K_TRANSARC
+                qx0, qx1, qx2 = move_point(1, pos[b0, 0], pos[b0, 1], pos[b0, 2], mkind, mR, mc, mt)
+                mt[2, 0] = qx0 - pos[b0, 0]
+                mt[2, 1] = qx1 - pos[b0, 1]
+                mt[2, 2] = qx2 - pos[b0, 2]
+                mb[2] = math.sqrt(mt[2, 0] ** 2 + mt[2, 1] ** 2 + mt[2, 2] ** 2)
+                for a in range(3):
+                    mq[2, a] = pos[b0, a]
+                    mc[2, a] = mc[1, a]
+                    mu[2, a] = mu[1, a]
+                mth[2] = mth[1]
+                slo[nseg] = b0 + 1
+                shi[nseg] = n - 1
+                smid[nseg] = 2
+                nseg += 1
+        if nseg == 0:
+            continue
+        counts[mt_, bin_, 0] += 1
+        # ---- elastic: the steps between differently moving nodes (all steps of a twisted segment off axisymmetry) --
         ns = 0
-        for t in range(nmv):
-            i = mv[t]
-            kl = i - 1 if i > 0 else (n - 1 if circ else -1)
-            if kl >= 0 and not moved[kl]:
-                steps[ns] = kl
-                ns += 1
-            if i < m and (not same or not moved[(i + 1) % n]):
-                steps[ns] = i
-                ns += 1
+        for s in range(nseg):
+            if mkind[smid[s]] == K_TWIST and not axi:
+                k_first = slo[s] - 1
+                if k_first < 0 and (not circ or _mid_of(n - 1, nseg, slo, shi, smid) == smid[s]):
+                    k_first = slo[s]  # no step before node 0, or the step n-1 is listed by the wrapped piece
+                for k in range(k_first, shi[s] + 1):
+                    if k % n < m_steps:
+                        steps[ns] = k % n
+                        ns += 1
+        for s in range(nseg):
+            k = shi[s]  # the step from the segment's last node to the next segment's first
+            if k >= m_steps:
+                continue
+            s2 = s + 1 if s + 1 < nseg else 0
+            if smid[s] == smid[s2]:
+                continue
+            if mkind[smid[s]] == K_TWIST and not axi:
+                continue  # listed above
+            if mkind[smid[s2]] == K_TWIST and not axi and s2 != s:
+                # the step into a non-axisymmetric twisted segment is listed above (its first step)
+                continue
+            steps[ns] = k
+            ns += 1
         dE_el = 0.0
         for q_ in range(ns):
             k = steps[q_]
             jn = (k + 1) % n
-            for side in range(2):
-                node = k if side == 0 else jn
-                rv = rl if side == 0 else rr
-                Lv = Ll if side == 0 else Lr
-                if moved[node]:
-                    t = where[node]
-                    for a in range(3):
-                        rv[a] = newpos[t, a]
-                    if mt == 3:
-                        for a in range(3):
-                            Lv[a, 0] = cph * frm[node, a, 0] + sph * frm[node, a, 1]
-                            Lv[a, 1] = -sph * frm[node, a, 0] + cph * frm[node, a, 1]
-                            Lv[a, 2] = frm[node, a, 2]
-                    else:
-                        for a in range(3):
-                            for b in range(3):
-                                Lv[a, b] = R[a, 0] * frm[node, 0, b] + R[a, 1] * frm[node, 1, b] + R[a, 2] * frm[node, 2, b]
-                else:
-                    for a in range(3):
-                        rv[a] = pos[node, a]
-                        for b in range(3):
-                            Lv[a, b] = frm[node, a, b]
+            mk = _mid_of(k, nseg, slo, shi, smid)
+            mj = _mid_of(jn, nseg, slo, shi, smid)
+            rl[0], rl[1], rl[2] = move_point(mk, pos[k, 0], pos[k, 1], pos[k, 2], mkind, mR, mc, mt)
+            move_frame(mk, frm[k], mkind, mR, mth, Ll)
+            rr[0], rr[1], rr[2] = move_point(mj, pos[jn, 0], pos[jn, 1], pos[jn, 2], mkind, mR, mc, mt)
+            move_frame(mj, frm[jn], mkind, mR, mth, Lr)
             if circ and k == n - 1:
                 _image(rr, Lr, Qc, tc, rimg, Limg)
                 for a in range(3):
@@ -685,102 +1195,70 @@ def sweep(pos, frm, K, xi0, Qc, tc, movable, ext, force, trap_k, trap_c, rc_k, r
             newstep[q_] = e
             dE_el += e - estep[k]
         if not ok or not (dE_el < np.inf):
-            for t in range(nmv):
-                moved[mv[t]] = False
             continue
-        # external energy of the moved nodes: loads and the surface wall
+        # ---- loads of the moved nodes ----------------------------------------------------------------------------
         dE_ext = 0.0
-        for t in range(nmv):
-            i = mv[t]
-            if ext[i] == 0 and not walls:
-                newenode[t] = 0.0
+        for q_ in range(n_ext):
+            k = ext_nodes[q_]
+            mk = _mid_of(k, nseg, slo, shi, smid)
+            if mkind[mk] == K_FIXED:
+                newext[q_] = enode[k]
                 continue
-            if ext[i] == 2 or walls:
-                if mt == 3:
-                    for a in range(3):
-                        Lt[a, 0] = cph * frm[i, a, 0] + sph * frm[i, a, 1]
-                        Lt[a, 1] = -sph * frm[i, a, 0] + cph * frm[i, a, 1]
-                        Lt[a, 2] = frm[i, a, 2]
-                elif ext[i] == 2:
-                    for a in range(3):
-                        for b in range(3):
-                            Lt[a, b] = R[a, 0] * frm[i, 0, b] + R[a, 1] * frm[i, 1, b] + R[a, 2] * frm[i, 2, b]
-                else:  # only the z row is needed (walls)
-                    for b in range(3):
-                        Lt[2, b] = R[2, 0] * frm[i, 0, b] + R[2, 1] * frm[i, 1, b] + R[2, 2] * frm[i, 2, b]
-            e = node_external(i, newpos[t], Lt, n, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis, tq_ref,
-                              tq_last, tq_phi, radius, ip, fp)
-            newenode[t] = e
-            dE_ext += e - enode[i]
-            if walls:
-                # bead wall term of this node's first particle, here against the old bead height (fixed below)
-                zfirst[t] = newpos[t, 2] + radius[i] * Lt[2, 0]
+            rl[0], rl[1], rl[2] = move_point(mk, pos[k, 0], pos[k, 1], pos[k, 2], mkind, mR, mc, mt)
+            move_frame(mk, frm[k], mkind, mR, mth, Lt)
+            e = node_loads(k, rl, Lt, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis, tq_ref, tq_last, tq_phi)
+            newext[q_] = e
+            dE_ext += e - enode[k]
+        nw = 0
         if walls:
-            zc_old = pos[n - 1, 2]
-            if moved[n - 1]:
-                zc_new = newpos[where[n - 1], 2]
-                for k in range(n):
-                    if moved[k]:
-                        continue
-                    zf = pos[k, 2] + radius[k] * frm[k, 2, 0]
-                    dE_ext += bead_term(k, zf, zc_new, n, ip, fp) - bead_term(k, zf, zc_old, n, ip, fp)
-            else:
-                zc_new = zc_old
-            for t in range(nmv):
-                i = mv[t]
-                dE_ext += (bead_term(i, zfirst[t], zc_new, n, ip, fp)
-                           - bead_term(i, pos[i, 2] + radius[i] * frm[i, 2, 0], zc_old, n, ip, fp))
+            dw, nw = wall_delta(pos, frm, radius, nseg, slo, shi, smid, mkind, mR, mc, mt, mth, esurf, ebead, tlo,
+                                thi, tcen, trad, ip, fp, stack, wnode, wsurf, wbead, Lt)
+            dE_ext += dw
+        # ---- non-bonded --------------------------------------------------------------------------------------------
         dE_nb = 0.0
-        if has_nb and rigid:
-            dE_nb = nonbonded_delta(pos, newpos, mv, nmv, moved, delta, bc, br, ip, fp)
-        for t in range(nmv):
-            moved[mv[t]] = False
+        if has_nb:
+            dE_nb = nonbonded_delta(pos, nseg, slo, shi, smid, mkind, mR, mc, mt, mu, mth, mq, mb, tlo, thi, tcen,
+                                    trad, ip, fp, stack)
         dE = dE_el + dE_ext + dE_nb
         if not (dE < np.inf):
             continue
         if dE > 0.0 and rng_uniform(rng) >= math.exp(-beta * dE):
             continue
-        # ---- accept ----------------------------------------------------------------------------------------------------
-        counts[mt, 1] += 1
+        # ---- accept ------------------------------------------------------------------------------------------------
+        counts[mt_, bin_, 1] += 1
         energy[0] += dE_el
         energy[1] += dE_nb
         energy[2] += dE_ext
         for q_ in range(ns):
             estep[steps[q_]] = newstep[q_]
-        for t in range(nmv):
-            i = mv[t]
-            if mt == 3:
-                for a in range(3):
-                    f0 = frm[i, a, 0]
-                    f1 = frm[i, a, 1]
-                    frm[i, a, 0] = cph * f0 + sph * f1
-                    frm[i, a, 1] = -sph * f0 + cph * f1
-            else:
-                for b in range(3):
-                    f0 = frm[i, 0, b]
-                    f1 = frm[i, 1, b]
-                    f2 = frm[i, 2, b]
-                    frm[i, 0, b] = R[0, 0] * f0 + R[0, 1] * f1 + R[0, 2] * f2
-                    frm[i, 1, b] = R[1, 0] * f0 + R[1, 1] * f1 + R[1, 2] * f2
-                    frm[i, 2, b] = R[2, 0] * f0 + R[2, 1] * f1 + R[2, 2] * f2
-                pos[i, 0] = newpos[t, 0]
-                pos[i, 1] = newpos[t, 1]
-                pos[i, 2] = newpos[t, 2]
-            if tq_mag[i] > 0.0:
-                ang2 = swing_twist_angle(frm[i], tq_ref[i], tq_axis[i])
-                tq_phi[i] += wrap_pi(ang2 - tq_last[i])
-                tq_last[i] = ang2
-            enode[i] = newenode[t]
-        if has_nb and rigid:
-            bsz = ip[I_BS]
-            lo_b = mv[0] // bsz
-            hi_b = mv[nmv - 1] // bsz
-            if lo_b > hi_b:
-                lo_b, hi_b = hi_b, lo_b
-            if circ and nmv > 1 and abs(mv[nmv - 1] - mv[0]) != nmv - 1:  # wraps past node 0
-                update_blocks(pos, 0, bc.shape[0] - 1, bsz, bc, br)
-            else:
-                update_blocks(pos, lo_b, hi_b, bsz, bc, br)
+        for q_ in range(nw):
+            esurf[wnode[q_]] = wsurf[q_]
+            ebead[wnode[q_]] = wbead[q_]
+        for s in range(nseg):
+            m = smid[s]
+            kd = mkind[m]
+            if kd == K_FIXED:
+                continue
+            for i in range(slo[s], shi[s] + 1):
+                if kd != K_TWIST:
+                    pos[i, 0], pos[i, 1], pos[i, 2] = move_point(m, pos[i, 0], pos[i, 1], pos[i, 2], mkind, mR, mc,
+                                                                 mt)
+                if kd != K_TRANSARC:
+                    move_frame(m, frm[i], mkind, mR, mth, Lt)
+                    for a in range(3):
+                        for b in range(3):
+                            frm[i, a, b] = Lt[a, b]
+            if kd != K_TWIST and (has_nb or walls):
+                tree_update(pos, slo[s], shi[s], leaf, ip[I_P], tlo, thi, tcen, trad)
+        for q_ in range(n_ext):
+            k = ext_nodes[q_]
+            if mkind[_mid_of(k, nseg, slo, shi, smid)] == K_FIXED:
+                continue
+            if tq_mag[k] > 0.0:
+                ang2 = swing_twist_angle(frm[k], tq_ref[k], tq_axis[k])
+                tq_phi[k] += wrap_pi(ang2 - tq_last[k])
+                tq_last[k] = ang2
+            enode[k] = newext[q_]
         if not (energy[0] + energy[1] + energy[2] < np.inf):
             return -1
     return 0
