@@ -183,6 +183,129 @@ def test_force_extension_exact_short(force_pN):
     assert abs(est.mean - ref) < 3 * est.error, (est, ref)
 
 
+def test_force_extension_exact_clamped_start():
+    """30-bp chain held at node 0 (d3 along the force, as on a tweezers surface) and pulled at its last node: the
+    chain relaxes by the clamped-chain moves (hinge pairs, end twists, crankshafts, node moves); the mean extension
+    equals the transfer-matrix value of a held start within 3 calibrated standard errors."""
+    from dnarod.physics.theory.transfer_matrix import force_extension
+
+    model = _chain(30)
+    e = MCEngine(model, 300.0, loads=(Clamp(0), PullingForce(-1, [0.0, 0.0, 1.0 * PN])), nonbonded=False, seed=12)
+    assert e.moves["hinge"] > 0 and e.moves["end_twist"] > 0 and e.moves["pivot"] == 0
+    e.advance(300)
+    x = np.empty(6000)
+    for s in range(len(x)):
+        e.advance(1)
+        x[s] = e.pos[-1, 2] - e.pos[0, 2]
+    est = mean_and_error(x)
+    ref = force_extension(model.params, model.ds, 300.0, 30, 1.0, start_cos=float(model.frames[0][2, 2]))[0]
+    free = force_extension(model.params, model.ds, 300.0, 30, 1.0)[0]
+    assert est.flag is None
+    assert abs(ref - free) > 6 * est.error  # the held start is distinguishable from a free one
+    assert abs(est.mean - ref) < 3 * est.error, (est, ref)
+
+
+def test_transfer_matrix_held_start_converged():
+    """The held-start partition function is converged in the Legendre degree (a change below 1e-8)."""
+    from dnarod.physics.theory.transfer_matrix import force_extension
+
+    model = _chain(100)
+    for F in (0.1, 10.0):
+        a = force_extension(model.params, model.ds, 300.0, 100, F, start_cos=1.0)[0]
+        b = force_extension(model.params, model.ds, 300.0, 100, F, start_cos=1.0, lmax=90, n_c=180, order=20)[0]
+        assert a == pytest.approx(b, rel=1e-8)
+
+
+def test_arc_closest_approach_exact():
+    """The distance of closest approach along a rotation's path (the topology check) against a fine scan of the
+    path, for random points, axes and angles up to pi."""
+    from dnarod.engines.mc.kernels import arc_min2
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        a, b = rng.standard_normal(3) * 3, rng.standard_normal(3) * 3
+        u = rng.standard_normal(3)
+        u /= np.linalg.norm(u)
+        th = rng.uniform(-np.pi, np.pi)
+        phi = np.linspace(0.0, th, 20001)[:, None]
+        path = a * np.cos(phi) + np.cross(u, a) * np.sin(phi) + u * (u @ a) * (1.0 - np.cos(phi))  # Rodrigues
+        scan = float(np.min(np.sum((path - b) ** 2, axis=1)))
+        assert arc_min2(*a, *b, *u, th) == pytest.approx(scan, rel=1e-6, abs=1e-9)
+
+
+def _tail_torque_reference(e):
+    """Per-step tail-torque estimates of MCEngine.tail_torque_z, in numpy (all pairs; core step loads)."""
+    from dnarod.core.kernels import step_loads
+
+    pos, frm, n = e.pos, e.frm, e.model.n_nodes
+    nb = e.numbers
+    pi, pj = np.triu_indices(n, nb["n_exclude"] + 1)
+    d = pos[pj] - pos[pi]
+    r = np.linalg.norm(d, axis=1)
+    keep = r < nb["cutoff"]
+    pi, pj, d, r = pi[keep], pj[keep], d[keep], r[keep]
+    s6 = (nb["sigma"] / r) ** 6
+    g = np.where(r < nb["rc_wca"], 24 * nb["eps"] * (2 * s6 * s6 - s6) / r**2, 0.0)
+    g += np.where(r < nb["rc_dh"], nb["a_dh"] * np.exp(-nb["kappa"] * r) * (nb["kappa"] * r + 1) / r**3, 0.0)
+    pf = g[:, None] * d  # force on j from i
+    assert len(pi) > 50  # a folded pose: many pairs
+    out = np.full(n - 1, np.nan)
+    for k in range(n - 1):
+        sl = np.zeros(13)
+        step_loads(pos, frm, e.K, e.xi0, e.model.ds, k, False, k + 1, np.eye(3), np.zeros(3), sl)
+        p = pos[k + 1]
+        Z = sl[11]
+        Z += float(np.sum(np.cross(pos[pj] - p, pf)[:, 2] * ((pi <= k) & (pj > k))))
+        for j in range(k + 1, n):
+            G = e.force[j] - e.trap_k[j] * (pos[j] - e.trap_c[j])
+            Z += np.cross(pos[j] - p, G)[2] + e.tq_mag[j] * e.tq_axis[j, 2]
+        out[k] = -Z
+    return out
+
+
+def test_tail_torque_profile_matches_reference():
+    """The compiled per-step tail torques equal a plain numpy evaluation (pairs across every step, step loads,
+    loads of the tail) on a folded tweezers pose with many non-bonded pairs."""
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.tweezers import build_member
+
+    mb = build_member(dict(n_bp=200, force_pN=1.0, turns=1.0))
+    folded = _compact_open_chain()
+    loads = list(mb["loads"]) + [Torque(150, [0.3 * PN, 0.0, 2.0 * PN]), Trap(120, 3.0)]
+    model = mb["model"].with_pose(folded.positions - folded.positions[0] + mb["model"].positions[0],
+                                  folded.frames)
+    e = MCEngine(mb["model"], 300.0, loads=loads, nonbonded=member_nonbonded(mb["settings"]), seed=1)
+    e.pos[:], e.frm[:] = model.positions, model.frames
+    e._setup_caches()
+    got = e.tail_torque_z(profile=True)
+    ref = _tail_torque_reference(e)
+    assert np.isfinite(got).all()
+    assert np.allclose(got, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
+
+
+def test_tail_torque_estimates_the_clamp_torque():
+    """Tweezers chain (60 bp, 2 pN, 0.5 turn, walls, non-bonded terms): the tail-torque estimator and the clamp's own
+    torque have the same mean within 3 combined calibrated errors, and the estimator's error is several times
+    smaller for the same run."""
+    from dnarod.analysis.statistics import combined_z
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.tweezers import build_member
+
+    mb = build_member(dict(n_bp=60, force_pN=2.0, turns=0.5))
+    e = MCEngine(mb["model"], 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]), seed=5)
+    e.advance(300)
+    tc, tt = np.empty(12000), np.empty(12000)
+    for i in range(len(tc)):
+        e.advance(1)
+        tc[i] = e.clamp_torque_z() / PN
+        tt[i] = e.tail_torque_z() / PN
+    a, b = mean_and_error(tc), mean_and_error(tt)
+    assert a.flag is None and b.flag is None
+    assert abs(combined_z(a, b)) < 3.0, (a, b)
+    assert b.error < 0.5 * a.error, (a, b)
+    assert b.mean > 5.0  # half a turn on 60 bp: a torque far from zero
+
+
 def test_transfer_matrix_against_reweighted_exact_samples():
     """The transfer matrix against an independent route: exact i.i.d. free-chain samples
     (dnarod.thermal) reweighted by exp(F x / kT), 12 nodes at 2 pN."""

@@ -32,14 +32,17 @@ from dnarod.engines.mc import kernels as kn
 #: Acceptance the amplitudes are tuned towards.
 TARGET_ACCEPTANCE = 0.4
 #: Move types, in the order of :mod:`dnarod.engines.mc.kernels` (``MT_*``).
-MOVE_TYPES = ("node", "crankshaft", "pivot", "hinge", "twist")
+MOVE_TYPES = ("node", "crankshaft", "pivot", "hinge", "twist", "end_twist", "slide")
 #: Default mixes of move types (fractions of the attempted moves). A chain held at one end (the tweezers surface)
 #: relaxes its extension and bead position by hinge-pair moves (the far end translates without turning), its shape
-#: by crankshafts, its twist by segment twists.
-DEFAULT_MOVES = {"node": 0.3, "crankshaft": 0.3, "pivot": 0.0, "hinge": 0.25, "twist": 0.15}
+#: by crankshafts, its twist by segment and end twists, its total length (stretch) by slides.
+DEFAULT_MOVES = {"node": 0.25, "crankshaft": 0.25, "pivot": 0.0, "hinge": 0.2, "twist": 0.1, "end_twist": 0.05,
+                 "slide": 0.15}
 #: Open chain without a clamped node: pivots (whole-chain turns included) relax its orientation and shape.
-DEFAULT_MOVES_FREE = {"node": 0.2, "crankshaft": 0.3, "pivot": 0.3, "hinge": 0.1, "twist": 0.1}
-DEFAULT_MOVES_RING = {"node": 0.4, "crankshaft": 0.45, "pivot": 0.0, "hinge": 0.0, "twist": 0.15}
+DEFAULT_MOVES_FREE = {"node": 0.2, "crankshaft": 0.2, "pivot": 0.2, "hinge": 0.1, "twist": 0.05, "end_twist": 0.05,
+                      "slide": 0.2}
+DEFAULT_MOVES_RING = {"node": 0.3, "crankshaft": 0.4, "pivot": 0.0, "hinge": 0.0, "twist": 0.15, "end_twist": 0.0,
+                      "slide": 0.15}
 #: A chord longer than this many times the intrinsic rise is refused when the excluded volume is on (part of the
 #: topology criterion, kernels module docstring): at 1.9 times the stretch energy of dna-default is 33 kT.
 CHORD_LIMIT = 1.9
@@ -209,7 +212,7 @@ class MCEngine:
                 raise ParameterError(f"unknown Monte Carlo move(s) {sorted(unknown)}; choose from {', '.join(MOVE_TYPES)}")
             mix = {k: float(moves.get(k, 0.0)) for k in MOVE_TYPES}
         if circ:
-            mix["pivot"] = mix["hinge"] = 0.0
+            mix["pivot"] = mix["hinge"] = mix["end_twist"] = 0.0
         p = np.array([max(0.0, mix.get(k, 0.0)) for k in MOVE_TYPES])
         if not p.sum() > 0:
             raise ParameterError("the Monte Carlo move mix has no move with a positive fraction")
@@ -223,13 +226,15 @@ class MCEngine:
                     self.amp[kn.MT_NODE, 0] = float(v)
                 elif key == "node_rad":
                     self.amp[kn.MT_NODE, 1] = float(v)
-                elif key.endswith("_rad") and key[:-4] in MOVE_TYPES[1:]:
+                elif key.endswith("_rad") and key[:-4] in MOVE_TYPES[1:] and key != "slide_rad":
                     self.amp[MOVE_TYPES.index(key[:-4]), :] = float(v)
+                elif key == "slide_nm":
+                    self.amp[kn.MT_SLIDE, :] = float(v)
                 else:
                     raise ParameterError(f"unknown Monte Carlo amplitude {key!r}")
         self._cap_amplitudes()
         ms = n if max_segment is None else max(1, int(max_segment))
-        self.lmax = np.array([1, ms, ms, ms, ms], np.int64)
+        self.lmax = np.array([1, ms, ms, ms, ms, ms, ms], np.int64)
         self.tune_sweeps = int(tune_sweeps)
         self.counts = np.zeros((kn.N_TYPES, kn.N_BINS, 2), np.int64)
         self.tune_counts = np.zeros((kn.N_TYPES, kn.N_BINS, 2), np.int64)
@@ -266,12 +271,15 @@ class MCEngine:
         amp[kn.MT_PIVOT] = 0.5 * s_w
         amp[kn.MT_HINGE] = 1.0 * s_w
         amp[kn.MT_TWIST] = 3.0 * s_w
+        amp[kn.MT_ENDTWIST] = 1.0 * s_w
+        amp[kn.MT_SLIDE] = 1.0 * s_r
         return amp
 
     def _cap_amplitudes(self):
         self.amp[kn.MT_NODE, 0] = min(self.amp[kn.MT_NODE, 0], 0.5)
         self.amp[kn.MT_NODE, 1] = min(self.amp[kn.MT_NODE, 1], 1.0)
         np.minimum(self.amp[1:], math.pi, out=self.amp[1:])
+        np.minimum(self.amp[kn.MT_SLIDE], 0.5, out=self.amp[kn.MT_SLIDE])
 
     def _setup_caches(self):
         n = self.model.n_nodes
@@ -355,10 +363,82 @@ class MCEngine:
         out = {"node_nm": float(self.amp[0, 0]), "node_rad": float(self.amp[0, 1])}
         tot = self.counts.sum(axis=0)
         for t, name in enumerate(MOVE_TYPES[1:], start=1):
-            out[f"{name}_rad"] = {(f"{2 ** b}" if b == 0 else f"{2 ** b}-{2 ** (b + 1) - 1}"): float(self.amp[t, b])
+            out[f"{name}_nm" if name == "slide" else f"{name}_rad"] = {(f"{2 ** b}" if b == 0 else f"{2 ** b}-{2 ** (b + 1) - 1}"): float(self.amp[t, b])
                                   for b in range(kn.N_BINS) if self.counts[t, b, 0] > 0}
         del tot
         return out
+
+    def potential_local(self, pos, frm):
+        """Potential energy (kJ/mol) of a pose under this engine's loads, without the non-bonded terms (which
+        depend on the centres only): elastic, loads (dead torques excluded: their energy depends on the path) and
+        walls."""
+        n = self.model.n_nodes
+        el = kn.elastic_energies(pos, frm, self.K, self.xi0, self.model.ds, self.model.closure is not None, self.Qc,
+                                 self.tc, np.empty(self.model.n_steps))
+        ext = 0.0
+        for k in self.ext_nodes:
+            if self.tq_mag[k] > 0:
+                raise ParameterError("potential_local: dead torques have no potential energy")
+            ext += self._node_loads(k, pos[k], frm[k])
+        if self.ip[kn.I_WALLS]:
+            ext += kn.wall_energies(pos, frm, self.radius, self.ip, self.fp, np.empty(n), np.empty(n))
+        return float(el + ext)
+
+    def set_pose(self, pos, frm):
+        """Replace the pose (positions (n, 3) nm, frames (n, 3, 3)) and recompute every cache (a replica swap)."""
+        self.pos[...] = pos
+        self.frm[...] = frm
+        self._setup_caches()
+
+    # --- observables --------------------------------------------------------------------------------------------------
+    def clamp_torque_z(self):
+        """The z torque (kJ/mol) the rotation clamps exert on their nodes, at the current pose (the direct estimator;
+        its thermal spread is that of the clamp angle, ``sqrt(k kT)``)."""
+        from dnarod.physics.loads import rotation_clamp_load
+
+        return float(sum(rotation_clamp_load(self.frm[rc.node], self.rc_T[rc.node], rc.k)[1][2]
+                         for rc in self.resolved.rotation_clamps))
+
+    def tail_torque_z(self, profile=False):
+        """Low-variance estimate of :meth:`clamp_torque_z`'s mean (kJ/mol), from an exact identity.
+
+        Turning the tail ``k+1 .. n-1`` of an open chain rigidly about a lab z axis preserves the invariant measure
+        and leaves the walls, z forces and the tail's own energy unchanged, so the mean z torque on the tail
+        vanishes: the clamps' mean torque equals minus the mean z torque (about node k+1) of step k, of the
+        non-bonded pairs across step k and of the tail's other loads, for every k whose tail holds every rotation
+        clamp and no clamped node. Each sample here is the average of those per-step values: in a stretched chain
+        it reads the twist moment of every step, whose average spreads by about ``kT sqrt(C / L)`` instead of
+        ``sqrt(k kT)``; non-bonded torques across plectonemes and bending moments are included exactly.
+
+        Parameters
+        ----------
+        profile : bool
+            Return the per-step values (n - 1,) (NaN where the identity does not apply) instead of their mean.
+
+        Returns
+        -------
+        float or ndarray
+            kJ/mol (divide by :data:`dnarod.core.units.PN` for pN nm).
+
+        Raises
+        ------
+        ParameterError
+            For a ring, or without a rotation clamp.
+        """
+        n = self.model.n_nodes
+        if self.model.closure is not None or not self.resolved.rotation_clamps:
+            raise ParameterError("the tail-torque estimator needs an open chain with a rotation clamp")
+        first_rc = min(rc.node for rc in self.resolved.rotation_clamps)
+        clamped = np.flatnonzero(self.resolved.clamped)
+        k_first = int(clamped.max()) if clamped.size else 0
+        if k_first >= first_rc:
+            raise ParameterError("the tail-torque estimator needs the rotation clamps beyond every clamped node")
+        out = np.empty(n - 1)
+        kn.tail_torque_profile(self.pos, self.frm, self.K, self.xi0, self.model.ds, self.force, self.trap_k,
+                               self.trap_c, self.tq_mag, self.tq_axis, self.tlo, self.thi, self.tcen, self.trad,
+                               self.ip, self.fp, k_first, out)
+        out[first_rc:] = np.nan
+        return out if profile else float(np.nanmean(out))
 
     # --- engine protocol ------------------------------------------------------------------------------------------------
     def node_state(self):

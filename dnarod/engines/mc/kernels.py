@@ -32,12 +32,23 @@ One call of :func:`sweep` attempts ``n_moves`` moves, types drawn with fixed pro
    ``a .. b`` rotated rigidly about node a's centre and the rest of the chain, ``b+1 .. n-1``, translated with
    node b, so that only steps ``a-1`` and ``b`` bend: the far end moves without turning (a rotation-clamped bead
    keeps its orientation), which is what relaxes the extension of a chain held at both ends by a surface and a bead;
-4. *twist*: the frames of nodes ``a .. b`` turned by one angle about their own d3 (positions fixed).
+4. *twist*: the frames of nodes ``a .. b`` turned by one angle about their own d3 (positions fixed);
+5. *end twist*: the same for a segment that ends at one end of an open chain (the last ``l`` nodes or the first),
+   which changes the twist of one step and the end's orientation: with a rotation-clamped end, this is what moves
+   the chain's total twist against the clamp;
+6. *slide*: nodes ``a .. b`` translated rigidly (uniform in a cube), which stretches or shears only steps a-1 and
+   b; a slide of a segment that holds an end changes one step only, hence the chain's total length: the extensible
+   rod's stretch mode, which moves of rigid rotations leave alone and single-node moves relax only diffusively
+   (in a time growing as the square of the chain's length).
 
 Segment lengths are drawn log-uniformly (every length scale equally often) independently of the state, and every
 proposal is symmetric with respect to the invariant (Haar x Lebesgue) measure of SE(3)^n (the inverse move has the
-same probability), so Metropolis acceptance ``min(1, exp(-dE/kT))`` samples ``exp(-E/kT)`` exactly. Amplitudes
-depend only on the move type and the segment length's octave (:func:`length_bin`).
+same probability). Acceptance is Metropolis in two stages (delayed acceptance, Christen and Fox 2005, J. Comput.
+Graph. Stat. 14:795): first ``min(1, exp(-dE_local/kT))`` with the elastic, load and wall terms, then, only for a
+move that passed, ``min(1, exp(-dE_nb/kT))`` with the non-bonded pairs, the expensive part; the product of the two
+satisfies detailed balance with respect to ``exp(-E/kT)`` exactly, and the pairs of a move rejected by its local
+terms are never evaluated. Amplitudes depend only on the move type and the segment length's octave
+(:func:`length_bin`).
 
 A move is a partition of the chain into at most :data:`MAX_SEG` index segments, each carried by one *motion*
 (fixed; rotation about an axis through a point; translation along the arc of a point rotating about an axis;
@@ -74,7 +85,7 @@ import math
 import numpy as np
 from numba import njit
 
-from dnarod.core.kernels import _DEN_LIMIT
+from dnarod.core.kernels import _DEN_LIMIT, step_loads
 
 #: WCA energy (kT) beyond which a pair is a hard-core overlap: exp(-700) underflows to 1e-304.
 HARD_CORE_KT = 700.0
@@ -87,8 +98,8 @@ N_F = 15
 I_N, I_CIRC, I_NEX, I_NB, I_EV, I_WALLS, I_SKIP, I_LEAF, I_AXI, I_IDCLOS, I_P = range(11)
 N_I = 11
 # move types
-MT_NODE, MT_CRANK, MT_PIVOT, MT_HINGE, MT_TWIST = range(5)
-N_TYPES = 5
+MT_NODE, MT_CRANK, MT_PIVOT, MT_HINGE, MT_TWIST, MT_ENDTWIST, MT_SLIDE = range(7)
+N_TYPES = 7
 #: Amplitude bins per move type: octaves of the segment length (bin b holds lengths 2^b .. 2^(b+1) - 1).
 N_BINS = 24
 # motion kinds
@@ -659,10 +670,13 @@ def nonbonded_delta(pos, nseg, slo, shi, smid, mkind, mR, mc, mt, mu, mth, mq, m
                         # node i against leaf b's sphere, before, after and (hard core) on the way
                         gi = math.sqrt((tcen[tb, 0] - x[0]) ** 2 + (tcen[tb, 1] - x[1]) ** 2
                                        + (tcen[tb, 2] - x[2]) ** 2) - rb
+                        # bound on the change of the vector from i to any node of b along the path
+                        relmax = rel_bound(m1, x[0], x[1], x[2], 0.0, m2, tcen[tb, 0], tcen[tb, 1], tcen[tb, 2], rb,
+                                           mkind, mc, mu, mq, mb) if ev else 0.0
                         if gi >= cut and math.sqrt((nb0 - yi0) ** 2 + (nb1 - yi1) ** 2 + (nb2 - yi2) ** 2) - rb >= cut:
-                            if not ev or gi - rel_bound(m1, x[0], x[1], x[2], 0.0, m2, tcen[tb, 0], tcen[tb, 1],
-                                                        tcen[tb, 2], rb, mkind, mc, mu, mq, mb) >= rhc:
+                            if not ev or gi - relmax >= rhc:
                                 continue
+                        reach2 = (rhc + relmax) ** 2
                         j0 = max(blo, i + nex + 1)
                         j1 = min(bhi, i + n - nex - 1) if circ else bhi
                         for j in range(j0, j1 + 1):
@@ -676,13 +690,14 @@ def nonbonded_delta(pos, nseg, slo, shi, smid, mkind, mR, mc, mt, mu, mth, mq, m
                                 if d1 < rhc2:
                                     return np.inf
                                 # the relative path is an arc (or a line) whose points lie within its chord of the
-                                # start
-                                rel = math.sqrt((yj0 - yi0 - y[0] + x[0]) ** 2 + (yj1 - yi1 - y[1] + x[1]) ** 2
-                                                + (yj2 - yi2 - y[2] + x[2]) ** 2)
-                                if math.sqrt(d0) - rel < rhc:
-                                    pm = path_min2(m1, x, m2, y, mkind, mc, mt, mu, mth, mq)
-                                    if pm < rhc2:
-                                        return np.inf
+                                # start, itself within relmax
+                                if d0 < reach2:
+                                    rel = math.sqrt((yj0 - yi0 - y[0] + x[0]) ** 2 + (yj1 - yi1 - y[1] + x[1]) ** 2
+                                                    + (yj2 - yi2 - y[2] + x[2]) ** 2)
+                                    if math.sqrt(d0) - rel < rhc:
+                                        pm = path_min2(m1, x, m2, y, mkind, mc, mt, mu, mth, mq)
+                                        if pm < rhc2:
+                                            return np.inf
                             if d0 < cut2:
                                 dE -= pair_energy(d0, fp)
                             if d1 < cut2:
@@ -1085,6 +1100,43 @@ def sweep(pos, frm, K, xi0, Qc, tc, movable, clamp_prefix, ext_nodes, force, tra
                 _set_rot(1, ax0 / an, ax1 / an, ax2 / an, ang, pos[i0, 0], pos[i0, 1], pos[i0, 2], mkind, mR, mc,
                          mt, mu, mth, mq, mb)
             nseg = _range_segments(a0, ln, n, circ, 1, slo, shi, smid)
+        elif mt_ == MT_SLIDE:
+            cap = n - 1
+            ln = segment_length(rng, min(lmax[MT_SLIDE], cap))
+            bin_ = length_bin(ln)
+            if circ:
+                a0 = int(rng_uniform(rng) * n)
+                if not idclos and a0 + ln > n:
+                    continue
+            else:
+                a0 = int(rng_uniform(rng) * (n - ln + 1))
+            hi0 = a0 + ln - 1
+            if hi0 < n:
+                if clamp_prefix[hi0 + 1] - clamp_prefix[a0] > 0:
+                    continue
+            elif clamp_prefix[n] - clamp_prefix[a0] + clamp_prefix[hi0 - n + 1] > 0:
+                continue
+            mkind[1] = K_LINEAR
+            tn = 0.0
+            for a in range(3):
+                for b in range(3):
+                    mR[1, a, b] = 1.0 if a == b else 0.0
+                mt[1, a] = amp[MT_SLIDE, bin_] * (2.0 * rng_uniform(rng) - 1.0)
+                tn += mt[1, a] * mt[1, a]
+            mb[1] = math.sqrt(tn)
+            nseg = _range_segments(a0, ln, n, circ, 1, slo, shi, smid)
+        elif mt_ == MT_ENDTWIST:
+            if circ:
+                continue
+            ln = segment_length(rng, min(lmax[MT_TWIST], n - 1))
+            bin_ = length_bin(ln)
+            a0 = n - ln if rng_uniform(rng) < 0.5 else 0
+            if clamp_prefix[a0 + ln] - clamp_prefix[a0] > 0:
+                continue
+            mkind[1] = K_TWIST
+            mth[1] = amp[MT_ENDTWIST, bin_] * (2.0 * rng_uniform(rng) - 1.0)
+            mb[1] = 0.0
+            nseg = _range_segments(a0, ln, n, circ, 1, slo, shi, smid)
         elif mt_ == MT_PIVOT:
             if circ:
                 continue
@@ -1214,16 +1266,20 @@ def sweep(pos, frm, K, xi0, Qc, tc, movable, clamp_prefix, ext_nodes, force, tra
             dw, nw = wall_delta(pos, frm, radius, nseg, slo, shi, smid, mkind, mR, mc, mt, mth, esurf, ebead, tlo,
                                 thi, tcen, trad, ip, fp, stack, wnode, wsurf, wbead, Lt)
             dE_ext += dw
-        # ---- non-bonded --------------------------------------------------------------------------------------------
+        # ---- delayed acceptance: first the local terms, then (only if they pass) the non-bonded pairs -------------
+        dE1 = dE_el + dE_ext
+        if not (dE1 < np.inf):
+            continue
+        if dE1 > 0.0 and rng_uniform(rng) >= math.exp(-beta * dE1):
+            continue
         dE_nb = 0.0
         if has_nb:
             dE_nb = nonbonded_delta(pos, nseg, slo, shi, smid, mkind, mR, mc, mt, mu, mth, mq, mb, tlo, thi, tcen,
                                     trad, ip, fp, stack)
-        dE = dE_el + dE_ext + dE_nb
-        if not (dE < np.inf):
-            continue
-        if dE > 0.0 and rng_uniform(rng) >= math.exp(-beta * dE):
-            continue
+            if not (dE_nb < np.inf):
+                continue
+            if dE_nb > 0.0 and rng_uniform(rng) >= math.exp(-beta * dE_nb):
+                continue
         # ---- accept ------------------------------------------------------------------------------------------------
         counts[mt_, bin_, 1] += 1
         energy[0] += dE_el
@@ -1262,3 +1318,128 @@ def sweep(pos, frm, K, xi0, Qc, tc, movable, clamp_prefix, ext_nodes, force, tra
         if not (energy[0] + energy[1] + energy[2] < np.inf):
             return -1
     return 0
+
+
+# --- the clamp torque from the tail-rotation identity ------------------------------------------------------------------
+
+
+@njit(cache=True)
+def nonbonded_pair_sums(pos, tlo, thi, tcen, trad, ip, fp, dA, dF):
+    """Every interacting pair (i < j, chain separation > n_ex, closer than the cut-off) adds, over the steps
+    k = i .. j-1 it straddles, the z torque ``(r_j x f_j)_z`` and the force ``f_j`` on j (from i): difference arrays
+    ``dA`` (n + 1,) and ``dF`` (n + 1, 2) (x and y) to be summed cumulatively. Open chains; found with the tree."""
+    n = pos.shape[0]
+    nex = ip[I_NEX]
+    P = ip[I_P]
+    cut = fp[F_CUT]
+    cut2 = cut * cut
+    stack = np.zeros((_STACK, 2), np.int64)
+    sp = 1
+    stack[0, 0] = 1
+    stack[0, 1] = 1
+    while sp > 0:
+        sp -= 1
+        ta = stack[sp, 0]
+        tb = stack[sp, 1]
+        if tlo[ta] > thi[ta] or tlo[tb] > thi[tb]:
+            continue
+        if ta != tb:
+            if thi[tb] - tlo[ta] <= nex:
+                continue
+            dx = tcen[tb, 0] - tcen[ta, 0]
+            dy = tcen[tb, 1] - tcen[ta, 1]
+            dz = tcen[tb, 2] - tcen[ta, 2]
+            lim = cut + trad[ta] + trad[tb]
+            if dx * dx + dy * dy + dz * dz >= lim * lim:
+                continue
+        if ta >= P and tb >= P:
+            for i in range(tlo[ta], thi[ta] + 1):
+                for j in range(max(tlo[tb], i + nex + 1), thi[tb] + 1):
+                    dx = pos[j, 0] - pos[i, 0]
+                    dy = pos[j, 1] - pos[i, 1]
+                    dz = pos[j, 2] - pos[i, 2]
+                    r2 = dx * dx + dy * dy + dz * dz
+                    if r2 >= cut2:
+                        continue
+                    g = pair_force_over_r(r2, fp)
+                    fx = g * dx
+                    fy = g * dy
+                    A = pos[j, 0] * fy - pos[j, 1] * fx
+                    dA[i] += A
+                    dA[j] -= A
+                    dF[i, 0] += fx
+                    dF[j, 0] -= fx
+                    dF[i, 1] += fy
+                    dF[j, 1] -= fy
+        elif ta == tb:
+            stack[sp, 0] = 2 * ta
+            stack[sp, 1] = 2 * ta
+            stack[sp + 1, 0] = 2 * ta + 1
+            stack[sp + 1, 1] = 2 * ta + 1
+            stack[sp + 2, 0] = 2 * ta
+            stack[sp + 2, 1] = 2 * ta + 1
+            sp += 3
+        elif tb >= P or (ta < P and trad[ta] >= trad[tb]):
+            stack[sp, 0] = 2 * ta
+            stack[sp, 1] = tb
+            stack[sp + 1, 0] = 2 * ta + 1
+            stack[sp + 1, 1] = tb
+            sp += 2
+        else:
+            stack[sp, 0] = ta
+            stack[sp, 1] = 2 * tb
+            stack[sp + 1, 0] = ta
+            stack[sp + 1, 1] = 2 * tb + 1
+            sp += 2
+
+
+@njit(cache=True)
+def tail_torque_profile(pos, frm, K, xi0, ds, force, trap_k, trap_c, tq_mag, tq_axis, tlo, thi, tcen, trad, ip,
+                        fp, k_first, out):
+    """Estimates of the z torque (kJ/mol) the rotation clamps of the tail exert, one per step k >= k_first, into
+    out (n - 1,) (NaN before k_first): minus the z torque, about node k+1's centre, of everything else acting on the
+    tail ``k+1 .. n-1`` from outside it: step k, the non-bonded pairs across k, the pulling forces, traps and dead
+    torques of the tail (the walls exert none: their forces are along z). Open chains."""
+    n = pos.shape[0]
+    sl = np.zeros(13)
+    eye = np.eye(3)
+    zero = np.zeros(3)
+    dA = np.zeros(n + 1)
+    dF = np.zeros((n + 1, 2))
+    if ip[I_NB] == 1:
+        nonbonded_pair_sums(pos, tlo, thi, tcen, trad, ip, fp, dA, dF)
+    # loads of the tail: sum over j > k of (r_j x G_j)_z + tau_j,z and of G_j (x, y), accumulated from the end
+    gA = 0.0
+    gx = 0.0
+    gy = 0.0
+    A = 0.0
+    Fx = 0.0
+    Fy = 0.0
+    for k in range(n - 1):
+        out[k] = np.nan
+    # pair sums over k are prefix sums of the difference arrays
+    pA = np.zeros(n)
+    pFx = np.zeros(n)
+    pFy = np.zeros(n)
+    for k in range(n):
+        A += dA[k]
+        Fx += dF[k, 0]
+        Fy += dF[k, 1]
+        pA[k] = A
+        pFx[k] = Fx
+        pFy[k] = Fy
+    for k in range(n - 2, -1, -1):
+        j = k + 1
+        G0 = force[j, 0] - trap_k[j] * (pos[j, 0] - trap_c[j, 0])
+        G1 = force[j, 1] - trap_k[j] * (pos[j, 1] - trap_c[j, 1])
+        gA += pos[j, 0] * G1 - pos[j, 1] * G0 + tq_mag[j] * tq_axis[j, 2]
+        gx += G0
+        gy += G1
+        if k < k_first:
+            continue
+        step_loads(pos, frm, K, xi0, ds, k, False, j, eye, zero, sl)
+        px = pos[j, 0]
+        py = pos[j, 1]
+        Z = sl[11] + (pA[k] - (px * pFy[k] - py * pFx[k])) + (gA - (px * gy - py * gx))
+        out[k] = -Z
+

@@ -1,4 +1,4 @@
-"""Exact force-extension of the discrete rod by transfer matrix (free ends, uniform axisymmetric steps).
+"""Exact force-extension of the discrete rod by transfer matrix (uniform axisymmetric steps; node 0 free or held).
 
 A free open chain of n nodes pulled by ``+F z`` on its last node and ``-F z`` on node 0 has the partition function
 ``Z(F) = < exp(beta F (r_{n-1} - r_0) . z) >`` over the free chain, whose steps are independent in their body
@@ -13,8 +13,10 @@ sum_{j>=k} ds u_j . Gamma_j) | u_k>`` then stay functions of c, and by the addit
     h_k(c) = sum_l a_l P_l(c) G_l(c),   G_l(c) = < g(c, w) P_l(R_33(w)) >_w
 
 with g the Gaussian Gamma integral and ``<>_w`` the exact Cayley-vector density of the step (the quadrature of
-:func:`dnarod.thermal.mean_rotation`). Node 0's orientation is uniform (Haar), so ``Z = a_0`` of ``h_0``; the
-extension is ``kT d ln Z / dF`` (central difference in F). Truncation: Legendre degree ``l_max``, ``n_c``
+:func:`dnarod.physics.thermal.mean_rotation`). Node 0's orientation is uniform (Haar) for a free chain, so
+``Z = a_0`` of ``h_0``; a chain whose node 0 is held (clamped, as on a tweezers surface) with its d3 at cosine
+``c0`` to the force has ``Z = h_0(c0) = sum_l a_l P_l(c0)``. The extension is ``kT d ln Z / dF`` (central
+difference in F). Truncation: Legendre degree ``l_max``, ``n_c``
 Gauss-Legendre nodes in c and ``order`` Gauss-Hermite points per axis in w; the defaults change the relative
 extension by less than 1e-6 at 0.1-10 pN (tests).
 """
@@ -68,9 +70,10 @@ def _step_tables(params, ds, kt, order):
     return w, W, mu3, Cinv
 
 
-def log_partition(params, ds, kt, n_nodes, force, lmax=60, n_c=120, order=16, tables=None):
-    """``ln Z(F)`` of the free chain of ``n_nodes`` nodes pulled by ``force`` (kJ/mol/nm) on its last node and the
-    opposite force on node 0 (module docstring)."""
+def log_partition(params, ds, kt, n_nodes, force, lmax=60, n_c=120, order=16, tables=None, start_cos=None):
+    """``ln Z(F)`` of the chain of ``n_nodes`` nodes pulled by ``force`` (kJ/mol/nm) on its last node and the
+    opposite force on node 0 (module docstring); ``start_cos``: node 0 held with its d3 at that cosine to the force
+    (None: node 0 free)."""
     from dnarod.core.rotations import cayley
 
     w, W, mu3, Cinv = tables if tables is not None else _step_tables(params, ds, kt, order)
@@ -93,11 +96,15 @@ def log_partition(params, ds, kt, n_nodes, force, lmax=60, n_c=120, order=16, ta
         s = a[0]
         logz += np.log(s)
         a /= s
+    if start_cos is not None:
+        logz += float(np.log(_legendre_table(np.array([float(start_cos)]), lmax)[0] @ a))
     return float(logz)
 
 
-def force_extension(params, ds, temperature, n_nodes, force_pN, lmax=60, n_c=120, order=16, rel_step=1e-4):
-    """Exact mean extension ``<(r_{n-1} - r_0) . z>`` (nm) of the free discrete chain pulled at both ends.
+def force_extension(params, ds, temperature, n_nodes, force_pN, lmax=60, n_c=120, order=16, rel_step=1e-4,
+                    start_cos=None):
+    """Exact mean extension ``<(r_{n-1} - r_0) . z>`` (nm) of the discrete chain pulled at both ends (node 0 free),
+    or pulled at its last node with node 0 held (``start_cos``).
 
     Parameters
     ----------
@@ -114,6 +121,9 @@ def force_extension(params, ds, temperature, n_nodes, force_pN, lmax=60, n_c=120
         Legendre degree, Gauss-Legendre nodes in cos(theta), Gauss-Hermite points per axis.
     rel_step : float
         Relative step of the central difference in F.
+    start_cos : float, optional
+        Node 0 held (position and orientation, e.g. :class:`~dnarod.physics.loads.Clamp`) with its d3 at this
+        cosine to the force (1: along it); None: node 0 free.
 
     Returns
     -------
@@ -132,7 +142,7 @@ def force_extension(params, ds, temperature, n_nodes, force_pN, lmax=60, n_c=120
             raise ParameterError(f"force {F} pN: give a pulling force > 0")
         f = F * PN
         h = rel_step * f
-        lp = log_partition(params, ds, kt, n_nodes, f + h, lmax, n_c, order, tables)
-        lm = log_partition(params, ds, kt, n_nodes, f - h, lmax, n_c, order, tables)
+        lp = log_partition(params, ds, kt, n_nodes, f + h, lmax, n_c, order, tables, start_cos)
+        lm = log_partition(params, ds, kt, n_nodes, f - h, lmax, n_c, order, tables, start_cos)
         out.append(kt * (lp - lm) / (2.0 * h))
     return np.asarray(out)
