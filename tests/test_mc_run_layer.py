@@ -68,7 +68,7 @@ def test_mc_member_sampling_resumes_bit_for_bit(tmp_path):
     from dnarod.run.sampling import SampleReporter, run_sampling
     from dnarod.workflows.protocols.tweezers import build_member
 
-    mb = build_member(dict(n_bp=40, force_pN=2.0, turns=0.5))
+    mb = build_member(dict(n_bp=40, force_pN=2.0, turns=0.3))
 
     def engine():
         return MCEngine(mb["model"], 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]), seed=4)
