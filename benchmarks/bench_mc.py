@@ -24,6 +24,14 @@ the MD engine's speed (CPU-s per simulated ns of one 1-kbp member) measured in t
 skip), give ``2 tau (sd / target)^2`` ns and their CPU cost.
 
     nice -n 10 python benchmarks/bench_mc.py --dlk 0 2 4 3 --budget 300
+
+``--hat`` runs the 26 rungs of the README's 1-kbp hat curve (the turns of ``hat_1kbp_r12.json``, counted from the
+intrinsic twist as there) as one replica-exchange ladder (:class:`dnarod.engines.mc.ladder.TurnLadder`) for
+``--hat-budget`` CPU seconds in all, from the protocol's start poses: a sweep of every rung per round, a sample of
+every rung per round, swaps of neighbours every ``--exchange-every`` rounds; writes
+``benchmarks/results/bench_mc_hat.json`` with each rung's x/L and torque, their errors and flags.
+
+    nice -n 10 python benchmarks/bench_mc.py --hat --hat-budget 1800
 """
 from __future__ import annotations
 
@@ -139,6 +147,48 @@ def md_reference(turns_0k, target_ext, speed):
                 ns_per_rung=ns_per_rung, points=out)
 
 
+def run_hat(budget_cpu, exchange_every, seed, force_pN=1.0, n_bp=N_BP):
+    """The 26-rung ladder of the README's hat curve (module docstring); returns (rows, ladder info)."""
+    from dnarod.analysis.statistics import mean_and_error
+    from dnarod.core.units import PN
+    from dnarod.engines.mc import MCEngine
+    from dnarod.engines.mc.ladder import TurnLadder
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.tweezers import build_member
+
+    c0 = time.process_time()
+    turns = json.loads((RESULTS / "hat_1kbp_r12.json").read_text())["ladder"]["rungs"]
+    engines = []
+    for i, t in enumerate(turns):
+        mb = build_member(dict(n_bp=n_bp, force_pN=force_pN, turns=t))
+        engines.append(MCEngine(mb["model"], 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]),
+                                seed=seed + i))
+    lad = TurnLadder(engines, turns, seed=seed)
+    L = engines[0].model.ds * (n_bp - 1)
+    ext = [[] for _ in turns]
+    tq = [[] for _ in turns]
+    rounds = 0
+    while time.process_time() - c0 < budget_cpu:
+        lad.advance(1)
+        rounds += 1
+        for i, e in enumerate(engines):
+            ext[i].append((e.pos[-1, 2] - e.pos[0, 2]) / L)
+            tq[i].append(e.tail_torque_z() / PN)
+        if rounds % exchange_every == 0:
+            lad.exchange()
+    rows = []
+    for i, t in enumerate(turns):
+        ex, et = mean_and_error(ext[i]), mean_and_error(tq[i])
+        rows.append(dict(turns=t, x_over_L=ex.mean, x_err=ex.error, x_rel_err=ex.error / ex.mean, x_tau_sweeps=ex.tau,
+                         x_n_eff=ex.n_eff, x_flag=ex.flag, x_transient_sweeps=ex.t0, torque_pN_nm=et.mean,
+                         torque_err=et.error, torque_tau_sweeps=et.tau, torque_flag=et.flag,
+                         acceptance=engines[i].acceptance()))
+    info = dict(rounds=rounds, cpu_s=time.process_time() - c0, exchange_every=exchange_every,
+                swap_acceptance=lad.acceptance().tolist(), labels=lad.labels.tolist(),
+                cpu_ms_per_sweep=[1e3 * (time.process_time() - c0) / rounds / len(turns)])
+    return rows, info
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n-bp", type=int, default=N_BP)
@@ -151,8 +201,23 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--md-seconds", type=float, default=30.0, help="CPU seconds of MD to measure its speed (0: skip)")
     ap.add_argument("--json", default=str(RESULTS / "bench_mc.json"))
+    ap.add_argument("--hat", action="store_true", help="run the 26-rung hat-curve ladder instead")
+    ap.add_argument("--hat-budget", type=float, default=1800.0, help="CPU seconds for the whole ladder")
+    ap.add_argument("--exchange-every", type=int, default=5)
     a = ap.parse_args(argv)
     c_all = time.process_time()
+    if a.hat:
+        rows, info = run_hat(a.hat_budget, a.exchange_every, a.seed, a.force, a.n_bp)
+        print(f"{'turns':>6} {'x/L':>8} {'err%':>6} {'tau':>5} {'flag':>6} {'torque':>8} {'err':>5}")
+        for r in rows:
+            print(f"{r['turns']:6.2f} {r['x_over_L']:8.4f} {100 * r['x_rel_err']:6.2f} {r['x_tau_sweeps']:5.0f} "
+                  f"{str(r['x_flag']):>6} {r['torque_pN_nm']:8.2f} {r['torque_err']:5.2f}")
+        print(f"{info['rounds']} rounds, {info['cpu_s']:.0f} CPU-s; swap acceptance "
+              + " ".join(f"{x:.2f}" for x in info["swap_acceptance"]))
+        write_results(a.json.replace("bench_mc.json", "bench_mc_hat.json"), "bench_mc_hat", n_bp=a.n_bp,
+                      force_pN=a.force, turns_counted_from="intrinsic twist (as hat_1kbp_r12.json)", rungs=rows,
+                      ladder=info, command_cpu_s=time.process_time() - c_all)
+        return
     off, off_se = thermal_offset(a.n_bp, 300.0)
     print(f"torque-free state at 300 K: {-off:+.3f} +- {off_se:.3f} turns from the intrinsic twist", flush=True)
     rows, pose, prev = [], None, None
