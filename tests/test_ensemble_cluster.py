@@ -1,4 +1,4 @@
-"""Ensembles on real clusters (issue 33): wrong, unreachable or non-dask schedulers, Ctrl-C, a lost scheduler and a
+"""Ensembles on real clusters: wrong, unreachable or non-dask schedulers, Ctrl-C, a lost scheduler and a
 full disk (one line, no dask traceback), private local clusters, a TLS-secured scheduler, and protocols named only
 from the registry. Each fault is a row of docs/faults_cluster.md."""
 import http.server
@@ -257,7 +257,7 @@ def test_dashboard_only_when_asked_and_on_localhost(monkeypatch):
 def test_ctrl_c_is_one_line_exit_130_and_the_cluster_is_private(tmp_path, pkgs):
     """Ctrl-C (SIGINT to the command's process group, as a terminal sends it) while members run: one line, exit
     130, no traceback from the command or its workers. While it runs, the local cluster is private: every listening
-    socket of the command and its worker processes is on 127.0.0.1 (the ``ss -ltnp`` check of issue 33), none
+    socket of the command and its worker processes is on 127.0.0.1 (what ``ss -ltnp`` would show), none
     serves HTTP (no dashboard, no worker metrics), and the workers' stderr goes to OUT/ensemble.log."""
     import psutil
 

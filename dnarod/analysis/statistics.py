@@ -110,6 +110,15 @@ class Estimate:
     error_blocks: float
     error_slow: float = 0.0
 
+    def __iter__(self):
+        """Unpacks as ``(mean, error, tau, n_eff, flag)``."""
+        return iter((self.mean, self.error, self.tau, self.n_eff, self.flag))
+
+    @property
+    def t0(self) -> int:
+        """Samples dropped at the start as its transient (``n_dropped``)."""
+        return self.n_dropped
+
     def as_dict(self, prefix=""):
         """The fields as a dict, keys prefixed by ``prefix`` (a JSON-ready record)."""
         return {prefix + k: v for k, v in asdict(self).items()}
@@ -228,7 +237,7 @@ def estimate(series, *, transient=True, min_effective=MIN_EFFECTIVE_SAMPLES, rel
 
 
 def mean_and_error(series):
-    """``(mean, error, tau, n_eff, flag)`` of a correlated time series (:func:`estimate` with its defaults).
+    """:func:`estimate` of a correlated time series with its defaults; unpacks as ``(mean, error, tau, n_eff, flag)``.
 
     Parameters
     ----------
@@ -236,17 +245,20 @@ def mean_and_error(series):
 
     Returns
     -------
-    mean, error : float
-        Mean of the samples after the start's transient and its standard error.
-    tau : float
-        Integrated autocorrelation time, samples.
-    n_eff : float
-        Effectively independent samples.
-    flag : str or None
-        Why the error bar is not to be trusted, or None.
+    Estimate
+        ``mean`` and ``error`` after the start's transient, ``tau`` (samples), ``n_eff`` (effectively independent
+        samples), ``flag`` (why the error bar is not to be trusted, or None), ``t0`` (samples dropped).
     """
-    e = estimate(series)
-    return e.mean, e.error, e.tau, e.n_eff, e.flag
+    return estimate(series)
+
+
+def combined_z(a, b):
+    """``(a.mean - b.mean) / sqrt(a.error^2 + b.error^2)`` of two estimates (or ``(mean, error)`` pairs): the
+    difference of two independent measurements in their combined standard errors."""
+    ma, ea = (a.mean, a.error) if isinstance(a, Estimate) else tuple(a)[:2]
+    mb, eb = (b.mean, b.error) if isinstance(b, Estimate) else tuple(b)[:2]
+    s = math.hypot(ea, eb)
+    return float((ma - mb) / s) if s > 0 else (0.0 if ma == mb else float("inf"))
 
 
 def function_estimate(est, f, what=None):

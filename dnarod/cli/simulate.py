@@ -153,7 +153,7 @@ def spec_from_options(engine, source, forcefield, circular, ring, delta_lk, dupl
         friction = 0.0
     elif friction is None:
         friction = 1.0
-    nb_default = engine == "openmm"
+    nb_default = engine in ("openmm", "mc")
     charge_options = nonbonded_options(charge, cutoff_debye, salt, temperature)
     spec = RunSpec(**charge_options, source=source, forcefield=forcefield, engine=engine, time_ns=time_ns,
                    temperature=temperature,
@@ -225,8 +225,11 @@ def _report(result, spec):
     echo(head)
     if s.get("platform_reason"):
         echo(f"platform choice: {s['platform_reason']}")
-    echo(f"dt: {s['dt_ps'] * 1000:.2f} fs (omega_max {s['omega_max']:.4g} rad/ps)  steps: {s['steps']}  "
-         f"simulated: {s['simulated_ps'] / 1000:.6g} ns  seed: {s['seed']}")
+    if s["engine"] == "mc":
+        echo(f"Monte Carlo sweeps: {s['steps']} (1 ps = 1 sweep)  seed: {s['seed']}")
+    else:
+        echo(f"dt: {s['dt_ps'] * 1000:.2f} fs (omega_max {s['omega_max']:.4g} rad/ps)  steps: {s['steps']}  "
+             f"simulated: {s['simulated_ps'] / 1000:.6g} ns  seed: {s['seed']}")
     nb = s.get("nonbonded")
     if nb:
         echo(f"nonbonded: Debye length {nb['debye_length']:.3g} nm, charge {nb['charge']:.3g} e/bp"
@@ -237,8 +240,12 @@ def _report(result, spec):
     if spec.extra.get("turns_offset_0K") is not None:
         echo(f"turns counted from the torque-free state at {spec.temperature:g} K: the clamp started "
              f"{spec.extra['turns_offset_0K']:+.4f} turns (turns_offset_0K) from the chain's 0 K intrinsic twist")
-    echo(f"wall: {s['wall_s']:.1f} s (CPU {s['cpu_s']:.1f} s)  speed: {s['ns_per_day']:.4g} ns/day  "
-         f"mean kinetic temperature: {s['mean_temperature_K']:.1f} K")
+    if s["engine"] == "mc":
+        echo(f"wall: {s['wall_s']:.1f} s (CPU {s['cpu_s']:.1f} s)  acceptance: "
+             + ", ".join(f"{k} {v:.2f}" for k, v in (s.get("acceptance") or {}).items() if v == v))
+    else:
+        echo(f"wall: {s['wall_s']:.1f} s (CPU {s['cpu_s']:.1f} s)  speed: {s['ns_per_day']:.4g} ns/day  "
+             f"mean kinetic temperature: {s['mean_temperature_K']:.1f} K")
     echo("wrote: " + ", ".join(str(p) for p in result.files.values()))
 
 
@@ -254,8 +261,9 @@ def _run_command(engine, kw):
 
 
 @click.command("simulate")
-@click.option("--engine", type=click.Choice(["openmm", "lax"]), default="openmm", show_default=True,
-              help="OpenMM engine or the direct Lax-form integrator (same model, same outputs).")
+@click.option("--engine", type=click.Choice(["openmm", "lax", "mc"]), default="openmm", show_default=True,
+              help="OpenMM engine, the direct Lax-form integrator, or the Monte Carlo sampler (equilibrium only; "
+                   "its times count sweeps, 1 ps = 1 sweep). Same model, same outputs.")
 @_simulate_options
 def simulate_cmd(engine, **kw):
     """Simulate SOURCE with either engine.

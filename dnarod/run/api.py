@@ -50,7 +50,8 @@ from dnarod.physics.thermal import equilibrium_sample
 RUN_FILES = {"run_json": "run.json", "trajectory": "trajectory.dtraj", "energies": "energies.csv",
              "checkpoint": "checkpoint.npz", "final_model": "final_model.npz", "pdb": "trajectory.pdb",
              "dcd": "trajectory.dcd", "xtc": "trajectory.xtc"}
-CHECKPOINT_FORMATS = {"openmm": "dnarod-openmm-checkpoint", "lax": "dnarod-lax-checkpoint"}
+CHECKPOINT_FORMATS = {"openmm": "dnarod-openmm-checkpoint", "lax": "dnarod-lax-checkpoint",
+                      "mc": "dnarod-mc-checkpoint"}
 #: Mean elastic energy per step of the start pose (kT) above which a run warns / is refused.
 WARN_KT_PER_STEP = 20.0
 REFUSE_KT_PER_STEP = 100.0
@@ -190,6 +191,9 @@ def preflight(spec: RunSpec, model: RodModel | None = None) -> RodModel:
     if spec.start == "equilibrium" and model.closure is not None:
         raise ParameterError("start 'equilibrium' samples the free open chain exactly; this model is circular "
                              "(a ring or a periodic chain): use start 'intrinsic' or 'minimized'")
+    if spec.engine == "mc":  # no time step: one sweep counts as 1 ps (dnarod.engines.mc)
+        intervals(spec, 1.0)
+        return model
     omega = default_omega_max(model, spec.loads)
     check_load_stiffness(spec, model, omega)
     if spec.dt is not None and spec.dt > 1.05 * MAX_OMEGA_DT / omega:
@@ -208,9 +212,14 @@ def check_load_stiffness(spec: RunSpec, model: RodModel, omega: float | None = N
     _check_load_stiffness(model, spec.loads, omega=omega)
 
 
-def make_engine(spec: RunSpec, model: RodModel, dt: float, seed: int, omega: float) -> Engine:
+def make_engine(spec: RunSpec, model: RodModel, dt: float, seed: int, omega: float | None) -> Engine:
     """The engine of ``spec.engine`` for ``model`` (start pose), time step ``dt`` ps and ``seed``."""
     duration_ps = spec.time_ns * 1000.0
+    if spec.engine == "mc":
+        from dnarod.engines.mc import MCEngine
+
+        return MCEngine(model, spec.temperature, spec.loads, nonbonded=spec.nonbonded_settings(), seed=seed,
+                        duration_ps=duration_ps)
     if spec.engine == "lax":
         from dnarod.engines.lax.engine import LaxEngine  # loads scipy.integrate
 
@@ -341,10 +350,13 @@ def run(spec: RunSpec, outdir: str | Path, resume: bool = False, overwrite: bool
     if spec.start != "intrinsic":
         stage(f"the {spec.start} start pose")
     start = start_model(spec, model, seed)
-    stage("the fastest normal mode (time step)")
-    omega = default_omega_max(start if start is not None else model, spec.loads)
-    check_load_stiffness(spec, model)
-    dt = choose_dt(spec, model, omega)
+    if spec.engine == "mc":  # no time step: one sweep counts as 1 ps (dnarod.engines.mc)
+        omega, dt = None, 1.0
+    else:
+        stage("the fastest normal mode (time step)")
+        omega = default_omega_max(start if start is not None else model, spec.loads)
+        check_load_stiffness(spec, model)
+        dt = choose_dt(spec, model, omega)
     intervals(spec, dt)  # refuses an absurd number of steps before anything is written
     check_free_space(outdir, estimate_run_bytes(spec, model.n_nodes, dt), "this run")
     fp = fingerprint(spec, model, dt, seed)
@@ -526,6 +538,8 @@ def _execute(spec, outdir, paths, engine, model, meta, resume_step, progress):
                    frame_interval_steps=fi, wall_s=wall, cpu_s=out["cpu_s"], ns_per_day=_ns_per_day(out, dt),
                    mean_temperature_K=float(np.mean(temps)) if temps else float("nan"), seed=meta["seed"],
                    already_done=False, message=None, selection=(model.metadata or {}).get("selection"))
+    if spec.engine == "mc":
+        summary.update(acceptance=engine.acceptance(), amplitudes=engine.amplitudes())
     if spec.engine == "openmm":
         summary.update(elastic_path=engine.rs.elastic, platform=engine.platform_name,
                        platform_reason=getattr(engine, "platform_reason", None),

@@ -19,7 +19,7 @@ from dnarod.physics.nonbonded import scales_temperature, NonbondedSettings, memb
 from dnarod.run.loop import CHECKPOINT_WALL_S
 from dnarod.core.io import jsonable
 
-ENGINES = ("openmm", "lax")
+ENGINES = ("openmm", "lax", "mc")
 STARTS = ("intrinsic", "equilibrium", "minimized")
 ELASTIC = ("auto", "plugin", "fast", "portable")
 #: Largest accepted monovalent salt, mol/L (saturated NaCl is ~6 M).
@@ -65,8 +65,10 @@ class RunSpec:
         PDB/mmCIF path, model ``.npz``, DNA sequence, FASTA/text sequence file, node count, or a model.
     forcefield : str
         Bundled force-field name or ``.toml`` path.
-    engine : {"openmm", "lax"}
-        OpenMM engine or the direct Lax-form integrator.
+    engine : {"openmm", "lax", "mc"}
+        OpenMM engine, the direct Lax-form integrator, or the Monte Carlo sampler
+        (:class:`dnarod.engines.mc.MCEngine`; its times count sweeps: 1 ps = 1 sweep, so ``time_ns=1`` is 1000
+        sweeps; ``friction`` and ``dt`` do not apply).
     time_ns : float
         Total simulated time of the run, ns (a resumed run continues up to it).
     temperature : float
@@ -238,6 +240,19 @@ class RunSpec:
             if self.elastic != "auto":
                 raise ParameterError(f"--elastic {self.elastic}: chooses the OpenMM engine's elastic path; the lax "
                                      f"engine ignores it (drop --elastic or use --engine openmm)")
+        if self.engine == "mc":
+            if self.temperature <= 0:
+                raise ParameterError("--engine mc samples the equilibrium at a temperature > 0 K (give -T)")
+            if self.platform not in (None, "CPU"):
+                raise ParameterError(f"--platform {self.platform}: the mc engine runs on the CPU (numba)")
+            if self.threads is not None or self.elastic != "auto":
+                raise ParameterError("--threads/--elastic choose OpenMM's paths; the mc engine ignores them (drop them "
+                                     "or use --engine openmm)")
+            if self.dt is not None and float(self.dt) != 1.0:
+                raise ParameterError(f"--dt {self.dt:g}: the mc engine has no time step (one sweep counts as 1 ps)")
+            if self.velocities:
+                raise ParameterError("--velocities: the mc engine has no velocities (drop --velocities or use an MD "
+                                     "engine)")
 
     def _check_counts(self) -> None:
         if self.duplex is not None:
