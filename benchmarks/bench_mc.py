@@ -4,9 +4,8 @@ their CPU cost, beside the MD engine's cost for the same errors.
 Set-up (as the tweezers protocol, :func:`dnarod.workflows.protocols.tweezers.build_member`): ``dna-default``,
 1000 bp, 1 pN, 300 K, default non-bonded terms at 0.15 M, node 0 clamped at the surface, the last node pulled
 along +z under the bead plane (walls), rotation clamp (250 kJ/mol) on the last node whose target carries the turns.
-Turns are given as Delta Lk counted from the torque-free state at 300 K: ``turns = dlk - (Lk0 - Lk_T)`` with
-``Lk_T`` the relaxed ribbon twist at T (:func:`dnarod.physics.thermal.relaxed_ribbon_twist`) and Lk0 the intrinsic
-twist (:func:`dnarod.physics.loads.intrinsic_turns`).
+Turns are Delta Lk counted from the torque-free state at 300 K, as the protocol counts them; the 0 K offset
+(:func:`dnarod.physics.loads.torque_free_offset`) is reported beside them (``turns_0K = dlk + offset``).
 
 Each point: one :class:`~dnarod.engines.mc.MCEngine`, the first from the protocol's start pose (the static
 equilibrium under the loads), each next one from the previous point's final pose with the turn difference added as
@@ -19,14 +18,15 @@ estimate of the clamp torque (:meth:`MCEngine.tail_torque_z`); means and errors 
 are the process's own (numba runs single-threaded), equilibration included.
 
 MD cost for the same errors: the extension's spread and integrated autocorrelation time of the nearest rung of the
-earlier replica-exchange MD run ``benchmarks/results/hat_1kbp_r12.json`` (labelled as such: not this run), with
+earlier replica-exchange MD run ``research/hat_curve/results/hat_1kbp_r12.json`` (labelled as such: not this run), with
 the MD engine's speed (CPU-s per simulated ns of one 1-kbp member) measured in this run (``--md-seconds``, 0 to
 skip), give ``2 tau (sd / target)^2`` ns and their CPU cost.
 
     nice -n 10 python benchmarks/bench_mc.py --dlk 0 2 4 3 --budget 300
 
-``--hat`` runs the 26 rungs of the README's 1-kbp hat curve (the turns of ``hat_1kbp_r12.json``, counted from the
-intrinsic twist as there) as one replica-exchange ladder (:class:`dnarod.engines.mc.ladder.TurnLadder`) for
+``--hat`` runs the 26 rungs of the 1-kbp hat curve of the hat-curve study (the turns of ``hat_1kbp_r12.json``,
+counted there from the intrinsic twist, here converted to turns from the torque-free state) as one
+replica-exchange ladder (:class:`dnarod.engines.mc.ladder.TurnLadder`) for
 ``--hat-budget`` CPU seconds in all, from the protocol's start poses: a sweep of every rung per round, a sample of
 every rung per round, swaps of neighbours every ``--exchange-every`` rounds; writes
 ``benchmarks/results/bench_mc_hat.json`` with each rung's x/L and torque, their errors and flags.
@@ -47,17 +47,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _harness import RESULTS, write_results  # noqa: E402
 
 N_BP = 1000
+HAT_R12 = Path(__file__).resolve().parents[1] / "research" / "hat_curve" / "results" / "hat_1kbp_r12.json"
 
 
 def thermal_offset(n_bp, temperature):
-    """``Lk0 - Lk_T`` (turns) and its standard error: turns at the torque-free state are ``-offset``."""
+    """Turns from the 0 K intrinsic twist to the torque-free state at ``temperature`` (negative for DNA)."""
     from dnarod.core.forcefield import load_forcefield
-    from dnarod.physics.loads import intrinsic_turns
-    from dnarod.physics.thermal import relaxed_ribbon_twist
+    from dnarod.physics.loads import torque_free_offset
 
-    model = load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp)
-    lk_t, se = relaxed_ribbon_twist(model, temperature)
-    return intrinsic_turns(model) - lk_t, se
+    return torque_free_offset(load_forcefield("dna-default").model_from_sequence(n_nodes=n_bp), temperature)
 
 
 def run_point(n_bp, force_pN, turns, budget_cpu, seed, target_ext, target_torque, start_pose=None, prev_turns=None,
@@ -125,7 +123,7 @@ def md_speed(seconds, seed=1):
 
 def md_reference(turns_0k, target_ext, speed):
     """MD cost for the extension target at the rung of hat_1kbp_r12.json nearest each point (an earlier run)."""
-    p = RESULTS / "hat_1kbp_r12.json"
+    p = HAT_R12
     if not p.exists():
         return None
     d = json.loads(p.read_text())
@@ -148,7 +146,7 @@ def md_reference(turns_0k, target_ext, speed):
 
 
 def run_hat(budget_cpu, exchange_every, seed, force_pN=1.0, n_bp=N_BP):
-    """The 26-rung ladder of the README's hat curve (module docstring); returns (rows, ladder info)."""
+    """The 26-rung ladder of the hat-curve study (module docstring); returns (rows, ladder info)."""
     from dnarod.analysis.statistics import mean_and_error
     from dnarod.core.units import PN
     from dnarod.engines.mc import MCEngine
@@ -157,10 +155,11 @@ def run_hat(budget_cpu, exchange_every, seed, force_pN=1.0, n_bp=N_BP):
     from dnarod.workflows.protocols.tweezers import build_member
 
     c0 = time.process_time()
-    turns = json.loads((RESULTS / "hat_1kbp_r12.json").read_text())["ladder"]["rungs"]
+    turns = json.loads(HAT_R12.read_text())["ladder"]["rungs"]  # from the 0 K intrinsic twist
+    offset = thermal_offset(n_bp, 300.0)
     engines = []
     for i, t in enumerate(turns):
-        mb = build_member(dict(n_bp=n_bp, force_pN=force_pN, turns=t))
+        mb = build_member(dict(n_bp=n_bp, force_pN=force_pN, turns=t - offset))
         engines.append(MCEngine(mb["model"], 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]),
                                 seed=seed + i))
     lad = TurnLadder(engines, turns, seed=seed)
@@ -179,7 +178,8 @@ def run_hat(budget_cpu, exchange_every, seed, force_pN=1.0, n_bp=N_BP):
     rows = []
     for i, t in enumerate(turns):
         ex, et = mean_and_error(ext[i]), mean_and_error(tq[i])
-        rows.append(dict(turns=t, x_over_L=ex.mean, x_err=ex.error, x_rel_err=ex.error / ex.mean, x_tau_sweeps=ex.tau,
+        rows.append(dict(turns=t - offset, turns_0K=t, x_over_L=ex.mean, x_err=ex.error, x_rel_err=ex.error / ex.mean,
+                         x_tau_sweeps=ex.tau,
                          x_n_eff=ex.n_eff, x_flag=ex.flag, x_transient_sweeps=ex.t0, torque_pN_nm=et.mean,
                          torque_err=et.error, torque_tau_sweeps=et.tau, torque_flag=et.flag,
                          acceptance=engines[i].acceptance()))
@@ -215,29 +215,32 @@ def main(argv=None):
         print(f"{info['rounds']} rounds, {info['cpu_s']:.0f} CPU-s; swap acceptance "
               + " ".join(f"{x:.2f}" for x in info["swap_acceptance"]))
         write_results(a.json.replace("bench_mc.json", "bench_mc_hat.json"), "bench_mc_hat", n_bp=a.n_bp,
-                      force_pN=a.force, turns_counted_from="intrinsic twist (as hat_1kbp_r12.json)", rungs=rows,
+                      force_pN=a.force, rungs=rows,
+                      turns_counted_from="the torque-free state at 300 K (turns_0K: from the intrinsic twist, as "
+                                         "hat_1kbp_r12.json)",
                       ladder=info, command_cpu_s=time.process_time() - c_all)
         return
-    off, off_se = thermal_offset(a.n_bp, 300.0)
-    print(f"torque-free state at 300 K: {-off:+.3f} +- {off_se:.3f} turns from the intrinsic twist", flush=True)
+    off = thermal_offset(a.n_bp, 300.0)
+    print(f"torque-free state at 300 K: {off:+.4f} turns from the intrinsic twist", flush=True)
     rows, pose, prev = [], None, None
     for dlk in a.dlk:
-        turns = dlk - off
+        turns = dlk  # the protocol counts turns from the torque-free state
         r, pose_new = run_point(a.n_bp, a.force, turns, a.budget, a.seed, a.target_ext, a.target_torque, pose, prev)
         pose, prev = pose_new, turns
         r["delta_lk"] = dlk
+        r["turns_0K"] = dlk + off
         rows.append(r)
         print(f"dLk {dlk:+.1f} (turns {turns:+.3f}): x/L {r['x_over_L']:.4f} +- {r['x_err']:.4f} "
               f"({100 * r['x_rel_err']:.2f} %, tau {r['x_tau_sweeps']:.0f} sweeps, {r['x_flag']}), torque "
               f"{r['torque_pN_nm']:+.2f} +- {r['torque_err']:.2f} pN nm (tau {r['torque_tau_sweeps']:.1f}), "
               f"{r['sweeps']} sweeps, {r['cpu_s']:.1f} CPU-s, met={r['met_targets']}", flush=True)
     speed = md_speed(a.md_seconds)
-    md = md_reference([r["turns"] for r in rows], a.target_ext, speed)
+    md = md_reference([r["turns_0K"] for r in rows], a.target_ext, speed)
     print()
     print(f"{'dLk':>4} {'turns':>7} {'x/L':>8} {'err%':>6} {'tau_x':>6} {'torque':>8} {'err':>5} {'sweeps':>7} "
           f"{'CPU-s':>7} {'met':>5} | {'MD rung':>7} {'MD x/L':>7} {'MD CPU-s for target':>20}")
     for r in rows:
-        m = md["points"][f"{r['turns']:+.3f}"] if md else None
+        m = md["points"][f"{r['turns_0K']:+.3f}"] if md else None
         md_cost = f"{m['cpu_s_for_target']:20.0f}" if m and m["cpu_s_for_target"] else f"{'-':>20}"
         print(f"{r['delta_lk']:4.1f} {r['turns']:7.3f} {r['x_over_L']:8.4f} {100 * r['x_rel_err']:6.2f} "
               f"{r['x_tau_sweeps']:6.0f} {r['torque_pN_nm']:8.2f} {r['torque_err']:5.2f} {r['sweeps']:7d} "
@@ -249,7 +252,7 @@ def main(argv=None):
           + (f"; MD speed {speed['cpu_s_per_ns']:.1f} CPU-s/ns ({speed['platform']}, {speed['elastic_path']})"
              if speed else ""))
     write_results(a.json, "bench_mc", n_bp=a.n_bp, force_pN=a.force, temperature_K=300.0,
-                  thermal_offset_turns=off, thermal_offset_se=off_se, budget_cpu_s_per_point=a.budget,
+                  turns_offset_0K=off, budget_cpu_s_per_point=a.budget,
                   targets=dict(extension_rel=a.target_ext, torque_pN_nm=a.target_torque), points=rows,
                   total_mc_cpu_s=total, md_speed_this_run=speed, md_reference_earlier_run=md,
                   command_cpu_s=time.process_time() - c_all)

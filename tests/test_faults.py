@@ -404,7 +404,8 @@ def test_analyze_overwrite_is_atomic_and_never_prints_nan(tmp_path, monkeypatch,
     assert checksums(out) == before and leftovers(tmp_path) == []
     monkeypatch.undo()
     r = cli(["analyze", traj, "-o", out, "--overwrite", "--stop", "4"])
-    assert r.exit_code == 0 and "+- nan" not in r.output and "no error bar: 4 frames" in r.output
+    assert r.exit_code == 0 and "+- nan" not in r.output and "no error bar: 4 frame" in r.output
+    assert "too short for an error bar" in r.output
     assert json.loads((out / "summary.json").read_text())["n_frames"] == 4
 
 

@@ -6,6 +6,7 @@ The check-level tests in the default run use recorded members (tests/data/superc
 samples.csv that the members wrote when the checks were run; the checks reuse a member whose settings match) so
 that they test the checks' decisions in seconds; the slow tests rerun the simulations.
 """
+import json
 import math
 import shutil
 from pathlib import Path
@@ -282,9 +283,13 @@ def test_plectonemes_check_with_a_recorded_ring(tmp_path):
     from dnarod.validate.plectonemes import check_plectonemes
 
     root = _recorded(tmp_path, "plectonemes_400bp")
-    good = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800)
+    # the platform the member was recorded on, so its folder is reused
+    good = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800, platform="CPU",
+                             threads=1)
     assert good["passed"], good
-    assert good["model_production_ns"] == pytest.approx(3.0, rel=0.01)  # the recorded member was reused
+    assert good["model_production_ns"] == pytest.approx(3.0, rel=0.01)
+    recorded = json.loads((DATA / "plectonemes_400bp" / "ring400_-2" / "protocol_result.json").read_text())["result"]
+    assert good["model_writhe"] == recorded["Wr"]  # the recorded member was reused, not rerun
     assert good["tolerance"] == pytest.approx(3.0 * good["standard_error"]) and good["tolerance"] < 0.1
     nb = good["nonbonded"]  # the terms the reference used are the model's
     assert nb["charge_model"] == "calibrated" and nb["cutoff_debye"] == pytest.approx(12.0)
@@ -302,13 +307,14 @@ def test_plectonemes_check_with_a_recorded_ring(tmp_path):
     for kw in (dict(c_override=0.5 * good["twist_persistence_nm"]),
                dict(a_override=2.0 * good["persistence_length_nm"])):
         bad = check_plectonemes(tmp_path, quick=True, plots=False, member_root=root, mc_samples=800, hard_core=False,
-                                **kw)
+                                platform="CPU", threads=1, **kw)
         assert not bad["passed"], (kw, bad["model_writhe_fraction"], bad["reference_writhe_fraction"], bad["tolerance"])
 
 
 #: the recorded 200-bp member's settings (tests/data/supercoil/nicked_200bp, written by the check itself)
 NICKED_REC = dict(quick=True, n_bp=200, time_ns=60.0, sample_ps=120.0, seed=41, harmonic_samples=0, full_n_bp=None,
-                  mc_samples=4000, plots=False, nonbonded=dict(charge="manning", cutoff_debye=5.0))
+                  mc_samples=4000, plots=False, nonbonded=dict(charge="manning", cutoff_debye=5.0), platform="CPU",
+                  threads=1)
 
 
 def test_nicked_ring_check_with_a_recorded_ring(tmp_path):
@@ -318,7 +324,9 @@ def test_nicked_ring_check_with_a_recorded_ring(tmp_path):
     root = _recorded(tmp_path, "nicked_200bp")
     good = check_nicked_ring(tmp_path, member_root=root, **NICKED_REC)
     assert good["passed"], good
-    assert good["model_production_ns"] == pytest.approx(60.0, rel=0.01)  # the recorded member was reused
+    assert good["model_production_ns"] == pytest.approx(60.0, rel=0.01)
+    recorded = json.loads((DATA / "nicked_200bp" / "ring200" / "protocol_result.json").read_text())["result"]
+    assert good["model_wr_star_var"] == recorded["wr_star_var"]  # the recorded member was reused, not rerun
     assert good["model_wr_star_var_err"] < 0.15 * good["model_wr_star_var"]
     # the 10-bp-block axis misses much of the writhe (the reason the check uses Wr*)
     assert good["model_wr2_axis"] < 0.75 * good["model_wr_star_var"]

@@ -1,5 +1,6 @@
 """Statistics of correlated samples in one home: the mean of a time series with its error, its transient and its
-warnings (:func:`estimate`, :func:`mean_and_error`); blocks and the block jackknife.
+warnings (:func:`~dnarod.analysis.statistics.estimate`, :func:`~dnarod.analysis.statistics.mean_and_error`); blocks
+and the block jackknife.
 
 The error of the mean of a time series comes from its autocorrelation (pymbar's ``timeseries``, Chodera et al.,
 J. Chem. Theory Comput. 3:26 (2007); Chodera, J. Chem. Theory Comput. 12:1799 (2016) for the transient):

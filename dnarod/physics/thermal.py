@@ -145,7 +145,7 @@ def exact_tangent_correlation(params, ds, kt, n_max, exclude_ends=0):
 
 
 def lag1_moments(params: StepParameters, ds, kt, order=24):
-    """Exact mean and variance of each step's lag-1 tangent correlation ``d3(k) . d3(k+1) = (R_k)_33`` in the free
+    """Exact mean and variance of each step's lag-1 tangent correlation ``d3(k) · d3(k+1) = (R_k)_33`` in the free
     chain's equilibrium (the same quadrature as :func:`mean_rotation`).
 
     The steps of a free open chain are independent, so the lag-1 correlation averaged over M steps of one frame has

@@ -67,7 +67,7 @@ class RunSpec:
         Bundled force-field name or ``.toml`` path.
     engine : {"openmm", "lax", "mc"}
         OpenMM engine, the direct Lax-form integrator, or the Monte Carlo sampler
-        (:class:`dnarod.engines.mc.MCEngine`; its times count sweeps: 1 ps = 1 sweep, so ``time_ns=1`` is 1000
+        (:class:`dnarod.engines.mc.engine.MCEngine`; its times count sweeps: 1 ps = 1 sweep, so ``time_ns=1`` is 1000
         sweeps; ``friction`` and ``dt`` do not apply).
     time_ns : float
         Total simulated time of the run, ns (a resumed run continues up to it).
@@ -165,7 +165,7 @@ class RunSpec:
         return bool(self.excluded_volume or self.electrostatics)
 
     def replace(self, **kw: Any) -> RunSpec:
-        """A copy with the given fields changed (:func:`dataclasses.replace`)."""
+        """A copy with the given fields changed (``dataclasses.replace``)."""
         return replace(self, **kw)
 
     def check(self) -> RunSpec:

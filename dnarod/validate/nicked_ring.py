@@ -57,10 +57,11 @@ DISCRETE_ALLOWANCE = 0.15
 def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3000, temperature=300.0,
                       salt_M=0.15, seed=41, a_override=None, mc_samples=None, full_mc_samples=None, plots=True,
                       member_root=None, segment_nm=None, harmonic_samples=None, softening=None, sample_ps=None,
-                      nonbonded=None):
+                      nonbonded=None, platform=None, threads=None):
     """Run the check (see the module docstring). ``nonbonded`` (dict with ``charge`` and/or ``cutoff_debye``) runs
     the ring with other non-bonded terms than the defaults (the recorded test member was run with Manning's charge
-    and 5 Debye lengths)."""
+    and 5 Debye lengths); ``platform`` and ``threads`` choose the member's OpenMM platform (default: the members'
+    automatic choice); a member folder run with the same settings is reused."""
     t0 = time.perf_counter()
     n_bp = n_bp or (200 if quick else 600)
     time_ns = time_ns or (30.0 if quick else 400.0)
@@ -73,7 +74,8 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
     ff, ring, L, A, C, d_eff = rc["ff"], rc["ring"], rc["L"], rc["A"], rc["C"], rc["d_eff"]
     A_ref = A if a_override is None else float(a_override)
     md = run_nicked_member(dict(n_bp=n_bp, time_ns=time_ns, seed=seed, temperature_K=temperature, salt_M=salt_M,
-                                softening=softening, sample_ps=sample_ps, **dict(nonbonded or {})),
+                                softening=softening, sample_ps=sample_ps, platform=platform, threads=threads,
+                                **dict(nonbonded or {})),
                            root / f"ring{n_bp}")
     mc = sample_ring_writhe(L, A_ref, d_eff, b_nm=segment_nm, n_samples=mc_samples, seed=seed)
 

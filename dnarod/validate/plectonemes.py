@@ -121,8 +121,9 @@ def _reference(L, A, C, d, dlk, n, seed, pair=None):
 def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=None, temperature=300.0, salt_M=0.15,
                       seed=5, mc_samples=None, c_override=None, a_override=None, P_nm=None, plots=True,
                       member_root=None, bracket=None, writhed_softening=3.0, writhed_ns=None, nonbonded=None,
-                      hard_core=True):
-    """Run the check (see the module docstring).
+                      hard_core=True, platform=None, threads=None):
+    """Run the check (see the module docstring). ``platform`` and ``threads`` choose the members' OpenMM platform
+    (default: the members' automatic choice); a member folder run with the same settings is reused.
 
     ``bracket`` (default: the full form) runs a second ring from a start that writhes more than the model
     (``writhed_ns`` with the bending stiffness divided by ``writhed_softening``) and requires the two rings'
@@ -146,11 +147,12 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
     terms = member_nonbonded({"excluded_volume": True, "electrostatics": True, "salt_M": salt_M, **nb})
     pair = pair_parameters(terms, ring.ds, temperature, 3.4)
     row = run_ring_member(dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed, temperature_K=temperature,
-                               salt_M=salt_M, **nb), root / f"ring{n_bp}_{delta_lk}")
+                               salt_M=salt_M, platform=platform, threads=threads, **nb),
+                          root / f"ring{n_bp}_{delta_lk}")
     twin = None
     if bracket:  # the same ring approached from more writhe: the two must agree (equilibrium reached)
         ws = dict(n_bp=n_bp, delta_lk=delta_lk, time_ns=time_ns, seed=seed + 1, temperature_K=temperature,
-                  salt_M=salt_M, **nb)
+                  salt_M=salt_M, platform=platform, threads=threads, **nb)
         wdir = root / f"ring{n_bp}_{delta_lk}_writhed"
         w = run_ring_member(ws, wdir, start_pose=writhed_start(ws, writhed_softening, writhed_ns, wdir))
         dw, dw_se = w["Wr"] - row["Wr"], float(np.hypot(w["Wr_err"], row["Wr_err"]))

@@ -96,7 +96,7 @@ void nodePoses(const vector<SMKForce::Node>& nodes, const vector<Vec3>& pos, dou
     }
 }
 
-// Loads of one step (a port of dnarod.kernels.step_loads, design A2): left node a (pose ca, La), right node b
+// Loads of one step (a port of dnarod.core.kernels.step_loads, docs/formulation.md §4): left node a (pose ca, La), right node b
 // (pose cb, Lb, already mapped through the closure if it is an image). Adds the left loads to Fa, ta, and
 // returns the right loads (lab, before the closure map) in Fb, tb. Returns the step energy or NaN.
 static inline __attribute__((always_inline)) double stepLoads(const SMKForce::Step& s, double ds, double inv, const double* ca, const double* La,

@@ -8,7 +8,7 @@
 // Step k joins nodes a and b: R = L_a^T L_b, e = c_b - c_a,
 //   Omega = (2/ds) axial(R - R^T)/(1 + tr R),  Gamma = L_a^T e / ds,
 //   E_k = ds/2 (xi - xi0)^T K (xi - xi0),  xi = (Omega, Gamma).
-// Node loads are the exact analytic ones of dnarod.energy (design A2); each node's force F and torque tau
+// Node loads are the exact analytic ones of dnarod.core.energy (docs/formulation.md §4); each node's force F and torque tau
 // are spread over its particles as F/3 + a x x_i with a = A^-1 tau (A the triangle's second-moment tensor).
 #include "openmm/Force.h"
 #include "openmm/Context.h"

@@ -420,7 +420,7 @@ class MCEngine:
         Returns
         -------
         float or ndarray
-            kJ/mol (divide by :data:`dnarod.core.units.PN` for pN nm).
+            kJ/mol (divide by ``dnarod.core.units.PN`` for pN nm).
 
         Raises
         ------

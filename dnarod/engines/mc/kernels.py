@@ -947,20 +947,33 @@ def sweep(pos, frm, K, xi0, Qc, tc, movable, clamp_prefix, ext_nodes, force, tra
           n_moves, p_cum, amp, lmax, counts, energy):
     """Attempt ``n_moves`` Monte Carlo moves (module docstring); the state arrays are updated in place.
 
-    Parameters (beyond the pose and the load tables)
+    Parameters
     ----------
-    movable : (n,) bool;  clamp_prefix : (n + 1,) int, clamped nodes before each index
-    ext_nodes : (n_ext,) int, the nodes with a load
-    estep : (m,) energy of every step;  enode : (n,) load energy of every node;  esurf, ebead : (n,) wall energies
-        of every node (all kept current)
-    tlo, thi, tcen, trad : the bounding-sphere tree (kept current)
-    rng : uint64 (4,) xoshiro256+ state
-    p_cum : (N_TYPES,) cumulative probabilities of the move types
-    amp : (N_TYPES, N_BINS) amplitudes by type and segment-length octave: rad, except the node move (amp[0, 0]
-        translation half-width, nm; amp[0, 1] Cayley ball radius, rad)
-    lmax : (N_TYPES,) int, largest segment (nodes) of each type
-    counts : (N_TYPES, N_BINS, 2) int64, attempted and accepted moves (incremented)
-    energy : (3,) elastic, non-bonded, external (loads and walls) running totals (kJ/mol, incremented)
+    pos, frm, K, xi0, Qc, tc, force, trap_k, trap_c, rc_k, rc_T, tq_mag, tq_axis, tq_ref, tq_last, tq_phi, radius, \
+ip, fp, n_moves
+        The pose and the load tables (:class:`dnarod.engines.mc.engine.MCEngine` builds them).
+    movable : ndarray of bool, shape (n,)
+    clamp_prefix : ndarray of int, shape (n + 1,)
+        Clamped nodes before each index.
+    ext_nodes : ndarray of int, shape (n_ext,)
+        The nodes with a load.
+    estep, enode, esurf, ebead : ndarray
+        Energy of every step (m,), load energy of every node (n,), wall energies of every node (n,); kept current.
+    tlo, thi, tcen, trad : ndarray
+        The bounding-sphere tree (kept current).
+    rng : ndarray of uint64, shape (4,)
+        xoshiro256+ state.
+    p_cum : ndarray, shape (N_TYPES,)
+        Cumulative probabilities of the move types.
+    amp : ndarray, shape (N_TYPES, N_BINS)
+        Amplitudes by type and segment-length octave: rad, except the node move (``amp[0, 0]`` translation
+        half-width, nm; ``amp[0, 1]`` Cayley ball radius, rad).
+    lmax : ndarray of int, shape (N_TYPES,)
+        Largest segment (nodes) of each type.
+    counts : ndarray of int64, shape (N_TYPES, N_BINS, 2)
+        Attempted and accepted moves (incremented).
+    energy : ndarray, shape (3,)
+        Elastic, non-bonded, external (loads and walls) running totals (kJ/mol, incremented).
 
     Returns
     -------
@@ -1396,8 +1409,8 @@ def tail_torque_profile(pos, frm, K, xi0, ds, force, trap_k, trap_c, tq_mag, tq_
                         fp, k_first, out):
     """Estimates of the z torque (kJ/mol) the rotation clamps of the tail exert, one per step k >= k_first, into
     out (n - 1,) (NaN before k_first): minus the z torque, about node k+1's centre, of everything else acting on the
-    tail ``k+1 .. n-1`` from outside it: step k, the non-bonded pairs across k, the pulling forces, traps and dead
-    torques of the tail (the walls exert none: their forces are along z). Open chains."""
+    tail (nodes ``k+1`` to ``n-1``) from outside it: step k, the non-bonded pairs across k, the pulling forces,
+    traps and dead torques of the tail (the walls exert none: their forces are along z). Open chains."""
     n = pos.shape[0]
     sl = np.zeros(13)
     eye = np.eye(3)

@@ -2,7 +2,7 @@
 
 A free open chain of n nodes pulled by ``+F z`` on its last node and ``-F z`` on node 0 has the partition function
 ``Z(F) = < exp(beta F (r_{n-1} - r_0) . z) >`` over the free chain, whose steps are independent in their body
-frames (design A5 iii). With ``u_k = L_k^T z`` (the force axis seen from node k) the step adds
+frames (docs/formulation.md §8). With ``u_k = L_k^T z`` (the force axis seen from node k) the step adds
 ``ds u_k . Gamma_k`` to the extension and turns u by ``u_{k+1} = R_k^T u_k``. Integrating ``Gamma`` out (Gaussian
 given ``Omega``: mean ``Gamma0 - C^-1 B^T (Omega - Omega0)``, covariance ``kT (ds C)^-1``) leaves, for a step whose
 stiffness is invariant under turns about d3 and whose mean shear vanishes, a weight that depends on u only through
@@ -103,7 +103,7 @@ def log_partition(params, ds, kt, n_nodes, force, lmax=60, n_c=120, order=16, ta
 
 def force_extension(params, ds, temperature, n_nodes, force_pN, lmax=60, n_c=120, order=16, rel_step=1e-4,
                     start_cos=None):
-    """Exact mean extension ``<(r_{n-1} - r_0) . z>`` (nm) of the discrete chain pulled at both ends (node 0 free),
+    """Exact mean extension ``<(r_{n-1} - r_0) · z>`` (nm) of the discrete chain pulled at both ends (node 0 free),
     or pulled at its last node with node 0 held (``start_cos``).
 
     Parameters

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.run.spec import MAX_SALT, MAX_TEMPERATURE
+from dnarod.workflows.protocols.settings import expand_members, member_name
 
 #: Start modes of the rotation-clamp protocols (see :func:`run_protocol`).
 STARTS = ("static", "exchange")
@@ -27,109 +27,6 @@ class Curve:
     kind: str
     rows: list[dict[str, Any]]
     files: dict[str, Path] = field(default_factory=dict)
-
-
-def _members(kind, axes, base):
-    """Expand the axes (cross product) into member settings, checking every member before any runs."""
-    from itertools import product
-
-    from dnarod.physics.loads import intrinsic_turns
-    from dnarod.workflows.protocols.rings import check_ring
-    from dnarod.workflows.protocols.tweezers import check_tweezers
-
-    names = list(axes)
-    values = [list(np.atleast_1d(axes[n]).tolist()) for n in names]
-    for n, v in zip(names, values):
-        if not v:
-            raise DnarodError(f"{n}: give at least one value")
-    base, values = _checked_settings(base, names, values)
-    members = [dict(base, **dict(zip(names, combo))) for combo in product(*values)]
-    from dnarod.core.forcefield import load_forcefield
-
-    ff = load_forcefield(base.get("forcefield", "dna-default"))
-    from dnarod.structure.inputs import protocol_source
-    from dnarod.run.api import check_start_pose
-    from dnarod.physics.loads import Walls
-
-    # tweezers: the surface and bead walls leave Walls().skip nodes free at each end
-    seq, n_nodes = protocol_source(base.get("source", ""), min_nodes=3 if kind == "rings" else 2 * Walls().skip + 2)
-    if kind == "rings":
-        ring = ff.ring(seq, n_nodes=n_nodes)
-        tw0 = intrinsic_turns(ring)
-        for m in members:
-            check_ring(m.get("delta_lk", 0), tw0)
-        # the start pose every member runs from, checked as `dnarod simulate` checks it (a tiny ring heats up)
-        for dlk in sorted({int(m.get("delta_lk", 0)) for m in members}):
-            for T in sorted({float(m.get("temperature_K") or 300.0) for m in members}):
-                check_start_pose(ff.ring(seq, n_nodes=n_nodes, delta_linking_number=dlk), T)
-    else:
-        model = ff.model_from_sequence(seq, n_nodes=n_nodes)
-        lk0 = intrinsic_turns(model)
-        for m in members:
-            check_tweezers(m.get("force_pN", 0.0), m.get("turns"), rotation_clamp=kind != "force_extension",
-                           lk0=lk0, torque_pN_nm=m.get("torque_pN_nm"))
-        check_start_pose(model, 300.0)
-        if kind != "force_extension":
-            _check_clamp_stiffness(model, members, "axes" if "rotation_clamp_kJ_mol" in names else "base")
-    return members
-
-
-def _check_clamp_stiffness(model, members, table):
-    """The rotation clamp of the tweezers members against the one bound on load stiffness
-    (:func:`dnarod.physics.loads.check_load_stiffness`, as ``dnarod simulate --rotation-clamp``), on the free chain with
-    node 0 clamped; named as the setting ``rotation_clamp_kJ_mol`` (``--clamp-k``)."""
-    from dnarod.physics.loads import Clamp, RotationClamp
-    from dnarod.physics.modes import check_load_stiffness
-    from dnarod.workflows.protocols.tweezers import DEFAULT_CLAMP_K
-
-    for k in sorted({float(m.get("rotation_clamp_kJ_mol") or DEFAULT_CLAMP_K) for m in members}):
-        loads = (Clamp(0), RotationClamp(model.n_nodes - 1, k, axis=[0.0, 0.0, 1.0]))
-        check_load_stiffness(model, loads, names={"RotationClamp": f"[{table}] rotation_clamp_kJ_mol"})
-
-
-def _checked_settings(base, names, values):
-    """``base`` and the axis values checked against the ensemble schema (the keys the members read): an
-    unknown key, a value of the wrong type, a non-finite or out-of-range number is one line naming it."""
-    from dnarod.workflows.ensemble.schema import RUN_KEYS, check_distinct, coerce, unknown_key
-    from dnarod.workflows.protocols.ensemble_hooks import protocol_keys
-
-    known = {**RUN_KEYS, **protocol_keys()}
-    out = {}
-    for key, value in base.items():
-        if key not in known:
-            raise unknown_key("base", key, known)
-        out[key] = None if value is None else _checked(coerce("base", key, known[key], value), "base", key)
-    vals = []
-    for n, v in zip(names, values):
-        if n not in known:
-            raise unknown_key("axes", n, known)
-        vals.append(check_distinct("axes", n, [_checked(coerce("axes", n, known[n], x), "axes", n) for x in v]))
-    return out, vals
-
-
-#: Longest production or equilibration of one protocol member, ns: the members sample every 1-200 ps into
-#: memory and run at ~10-100 ns per hour here, so more is a typo (a time in ps) that would hang or exhaust memory.
-MAX_MEMBER_NS = 1e4
-
-
-def _checked(value, table, key):
-    """Ranges the schema leaves to the run layer, refused here before any member runs."""
-    if key == "seed" and not 0 <= value < 2**31:
-        raise DnarodError(f"[{table}] seed: must be an integer in [0, 2^31), got {value}")
-    if key in ("time_ns", "equilibration_ns", "salt_M") and not value > 0:
-        raise DnarodError(f"[{table}] {key}: must be > 0, got {value:g}")
-    if key in ("time_ns", "equilibration_ns") and value > MAX_MEMBER_NS:
-        raise DnarodError(f"[{table}] {key}: {value:g} ns per member is more than {MAX_MEMBER_NS:g} ns (10 us): it "
-                          f"would not finish here and its samples would not fit in memory; give a shorter time")
-    if key == "salt_M" and value > MAX_SALT:
-        raise DnarodError(f"[{table}] salt_M: must be at most {MAX_SALT:g} mol/L (Debye-Hueckel screening is "
-                          f"meaningless beyond), got {value:g}")
-    if key == "temperature_K" and not value > 0:
-        raise DnarodError(f"[{table}] temperature_K: must be > 0 K, got {value:g}")
-    if key == "temperature_K" and value > MAX_TEMPERATURE:
-        raise DnarodError(f"[{table}] temperature_K: must be at most {MAX_TEMPERATURE:g} K (the model's solvent is "
-                          f"liquid water), got {value:g}")
-    return value
 
 
 # one keyword per option of the `dnarod protocol` commands
@@ -207,7 +104,7 @@ def run_protocol(kind: str, axes: dict[str, list[Any]], base: dict[str, Any], ou
         base.setdefault("rotation_clamp_kJ_mol", 250.0)
     if kind == "rings":
         base["ring"] = True  # the ensemble's model check builds a closed ring for delta_lk
-    members = _members(kind, axes, base)
+    members = expand_members(kind, axes, base)
     outdir = Path(outdir)
     check_output_folder(outdir, PROTOCOL_MARKERS, "protocol")
     check_protocol_folder(outdir, kind, shared, overwrite)
@@ -328,11 +225,6 @@ def _thermal_corrections(kind, base, rows):
             r["twist_torque_offset_pN_nm"], r["twist_torque_offset_err_pN_nm"] = off, off_se
             if r.get("twist_torque_pN_nm_err") is not None:
                 r["twist_torque_pN_nm_err"] = float(np.hypot(r["twist_torque_pN_nm_err"], off_se))  # type: ignore[arg-type]  # set with off
-
-
-def member_name(m: dict[str, Any], axes: dict[str, Any]) -> str:
-    """A member's folder name from its axis values (``force_pN+2_turns+0.5``)."""
-    return "_".join(f"{k}{m[k]:+g}" if isinstance(m[k], (int, float)) else f"{k}{m[k]}" for k in axes) or "member"
 
 
 def _run_ensemble(kind, axes, base, outdir, proto, workers, progress, client):

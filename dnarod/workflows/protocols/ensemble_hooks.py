@@ -22,7 +22,7 @@ from typing import Any
 from dnarod.core.errors import DnarodError
 from dnarod.workflows.protocols import references as ref
 from dnarod.workflows.ensemble.schema import Key
-from dnarod.workflows.protocols.curves import _members
+from dnarod.workflows.protocols.settings import expand_members, protocol_keys
 from dnarod.physics import experiments as ex
 from dnarod.workflows.protocols.tweezers import run_member
 from dnarod.workflows.protocols.rings import run_ring_member
@@ -82,18 +82,6 @@ def member_seed(seed: int, *key: object) -> int:
     return 1 + int.from_bytes(h[:4], "big") % (2**31 - 1)
 
 
-def protocol_keys() -> dict[str, Key]:
-    """The keys every protocol adds to an ensemble spec (equilibration, sampling interval, friction mode)."""
-    return {k.name: k for k in [
-        Key("equilibration_ns", float, None, "equilibration before sampling, ns (default 5 slowest bending "
-            "relaxation times)", ">0"),
-        Key("sample_ps", float, None, "time between samples, ps (default min(tau_1/10, time/200) in [1, 200] ps)",
-            ">0"),
-        Key("friction_mode", str, "auto", "auto: critical damping of the slowest bending mode; fixed: "
-            "friction_per_ps", "auto|fixed"),
-    ]}
-
-
 def _member_settings(settings: Mapping[str, Any], seed: int, **specific: Any) -> dict[str, Any]:
     """A member's settings from the spec: the source, force field, times, temperature, salt, non-bonded terms,
     sampling interval, platform and friction every protocol reads, plus the protocol's own (``specific``)."""
@@ -126,9 +114,10 @@ class _MemberProtocol:
         raise NotImplementedError
 
     def check(self, settings: Mapping[str, Any]) -> None:
-        """Refuse a member's settings as the protocol commands do (:func:`dnarod.workflows.protocols.curves._members`);
-        the ensemble calls it for every member before any runs."""
-        _members(self.kind, {}, dict(settings))
+        """Refuse a member's settings as the protocol commands do
+        (:func:`dnarod.workflows.protocols.settings.expand_members`); the ensemble calls it for every member before any
+        runs."""
+        expand_members(self.kind, {}, dict(settings))
 
     def execute(self, settings: Mapping[str, Any], member_dir: str | Path,
                 analysis: Mapping[str, Any] | None = None) -> dict[str, Any]:

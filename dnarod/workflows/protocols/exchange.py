@@ -65,7 +65,7 @@ from dnarod.physics.nonbonded import member_nonbonded
 from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
 from dnarod.core.units import kT
 from dnarod.workflows.protocols import ensemble_hooks as hooks
-from dnarod.workflows.protocols.curves import member_name
+from dnarod.workflows.protocols.settings import member_name
 from dnarod.workflows.ensemble.cluster import client_for
 
 #: Default time between exchange attempts (ps).

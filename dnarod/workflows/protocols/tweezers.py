@@ -473,8 +473,8 @@ def run_member(settings, member_dir, progress=None, start_pose=None):
     ``protocol_result.json`` (and ``start_pose.npz`` for a member started from a given pose).
 
     A finished member (``protocol_result.json`` present with the same settings) is returned without rerunning.
-    With ``start_pose`` (see :func:`build_member`) the key also holds the pose's SHA-256, so the member is
-    reused only if it started from that very pose.
+    With ``start_pose`` (see :func:`dnarod.workflows.protocols.tweezers.build_member`) the key also holds the pose's
+    SHA-256, so the member is reused only if it started from that very pose.
     """
     from dnarod.core.io import ensure_dir, jsonable, write_text_atomic
     from dnarod.workflows.protocols.poses import FINAL_POSE, START_POSE, pose_sha256, save_pose

@@ -9,7 +9,7 @@
 // the host so that no reduced-accuracy native functions enter single precision), FLAGS (int, 1 if
 // the right node is the closure image) and GLOBALS (real: Q row-major 9, t 3, ds, 1/ds, Cayley limit) are
 // replaced by the argument names BondedUtilities assigns.
-// The arithmetic is that of dnarod.kernels.step_loads (design A2; host version SMKForce.cpp stepLoads):
+// The arithmetic is that of dnarod.core.kernels.step_loads (docs/formulation.md §4; host version SMKForce.cpp stepLoads):
 // R = La^T Lb, Omega = (2/ds) axial(R - R^T)/(1 + tr R), Gamma = La^T (cb - ca)/ds,
 // E = ds/2 d^T K d with d = (Omega, Gamma) - xi0, left-node loads F = La P, tau = La (M + w x M/2 + w (w.M)/4)
 // + e x F, right-node loads -F, -La(...) (mapped back by Q^T for a closure image), and each node's loads
