@@ -33,6 +33,7 @@ def cli(argv, capsys):
     return code, out, err
 
 
+@pytest.mark.slow  # research check, several seconds of MD: run with -m slow
 def test_turn_sweep_chains_members_and_resumes(tmp_path, monkeypatch):
     """start='sweep': turns >= 0 run up from 0 and turns < 0 down from the largest; each chained member starts
     from the previous member's final pose turned by the increment (its Lk follows the clamp); a second call
@@ -92,6 +93,7 @@ def test_turn_sweep_bad_input(tmp_path):
     assert not any((tmp_path / x).exists() for x in "abcd")
 
 
+@pytest.mark.slow  # research check, several seconds of MD: run with -m slow
 def test_inward_turn_sweep_starts_from_a_grown_plectoneme(tmp_path, monkeypatch):
     """start='sweep-in': chains run towards zero turns; each head starts from a plectoneme grown at a lower force
     (same Lk) and the next member from the head's final pose with the turns taken out."""

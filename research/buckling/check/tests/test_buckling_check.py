@@ -227,6 +227,7 @@ def test_buckling_full_check_passes_on_recorded_calibrated_members(tmp_path, mon
     assert not bad["pre_buckling"]["passed"]  # the quick form's gate: the pre-buckling law fails with C halved too
 
 
+@pytest.mark.slow  # research check, several seconds of MD: run with -m slow
 def test_buckling_check_fails_without_plectonemes(tmp_path):
     """Fast: unbuckled 'post-buckling' members (too few turns) must fail the plateau check."""
     from buckling_check import check_buckling
@@ -252,6 +253,7 @@ def test_buckling_check_runs_and_fails_before_buckling(tmp_path):
     assert not bad["passed"]
 
 
+@pytest.mark.slow  # research check, several seconds of MD: run with -m slow
 def test_above_twins_start_from_the_larger_plectoneme_of_their_source(tmp_path):
     """bracket_start='above': one source member with more turns runs first; each post-buckling twin starts from its
     final pose with the extra turns taken out (same Lk as the straight twin, the source's pose recorded); a twin
