@@ -14,7 +14,8 @@ correlation of the samples give z-scores far outside the band.
 The engine is a parameter: another engine of the run layer (the Monte Carlo sampler, ``make_engine`` with
 ``spec.engine == "mc"``) joins by adding its name to ``ENGINES``; ``sample_seed`` only needs ``advance(n)`` and
 ``node_state()`` of the engine protocol (:class:`dnarod.run.engine.Engine`). The fast version (default suite)
-runs a 16-bp chain on OpenMM; the slow ones a 40-bp chain over 40 seeds, and the 16-bp case on the Lax engine.
+runs a 16-bp chain on OpenMM and on the Monte Carlo sampler; the slow ones a 40-bp chain over 40 seeds (both), and
+the 16-bp case on the Lax engine.
 """
 import numpy as np
 import pytest
@@ -53,11 +54,16 @@ def sample_seed(engine, case, seed, n_samples, equilibration_tau=10.0, sample_ta
     spec = RunSpec(source=start, engine=engine, temperature=TEMPERATURE, friction=case["friction"], seed=seed,
                    loads=loads, excluded_volume=False, electrostatics=False,
                    platform="Reference" if engine == "openmm" else None, time_ns=1.0)
-    omega = default_omega_max(start, loads)
-    dt = choose_dt(spec, start, omega)
+    if engine == "mc":  # sweeps, not time: the relaxation time in sweeps is the sampler's own (MC_TAU_SWEEPS)
+        omega, dt, tau = None, 1.0, MC_TAU_SWEEPS
+        sample_tau = MC_SAMPLE_TAU
+    else:
+        omega = default_omega_max(start, loads)
+        dt = choose_dt(spec, start, omega)
+        tau = case["tau_ps"] / dt
     eng = make_engine(spec, start, dt, seed, omega)
-    eng.advance(int(round(equilibration_tau * case["tau_ps"] / dt)))
-    stride = max(1, int(round(sample_tau * case["tau_ps"] / dt)))
+    eng.advance(int(round(equilibration_tau * tau)))
+    stride = max(1, int(round(sample_tau * tau)))
     T = case["target"]
     out = np.empty((n_samples, 3))
     for i in range(n_samples):
@@ -96,7 +102,14 @@ def z_scores(engine, case, seeds, n_samples, n_reference):
     return z, naive, flags, ref
 
 
-ENGINES = ["openmm"]
+#: A relaxation time of the short chains' extension under the Monte Carlo sampler, in sweeps (a 16-node sweep is
+#: only 16 attempted moves: the extension's integrated autocorrelation time, measured by the estimator in each run,
+#: is a few hundred sweeps); equilibration ten of them.
+MC_TAU_SWEEPS = 400
+#: Monte Carlo samples every quarter of it (correlated samples, as the MD runs' are).
+MC_SAMPLE_TAU = 0.25
+
+ENGINES = ["openmm", "mc"]
 
 
 @pytest.mark.parametrize("engine", ENGINES)
@@ -126,7 +139,7 @@ def test_error_bars_of_the_lax_engine_are_calibrated_over_20_seeds():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("engine", ["openmm"])
+@pytest.mark.parametrize("engine", ["openmm", "mc"])
 def test_error_bars_are_calibrated_over_40_seeds_longer_chain(engine):
     case = tweezers_case(40, force_pN=1.0, clamp_kT=5.0, turns=0.05)
     z, naive, flags, ref = z_scores(engine, case, range(201, 241), n_samples=600, n_reference=200000)
