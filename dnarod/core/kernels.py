@@ -122,6 +122,26 @@ def step_loads(pos, frm, K, xi0, ds, k, j_is_image, j, Q, tvec, out):
     return True
 
 
+@njit(cache=True, inline="always")
+def add_step_loads(centres, frames, K, xi0, ds, k, circular, Q, t, out, F, tau):
+    """Loads of step k of a chain of ``n`` nodes (step ``n - 1`` of a ring is the closing step, onto the image of
+    node 0 under ``Q``, ``t``) by :func:`step_loads` into ``out``; its left node's are added to ``F[k]`` and
+    ``tau[k]``, and a closing step's right-node loads are mapped back by ``Q^T`` onto node 0. An inner step's
+    right-node loads stay in ``out[6:12]`` for the caller (added at once, or carried to the next node).
+    Returns False (nothing added) where :func:`step_loads` does."""
+    img = circular and k == centres.shape[0] - 1
+    if not step_loads(centres, frames, K, xi0, ds, k, img, 0 if img else k + 1, Q, t, out):
+        return False
+    for a in range(3):
+        F[k, a] += out[a]
+        tau[k, a] += out[3 + a]
+    if img:
+        for a in range(3):
+            F[0, a] += Q[0, a] * out[6] + Q[1, a] * out[7] + Q[2, a] * out[8]
+            tau[0, a] += Q[0, a] * out[9] + Q[1, a] * out[10] + Q[2, a] * out[11]
+    return True
+
+
 @njit(cache=True)
 def chain_loads(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
     """Energy and lab loads of every node (docs/formulation.md §4), accumulated into ``F`` and ``tau``.
@@ -145,22 +165,13 @@ def chain_loads(centres, frames, K, xi0, ds, Q, t, circular, F, tau):
     out = np.empty(13)
     E = 0.0
     for k in range(m):
-        img = circular and k == n - 1
-        j = 0 if img else k + 1
-        if not step_loads(centres, frames, K, xi0, ds, k, img, j, Q, t, out):
+        if not add_step_loads(centres, frames, K, xi0, ds, k, circular, Q, t, out, F, tau):
             return E, k
         E += out[12]
-        for a in range(3):
-            F[k, a] += out[a]
-            tau[k, a] += out[3 + a]
-        if img:
+        if k + 1 < n:  # an inner step: its right node's loads
             for a in range(3):
-                F[0, a] += Q[0, a] * out[6] + Q[1, a] * out[7] + Q[2, a] * out[8]
-                tau[0, a] += Q[0, a] * out[9] + Q[1, a] * out[10] + Q[2, a] * out[11]
-        else:
-            for a in range(3):
-                F[j, a] += out[6 + a]
-                tau[j, a] += out[9 + a]
+                F[k + 1, a] += out[6 + a]
+                tau[k + 1, a] += out[9 + a]
     return E, -1
 
 
