@@ -17,7 +17,8 @@ import numpy as np
 from numba import njit
 
 from dnarod.core.kernels import _FM
-from dnarod.core.kernels import add_step_loads, chain_loads
+from dnarod.core.kernels import chain_loads
+from dnarod.core.kernels import step_loads as _step_loads
 from dnarod.engines.lax.splitting_limits import MOMENTUM_LIMIT
 
 _MOM2 = MOMENTUM_LIMIT**2
@@ -165,10 +166,19 @@ def run_steps(pos, frm, P, pi, F, tau, inv_m, invJ, free, Fext, tauext, K, xi0, 
                 cF[a] = 0.0
                 cT[a] = 0.0
             if k < m:
-                if not add_step_loads(pos, frm, K, xi0, ds, k, circular, Q, tvec, out, F, tau):
+                img = circular and k == n - 1
+                j = 0 if img else k + 1
+                if not _step_loads(pos, frm, K, xi0, ds, k, img, j, Q, tvec, out):
                     return 1, i, k, E
                 E += out[12]
-                if k + 1 < n:  # an inner step: its right node's loads are carried to node k + 1
+                for a in range(3):
+                    F[k, a] += out[a]
+                    tau[k, a] += out[3 + a]
+                if img:
+                    for a in range(3):
+                        F[0, a] += Q[0, a] * out[6] + Q[1, a] * out[7] + Q[2, a] * out[8]
+                        tau[0, a] += Q[0, a] * out[9] + Q[1, a] * out[10] + Q[2, a] * out[11]
+                else:
                     for a in range(3):
                         cF[a] = out[6 + a]
                         cT[a] = out[9 + a]

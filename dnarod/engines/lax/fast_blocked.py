@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dnarod.core.kernels import _DEN_LIMIT, _FM
+from dnarod.core.kernels import _DEN_LIMIT, _FM, lab_stresses
 from dnarod.core.kernels import step_loads as _step_loads
 from dnarod.engines.lax.fast import _MOM2, _rotor_node
 
@@ -279,16 +279,8 @@ def run_steps_blocked(pos, frm, P, pi, F, tau, inv_m, invJ, free, Fext, tauext, 
                 P1 = KS[24, l] * d0 + KS[25, l] * d1 + KS[26, l] * d2 + KS[27, l] * d3 + KS[28, l] * d4 + KS[29, l] * d5
                 P2 = KS[30, l] * d0 + KS[31, l] * d1 + KS[32, l] * d2 + KS[33, l] * d3 + KS[34, l] * d4 + KS[35, l] * d5
                 H = d0 * M0 + d1 * M1 + d2 * M2 + d3 * P0 + d4 * P1 + d5 * P2
-                wM = w0 * M0 + w1 * M1 + w2 * M2
-                bm0 = M0 + 0.5 * (w1 * M2 - w2 * M1) + 0.25 * w0 * wM
-                bm1 = M1 + 0.5 * (w2 * M0 - w0 * M2) + 0.25 * w1 * wM
-                bm2 = M2 + 0.5 * (w0 * M1 - w1 * M0) + 0.25 * w2 * wM
-                n0 = L00 * P0 + L01 * P1 + L02 * P2
-                n1 = L10 * P0 + L11 * P1 + L12 * P2
-                n2 = L20 * P0 + L21 * P1 + L22 * P2
-                m0 = L00 * bm0 + L01 * bm1 + L02 * bm2
-                m1 = L10 * bm0 + L11 * bm1 + L12 * bm2
-                m2 = L20 * bm0 + L21 * bm1 + L22 * bm2
+                n0, n1, n2, m0, m1, m2 = lab_stresses(w0, w1, w2, M0, M1, M2, P0, P1, P2,
+                                                      L00, L01, L02, L10, L11, L12, L20, L21, L22)
                 O[0, l] = n0
                 O[1, l] = n1
                 O[2, l] = n2
