@@ -6,24 +6,18 @@ positions, nm; pair frames as node frames) that every analysis of :mod:`dnarod.a
 """
 from __future__ import annotations
 
-from dnarod.structure.trajectory import read_duplex_trajectory
+from dnarod.structure.trajectory import ALLATOM_SOURCE, read_duplex_trajectory
+from dnarod.core.docs import fill_doc
 from dnarod.core.trajectory import Trajectory
 
 
+@fill_doc(allatom_source=ALLATOM_SOURCE)
 def load_allatom(topology, trajectory=None, duplex=0, start=None, stop=None, step=None):
     """Node trajectory of one duplex of an all-atom trajectory.
 
     Parameters
     ----------
-    topology : str or Path
-        Topology: PDB/mmCIF (read with gemmi for pairing), or any MDAnalysis topology
-        (PSF, PRMTOP, GRO, TPR, ...; its first frame is written as PDB for pairing).
-    trajectory : str or Path, optional
-        DCD, XTC, TRR, NetCDF, multi-model PDB, ...; default the topology's own frames.
-    duplex : int
-        Which duplex (0-based, as found by the pairing).
-    start, stop, step : int, optional
-        Frame selection.
+    %(allatom_source)s
 
     Returns
     -------

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.core.errors import DnarodError, StructureError
+from dnarod.core.errors import DnarodError, StructureError, positive_number
 from dnarod.core.io import jsonable
 
 #: Files ``analyze`` may write in its report folder (``overwrite`` removes exactly these).
@@ -183,8 +183,6 @@ def _unreadable(path, topology, exc):
 
 def _check_arguments(input_path, temperature, start, stop, step, exclude_ends, n_blocks, duplex):
     """Refuse bad analysis arguments with one line naming the option, before anything is read or written."""
-    import math
-
     if not isinstance(input_path, (str, Path)) or not str(input_path).strip():
         raise DnarodError(f"INPUT {input_path!r}: give a trajectory or structure file")
 
@@ -202,13 +200,8 @@ def _check_arguments(input_path, temperature, start, stop, step, exclude_ends, n
     integer("--duplex", duplex, lambda k: k >= 1, "an integer >= 1 (duplexes are numbered from 1, see `dnarod pairs`)")
     if start is not None and stop is not None and stop <= start:
         raise DnarodError(f"--start {start} --stop {stop}: no frame left; --stop must be above --start")
-    if temperature is not None:
-        try:
-            t = float(temperature)
-        except (TypeError, ValueError):
-            t = float("nan")
-        if not (math.isfinite(t) and t > 0):
-            raise DnarodError(f"--temperature {temperature}: must be a positive temperature in K")
+    if temperature is not None and positive_number(temperature) is None:
+        raise DnarodError(f"--temperature {temperature}: must be a positive temperature in K")
 
 
 def analyze(input_path, topology=None, forcefield=None, out=None, circular=False, temperature=None,

@@ -175,22 +175,21 @@ def _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start=
     _report(c, "turns", columns)
 
 
-@protocol.command("hat")
-@_clamp_options("0.5")
-@_common
-def hat_cmd(forces, turns, clamp_k, start, exchange_ps, workers, out, overwrite, **kw):
-    """Magnetic tweezers at constant force: extension vs turns (the hat curve)."""
-    _run_clamped("magnetic_tweezers", forces, turns, clamp_k, workers, out, kw,
-                 ["relative_extension", "Wr", "plectoneme_fraction"], start, overwrite, exchange_ps)
+def _clamped_command(name, kind, clamp_k_default, columns, doc):
+    """The ``protocol`` subcommand ``name`` of the rotation-clamp protocol ``kind``: forces x turns, its curve
+    printed with ``columns``; ``doc`` is its help."""
+    def command(forces, turns, clamp_k, start, exchange_ps, workers, out, overwrite, **kw):
+        _run_clamped(kind, forces, turns, clamp_k, workers, out, kw, columns, start, overwrite, exchange_ps)
+
+    command.__doc__ = doc
+    return protocol.command(name)(_clamp_options(clamp_k_default)(_common(command)))
 
 
-@protocol.command("torque-turns")
-@_clamp_options("1.0")
-@_common
-def torque_turns_cmd(forces, turns, clamp_k, start, exchange_ps, workers, out, overwrite, **kw):
-    """Torque on the rotation clamp vs turns at constant force."""
-    _run_clamped("torque_turns", forces, turns, clamp_k, workers, out, kw,
-                 ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"], start, overwrite, exchange_ps)
+hat_cmd = _clamped_command("hat", "magnetic_tweezers", "0.5", ["relative_extension", "Wr", "plectoneme_fraction"],
+                           "Magnetic tweezers at constant force: extension vs turns (the hat curve).")
+torque_turns_cmd = _clamped_command("torque-turns", "torque_turns", "1.0",
+                                    ["twist_torque_pN_nm", "clamp_torque_pN_nm", "relative_extension"],
+                                    "Torque on the rotation clamp vs turns at constant force.")
 
 
 @protocol.command("rings")

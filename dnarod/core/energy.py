@@ -18,6 +18,7 @@ import numpy as np
 
 from dnarod.core.strains import step_geometry, strains
 from dnarod.core.errors import ParameterError
+from dnarod.core.docs import POSE, fill_doc
 
 
 def stresses(Omega, Gamma, params):
@@ -45,6 +46,16 @@ def stresses(Omega, Gamma, params):
     return sigma[:, :3], sigma[:, 3:], H
 
 
+#: The chain and parameters the energy functions take.
+_CHAIN_DOC = POSE + """
+params : StepParameters
+    With ``n_nodes - 1`` steps (open) or ``n_nodes`` steps (circular).
+ds : float
+    Arc length per step, nm.
+closure : Closure or None
+    Screw closure of a circular chain."""
+
+
 def step_energies(positions, frames, params, ds, closure=None):
     """Energy of every step, ``ds * H_k``, kJ/mol; shape (n_steps,)."""
     Omega, Gamma = strains(positions, frames, ds, closure)
@@ -52,21 +63,13 @@ def step_energies(positions, frames, params, ds, closure=None):
     return ds * stresses(Omega, Gamma, params)[2]
 
 
+@fill_doc(chain=_CHAIN_DOC)
 def energy(positions, frames, params, ds, closure=None):
     """Total elastic energy, kJ/mol.
 
     Parameters
     ----------
-    positions : ndarray, shape (n_nodes, 3)
-        Node centres, nm.
-    frames : ndarray, shape (n_nodes, 3, 3)
-        Directors as columns.
-    params : StepParameters
-        With ``n_nodes - 1`` steps (open) or ``n_nodes`` steps (circular).
-    ds : float
-        Arc length per step, nm.
-    closure : Closure or None
-        Screw closure of a circular chain.
+    %(chain)s
 
     Returns
     -------
@@ -83,19 +86,13 @@ def _check_counts(Omega, params):
         )
 
 
+@fill_doc(chain=_CHAIN_DOC)
 def loads(positions, frames, params, ds, closure=None):
     """Energy, forces and torques on every node (docs/formulation.md §4), vectorised over steps.
 
     Parameters
     ----------
-    positions : ndarray, shape (n_nodes, 3)
-        Node centres, nm.
-    frames : ndarray, shape (n_nodes, 3, 3)
-        Directors as columns.
-    params : StepParameters
-    ds : float
-        nm.
-    closure : Closure or None
+    %(chain)s
 
     Returns
     -------

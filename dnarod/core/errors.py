@@ -4,6 +4,7 @@ Every error names the bad value (the entry, the node or the step) and says what 
 All derive from :class:`DnarodError`, itself a :class:`ValueError`, so callers can catch
 one type.
 """
+import math
 
 
 def base_pair(k):
@@ -19,6 +20,16 @@ def step_name(k, n_nodes=None):
     k = int(k)
     nxt = (k + 1) % n_nodes if n_nodes else k + 1
     return f"step {k + 1} (base pairs {k + 1}-{nxt + 1})"
+
+
+def positive_number(value):
+    """``value`` as a float if it is a finite number > 0, else None (not a number, NaN, infinite or <= 0): the
+    check behind the options that take a positive quantity (a temperature, a timeout)."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) and x > 0 else None
 
 
 class DnarodError(ValueError):

@@ -19,6 +19,34 @@ _FM = {"contract", "reassoc", "nsz", "arcp", "afn"}
 _DEN_LIMIT = 2.0 * (1.0 + np.cos(MAX_CAYLEY_ANGLE))
 
 
+@njit(cache=True, inline="always")
+def pair_vector(pos, i, j):
+    """Separation ``pos[j] - pos[i]`` of two nodes (nm) and its squared length: ``(dx, dy, dz, r2)``."""
+    dx = pos[j, 0] - pos[i, 0]
+    dy = pos[j, 1] - pos[i, 1]
+    dz = pos[j, 2] - pos[i, 2]
+    return dx, dy, dz, dx * dx + dy * dy + dz * dz
+
+
+@njit(cache=True, inline="always", fastmath=_FM)
+def lab_stresses(w0, w1, w2, M0, M1, M2, P0, P1, P2, L00, L01, L02, L10, L11, L12, L20, L21, L22):
+    """Lab force ``n = L P`` and moment ``m = L T(w)^T M`` of a step (docs/formulation.md §4) from its Cayley
+    vector ``w``, body stresses ``M`` (moment) and ``P`` (force) and left frame ``L`` (directors as columns);
+    returns ``(n0, n1, n2, m0, m1, m2)``. Scalar arguments, so both the per-step and the lane-blocked kernels
+    inline it as straight-line arithmetic."""
+    wM = w0 * M0 + w1 * M1 + w2 * M2
+    bm0 = M0 + 0.5 * (w1 * M2 - w2 * M1) + 0.25 * w0 * wM
+    bm1 = M1 + 0.5 * (w2 * M0 - w0 * M2) + 0.25 * w1 * wM
+    bm2 = M2 + 0.5 * (w0 * M1 - w1 * M0) + 0.25 * w2 * wM
+    n0 = L00 * P0 + L01 * P1 + L02 * P2
+    n1 = L10 * P0 + L11 * P1 + L12 * P2
+    n2 = L20 * P0 + L21 * P1 + L22 * P2
+    m0 = L00 * bm0 + L01 * bm1 + L02 * bm2
+    m1 = L10 * bm0 + L11 * bm1 + L12 * bm2
+    m2 = L20 * bm0 + L21 * bm1 + L22 * bm2
+    return n0, n1, n2, m0, m1, m2
+
+
 @njit(cache=True, inline="always", fastmath=_FM)
 def step_loads(pos, frm, K, xi0, ds, k, j_is_image, j, Q, tvec, out):
     """Loads of step k on its left node (out[0:3] force, out[3:6] torque) and right node
@@ -96,16 +124,8 @@ def step_loads(pos, frm, K, xi0, ds, k, j_is_image, j, Q, tvec, out):
     P1 = Kk[4, 0] * d0 + Kk[4, 1] * d1 + Kk[4, 2] * d2 + Kk[4, 3] * d3 + Kk[4, 4] * d4 + Kk[4, 5] * d5
     P2 = Kk[5, 0] * d0 + Kk[5, 1] * d1 + Kk[5, 2] * d2 + Kk[5, 3] * d3 + Kk[5, 4] * d4 + Kk[5, 5] * d5
     H = d0 * M0 + d1 * M1 + d2 * M2 + d3 * P0 + d4 * P1 + d5 * P2
-    wM = w0 * M0 + w1 * M1 + w2 * M2
-    bm0 = M0 + 0.5 * (w1 * M2 - w2 * M1) + 0.25 * w0 * wM
-    bm1 = M1 + 0.5 * (w2 * M0 - w0 * M2) + 0.25 * w1 * wM
-    bm2 = M2 + 0.5 * (w0 * M1 - w1 * M0) + 0.25 * w2 * wM
-    n0 = L00 * P0 + L01 * P1 + L02 * P2
-    n1 = L10 * P0 + L11 * P1 + L12 * P2
-    n2 = L20 * P0 + L21 * P1 + L22 * P2
-    m0 = L00 * bm0 + L01 * bm1 + L02 * bm2
-    m1 = L10 * bm0 + L11 * bm1 + L12 * bm2
-    m2 = L20 * bm0 + L21 * bm1 + L22 * bm2
+    n0, n1, n2, m0, m1, m2 = lab_stresses(w0, w1, w2, M0, M1, M2, P0, P1, P2,
+                                          L00, L01, L02, L10, L11, L12, L20, L21, L22)
     out[0] = n0
     out[1] = n1
     out[2] = n2

@@ -31,6 +31,7 @@ import numpy as np
 import numpy.typing as npt
 
 from dnarod.core.errors import ParameterError
+from dnarod.core.docs import fill_doc
 from dnarod.core.rotations import rotation_about_axis
 from dnarod.core.model import RodModel
 from dnarod.core.units import PN, kT
@@ -321,16 +322,14 @@ class ResolvedLoads:
         """Angles (rad) of the rotation clamps' targets at ``time_ps``; shape (n_rotation_clamps,)."""
         return np.array([clamp_angle(c.load, time_ps, duration_ps) for c in self.rotation_clamps])
 
+    @fill_doc
     def evaluate(self, positions: np.ndarray, frames: np.ndarray,
                  angles: Sequence[float] | np.ndarray | None = None) -> tuple[float, np.ndarray, np.ndarray]:
         """Energy and lab loads of all external loads at a pose (clamped nodes not zeroed).
 
         Parameters
         ----------
-        positions : ndarray, shape (n_nodes, 3)
-            nm.
-        frames : ndarray, shape (n_nodes, 3, 3)
-            Directors as columns.
+        %(pose)s
         angles : sequence of float, optional
             Rotation clamp target angles, rad (default 0).
 

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.errors import DnarodError
+from dnarod.core.docs import fill_doc
 from dnarod.core.trajectory import Trajectory
 from dnarod.core.io import ascii_alias
 
@@ -88,15 +89,13 @@ def hy36(value, width=5):
     raise DnarodError(f"atom serial {value} is too large for hybrid-36 in {width} characters")
 
 
+@fill_doc
 def cg_pdb_text(positions, frames, sequence=None, arm=1.0, remark_extra=()):
     """PDB text (Angstrom) of one frame of the coarse-grained topology, with REMARK and CONECT.
 
     Parameters
     ----------
-    positions : ndarray, shape (n_nodes, 3)
-        nm.
-    frames : ndarray, shape (n_nodes, 3, 3)
-        Directors as columns.
+    %(pose)s
     sequence : str, optional
         Strand I letters.
     arm : float

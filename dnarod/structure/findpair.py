@@ -187,6 +187,13 @@ def _area(poly):
     return 0.5 * float(s)
 
 
+def _fan_triangle(poly, i):
+    """Triangle ``(poly[0], poly[i], poly[i + 1])`` of a polygon's fan, counter-clockwise, and its signed area."""
+    t = np.array([poly[0], poly[i], poly[i + 1]])
+    s = _area(t)
+    return (t[::-1] if s < 0 else t), s
+
+
 def polygon_overlap_area(a, b):
     """Area shared by two plane polygons (any shape; the winding-number product integral).
 
@@ -210,19 +217,13 @@ def polygon_overlap_area(a, b):
         return 0.0
     total = 0.0
     for i in range(1, len(a) - 1):
-        ta = np.array([a[0], a[i], a[i + 1]])
-        sa = _area(ta)
+        ta, sa = _fan_triangle(a, i)
         if sa == 0.0:
             continue
-        if sa < 0:
-            ta = ta[::-1]
         for j in range(1, len(b) - 1):
-            tb = np.array([b[0], b[j], b[j + 1]])
-            sb = _area(tb)
+            tb, sb = _fan_triangle(b, j)
             if sb == 0.0:
                 continue
-            if sb < 0:
-                tb = tb[::-1]
             poly = [p for p in ta]
             for k in range(3):
                 poly = _clip(poly, tb[k], tb[(k + 1) % 3])
@@ -783,21 +784,15 @@ def _check_others(P, m, n):
 def _first_step(P, h):
     if len(h) < 2:
         return h
-    b = P.bases
-    i1, _ = P.ij_of(h[0])
-    i2, _ = P.ij_of(h[1])
-    k = _linked(b, i1, i2)
-    if k == -1:
-        P.swapped[h[0]] = not P.swapped[h[0]]
-    elif k == 0:
-        h = h[::-1]
+    for _attempt in range(2):  # as given, then reversed; unlinked both ways: as given
         i1, _ = P.ij_of(h[0])
         i2, _ = P.ij_of(h[1])
-        k = _linked(b, i1, i2)
+        k = _linked(P.bases, i1, i2)
         if k == -1:
             P.swapped[h[0]] = not P.swapped[h[0]]
-        elif k == 0:
-            h = h[::-1]
+        if k != 0:
+            return h
+        h = h[::-1]
     return h
 
 

@@ -15,6 +15,7 @@ import tempfile
 import numpy as np
 
 from dnarod.core.errors import StructureError
+from dnarod.core.docs import fill_doc
 from dnarod.structure.analysis import analyze_structure, step_parameters_over_frames
 from dnarod.structure.reader import OLD_NAMES
 from dnarod.structure.cg_topology import is_cg_export, load_cg_trajectory
@@ -80,20 +81,26 @@ def _universe(topology, trajectory):
                                  f"the same order") from None
 
 
+#: The all-atom sources :func:`read_duplex_trajectory` (and :func:`dnarod.analysis.allatom.load_allatom`) read.
+ALLATOM_SOURCE = """\
+topology : str or Path
+    PDB/mmCIF (read with gemmi for pairing), or any MDAnalysis topology (PSF, PRMTOP, GRO,
+    TPR, ...; its first frame is written as PDB for pairing).
+trajectory : str or Path, optional
+    DCD, XTC, TRR, NetCDF, multi-model PDB, ...; default the topology's own frames.
+duplex : int
+    Which duplex (0-based, as found by the pairing).
+start, stop, step : int, optional
+    Frame selection."""
+
+
+@fill_doc(allatom_source=ALLATOM_SOURCE)
 def read_duplex_trajectory(topology, trajectory=None, duplex=0, start=None, stop=None, step=None, model=1):
     """Base-pair frames and parameters of one duplex in every selected frame.
 
     Parameters
     ----------
-    topology : str or Path
-        PDB/mmCIF (read with gemmi for pairing), or any MDAnalysis topology (PSF, PRMTOP, GRO,
-        TPR, ...; its first frame is written as PDB for pairing).
-    trajectory : str or Path, optional
-        DCD, XTC, TRR, NetCDF, multi-model PDB, ...; default the topology's own frames.
-    duplex : int
-        Which duplex (0-based, as found by the pairing).
-    start, stop, step : int, optional
-        Frame selection.
+    %(allatom_source)s
     model : int
         Model of a PDB/mmCIF topology used for pairing.
 

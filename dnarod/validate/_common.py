@@ -17,6 +17,45 @@ def jsonable(obj):
     return _jsonable(obj, nonfinite="repr")
 
 
+def ring_writhe_plot(reference_wr, reference_label, samples_csv):
+    """Figure of a ring check's writhe histograms, started with the reference Monte Carlo's.
+
+    Parameters
+    ----------
+    reference_wr : ndarray, shape (k,)
+        Writhe samples of the reference worm-like ring Monte Carlo.
+    reference_label : str
+        Legend entry of those samples.
+    samples_csv : str or Path
+        The model member's ``samples.csv`` (read with its header as field names).
+
+    Returns
+    -------
+    fig : matplotlib Figure
+    a : matplotlib Axes
+        The one axes, for the model's histogram and any marks.
+    samples : numpy structured ndarray
+        The member's samples.
+    """
+    from dnarod.analysis.plots import new_figure  # matplotlib only where a check plots
+
+    fig, ax = new_figure(1, 1, width=5.0, height=3.8)
+    a = ax[0, 0]
+    a.hist(reference_wr, bins=40, density=True, histtype="step", label=reference_label)
+    samples = np.genfromtxt(samples_csv, delimiter=",", names=True)
+    return fig, a, samples
+
+
+def save_ring_writhe_plot(fig, a, n_bp, out_dir, name):
+    """Label, add the legend to and save a figure of :func:`ring_writhe_plot`; returns ``[path]``."""
+    from dnarod.analysis.plots import save_figure
+
+    a.set_xlabel(f"Wr ({n_bp} bp ring)")
+    a.set_ylabel("density")
+    a.legend(fontsize=7)
+    return [save_figure(fig, out_dir, name)]
+
+
 def observed_order(h, err):
     """Least-squares slope of log(err) against log(h) (the observed order of convergence).
 

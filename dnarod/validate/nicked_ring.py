@@ -41,7 +41,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.validate._common import ring_writhe_plot, save_ring_writhe_plot
 from dnarod.workflows.protocols.nicked import run_nicked_member
 from dnarod.physics.theory.supercoil import depew_wang_K, ring_constants, twist_variance_exact, twist_variance_linear
 from dnarod.validate.wlc_ring_mc import sample_ring_writhe
@@ -136,15 +136,10 @@ def check_nicked_ring(out_dir, quick=False, n_bp=None, time_ns=None, full_n_bp=3
                full=full,
                measured_K=measured_K, measured_K_source=measured_K_source, passed=passed)
     if plots:
-        fig, ax = new_figure(1, 1, width=5.0, height=3.8)
-        a = ax[0, 0]
-        a.hist(mc["wr"], bins=40, density=True, histtype="step", label=f"WLC ring MC (A {A_ref:.0f}, d {d_eff:.2f} nm)")
-        d = np.genfromtxt(root / f"ring{n_bp}" / "samples.csv", delimiter=",", names=True)
+        fig, a, d = ring_writhe_plot(mc["wr"], f"WLC ring MC (A {A_ref:.0f}, d {d_eff:.2f} nm)",
+                                     root / f"ring{n_bp}" / "samples.csv")
         a.hist(d["Wr_star"] - md["wr_star_mean"], bins=40, density=True, histtype="step",
                label="model Wr* = Lk - step twist (soft twist, unweighted)")
-        a.set_xlabel(f"Wr ({n_bp} bp ring)")
-        a.set_ylabel("density")
-        a.legend(fontsize=7)
-        res["plots"] = [save_figure(fig, out_dir, "nicked_ring.png")]
+        res["plots"] = save_ring_writhe_plot(fig, a, n_bp, out_dir, "nicked_ring.png")
     res["runtime_s"] = time.perf_counter() - t0
     return res

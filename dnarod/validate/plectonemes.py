@@ -46,7 +46,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from dnarod.analysis.plots import new_figure, save_figure
+from dnarod.validate._common import ring_writhe_plot, save_ring_writhe_plot
 from dnarod.core.forcefield import load_forcefield
 from dnarod.physics.nonbonded import member_nonbonded, nonbonded_record
 from dnarod.workflows.protocols.poses import START_POSE, load_pose
@@ -201,19 +201,14 @@ def check_plectonemes(out_dir, quick=False, n_bp=None, delta_lk=None, time_ns=No
         res["two_phase_writhe_fraction"] = writhe_fraction_from_P(P_nm, C_ref)
         res["two_phase_P_nm"] = float(P_nm)
     if plots:
-        fig, ax = new_figure(1, 1, width=5.0, height=3.8)
-        a = ax[0, 0]
-        a.hist(mc["wr"], bins=40, density=True, histtype="step", label="worm-like ring MC (model pair energy)")
-        d = np.genfromtxt(root / f"ring{n_bp}_{delta_lk}" / "samples.csv", delimiter=",", names=True)
+        fig, a, d = ring_writhe_plot(mc["wr"], "worm-like ring MC (model pair energy)",
+                                     root / f"ring{n_bp}_{delta_lk}" / "samples.csv")
         a.hist(d["Wr"], bins=40, density=True, histtype="step", label="model")
         a.axvline(dlk, color="k", ls=":", label="ΔLk")
         if res["vs_experiment"]:
             w = res["vs_experiment"]
             a.axvline(w["measured"] * dlk, color="C3", ls="--",
                       label=f"~{w['measured']:g} ΔLk ({w['source']}, quoted; σ and salt not stated)")
-        a.set_xlabel(f"Wr ({n_bp} bp ring)")
-        a.set_ylabel("density")
-        a.legend(fontsize=7)
-        res["plots"] = [save_figure(fig, out_dir, "plectonemes.png")]
+        res["plots"] = save_ring_writhe_plot(fig, a, n_bp, out_dir, "plectonemes.png")
     res["runtime_s"] = time.perf_counter() - t0
     return res

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.physics.loads import LOAD_TYPES, resolve_loads, Clamp, PullingForce, Torque
+from dnarod.physics.loads import LOAD_TYPES, resolve_loads, resolve_node, Clamp, PullingForce, Torque
 
 
 @dataclass
@@ -100,18 +100,9 @@ class BoundaryConditions:
             raise DnarodError(f"{type(other[0]).__name__} on node {other[0].node}: the strain-space exact integrator "
                               f"takes clamps, forces and torques only; use the splitting integrator")
 
-        def index(k, what):
-            try:
-                k = int(k)
-            except (TypeError, ValueError):
-                raise DnarodError(f"{what}: node index must be an integer, got {k!r}") from None
-            if not -n <= k < n:
-                raise DnarodError(f"{what}: node {k} does not exist (the chain has {n} nodes)")
-            return k % n
-
         clamp = np.zeros(n, bool)
         for k in clamped:
-            kk = index(k, "clamped")
+            kk = resolve_node(k, n, "clamped")
             if any_node:
                 clamp[kk] = True
                 continue
@@ -127,7 +118,7 @@ class BoundaryConditions:
         tau = np.zeros((n, 3))
         for name, table, arr in (("force", forces, F), ("torque", torques, tau)):
             for k, v in table:
-                kk = index(k, f"end {name}")
+                kk = resolve_node(k, n, f"end {name}")
                 v = np.asarray(v, float)
                 if v.shape != (3,) or not np.isfinite(v).all():
                     raise DnarodError(f"end {name} on node {k}: must be 3 finite numbers (lab frame), got {v!r}")

@@ -6,7 +6,7 @@ free-rotor sub-flows are sequential), so it is latency bound. Here the chain is 
 with one row per quantity, and every formula is a loop over the lanes of the block, which LLVM
 vectorises (AVX2/AVX-512). Per time step and block:
 
-1. step loads of the block's steps (the exact A2 loads, same arithmetic as :func:`.fast._step_loads`);
+1. step loads of the block's steps (the exact A2 loads, same arithmetic as :func:`dnarod.core.kernels.step_loads`);
 2. node loads = own step + previous step (carried across blocks) + end loads;
 3. kick (finish step i), kick (start step i+1), drift, free rotor (and BAOAB's O step).
 
@@ -21,8 +21,9 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from dnarod.core.kernels import _DEN_LIMIT, _FM
-from dnarod.engines.lax.fast import _MOM2, _rotor_node, _step_loads
+from dnarod.core.kernels import _DEN_LIMIT, _FM, lab_stresses
+from dnarod.core.kernels import step_loads as _step_loads
+from dnarod.engines.lax.fast import _MOM2, _rotor_node
 
 #: Nodes per block (a compile-time constant of the kernel). Measured at 1000 nodes on this project's
 #: AVX-512 machine: 8 lanes 1.37e7, 16 lanes 1.67e7, 32 lanes 1.84e7, 64 lanes 1.90e7 node-steps/s.
@@ -117,6 +118,18 @@ def _rotor_block(S, nb, h):
             S[r, l] = frm[0, r // 3, r % 3]
         for a in range(3):
             S[9 + a, l] = pi[0, a]
+
+
+@njit(cache=True, inline="always", fastmath=_FM)
+def _kick_lane(S, l, h):
+    """Half kick of lane ``l`` by ``h`` ps: lab momentum (rows 15-17) by the lab force (rows 21-23), body angular
+    momentum (rows 9-11) by the lab torque (rows 24-26) taken into the body frame (frame rows 0-8)."""
+    for a in range(3):
+        S[15 + a, l] += h * S[21 + a, l]
+    t0, t1, t2 = S[24, l], S[25, l], S[26, l]
+    S[9, l] += h * (S[0, l] * t0 + S[3, l] * t1 + S[6, l] * t2)
+    S[10, l] += h * (S[1, l] * t0 + S[4, l] * t1 + S[7, l] * t2)
+    S[11, l] += h * (S[2, l] * t0 + S[5, l] * t1 + S[8, l] * t2)
 
 
 @njit(cache=True)
@@ -266,16 +279,8 @@ def run_steps_blocked(pos, frm, P, pi, F, tau, inv_m, invJ, free, Fext, tauext, 
                 P1 = KS[24, l] * d0 + KS[25, l] * d1 + KS[26, l] * d2 + KS[27, l] * d3 + KS[28, l] * d4 + KS[29, l] * d5
                 P2 = KS[30, l] * d0 + KS[31, l] * d1 + KS[32, l] * d2 + KS[33, l] * d3 + KS[34, l] * d4 + KS[35, l] * d5
                 H = d0 * M0 + d1 * M1 + d2 * M2 + d3 * P0 + d4 * P1 + d5 * P2
-                wM = w0 * M0 + w1 * M1 + w2 * M2
-                bm0 = M0 + 0.5 * (w1 * M2 - w2 * M1) + 0.25 * w0 * wM
-                bm1 = M1 + 0.5 * (w2 * M0 - w0 * M2) + 0.25 * w1 * wM
-                bm2 = M2 + 0.5 * (w0 * M1 - w1 * M0) + 0.25 * w2 * wM
-                n0 = L00 * P0 + L01 * P1 + L02 * P2
-                n1 = L10 * P0 + L11 * P1 + L12 * P2
-                n2 = L20 * P0 + L21 * P1 + L22 * P2
-                m0 = L00 * bm0 + L01 * bm1 + L02 * bm2
-                m1 = L10 * bm0 + L11 * bm1 + L12 * bm2
-                m2 = L20 * bm0 + L21 * bm1 + L22 * bm2
+                n0, n1, n2, m0, m1, m2 = lab_stresses(w0, w1, w2, M0, M1, M2, P0, P1, P2,
+                                                      L00, L01, L02, L10, L11, L12, L20, L21, L22)
                 O[0, l] = n0
                 O[1, l] = n1
                 O[2, l] = n2
@@ -336,13 +341,7 @@ def run_steps_blocked(pos, frm, P, pi, F, tau, inv_m, invJ, free, Fext, tauext, 
                 for a in range(6):
                     S[21 + a, l] = (S[21 + a, l] + O[a, l] + RF[a, l]) * fr
             for l in range(nb * finish):
-                # kick: finish step i
-                for a in range(3):
-                    S[15 + a, l] += h * S[21 + a, l]
-                t0, t1, t2 = S[24, l], S[25, l], S[26, l]
-                S[9, l] += h * (S[0, l] * t0 + S[3, l] * t1 + S[6, l] * t2)
-                S[10, l] += h * (S[1, l] * t0 + S[4, l] * t1 + S[7, l] * t2)
-                S[11, l] += h * (S[2, l] * t0 + S[5, l] * t1 + S[8, l] * t2)
+                _kick_lane(S, l, h)  # kick: finish step i
                 p2 = S[15, l] * S[15, l] + S[16, l] * S[16, l] + S[17, l] * S[17, l]
                 l2 = S[9, l] * S[9, l] + S[10, l] * S[10, l] + S[11, l] * S[11, l]
                 mom = max(mom, max(p2, l2)) if (p2 == p2 and l2 == l2) else np.inf
@@ -354,13 +353,8 @@ def run_steps_blocked(pos, frm, P, pi, F, tau, inv_m, invJ, free, Fext, tauext, 
                         _scatter(Z, FT, pos, frm, P, pi, F, tau)
                         return 2, i, k0 + l, E
             if not last:
-                for l in range(nb):  # kick: start step i + 1
-                    for a in range(3):
-                        S[15 + a, l] += h * S[21 + a, l]
-                    t0, t1, t2 = S[24, l], S[25, l], S[26, l]
-                    S[9, l] += h * (S[0, l] * t0 + S[3, l] * t1 + S[6, l] * t2)
-                    S[10, l] += h * (S[1, l] * t0 + S[4, l] * t1 + S[7, l] * t2)
-                    S[11, l] += h * (S[2, l] * t0 + S[5, l] * t1 + S[8, l] * t2)
+                for l in range(nb):
+                    _kick_lane(S, l, h)  # kick: start step i + 1
                 if not langevin:
                     for l in range(nb):
                         for a in range(3):

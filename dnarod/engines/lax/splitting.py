@@ -28,6 +28,7 @@ import numpy as np
 from dnarod.core.energy import loads as _loads
 from dnarod.core.errors import DnarodError, GeometryError, SimulationError, base_pair, step_name
 from dnarod.core.rotations import MAX_CAYLEY_ANGLE
+from dnarod.core.docs import fill_doc
 from dnarod.core.strains import step_geometry
 from dnarod.core.units import kT as _kT
 from dnarod.engines.lax.boundary import BoundaryConditions
@@ -37,16 +38,14 @@ from dnarod.engines.lax.kernel import NumbaKernel
 from dnarod.core.model import RodModel
 
 
+@fill_doc
 @dataclass
 class RigidState:
     """Phase-space state of the nodes.
 
     Attributes
     ----------
-    positions : ndarray, shape (n, 3)
-        nm.
-    frames : ndarray, shape (n, 3, 3)
-        Directors as columns.
+    %(pose)s
     momenta : ndarray, shape (n, 3)
         Lab linear momenta, amu nm/ps.
     angular_momenta : ndarray, shape (n, 3)

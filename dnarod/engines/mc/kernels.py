@@ -85,7 +85,7 @@ import math
 import numpy as np
 from numba import njit
 
-from dnarod.core.kernels import _DEN_LIMIT, step_loads
+from dnarod.core.kernels import _DEN_LIMIT, pair_vector, step_loads
 
 #: WCA energy (kT) beyond which a pair is a hard-core overlap: exp(-700) underflows to 1e-304.
 HARD_CORE_KT = 700.0
@@ -1366,10 +1366,7 @@ def nonbonded_pair_sums(pos, tlo, thi, tcen, trad, ip, fp, dA, dF):
         if ta >= P and tb >= P:
             for i in range(tlo[ta], thi[ta] + 1):
                 for j in range(max(tlo[tb], i + nex + 1), thi[tb] + 1):
-                    dx = pos[j, 0] - pos[i, 0]
-                    dy = pos[j, 1] - pos[i, 1]
-                    dz = pos[j, 2] - pos[i, 2]
-                    r2 = dx * dx + dy * dy + dz * dz
+                    dx, dy, dz, r2 = pair_vector(pos, i, j)
                     if r2 >= cut2:
                         continue
                     g = pair_force_over_r(r2, fp)

@@ -14,6 +14,7 @@ import math
 import numba
 import numpy as np
 
+from dnarod.core.kernels import pair_vector
 from dnarod.engines.openmm.forces import GROUPS, python_force
 from dnarod.physics.nonbonded import DEFAULT_SKIN, _separation
 
@@ -165,10 +166,7 @@ def pair_kernel(c, pi, pj, m, eps, sigma, rc_wca, a_dh, kappa, rc_dh, F, spread=
     for t in range(m):
         i = pi[t]
         j = pj[t]
-        rx = c[j, 0] - c[i, 0]
-        ry = c[j, 1] - c[i, 1]
-        rz = c[j, 2] - c[i, 2]
-        r2 = rx * rx + ry * ry + rz * rz
+        rx, ry, rz, r2 = pair_vector(c, i, j)
         if r2 >= rc2:
             continue
         r = math.sqrt(r2)

@@ -7,6 +7,14 @@ from dnarod.core.errors import DnarodError
 
 READINGS = ("R1", "midpoint")
 
+#: Docstring fragments (:func:`dnarod.core.docs.fill_doc`) of the parameters checked here.
+LAM_DOC = """\
+lam : float
+    Real spectral parameter."""
+LAM_DS_DOC = LAM_DOC + """
+ds : float
+    Step length (nm), > 0."""
+
 
 def as_field(name, value, n=None, allow_complex=False):
     """Return ``value`` as a float (or complex) array of shape (n, 3); raise DnarodError naming it."""

@@ -10,7 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.physics.lax._checks import as_ds, as_fields, as_lambda
+from dnarod.core.docs import fill_doc
+from dnarod.physics.lax._checks import LAM_DS_DOC, as_ds, as_fields, as_lambda
 from dnarod.physics.lax.pair import U_NAMES, _pair_matrix
 
 __all__ = ["monodromy", "monodromy_from_matrices", "spectral_invariants"]
@@ -39,6 +40,7 @@ def monodromy_from_matrices(Ut):
     return T
 
 
+@fill_doc(lam_ds=LAM_DS_DOC)
 def monodromy(Gamma, Omega, p, m, lam, ds):
     """Monodromy T(lam) = U~_{N-1} ... U~_0 with U~_k = 1 + ds U_k of (3.3a).
 
@@ -46,10 +48,7 @@ def monodromy(Gamma, Omega, p, m, lam, ds):
     ----------
     Gamma, Omega, p, m : array_like, shape (n, 3)
         U-fields per node of a periodic chain (n steps; node n is node 0).
-    lam : float
-        Real spectral parameter.
-    ds : float
-        Step length (nm), > 0.
+    %(lam_ds)s
 
     Returns
     -------

@@ -22,7 +22,8 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.errors import DnarodError
-from dnarod.physics.lax._checks import as_ds, as_fields, as_lambda, shift_next
+from dnarod.core.docs import fill_doc
+from dnarod.physics.lax._checks import LAM_DOC, LAM_DS_DOC, as_ds, as_fields, as_lambda, shift_next
 from dnarod.physics.lax.generators import D_FLIP, so4_coefficients, so4_matrix
 
 __all__ = [
@@ -42,6 +43,19 @@ def _pair_matrix(lin, rot, mom_lin, mom_rot, lam):
     return so4_matrix(j, k)
 
 
+#: The spectral parameter and the result of :func:`U_matrix` and :func:`V_matrix`.
+_LAM_MATRIX_DOC = LAM_DOC + """
+
+Returns
+-------
+ndarray, shape (n, 4, 4), complex"""
+
+
+def _checked_pair_matrix(names, fields, lam):
+    return _pair_matrix(*as_fields(names, fields), as_lambda(lam))
+
+
+@fill_doc(lam_matrix=_LAM_MATRIX_DOC)
 def U_matrix(Gamma, Omega, p, m, lam):
     """U = -(Omega.J + lam^2 Gamma.K) - i lam (p.J + lam^2 m.K), paper (3.3c), (3.4), (3.5).
 
@@ -49,17 +63,12 @@ def U_matrix(Gamma, Omega, p, m, lam):
     ----------
     Gamma, Omega, p, m : array_like, shape (n, 3)
         U-fields per node (Gamma dimensionless, Omega 1/nm, momenta per unit length).
-    lam : float
-        Real spectral parameter.
-
-    Returns
-    -------
-    ndarray, shape (n, 4, 4), complex
+    %(lam_matrix)s
     """
-    Gamma, Omega, p, m = as_fields(U_NAMES, (Gamma, Omega, p, m))
-    return _pair_matrix(Gamma, Omega, p, m, as_lambda(lam))
+    return _checked_pair_matrix(U_NAMES, (Gamma, Omega, p, m), lam)
 
 
+@fill_doc(lam_matrix=_LAM_MATRIX_DOC)
 def V_matrix(gamma, omega, P, M, lam):
     """V = -(omega.J + lam^2 gamma.K) - i lam (P.J + lam^2 M.K), paper (3.3d), (3.6), (3.7).
 
@@ -67,17 +76,12 @@ def V_matrix(gamma, omega, P, M, lam):
     ----------
     gamma, omega, P, M : array_like, shape (n, 3)
         V-fields per node (velocities nm/ps and 1/ps, force and moment).
-    lam : float
-        Real spectral parameter.
-
-    Returns
-    -------
-    ndarray, shape (n, 4, 4), complex
+    %(lam_matrix)s
     """
-    gamma, omega, P, M = as_fields(V_NAMES, (gamma, omega, P, M))
-    return _pair_matrix(gamma, omega, P, M, as_lambda(lam))
+    return _checked_pair_matrix(V_NAMES, (gamma, omega, P, M), lam)
 
 
+@fill_doc(lam_ds=LAM_DS_DOC)
 def lax_pair(Gamma, Omega, p, m, gamma, omega, P, M, lam, ds):
     """The 4x4 complex Lax pair U~ = 1 + ds U and V~ = V of (3.3a,b).
 
@@ -85,10 +89,7 @@ def lax_pair(Gamma, Omega, p, m, gamma, omega, P, M, lam, ds):
     ----------
     Gamma, Omega, p, m, gamma, omega, P, M : array_like, shape (n, 3)
         The 24 fields per node (see the module docstring).
-    lam : float
-        Real spectral parameter.
-    ds : float
-        Step length (nm), > 0.
+    %(lam_ds)s
 
     Returns
     -------

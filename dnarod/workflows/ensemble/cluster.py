@@ -10,7 +10,6 @@ from __future__ import annotations
 import collections
 import contextlib
 import logging
-import math
 import os
 import socket
 import struct
@@ -21,7 +20,7 @@ import traceback
 import gc
 
 from dnarod.core.extras import require
-from dnarod.core.errors import DnarodError
+from dnarod.core.errors import DnarodError, positive_number
 
 #: Environment of every worker process.
 WORKER_ENV = {"OPENMM_CPU_THREADS": "1", "NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1",
@@ -578,12 +577,10 @@ def connect(address, timeout=10.0, security=None):
     from distributed import Client
 
     scheme, host, port = split_address(address)
-    try:
-        timeout = float(timeout)
-    except (TypeError, ValueError):
-        timeout = float("nan")
-    if not (math.isfinite(timeout) and timeout > 0):
+    seconds = positive_number(timeout)
+    if seconds is None:
         raise SchedulerError(f"--timeout {timeout}: give the seconds to wait for the scheduler (a number > 0)")
+    timeout = seconds
     if scheme == "tls" and security is None:
         security = tls_security()
         if security is None:

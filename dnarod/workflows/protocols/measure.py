@@ -39,6 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from dnarod.core.units import PN, kT
+from dnarod.core.docs import fill_doc
 from dnarod.physics.nonbonded import NonbondedSettings
 from dnarod.physics.theory.supercoil import effective_diameter
 from dnarod.core.strains import strains
@@ -109,6 +110,14 @@ def detector_distances(nonbonded=None, temperature=300.0, ds=0.34):
     return max(MIN_SEPARATION_NM, 2.0 * contact), contact
 
 
+#: The chain the self-contact detectors read.
+_CONTACT_CHAIN = """\
+positions : ndarray, shape (n, 3)
+    nm.
+ds : float
+    nm per step."""
+
+
 def _distances(min_separation_nm, contact_distance_nm, ds):
     """The detector's distances: the explicit ones, the rest from :func:`detector_distances` (default model)."""
     if min_separation_nm is None or contact_distance_nm is None:
@@ -134,16 +143,14 @@ def _far_contacts(positions, ds, min_separation_nm, contact_distance_nm, circula
     return i[keep], j[keep]
 
 
+@fill_doc(contact_chain=_CONTACT_CHAIN)
 def plectoneme_state(positions, ds, min_separation_nm=None, contact_distance_nm=None, min_fraction=0.05,
                      circular=False, return_mask=False):
     """Self-contact plectoneme detector for one pose (see the module docstring).
 
     Parameters
     ----------
-    positions : ndarray, shape (n, 3)
-        nm.
-    ds : float
-        nm per step.
+    %(contact_chain)s
     min_separation_nm, contact_distance_nm : float, optional
         nm; by default those of :func:`detector_distances` for the default model (calibrated charge, 0.15 M,
         300 K); a member passes its own model's. Only ``contact_distance_nm`` given: the minimum separation is
@@ -259,6 +266,7 @@ def twisting_moment_offset(model, temperature, n_samples=400_000, seed=0):
     return float(np.mean(vals)), float(np.sqrt(np.mean(np.square(errs))))
 
 
+@fill_doc(contact_chain=_CONTACT_CHAIN)
 def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=None, contact_distance_nm=None,
                          merge_nm=20.0, min_share=0.1):
     """Number of plectoneme end loops (hairpin tips) in one pose, and where they are.
@@ -274,10 +282,7 @@ def plectoneme_end_loops(positions, ds, circular=False, min_separation_nm=None, 
 
     Parameters
     ----------
-    positions : ndarray, shape (n, 3)
-        nm.
-    ds : float
-        nm per step.
+    %(contact_chain)s
     circular : bool
         Closed ring (contact midpoints taken the shorter way round).
     min_separation_nm, contact_distance_nm : float, optional

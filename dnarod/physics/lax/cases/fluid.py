@@ -17,14 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from dnarod.physics.lax.cases._ode import dop853
+from dnarod.physics.lax.cases._ode import SixStateODE
 from dnarod.core.errors import DnarodError
 from dnarod.physics.lax._checks import as_lambda
 
 __all__ = ["KirchhoffBody"]
 
 
-class KirchhoffBody:
+class KirchhoffBody(SixStateODE):
     """Rigid body in an ideal fluid, (5.1), deformed by the spectral parameter lam.
 
     Parameters
@@ -36,6 +36,9 @@ class KirchhoffBody:
         Spectral parameter (0 for the physical Kirchhoff equations).
     """
 
+    STATE = "(p, m)"
+    NAME = "Kirchhoff body"
+
     def __init__(self, H, lam=0.0):
         H = np.asarray(H, dtype=float)
         if H.shape != (6, 6) or not np.isfinite(H).all():
@@ -44,12 +47,6 @@ class KirchhoffBody:
             raise DnarodError("H: must be symmetric")
         self.H = H
         self.lam = as_lambda(lam)
-
-    def _split(self, y):
-        y = np.asarray(y, dtype=float)
-        if y.shape[-1] != 6:
-            raise DnarodError(f"y: expected state (..., 6) = (p, m), got shape {y.shape}")
-        return y[..., :3], y[..., 3:]
 
     def velocities(self, y):
         """(gamma, omega) = (dh/dp, dh/dm), each shape (..., 3)."""
@@ -69,12 +66,6 @@ class KirchhoffBody:
                          m2 * w3 - m3 * w2 + p2 * g3 - p3 * g2,
                          m3 * w1 - m1 * w3 + p3 * g1 - p1 * g3,
                          m1 * w2 - m2 * w1 + p1 * g2 - p2 * g1])
-
-    def integrate(self, y0, t_end, n_out=201, rtol=1e-12, atol=1e-12):
-        """Integrate with DOP853; returns (t (n_out,), y (n_out, 6))."""
-        y0 = np.asarray(y0, dtype=float)
-        self._split(y0)
-        return dop853(self.rhs, y0, t_end, n_out, rtol, atol, "Kirchhoff body")
 
     def energy(self, y):
         """h(m, p), shape (...)."""

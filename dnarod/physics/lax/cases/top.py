@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dnarod.physics.lax.cases._ode import dop853
+from dnarod.physics.lax.cases._ode import SixStateODE
 from dnarod.core.errors import DnarodError
 from dnarod.physics.lax._checks import as_ds, as_reading
 from dnarod.physics.lax.cases.static import static_stress_step
@@ -29,7 +29,7 @@ from dnarod.physics.lax.cases.static import static_stress_step
 __all__ = ["HeavyTop"]
 
 
-class HeavyTop:
+class HeavyTop(SixStateODE):
     """The heavy top of (4.5) (continuum in s, read as time) with its integrals.
 
     Parameters
@@ -41,6 +41,9 @@ class HeavyTop:
     Omega0 : array_like, shape (3,)
         Intrinsic strain; default 0.
     """
+
+    STATE = "(M, P)"
+    NAME = "heavy top"
 
     def __init__(self, A, chi=(0.0, 0.0, 1.0), Omega0=(0.0, 0.0, 0.0)):
         A = np.asarray(A, dtype=float)
@@ -66,12 +69,6 @@ class HeavyTop:
         """Kowalewski top in the paper's labels: A = diag(2 A22, A22, 2 A22), chi = (0, 0, c)."""
         return cls(np.diag([2.0 * A22, A22, 2.0 * A22]), chi=(0.0, 0.0, c))
 
-    def _split(self, y):
-        y = np.asarray(y, dtype=float)
-        if y.shape[-1] != 6:
-            raise DnarodError(f"y: expected state (..., 6) = (M, P), got shape {y.shape}")
-        return y[..., :3], y[..., 3:]
-
     def omega(self, M):
         """Omega = A^{-1} M + Omega0, shape (..., 3)."""
         return np.einsum("ij,...j->...i", self.Ainv, M) + self.Omega0
@@ -86,12 +83,6 @@ class HeavyTop:
                          M3 * O1 - M1 * O3 + P3 * c1 - P1 * c3,
                          M1 * O2 - M2 * O1 + P1 * c2 - P2 * c1,
                          P2 * O3 - P3 * O2, P3 * O1 - P1 * O3, P1 * O2 - P2 * O1])
-
-    def integrate(self, y0, s_end, n_out=201, rtol=1e-12, atol=1e-12):
-        """Integrate with DOP853; returns (s (n_out,), y (n_out, 6))."""
-        y0 = np.asarray(y0, dtype=float)
-        self._split(y0)
-        return dop853(self.rhs, y0, s_end, n_out, rtol, atol, "heavy top")
 
     def energy(self, y):
         """E = M.A^{-1}M/2 + M.Omega0 + P.chi, shape (...)."""
