@@ -51,6 +51,7 @@ nitpick_ignore_regex = [
     ("py:.*", r"(numpy|scipy|openmm|numba|mdtraj|MDAnalysis|gemmi|click|dask|distributed|dask_jobqueue|pyarrow|"
               r"matplotlib|tqdm|logging|pymbar)(\..*)?"),
     ("py:.*", r"(.*\.)?_[A-Za-z]\w*"),
+    ("py:.*", r"(.*\.)?_[A-Za-z]\w*\..*"),  # names in private modules (e.g. a base class's home)
     ("py:class", r"(Context|System|Platform|Integrator|Simulation|Force|Client|LocalCluster|SLURMCluster|Table)"),
     ("py:attr", r"context_class"),  # in click's docstring of Group.make_context, inherited by dnarod's group
 ]

@@ -319,7 +319,7 @@ def _dead_pid():
 def test_temperature_bound_is_liquid_water():
     """373.15 K (100 degC) is accepted by a run and by a protocol's settings, just above it is refused by both."""
     from dnarod.core.errors import DnarodError
-    from dnarod.workflows.protocols.curves import _checked_settings
+    from dnarod.workflows.protocols.settings import _checked_settings
     from dnarod.run import RunSpec
 
     spec = RunSpec(source=SEQ, engine="lax", excluded_volume=False, electrostatics=False)

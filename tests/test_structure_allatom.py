@@ -8,6 +8,7 @@ from click.testing import CliRunner
 from dnarod.cli.main import main
 from dnarod.core.errors import StructureError
 from dnarod.core.forcefield import load_forcefield
+from dnarod.core.model import RodModel
 from dnarod.structure import model_from_structure
 from dnarod.structure.allatom import rebuild_allatom
 from dnarod.structure.analysis import analyze_structure
@@ -83,7 +84,10 @@ def test_355d_rebuild_stable_for_10ps(tmp_path):
     _stable(*_md(tmp_path / "r.pdb", 5000))
 
 
+@pytest.mark.slow
 def test_355d_rebuild_closes_the_backbone_and_runs_1ps(tmp_path):
+    """The crystal's rebuild, every check and 1 ps of MD (fast versions: the CLI rebuild of 355D below, re-read
+    against its nodes; 1 ps of MD after the windowed closure)."""
     m, res = _rebuild_355d()
     out = _checked_crystal_rebuild(m, res, tmp_path, placed_below=0.1, placed_above=0.25)
     _stable(*_md(out, 500))  # 1 ps here; 10 ps in the slow test
@@ -314,3 +318,7 @@ def test_cli_rebuild_writes_pdb_and_cif(tmp_path):
     st = gemmi.read_structure(str(tmp_path / "r.cif"))
     assert not any(a.element.name == "H" for res in st[0][0] for a in res)
     assert sum(len(ch) for ch in st[0]) == 24
+    # read back, the rebuilt crystal's base pairs sit on the model's nodes (0.05 A)
+    m = RodModel.load(npz)
+    d = analyze_structure(tmp_path / "r.cif").duplexes[0]
+    assert d.n_bp == m.n_nodes == 12 and np.abs(d.bp_origins - m.positions).max() < 0.005

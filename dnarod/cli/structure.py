@@ -30,7 +30,7 @@ import click
 import numpy as np
 
 from dnarod.core.errors import StructureError
-from dnarod.core.io import write_text_atomic
+from dnarod.core.io import check_dir_path, write_text_atomic
 from dnarod.core.stepparams import to_angstrom_degrees
 from dnarod.core.strains import strains
 from dnarod.core.forcefield import load_forcefield
@@ -124,6 +124,7 @@ def _output_path(path, option, suffixes, kind, overwrite):
     if p.exists() and not overwrite:
         raise StructureError(f"{option} {path}: the file exists; pass --overwrite to replace it or choose another "
                              f"name")
+    check_dir_path(p.parent, f"{option} {path}: its folder")  # before any work: a parent that is a regular file
     return path
 
 

@@ -19,6 +19,7 @@ positions : ndarray, shape (n_nodes, 3)
 frames : ndarray, shape (n_nodes, 3, 3)
     Directors as columns."""
 
+#: The shared fragments by placeholder name.
 FRAGMENTS = {"pose": POSE}
 
 _PLACEHOLDER = re.compile(r"^([ \t]*)%\((\w+)\)s[ \t]*$", re.MULTILINE)
@@ -33,7 +34,7 @@ def fill_doc(obj: None = None, **fragments: str) -> Callable[[T], T]: ...
 
 
 def fill_doc(obj: Any = None, **fragments: str) -> Any:
-    """Put the shared fragments (:data:`FRAGMENTS`, and any given as keywords) into ``obj.__doc__``.
+    """Put the shared fragments (:data:`dnarod.core.docs.FRAGMENTS`, and any given as keywords) into ``obj.__doc__``.
 
     Used as a decorator, bare (``@fill_doc``) or with module-local fragments (``@fill_doc(name=text)``).
 

@@ -100,7 +100,7 @@ def sweep_chains(turns, inward=False):
 def check_sweep(kind, settle_ns, settle_buckled_ns=None, start="sweep"):
     """Refuse a sweep where it has no meaning, an unknown start, and a settle time that is not a positive number
     of ns up to the product's longest member time (one line)."""
-    from dnarod.workflows.protocols.curves import MAX_MEMBER_NS
+    from dnarod.workflows.protocols.settings import MAX_MEMBER_NS
 
     if start not in STARTS:
         raise DnarodError(f"start {start!r}: choose 'sweep' (members chained along the turns axis away from zero), "
@@ -287,7 +287,7 @@ def run_sweep(kind, axes, members, outdir, workers=0, client=None, settle_ns=Non
     at least that long. ``directions`` (a tuple of ``inward`` flags) runs several sweeps at once, their members
     in ``members/out_*`` and ``members/in_*``; every row carries ``sweep_direction`` ("out" or "in").
     """
-    from dnarod.workflows.protocols.curves import member_name
+    from dnarod.workflows.protocols.settings import member_name
 
     others = [k for k in axes if k != "turns"]
     groups = {}
