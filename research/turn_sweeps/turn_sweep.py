@@ -48,8 +48,6 @@ Units: turns; ns; positions nm; frames (n, 3, 3) with the directors d1, d2, d3 a
 from __future__ import annotations
 
 import argparse
-import csv
-import io
 import math
 import sys
 from itertools import product
@@ -441,7 +439,7 @@ def run_turn_sweep(kind, axes, base, outdir, start="sweep", settle_ns=None, sett
     dnarod.workflows.protocols.curves.Curve
     """
     from dnarod.core.io import check_output_folder, folder_lock, jsonable
-    from dnarod.workflows.protocols.curves import write_curve
+    from dnarod.workflows.protocols.curves import _write_csv, write_curve
     from dnarod.workflows.protocols.folder import PROTOCOL_MARKERS, check_protocol_folder, write_protocol_record
 
     check_sweep(kind, settle_ns, settle_buckled_ns, start)
@@ -464,28 +462,14 @@ def run_turn_sweep(kind, axes, base, outdir, start="sweep", settle_ns=None, sett
             rows = bracket_rows([r for r in both if r["sweep_direction"] == "out"],
                                 [r for r in both if r["sweep_direction"] == "in"], [k for k in axes if k != "turns"])
             _bracket_torque_offsets(base, rows)
-            write_rows_csv(sorted(both, key=lambda r: (r["sweep_direction"], r.get("turns") or 0.0)),
-                           outdir / "members.csv")
+            _write_csv(sorted(both, key=lambda r: (r["sweep_direction"], r.get("turns") or 0.0)),
+                       outdir / "members.csv")
         else:
             rows = run_sweep(kind, axes, members, outdir, workers, client, settle_ns, start == "sweep-in",
                              settle_buckled_ns)
         curve = write_curve(kind, rows, base, outdir, plots)
         write_protocol_record(outdir, kind, shared)
     return curve
-
-
-def write_rows_csv(rows, path):
-    """Write result rows (dicts; the union of their keys as columns, in order of appearance) as CSV, atomically."""
-    from dnarod.core.io import write_text_atomic
-
-    keys = list(dict.fromkeys(k for r in rows for k in r))
-    buf = io.StringIO()
-    w = csv.DictWriter(buf, fieldnames=keys, extrasaction="ignore")
-    w.writeheader()
-    for r in rows:
-        w.writerow({k: ("" if r.get(k) is None else r.get(k)) for k in keys})
-    write_text_atomic(path, buf.getvalue())
-    return Path(path)
 
 
 class OneLineParser(argparse.ArgumentParser):
