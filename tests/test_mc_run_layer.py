@@ -94,3 +94,23 @@ def test_mc_member_sampling_resumes_bit_for_bit(tmp_path):
     resumed = run_sampling(engine(), sampler(12), ck2, extra={"k": 1})
     assert resumed["resumed_from"] == s1.start + 6 * s1.interval
     assert np.array_equal(resumed["samples"]["extension_nm"], full["extension_nm"])
+
+
+def test_analyze_of_a_monte_carlo_run_uses_no_relaxation_time(tmp_path):
+    """A Monte Carlo trajectory's frames are sweeps: `analyze` states its error from their autocorrelation and
+    does not compare the run with the modes' relaxation time in ps (which would be a wrong warning)."""
+    import json
+
+    from click.testing import CliRunner
+
+    from dnarod.cli.main import main as cli
+
+    out = tmp_path / "free"
+    r = CliRunner().invoke(cli, ["simulate", "30", "--engine", "mc", "--time", "0.2", "--equilibrium", "--seed", "3",
+                                 "--no-export", "--no-progress", "-o", str(out)])
+    assert r.exit_code == 0, r.output
+    r = CliRunner().invoke(cli, ["analyze", str(out / "trajectory.dtraj"), "-o", str(tmp_path / "an"), "--no-plots"])
+    assert r.exit_code == 0, r.output
+    rel = json.loads((tmp_path / "an" / "summary.json").read_text())["relaxation"]
+    assert rel["tau_ps"] is None and "Monte Carlo" in rel["note"]
+    assert "slowest bending relaxation time tau_1" not in r.output

@@ -450,13 +450,13 @@ def _report(input_path, traj, model, kind, ff, final_out, out, temperature, excl
 
 
 def _run_record(input_path):
-    """``(start, loads)`` of the run that wrote ``input_path`` (its ``run.json`` beside it), or ``(None, None)``."""
+    """``(start, loads, engine)`` of the run that wrote ``input_path`` (its ``run.json`` beside it), or Nones."""
     f = Path(input_path).parent / "run.json"
     try:
         spec = json.loads(f.read_text()).get("spec", {})
     except (OSError, ValueError, AttributeError):
-        return None, None
-    return spec.get("start"), spec.get("loads")
+        return None, None, None
+    return spec.get("start"), spec.get("loads"), spec.get("engine")
 
 
 def _pm(value, err, fmt, no_bar, unit="nm"):
@@ -477,7 +477,7 @@ def _relaxation(traj, model, temperature, tc, exclude_ends, input_path):
     lp = r.persistence_length_one_step
     friction = traj.metadata.get("friction_per_ps")
     run_time = float(traj.time[-1] - traj.time[0]) if traj.n_frames > 1 else 0.0
-    start, loads = _run_record(input_path)
+    start, loads, engine = _run_record(input_path)
     out = {"method": "normal modes of the chain's intrinsic pose (dnarod.physics.relaxation) at the run's friction; "
                      "slow-mode share and start bias of the lag-1 value: dnarod.analysis.polymer.lag1_slow_modes",
            "contour_length_nm": model.ds * (traj.n_nodes - 1), "run_time_ps": run_time,
@@ -485,6 +485,11 @@ def _relaxation(traj, model, temperature, tc, exclude_ends, input_path):
     if friction is None or not np.isfinite(lp or np.nan):
         out["tau_ps"] = None
         out["note"] = "no friction in the trajectory metadata: relaxation time not estimated"
+        return out
+    if engine == "mc":
+        out["tau_ps"] = None
+        out["note"] = ("a Monte Carlo run: its frames are sweeps, not time, so the modes' relaxation times do not "
+                       "apply; the error comes from the frames' autocorrelation alone")
         return out
     if float(friction) <= 0:
         out["tau_ps"] = None
