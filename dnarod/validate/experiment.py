@@ -513,7 +513,9 @@ def check_experiment(out_dir, quick=False, temperature=300.0, salt_M=0.15, force
                        + (f"C_eff({mtt['force_pN']:g} pN) {mtt['model_nm']:.1f} vs {mtt['measured_nm']:g}"
                           f"+-{mtt['measured_sigma_nm']:g} nm; " if mtt else "")
                        + "; ".join(f"C_eff({r['force_pN']:g} pN) {r['model_nm']:.1f} vs {r['measured_nm']:.1f}"
-                                   f"+-{r['measured_sigma_nm']:.1f} nm" for r in torsion_rows if r is not mtt)
+                                   + (f"+-{r['measured_sigma_nm']:.1f} nm" if (r['measured_sigma_nm'] or 0) > 0 else
+                                      " nm (fit, no error given)")
+                                   for r in torsion_rows if r is not mtt)
                        + f"; C {C:.1f} vs measured {c_lo:.1f}-{c_hi:.1f} nm"
                        + (f"; Wr/dLk {writhe['model']:.3f}+-{writhe['model_se']:.3f} vs ~{writhe['measured']:g}"
                           if writhe else "")
