@@ -81,9 +81,16 @@ def _env(pkgs, **extra):
     return dict(os.environ, PYTHONPATH=os.pathsep.join([str(pkgs), str(ROOT)]), **extra)
 
 
+def _as_from_a_terminal():
+    # a command started from a terminal has the default Ctrl-C; one started by a background job (a CI runner's
+    # `cmd &`) inherits SIGINT ignored, and would rightly ignore the Ctrl-C these tests send
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _dnarod(args, env, **kw):
     return subprocess.Popen([sys.executable, "-c", "from dnarod.cli.main import main; main()", *args], env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True, **kw)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=_as_from_a_terminal, **kw)
 
 
 def _wait_for(pattern_dir, pattern, p, limit=60.0):
