@@ -275,7 +275,8 @@ def test_final_polish_converges_bonds_well_inside_tolerance():
     assert 0.0 < rep.max_angle_deviation < 20.0 and "-" in rep.worst_angle
 
 
-@pytest.mark.parametrize("windows", [{}, dict(window=2, flank=1)], ids=["whole", "windows"])
+@pytest.mark.parametrize("windows", [pytest.param({}, marks=pytest.mark.slow), dict(window=2, flank=1)],
+                         ids=["whole", "windows"])  # the whole-duplex closure names its step as the windowed one
 def test_rebuild_that_cannot_close_names_the_step(windows):
     """A gap names its step and by how much the link is off, also with windows (cores of 2 bp, flanks of 1)."""
     ff = load_forcefield("dna-default")
