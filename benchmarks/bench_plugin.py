@@ -57,6 +57,7 @@ def sizes(ns, budget, repeats):
     from dnarod.core.forcefield import load_forcefield
     from dnarod.engines.openmm.simulation import RodSimulation
 
+    make = getattr(RodSimulation, "create", RodSimulation)  # an older tree (bench_run_overhead) has no create
     ff = load_forcefield("dna-default")
     out = []
     for n in ns:
@@ -65,8 +66,8 @@ def sizes(ns, budget, repeats):
         sims = {}
         for path, elastic in (("callback", "fast"), ("plugin", "plugin")):
             for kind, nb in (("bonded", False), ("full", True)):
-                sims[f"{path}_{kind}"] = RodSimulation.create(model, temperature=300.0, nonbonded=nb, seed=1,
-                                                       elastic=elastic, threads=1)
+                sims[f"{path}_{kind}"] = make(model, temperature=300.0, nonbonded=nb, seed=1, elastic=elastic,
+                                              threads=1)
         rates = {k: [] for k in sims}
         for _ in range(repeats):
             for k, s in sims.items():
