@@ -644,56 +644,16 @@ def client_for(client=None, scheduler=None, workers=None, timeout=10.0, dashboar
     try:
         yield c
     finally:
-        # bounded: a worker busy in a member (after Ctrl-C, say) must not hold the command open; what is left
-        # after the timeouts is terminated
-        pids = _worker_pids(cluster)
-        _close_quietly(c, timeout=CLOSE_TIMEOUT_S)
-        _close_quietly(cluster, timeout=2 * CLOSE_TIMEOUT_S)
-        _terminate(pids)
+        _close_quietly(c)
+        _close_quietly(cluster)
 
 
-#: Seconds a local cluster's client is given to close (the cluster twice that) before its workers are terminated.
-CLOSE_TIMEOUT_S = 5.0
-
-
-def _close_quietly(obj, timeout=None):
-    """Close a client or cluster; what fails while closing (a lost scheduler, a timeout) is dask's to log, not ours
-    to raise."""
+def _close_quietly(obj):
+    """Close a client or cluster; what fails while closing (a lost scheduler) is dask's to log, not ours to raise."""
     try:
-        obj.close() if timeout is None else obj.close(timeout=timeout)
+        obj.close()
     except Exception as exc:  # noqa: BLE001
         logging.getLogger("distributed").info("closing %s: %s", type(obj).__name__, _one_line(exc))
-
-
-def _worker_pids(cluster):
-    """Process ids of a local cluster's worker processes (nannies' children), as far as dask exposes them."""
-    pids = []
-    for w in list(getattr(cluster, "workers", {}).values()):
-        pid = getattr(getattr(w, "process", None), "pid", None)
-        if pid:
-            pids.append(int(pid))
-    return pids
-
-
-def _terminate(pids, wait_s=3.0):
-    """Terminate the processes of ``pids`` that are still alive (then kill those that outlive ``wait_s``)."""
-    import psutil  # a dependency of distributed
-
-    procs = []
-    for pid in pids:
-        try:
-            p = psutil.Process(pid)
-            if p.ppid() == os.getpid():  # still our worker (not a reused process id)
-                procs.append(p)
-        except psutil.Error:
-            continue
-    for p in procs:
-        with contextlib.suppress(psutil.Error):
-            p.terminate()
-    _, alive = psutil.wait_procs(procs, timeout=wait_s)
-    for p in alive:
-        with contextlib.suppress(psutil.Error):
-            p.kill()
 
 def slurm_cluster(cores=1, processes=None, memory="4GB", walltime="04:00:00", queue=None, account=None,
                   job_extra_directives=(), python=None, **kw):
