@@ -1,4 +1,4 @@
-"""Shared fixtures: random heterogeneous chains (design A6 item 3)."""
+"""Shared fixtures: random heterogeneous chains, uniform rings of a given linking number."""
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -108,3 +108,16 @@ def assert_refused():
 
     check.case = check_case
     return check
+
+
+def uniform_ring(n, linking_number, forcefield="dna-default"):
+    """A closed ring of ``n`` uniform steps of ``forcefield`` with the integer ``linking_number`` (not relative to
+    the relaxed twist, unlike ``ForceField.ring``)."""
+    from dnarod.core.forcefield import load_forcefield
+    from dnarod.core.model import RodModel
+
+    base = load_forcefield(forcefield).model_from_sequence(n_nodes=n)
+    p = base.params
+    params = StepParameters(np.concatenate([p.stiffness, p.stiffness[:1]]),
+                            np.concatenate([p.intrinsic, p.intrinsic[:1]]), list(p.names) + [p.names[0]])
+    return RodModel.ring(params, base.ds, base.mass, base.inertia, linking_number=linking_number)

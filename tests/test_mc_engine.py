@@ -12,6 +12,8 @@ from dnarod.core.units import kT
 from dnarod.physics.thermal import equilibrium_sample, exact_tangent_correlation
 from dnarod.core.units import PN
 
+from conftest import uniform_ring
+
 FF = load_forcefield("dna-default")
 
 
@@ -77,15 +79,7 @@ def test_energy_equals_openmm_tweezers_loads():
 
 
 def test_energy_equals_openmm_ring():
-    from dnarod.core.model import RodModel
-
-    base = FF.model_from_sequence(n_nodes=150)
-    from dnarod.core.parameters import StepParameters
-
-    p = base.params
-    params = StepParameters(np.concatenate([p.stiffness, p.stiffness[:1]]),
-                            np.concatenate([p.intrinsic, p.intrinsic[:1]]), list(p.names) + [p.names[0]])
-    ring = RodModel.ring(params, base.ds, base.mass, base.inertia, linking_number=14)
+    ring = uniform_ring(150, 14)
     e = MCEngine(ring, 300.0, nonbonded=NonbondedSettings(), seed=2)
     e.advance(30)
     model = e.current_model()
@@ -347,23 +341,12 @@ def _compact_open_chain():
     return base.with_pose(pos, frm)
 
 
-def _ring(n, lk):
-    from dnarod.core.model import RodModel
-    from dnarod.core.parameters import StepParameters
-
-    base = FF.model_from_sequence(n_nodes=n)
-    p = base.params
-    params = StepParameters(np.concatenate([p.stiffness, p.stiffness[:1]]),
-                            np.concatenate([p.intrinsic, p.intrinsic[:1]]), list(p.names) + [p.names[0]])
-    return RodModel.ring(params, base.ds, base.mass, base.inertia, linking_number=lk)
-
-
 def test_ring_keeps_linking_number():
     """A supercoiled 300-bp ring with excluded volume: Lk = Tw + Wr stays the integer it started with over a
     run in which the writhe moves by more than a turn."""
     from dnarod.physics.writhe import twist, writhe
 
-    ring = _ring(300, 26)  # relaxed Lk0 ~ 28.6: sigma ~ -0.09, writhes
+    ring = uniform_ring(300, 26)  # relaxed Lk0 ~ 28.6: sigma ~ -0.09, writhes
     e = MCEngine(ring, 300.0, nonbonded=NonbondedSettings(), seed=3)
     wr = []
     for _ in range(30):

@@ -81,15 +81,9 @@ def test_mc_md_ring_writhe():
     from dnarod.physics.nonbonded import NonbondedSettings
     from dnarod.physics.writhe import writhe
 
-    from dnarod.core.forcefield import load_forcefield
-    from dnarod.core.model import RodModel
-    from dnarod.core.parameters import StepParameters
+    from conftest import uniform_ring
 
-    base = load_forcefield("dna-default").model_from_sequence(n_nodes=300)
-    p = base.params
-    params = StepParameters(np.concatenate([p.stiffness, p.stiffness[:1]]),
-                            np.concatenate([p.intrinsic, p.intrinsic[:1]]), list(p.names) + [p.names[0]])
-    ring = RodModel.ring(params, base.ds, base.mass, base.inertia, linking_number=26)
+    ring = uniform_ring(300, 26)
     e = MCEngine(ring, 300.0, nonbonded=NonbondedSettings(), seed=2)
     e.advance(2000)
     wc = np.empty(6000)
