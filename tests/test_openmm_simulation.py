@@ -147,6 +147,7 @@ def test_blow_up_names_step_node_and_term(ff, tmp_path):
     assert e.term in ("elastic", "external") and f"step {e.step}" in str(e)
     tr = load_trajectory(tmp_path / "trajectory.dtraj")  # what was written is intact
     assert tr.n_frames >= 1 and np.isfinite(tr.positions).all() and tr.step[-1] < e.step
+    assert tr.step[-1] == (e.step - 1) // 2 * 2  # every report before the bad step, batched or not
 
 
 def test_bad_inputs(dna40):

@@ -210,6 +210,28 @@ def test_node_state_kept_between_calls_matches_particles_and_is_dropped_when_the
     again = sim.context.getState(getPositions=True).getPositions(asNumpy=True)._value
     assert np.max(np.abs(again - first)) < 1e-9  # restarted from s20 (read back from the particles: roundoff)
     assert np.max(np.abs(again - runs[0].getPositions(asNumpy=True)._value)) < 1e-9
+    # Positions alone or velocities alone set after steps (the integrator is told through stateChanged): the next
+    # steps start from the particles as set, as a fresh Context given the same particles does.
+    p20, v20 = (s20.getPositions(asNumpy=True)._value, s20.getVelocities(asNumpy=True)._value)
+    for setter, value in (("setVelocities", 0.5 * v20), ("setPositions", p20)):
+        sim = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3,
+                                   platform="CPU", nonbonded=False)
+        sim.integrator.step(20)
+        sim.integrator.step(3)  # kept node state now differs from s20
+        p, v = (p20, sim.context.getState(getVelocities=True).getVelocities(asNumpy=True)._value) \
+            if setter == "setPositions" else (sim.context.getState(getPositions=True).getPositions(asNumpy=True)._value,
+                                              0.5 * v20)
+        getattr(sim.context, setter)(value)
+        sim.integrator.step(20)
+        got = sim.context.getState(getPositions=True).getPositions(asNumpy=True)._value
+        fresh = RodSimulation.create(model, integrator="verlet", temperature=300.0, elastic="plugin", seed=3,
+                                     platform="CPU", nonbonded=False)
+        fresh.context.setPositions(p)
+        fresh.context.setVelocities(v)
+        fresh.integrator.step(20)
+        want = fresh.context.getState(getPositions=True).getPositions(asNumpy=True)._value
+        assert np.max(np.abs(got - want)) < 1e-12, setter
+        assert np.max(np.abs(got - again)) > 1e-6, setter  # and not the run that kept its state
 
 
 def test_langevin_temperature_and_strain_fluctuations_on_plugin(mod, tmp_path):

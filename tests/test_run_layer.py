@@ -161,27 +161,44 @@ def test_run_killed_after_its_last_checkpoint_gets_its_final_model_on_resume(tmp
 
 
 def _interrupt_at(monkeypatch, step):
-    """Make the run's engine send this process a Ctrl-C (SIGINT) once it has advanced to ``step``."""
+    """Make the run's engine send this process a Ctrl-C (SIGINT) once it has advanced to or past ``step`` (in one
+    advance, or inside one batch of reports: then at the batch's end); returns a dict whose ``"sent"`` is the
+    step it was sent at."""
     import os
     import signal
 
     import dnarod.run.api as api
 
     make = api.make_engine
+    sent = {}
 
     def make_interrupted(*a, **k):
         eng = make(*a, **k)
         advance = eng.advance
 
-        def advance_then_interrupt(n):
-            advance(n)
-            if eng.step == step:
+        def interrupt():
+            if "sent" not in sent and eng.step >= step:
+                sent["sent"] = eng.step
                 os.kill(os.getpid(), signal.SIGINT)
 
+        def advance_then_interrupt(n):
+            advance(n)
+            interrupt()
+
         eng.advance = advance_then_interrupt
+        if hasattr(eng, "advance_reports"):
+            reports = eng.advance_reports
+
+            def reports_then_interrupt(*a, **k):
+                out = reports(*a, **k)
+                interrupt()
+                return out
+
+            eng.advance_reports = reports_then_interrupt
         return eng
 
     monkeypatch.setattr(api, "make_engine", make_interrupted)
+    return sent
 
 
 @pytest.mark.parametrize("engine", ["openmm", "lax"])
@@ -194,18 +211,23 @@ def test_ctrl_c_checkpoints_and_resume_is_bit_for_bit(tmp_path, engine, monkeypa
                    **{**base, "platform": None if engine == "lax" else "Reference"})
     assert spec.checkpoint_interval_ps is None and spec.checkpoint_wall_s > 0
     run(spec, tmp_path / "full", progress=False)
+    import dnarod.engines.openmm.simulation as sim_mod
+
     with monkeypatch.context() as mp:
-        _interrupt_at(mp, 70)  # between frames (every 10 steps): the loop stops at a report step
+        mp.setattr(sim_mod.RodSimulation, "MAX_BATCH_REPORTS", 4)  # batches of 40 steps: one ends at 80
+        sent = _interrupt_at(mp, 70)  # reports every 10 steps: the loop stops at the report step it reached
         with pytest.raises(KeyboardInterrupt):
             run(spec, tmp_path / "part", progress=False)
     from dnarod.core.io import read_checkpoint
     from dnarod.run.api import CHECKPOINT_FORMATS
 
+    stop = sent["sent"]
+    assert stop == (70 if engine == "lax" else 80)  # OpenMM's compiled path reads reports in batches
     meta, _ = read_checkpoint(tmp_path / "part" / "checkpoint.npz", CHECKPOINT_FORMATS[engine], ())
-    assert meta["step"] == 70
-    assert load_trajectory(tmp_path / "part" / "trajectory.dtraj").step[-1] == 70
+    assert meta["step"] == stop
+    assert load_trajectory(tmp_path / "part" / "trajectory.dtraj").step[-1] == stop
     res = run(spec, tmp_path / "part", resume=True, progress=False)
-    assert res.resumed_from == 70 and res.summary["steps"] == 200
+    assert res.resumed_from == stop and res.summary["steps"] == 200
     a, b = (load_trajectory(tmp_path / d / "trajectory.dtraj") for d in ("full", "part"))
     assert list(b.step) == list(range(0, 201, 10))
     for name in ("positions", "frames", "velocities", "angular_velocities"):
@@ -256,3 +278,68 @@ def test_checkpoints_by_wall_time(tmp_path):
     assert out["steps"] == 200 and 2 <= out["checkpoints"] <= 8
     with pytest.raises(ParameterError, match="--checkpoint-wall"):
         RunSpec(source=SEQ, checkpoint_wall_s=-1).check()
+
+
+class _OneAtATime:
+    """A reporter that takes no batches: the run loop then advances and reports one report at a time."""
+
+    supports_batch = False
+
+    def __init__(self, interval):
+        self.interval = interval
+        self.steps = []
+
+    def describeNextReport(self, engine):  # noqa: N802 - OpenMM reporter protocol
+        return self.interval - engine.step % self.interval
+
+    def due(self, step):
+        return step % self.interval == 0
+
+    def report(self, engine, snap):
+        self.steps.append(snap.step)
+
+    def flush(self):
+        pass
+
+    def close(self):
+        pass
+
+
+@pytest.mark.parametrize("loads", ["none", "rotating clamp"])
+def test_batched_reports_equal_reports_one_at_a_time(tmp_path, loads):
+    """The run loop reads the compiled engine's reports in batches (one call of the integrator for many reports)
+    when every reporter takes them; trajectory (with velocities) and energies are the same bytes as reporting
+    one report at a time, with loads that turn in time (rotation clamp, per-report update) and without, across
+    a step-scheduled checkpoint and a run length that is not a multiple of the interval."""
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.physics.loads import tweezers
+    from dnarod.run.loop import run_engine
+    from dnarod.run.reporters import DtrajReporter, EnergyReporter
+
+    model = load_forcefield("dna-default").model_from_sequence("ACGT" * 8)
+    extra = tweezers(model, force_pN=2.0, rotation_clamp=250.0, turns=0.5) if loads != "none" else []
+    outs = []
+    for batched in (True, False):
+        sim = RodSimulation.create(model, temperature=300.0, elastic="plugin", seed=4, platform="CPU", loads=extra)
+        assert sim.supports_report_batches()
+        calls = []
+        orig = sim.advance_reports
+        sim.advance_reports = lambda *a, **k: calls.append(a) or orig(*a, **k)
+        d = tmp_path / f"{loads}-{batched}"
+        d.mkdir()
+        reps = [DtrajReporter(d / "t.dtraj", model.n_nodes, 6, velocities=True), EnergyReporter(d / "e.csv", 6)]
+        plain = [] if batched else [_OneAtATime(6)]
+        out = run_engine(sim, 1000, reps + plain, d / "c.npz", checkpoint_interval=240, duration_ps=1000 * sim.dt)
+        for r in reps:
+            r.close()
+        assert bool(calls) == batched and out["checkpoints"] == 1 + 1000 // 240
+        if batched:
+            assert max(c[0] for c in calls) > 1  # several reports per call
+        else:
+            assert plain[0].steps == list(range(0, 1000, 6))
+        outs.append(((d / "t.dtraj").read_bytes(), (d / "e.csv").read_bytes(), sim.node_state()))
+    assert outs[0][0] == outs[1][0] and outs[0][1] == outs[1][1]
+    for a, b in zip(outs[0][2], outs[1][2]):
+        assert np.array_equal(a, b)
+    tr = load_trajectory(tmp_path / f"{loads}-True" / "t.dtraj")
+    assert list(tr.step) == list(range(0, 1000, 6))

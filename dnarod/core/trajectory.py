@@ -270,6 +270,33 @@ class TrajectoryWriter:
         if self._held == len(self._block):
             self._write_held()
 
+    def write_frames(self, steps, times, positions, frames, velocities=None, angular_velocities=None):
+        """Append several frames (shapes (k,), (k,), (k, n_nodes, 3), (k, n_nodes, 3, 3); nm, ps): as ``k`` calls
+        of :meth:`write`, copied into the block a slice at a time."""
+        k = len(steps)
+        n = self.n_nodes
+        if self.velocities and (velocities is None or angular_velocities is None):
+            raise DnarodError("this trajectory stores velocities: pass velocities and angular_velocities")
+        f = self._fields
+        j = 0
+        while j < k:
+            i = self._held
+            m = min(k - j, len(self._block) - i)
+            dst, src = slice(i, i + m), slice(j, j + m)
+            try:
+                f["positions"][dst] = np.reshape(positions[src], (m, n, 3))
+                f["frames"][dst] = np.reshape(frames[src], (m, n, 3, 3))
+                if self.velocities:
+                    f["velocities"][dst] = np.reshape(velocities[src], (m, n, 3))
+                    f["angular_velocities"][dst] = np.reshape(angular_velocities[src], (m, n, 3))
+                f["step"][dst], f["time"][dst] = steps[src], times[src]
+            except ValueError as exc:
+                raise DnarodError(f"frames do not fit a {n}-node trajectory ({exc})") from None
+            self._held = i + m
+            j += m
+            if self._held == len(self._block):
+                self._write_held()
+
     def _write_held(self):
         if self._held:
             data = self._block[:self._held]

@@ -6,6 +6,8 @@ them (:func:`dnarod.run.api.make_engine`) and feeds their state to its reporters
 
 * :class:`dnarod.engines.openmm.simulation.RodSimulation`: the OpenMM engine.
 * :class:`dnarod.engines.lax.engine.LaxEngine`: the direct Lax-form splitting integrator.
+
+:class:`BatchReportingEngine` adds the optional batched reports the run loop uses where an engine offers them.
 """
 from __future__ import annotations
 
@@ -65,3 +67,25 @@ class Engine(Protocol):
 
     def current_model(self) -> RodModel:
         """The model at the current pose."""
+
+
+@runtime_checkable
+class BatchReportingEngine(Engine, Protocol):
+    """An engine that can also read several reports in one call (optional; the OpenMM engine on the compiled
+    path). The run loop uses it when :meth:`supports_report_batches` is true and every reporter takes batches
+    (``supports_batch``); the result is the same, bit for bit, as advancing and reporting one report at a time.
+    """
+
+    #: Most reports one :meth:`advance_reports` call returns.
+    MAX_BATCH_REPORTS: int
+
+    def supports_report_batches(self) -> bool:
+        """True if :meth:`advance_reports` can be used now."""
+
+    def advance_reports(self, n_reports: int, interval: int, duration_ps: float | None = None
+                        ) -> tuple[np.ndarray, tuple[np.ndarray, ...], dict[str, np.ndarray], Exception | None]:
+        """Advance up to ``n_reports`` times ``interval`` steps, reading a report after each: ``(steps (k,), state
+        (arrays with a leading axis k, as :meth:`node_state`), energies (dict of (k,) arrays, as :meth:`energies`),
+        error)``, where ``error`` is a blow-up after the last good report (raised by the caller once the good
+        reports are written) or None."""
+

@@ -3,7 +3,9 @@
 A reporter has ``interval`` (steps), ``describeNextReport(engine) -> steps until its next report``,
 ``report(engine, snapshot)``, ``flush()`` and ``close()``. The run loop advances the engine to the
 nearest next report, builds one :class:`Snapshot` (the engine's state and energies read once, lazily)
-and hands it to every reporter due at that step.
+and hands it to every reporter due at that step. A reporter with ``supports_batch`` true also takes
+``report_batch(engine, batch)``: a :class:`ReportBatch` of several reports an engine read in one call
+(see :mod:`dnarod.run.loop`).
 
 * :class:`DtrajReporter` -- the ``.dtraj`` trajectory (float32, velocities only if asked);
 * :class:`EnergyReporter` -- ``energies.csv``: one header for both engines, units in the column
@@ -58,8 +60,35 @@ class Snapshot:
         return self._energies
 
 
+class ReportBatch:
+    """Reports of several steps read at once (:meth:`~dnarod.engines.openmm.simulation.RodSimulation.advance_reports`):
+    what a reporter's ``report_batch`` receives instead of one :class:`Snapshot` per step.
+
+    Attributes
+    ----------
+    steps : ndarray, shape (k,)
+    times_ps : ndarray, shape (k,)
+    state : tuple of ndarray
+        On-step centres (k, n, 3) nm, frames (k, n, 3, 3), velocities (k, n, 3) nm/ps, angular velocities
+        (k, n, 3) rad/ps: read-only, valid for this report only.
+    energies : dict of ndarray, shape (k,)
+        As :meth:`Snapshot.energies`, one value per step.
+    """
+
+    def __init__(self, engine: Any, steps: np.ndarray, state: tuple[np.ndarray, ...],
+                 energies: dict[str, np.ndarray]) -> None:
+        self.engine = engine
+        self.steps = steps
+        self.times_ps = steps * engine.dt
+        self.state = state
+        self.energies = energies
+
+
 class _Interval:
     interval = 1
+    #: True if :meth:`report_batch` takes a :class:`ReportBatch` (the run loop then batches reports when every
+    #: reporter can and the engine supports it).
+    supports_batch = False
 
     def describeNextReport(self, engine: Any) -> int:  # noqa: N802 - OpenMM reporter protocol name
         """Steps until the next report (always >= 1)."""
@@ -101,12 +130,21 @@ class DtrajReporter(_Interval):
         self.writer = TrajectoryWriter(self.path, n_nodes, velocities=self.velocities, metadata=metadata,
                                        resume_step=resume_step, precision=precision)
 
+    supports_batch = True
+
     def report(self, engine: Any, snap: Snapshot) -> None:
         pos, frm, v, w = snap.state
         if self.velocities:
             self.writer.write(snap.step, snap.time_ps, pos, frm, v, w)
         else:
             self.writer.write(snap.step, snap.time_ps, pos, frm)
+
+    def report_batch(self, engine: Any, batch: ReportBatch) -> None:
+        pos, frm, v, w = batch.state
+        if self.velocities:
+            self.writer.write_frames(batch.steps, batch.times_ps, pos, frm, v, w)
+        else:
+            self.writer.write_frames(batch.steps, batch.times_ps, pos, frm)
 
     def flush(self) -> None:
         self.writer.flush(sync=False)
@@ -118,6 +156,10 @@ class DtrajReporter(_Interval):
 class EnergyReporter(_Interval):
     """Write one row of ``energies.csv`` every ``interval`` steps.
 
+    Rows are held as numbers and written as text in blocks (every :attr:`BLOCK_ROWS` rows and at every
+    :meth:`flush`, which the run loop calls before each checkpoint), so a report costs a tuple rather than a
+    formatted, written line: the file always holds every row up to the last checkpoint.
+
     Parameters
     ----------
     path : Path
@@ -128,6 +170,9 @@ class EnergyReporter(_Interval):
     resume_step : int or None
         Continue an existing file, dropping rows after this step.
     """
+
+    #: Rows held before they are written.
+    BLOCK_ROWS = 256
 
     def __init__(self, path: str | Path, interval: int, observables: Any = None,
                  resume_step: int | None = None) -> None:
@@ -155,24 +200,56 @@ class EnergyReporter(_Interval):
         with writing(self.path):
             self._fh = open(self.path, "a", newline="")
         self._failed = False
-        self._csv = csv.writer(self._fh, lineterminator="\n")
+        self._held: list[tuple[Any, ...]] = []
         self.temperatures: list[float] = []
 
     def report(self, engine: Any, snap: Snapshot) -> None:
         e = snap.energies
-        self.temperatures.append(e["temperature"])
-        row = [snap.step, f"{snap.time_ps:.6f}", repr(float(e["potential"])), repr(float(e["kinetic"])),
-               repr(float(e["potential"] + e["kinetic"])), f"{e['temperature']:.6f}", repr(float(e["elastic"])),
-               repr(float(e["nonbonded"])), repr(float(e["external"]))]
+        t = e["temperature"]
+        self.temperatures.append(t)
+        row: tuple[Any, ...] = (snap.step, snap.time_ps, float(e["potential"]), float(e["kinetic"]), t,
+                                float(e["elastic"]), float(e["nonbonded"]), float(e["external"]))
         if self.observables is not None:
             obs = self.observables(snap)
-            row += [repr(float(obs[c])) for c in self.observables.columns]
+            row += tuple(float(obs[c]) for c in self.observables.columns)
+        self._held.append(row)
+        if len(self._held) >= self.BLOCK_ROWS:
+            self._write_held()
+
+    @property
+    def supports_batch(self) -> bool:  # type: ignore[override]
+        """Batched reports carry no snapshot for observables: only without them."""
+        return self.observables is None
+
+    def report_batch(self, engine: Any, batch: ReportBatch) -> None:
+        e = batch.energies
+        t = e["temperature"].tolist()
+        self.temperatures.extend(t)
+        self._held.extend(zip(batch.steps.tolist(), batch.times_ps.tolist(), e["potential"].tolist(),
+                              e["kinetic"].tolist(), t, e["elastic"].tolist(), e["nonbonded"].tolist(),
+                              e["external"].tolist()))
+        if len(self._held) >= self.BLOCK_ROWS:
+            self._write_held()
+
+    def _write_held(self) -> None:
+        """Format and write the rows held: ``repr`` of each energy (exact round trip), time and temperature to
+        1e-6."""
+        if not self._held:
+            return
+        lines = []
+        for r in self._held:
+            pot, kin = r[2], r[3]
+            lines.append(",".join([str(r[0]), f"{r[1]:.6f}", repr(pot), repr(kin), repr(pot + kin), f"{r[4]:.6f}",
+                                   *map(repr, r[5:])]))
+        lines.append("")
         self._failed = True
         with writing(self.path):
-            self._csv.writerow(row)
+            self._fh.write("\n".join(lines))
         self._failed = False
+        self._held = []
 
     def flush(self) -> None:
+        self._write_held()
         self._failed = True
         with writing(self.path):
             self._fh.flush()
@@ -187,6 +264,7 @@ class EnergyReporter(_Interval):
             return
         self._failed = True
         with writing(self.path):
+            self._write_held()
             self._fh.close()
 
 

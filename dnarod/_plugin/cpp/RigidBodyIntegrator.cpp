@@ -400,17 +400,14 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
             vel = &velBuf;
         }
         // With only fused forces on the Reference/CPU platforms the node state of the last step is kept (c, L,
-        // cP, cPi; checkpointed, dropped when the Context's positions or velocities are set) and particles are
-        // written once per call; otherwise it is read back from the particles every step.
-        if (s == 0 && cacheValid) {
-            // The kept node state belongs to these particles only if nobody has changed them since (positions
-            // or velocities set, a checkpoint of another state loaded): compare with what was written last.
-            cacheValid = pos->size() == lastPos.size() && vel->size() == lastVel.size()
-                         && std::memcmp(pos->data(), lastPos.data(), sizeof(Vec3) * lastPos.size()) == 0
-                         && std::memcmp(vel->data(), lastVel.data(), sizeof(Vec3) * lastVel.size()) == 0;
+        // cP, cPi; checkpointed, dropped by stateChanged when the Context's positions or velocities are set) and
+        // particles are written once per call; otherwise it is read back from the particles every step.
+        if (s == 0 && cacheValid && verifyParticles) {
+            cacheValid = particlesMatch(pos, vel);
+            verifyParticles = false;
         }
         const bool useCache = cacheValid && !other && refData != nullptr;
-        const bool write = other || refData == nullptr || s == steps - 1;
+        const bool write = other || refData == nullptr || (s == steps - 1 && !deferWrite);
         if (!useCache) {
             parallel([&](int ch) { nodePoses(chunkStart[ch], chunkStart[ch + 1], pos, c.data(), L.data()); });
         }
@@ -428,10 +425,6 @@ DNAROD_CLONES void RigidBodyIntegrator::run(int steps) {
             context->setVelocities(velBuf);
         }
         cacheValid = !other && refData != nullptr;
-        if (cacheValid && s == steps - 1) {
-            lastPos = *pos;
-            lastVel = *vel;
-        }
         context->setTime(context->getTime() + dt);
         context->setStepCount(context->getStepCount() + 1);
     }
@@ -594,6 +587,28 @@ DNAROD_CLONES void RigidBodyIntegrator::nodePoses(int k0, int k1, const vector<V
     }
 }
 
+int RigidBodyIntegrator::stepAndReport(int reports, int interval, double* out, double* energies, double limit) {
+    if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
+    const long long stride = (long long) REPORT_STRIDE * getNumNodes();
+    for (int j = 0; j < reports; j++) {
+        // Between the reports of one call the particles are not written (the kept node state carries the run, as
+        // within one step() call); the last report's step writes them.
+        deferWrite = !onDevice && j < reports - 1;
+        try {
+            step(interval);
+        } catch (...) {
+            deferWrite = false;
+            throw;
+        }
+        deferWrite = false;
+        double* e = energies + 6 * j;
+        getNodeReport(out + stride * j, e);
+        const double E = e[0] + e[1] + e[2] + e[3], K = e[4];
+        if (!(e[5] == 1.0 && std::isfinite(E) && std::isfinite(K) && std::fabs(E) + K < limit)) return j;
+    }
+    return reports;
+}
+
 void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
     if (context == nullptr) throw OpenMMException("RigidBodyIntegrator: not bound to a Context");
     const int n = getNumNodes();
@@ -608,10 +623,10 @@ void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
         pos = &posBuf;
         vel = &velBuf;
     }
-    if (cacheValid)
-        cacheValid = pos->size() == lastPos.size() && vel->size() == lastVel.size()
-                     && std::memcmp(pos->data(), lastPos.data(), sizeof(Vec3) * lastPos.size()) == 0
-                     && std::memcmp(vel->data(), lastVel.data(), sizeof(Vec3) * lastVel.size()) == 0;
+    if (cacheValid && verifyParticles) {
+        cacheValid = particlesMatch(pos, vel);
+        verifyParticles = false;
+    }
     const bool fromCache = cacheValid && !haveOther && refData != nullptr;
     const double* cc;
     const double* LL;
@@ -651,13 +666,17 @@ void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
     const double h = 0.5 * getStepSize();
     const bool half = friction > 0;  // Langevin: the Context reports the stored (half-step) kinetic energy
     double ke = 0.0;
+    // Four blocks, each C-contiguous: centres (n, 3), frames (n, 9), velocities (n, 3), angular velocities (n, 3).
+    double* oc = out;
+    double* oL = out + 3 * (long long) n;
+    double* ov = out + 12 * (long long) n;
+    double* ow = out + 15 * (long long) n;
+    std::memcpy(oc, cc, sizeof(double) * 3 * n);
+    std::memcpy(oL, LL, sizeof(double) * 9 * n);
     for (int k = 0; k < n; k++) {
-        double* o = out + REPORT_STRIDE * k;
         const double* Lk = LL + 9 * k;
-        for (int a = 0; a < 3; a++) o[a] = cc[3 * k + a];
-        for (int a = 0; a < 9; a++) o[3 + a] = Lk[a];
         if (mass[k] == 0.0) {
-            for (int a = 12; a < 18; a++) o[a] = 0.0;
+            for (int a = 0; a < 3; a++) ov[3 * k + a] = ow[3 * k + a] = 0.0;
             continue;
         }
         const double m = mass[k];
@@ -698,8 +717,8 @@ void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
             for (int a = 0; a < 3; a++) ke += 0.5 * pi[a] * pi[a] * iJ[a];
         }
         for (int a = 0; a < 3; a++) {
-            o[12 + a] = v[a];
-            o[15 + a] = pi[a] * iJ[a];
+            ov[3 * k + a] = v[a];
+            ow[3 * k + a] = pi[a] * iJ[a];
         }
     }
     energies[0] = lastE[0];
@@ -707,10 +726,17 @@ void RigidBodyIntegrator::getNodeReport(double* out, double* energies) {
     energies[2] = lastE[2];
     energies[3] = eOther;
     energies[4] = ke;
-    // 1 if every node value written is finite (x - x is 0 for finite x, NaN for NaN and inf).
-    double probe = 0.0;
-    for (long long i = 0; i < (long long) REPORT_STRIDE * n; i++) probe += out[i] - out[i];
-    energies[5] = probe == 0.0 ? 1.0 : 0.0;
+    // 1 if every node value written is finite (x - x is 0 for finite x, NaN for NaN and inf). Eight independent
+    // sums: one running sum is a chain of dependent additions as long as the report, as slow as the rest of it.
+    double probe[8] = {0, 0, 0, 0, 0, 0, 0, 0};
+    const long long total = (long long) REPORT_STRIDE * n;
+    long long i = 0;
+    for (; i + 8 <= total; i += 8)
+        for (int j = 0; j < 8; j++) probe[j] += out[i + j] - out[i + j];
+    for (; i < total; i++) probe[0] += out[i] - out[i];
+    double sum = 0.0;
+    for (int j = 0; j < 8; j++) sum += probe[j];
+    energies[5] = sum == 0.0 ? 1.0 : 0.0;
 }
 
 double RigidBodyIntegrator::computeKineticEnergy() {
@@ -766,17 +792,21 @@ double RigidBodyIntegrator::computeKineticEnergy() {
 void RigidBodyIntegrator::createCheckpoint(ostream& stream) const {
     // Stream 0 first and a flag byte (bit 0: node state follows; bit 1: the other threads' streams follow it).
     normals[0].save(stream);
-    const char valid = (cacheValid ? 1 : 0) | (numChunks > 1 ? 2 : 0);
+    const bool kept = cacheValid && refData != nullptr;
+    const char valid = (kept ? 1 : 0) | (numChunks > 1 ? 2 : 0);
     stream.write(&valid, 1);
-    if (cacheValid) {
+    if (kept) {
         stream.write((const char*) c.data(), sizeof(double) * c.size());
         stream.write((const char*) L.data(), sizeof(double) * L.size());
         stream.write((const char*) cP.data(), sizeof(double) * cP.size());
         stream.write((const char*) cPi.data(), sizeof(double) * cPi.size());
-        const long long np = (long long) lastPos.size();
+        // the particles the kept state belongs to (nobody has set them since the last step wrote them)
+        const vector<Vec3>& p = *((ReferencePlatform::PlatformData*) refData)->positions;
+        const vector<Vec3>& v = *((ReferencePlatform::PlatformData*) refData)->velocities;
+        const long long np = (long long) p.size();
         stream.write((const char*) &np, sizeof(np));
-        stream.write((const char*) lastPos.data(), sizeof(Vec3) * lastPos.size());
-        stream.write((const char*) lastVel.data(), sizeof(Vec3) * lastVel.size());
+        stream.write((const char*) p.data(), sizeof(Vec3) * p.size());
+        stream.write((const char*) v.data(), sizeof(Vec3) * v.size());
     }
     if (numChunks > 1) {
         const int extra = numChunks - 1;
@@ -812,7 +842,28 @@ void RigidBodyIntegrator::loadCheckpoint(istream& stream) {
     for (int ch = 1; ch <= extra; ch++) (ch < numChunks ? normals[ch] : scratch).load(stream);
     for (int ch = extra + 1; ch < numChunks; ch++) normals[ch].seed(streamSeed(baseSeed, ch));
     cacheValid = valid;
+    // OpenMM restores the particles apart from this call (and tells the integrator nothing): the first step or
+    // report compares them with the ones stored here before it trusts the node state.
+    verifyParticles = valid;
     loadsValid = false;
+}
+
+void RigidBodyIntegrator::stateChanged(State::DataType changed) {
+    // Positions or velocities set by the user (setPositions, setVelocities, setState, a minimizer): the kept node
+    // state no longer belongs to the particles. While a loaded checkpoint's check is pending (OpenMM may report
+    // the checkpoint's own particles as changed) that check decides: it compares the particles themselves.
+    // Parameters change only forces OpenMM evaluates (read every step) or the fused forces' parameters (their
+    // version is checked), so they keep it.
+    if ((changed == State::Positions || changed == State::Velocities) && !verifyParticles) {
+        cacheValid = false;
+        loadsValid = false;
+    }
+}
+
+bool RigidBodyIntegrator::particlesMatch(const vector<Vec3>* pos, const vector<Vec3>* vel) const {
+    return pos->size() == lastPos.size() && vel->size() == lastVel.size()
+           && std::memcmp(pos->data(), lastPos.data(), sizeof(Vec3) * lastPos.size()) == 0
+           && std::memcmp(vel->data(), lastVel.data(), sizeof(Vec3) * lastVel.size()) == 0;
 }
 
 

@@ -8,13 +8,15 @@
 //   NVE (friction 0):  V(dt) A(dt)               (= kick-drift-rotor-kick shifted by half a step)
 //   Langevin:          V(dt) A(dt/2) O(dt) A(dt/2) (BAOAB in leapfrog form; O acts on the lab momentum with
 //                      variance m kT and on each body angular momentum component with variance J_a kT)
-// The node state is read from the particles at every step and written back exactly rigid, so the
-// integrator keeps no state but its random number generator (checkpointed). Constraints in the System
+// The particles are written back exactly rigid. With only fused forces on the Reference/CPU platforms the node
+// state of the last step is kept between calls (checkpointed with the random number generator, dropped when the
+// Context's positions or velocities are set: stateChanged); otherwise it is read from the particles every step. Constraints in the System
 // are not applied (the triangles stay rigid by construction). Particles of zero mass (clamped nodes) stay put.
 // If the System holds a dnarod SMKForce, its node loads are computed here directly (no spreading over
 // particles); every other force is evaluated by OpenMM and reduced to node forces and torques.
 #include "openmm/Integrator.h"
 #include "openmm/Kernel.h"
+#include "openmm/State.h"
 #include "Random.h"
 #include <functional>
 #include <memory>
@@ -59,15 +61,22 @@ public:
     void setNodesPerChunk(int m);
     /** Number of doubles per node written by getNodeReport. */
     static const int REPORT_STRIDE = 18;
-    /** The node state at the current positions for reporters, without an OpenMM State: per node (out, n*18
-     *  doubles) the centre c (3, nm), the frame L (9, row-major, directors as columns), the on-step centre
-     *  velocity (3, lab, nm/ps) and the on-step angular velocity (3, body frame, rad/ps), i.e. the stored
+    /** The node state at the current positions for reporters, without an OpenMM State: in out (n*18 doubles),
+     *  four C-contiguous blocks one after the other: the centres c (n, 3, nm), the frames L (n, 9, row-major,
+     *  directors as columns), the on-step centre velocities (n, 3, lab, nm/ps) and the on-step angular velocities
+     *  (n, 3, body frame, rad/ps), i.e. the stored
      *  half-step velocities completed by the half kick dt/2 of the current loads (zero for clamped nodes);
      *  energies (6): the fused SMK energy, the fused WCA and Debye-Hueckel energies, the energy of every force
      *  OpenMM evaluates for this integrator (all kJ/mol), the kinetic energy as the Context reports it
      *  (computeKineticEnergy), and 1 if every value written to out is finite (else 0). After a step with only fused forces this reads the kept node state, and the
      *  loads computed here are the ones the next step starts from (they are not computed twice). */
     void getNodeReport(double* out, double* energies);
+    /** reports times: step(interval), then getNodeReport into out + j * n * REPORT_STRIDE and energies + 6 j;
+     *  returns the number of healthy reports (all of them, or the index of the first whose values are not all
+     *  finite or whose |potential| + kinetic energy reaches limit, kJ/mol, where it stops). Equal, bit for bit,
+     *  to the same calls made one by one; the particles are written after the last report only (and at a stop,
+     *  not at all: the caller resets the state). */
+    int stepAndReport(int reports, int interval, double* out, double* energies, double limit);
     /** True if the steps run on the device (OpenCL/CUDA with dnarod's kernel library; every force by OpenMM). */
     bool usesDeviceKernel() const { return onDevice; }
     /** Lanes of the blocked update (internal). */
@@ -83,6 +92,9 @@ protected:
     bool kineticEnergyRequiresForce() const { return friction == 0; }
     void createCheckpoint(std::ostream& stream) const;
     void loadCheckpoint(std::istream& stream);
+    /** Called by the Context when the user sets positions, velocities or parameters (Context.setPositions,
+     *  setVelocities, setState, setParameter): set positions or velocities drop the kept node state. */
+    void stateChanged(OpenMM::State::DataType changed);
 private:
     void loads(bool needOther);
     void loadsRange(int t);
@@ -106,13 +118,18 @@ private:
     bool haveOther = false;
     std::vector<double> mass, c, L, F, tau, cP, cPi;
     bool cacheValid = false;
+    bool deferWrite = false;  // stepAndReport: leave the particles to the last report's step
     // F, tau (and lastE: SMK, WCA, DH energies) hold the fused loads at the kept c, L (computed by getNodeReport);
     // the next step starts from them. loadsVersion: the SMKForce parameter version they were computed with.
     bool loadsValid = false;
     long long loadsVersion = -1;
     double lastE[3] = {0, 0, 0};
     std::vector<double> rc, rL, rF, rtau;  // getNodeReport's node state read from the particles
-    std::vector<OpenMM::Vec3> lastPos, lastVel;  // the particles as written at the end of the last call
+    // The particles of a loaded checkpoint's kept node state: the first step or report after loadCheckpoint
+    // checks that the Context holds them (verifyParticles) before it trusts the node state.
+    std::vector<OpenMM::Vec3> lastPos, lastVel;
+    bool verifyParticles = false;
+    bool particlesMatch(const std::vector<OpenMM::Vec3>* pos, const std::vector<OpenMM::Vec3>* vel) const;
     std::vector<OpenMM::Vec3> posBuf, velBuf, forceBuf;
     std::vector<double> sigP, sigPi;  // per node: sqrt(m), sqrt(J_a)
     std::vector<double> invMass, invJ12;  // per node: 1/m, 1/J1 = 1/J2 = 2/(m l^2) (0 for clamped nodes)

@@ -121,9 +121,50 @@ public:
     void setNodesPerChunk(int m);
     %extend {
         /* Node state and energies at the current positions (RigidBodyIntegrator::getNodeReport) written into
-           out, a writable C-contiguous float64 buffer of n_nodes * 18 values (a numpy array of shape
-           (n_nodes, 18)); returns (E_smk, E_wca, E_dh, E_other, E_kinetic) in kJ/mol and 1.0 if every value
+           out, a writable C-contiguous float64 buffer of n_nodes * 18 values: centres (n_nodes, 3), frames
+           (n_nodes, 9), velocities (n_nodes, 3), angular velocities (n_nodes, 3), one block after the other;
+           returns (E_smk, E_wca, E_dh, E_other, E_kinetic) in kJ/mol and 1.0 if every value
            written is finite (else 0.0). */
+        /* reports times: step(interval) and the node report into row j of out (a writable C-contiguous float64
+           array of at least reports * n_nodes * 18 values) and its 6 energies into row j of energies (at least
+           reports * 6 values), stopping at the first report that is not finite or whose |potential| + kinetic
+           energy reaches limit (kJ/mol); returns the number of healthy reports. */
+        int stepAndReport(int reports, int interval, PyObject* out, PyObject* energies, double limit) {
+            if (reports < 0 || interval < 1)
+                throw OpenMM::OpenMMException("stepAndReport: reports must be >= 0 and interval >= 1");
+            Py_buffer vo, ve;
+            if (PyObject_GetBuffer(out, &vo, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0) {
+                PyErr_Clear();
+                throw OpenMM::OpenMMException("stepAndReport: out must be a writable C-contiguous float64 array");
+            }
+            if (PyObject_GetBuffer(energies, &ve, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0) {
+                PyErr_Clear();
+                PyBuffer_Release(&vo);
+                throw OpenMM::OpenMMException("stepAndReport: energies must be a writable C-contiguous float64 array");
+            }
+            const Py_ssize_t want = (Py_ssize_t) sizeof(double) * dnarod::RigidBodyIntegrator::REPORT_STRIDE
+                                    * self->getNumNodes() * reports;
+            const bool ok = vo.len >= want && ve.len >= (Py_ssize_t) sizeof(double) * 6 * reports
+                            && vo.format != NULL && std::string(vo.format) == "d"
+                            && ve.format != NULL && std::string(ve.format) == "d";
+            if (!ok) {
+                PyBuffer_Release(&vo);
+                PyBuffer_Release(&ve);
+                throw OpenMM::OpenMMException("stepAndReport: out needs reports * n_nodes * 18 and energies "
+                                              "reports * 6 float64 values");
+            }
+            int done = 0;
+            try {
+                done = self->stepAndReport(reports, interval, (double*) vo.buf, (double*) ve.buf, limit);
+            } catch (...) {
+                PyBuffer_Release(&vo);
+                PyBuffer_Release(&ve);
+                throw;
+            }
+            PyBuffer_Release(&vo);
+            PyBuffer_Release(&ve);
+            return done;
+        }
         PyObject* getNodeReport(PyObject* out) {
             Py_buffer view;
             if (PyObject_GetBuffer(out, &view, PyBUF_WRITABLE | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) != 0) {

@@ -129,9 +129,11 @@ class RodSimulation:
         self.context_time = time.perf_counter() - t0
         self._state_cache: Any = None
         self._terms_cache: dict[str, float] | None = None
-        self._report_cache: tuple[np.ndarray, Any] | None = None
+        self._report_cache: tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Any] | None = None
         self._rollback: tuple[int, Any] | None = None
         self._plugin_reports: bool | None = None
+        self._batch_buffer: np.ndarray | None = None
+        self._batch_energies: np.ndarray | None = None
         self._limit: float | None = None
         if initial_velocities is not None:
             self.set_node_velocities(*initial_velocities)
@@ -293,8 +295,7 @@ class RodSimulation:
         if state is None:
             rep = self._node_report()
             if rep is not None:
-                rows = rep[0]
-                return rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy()
+                return rep[0][0].copy(), rep[0][1].copy()
         state = state or self._full_state()
         return node_poses(self.node_particles(state.getPositions(asNumpy=True)))
 
@@ -314,11 +315,10 @@ class RodSimulation:
         if state is None and on_step:
             rep = self._node_report()
             if rep is not None:
-                rows = rep[0]
-                if not copy:  # the report's rows are read-only
-                    return rows[:, 0:3], rows[:, 3:12].reshape(-1, 3, 3), rows[:, 12:15], rows[:, 15:18]
-                return (rows[:, 0:3].copy(), rows[:, 3:12].reshape(-1, 3, 3).copy(), rows[:, 12:15].copy(),
-                        rows[:, 15:18].copy())
+                if not copy:  # the report's arrays are read-only
+                    return rep[0]
+                c, f, v, w = rep[0]
+                return c.copy(), f.copy(), v.copy(), w.copy()
         state = state or self._full_state()
         p = self.node_particles(state.getPositions(asNumpy=True))
         u = self.node_particles(state.getVelocities(asNumpy=True))
@@ -355,24 +355,28 @@ class RodSimulation:
         self._report_cache = None
         self._rollback = None
 
-    def _node_report(self) -> tuple[np.ndarray, Any] | None:
-        """``(rows (n, 18), energies)`` from the compiled integrator's ``getNodeReport``, or None.
+    def _node_report(self) -> tuple[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], Any] | None:
+        """``((centres, frames, velocities, angular velocities), energies)`` from the compiled integrator's
+        ``getNodeReport``, or None.
 
         Available when the compiled integrator evaluates the SMK force (and the node-pair force, if the
         System has one) itself: then the node state, on-step velocities and energies by term come from
         one pass over the nodes in C++ (no OpenMM State, no particle arrays in numpy), and the loads it
-        computes are reused by the next step. rows: centre (3, nm), frame (9, row-major), on-step velocity
-        (3, lab, nm/ps), on-step angular velocity (3, body, rad/ps); energies: SMK, WCA, Debye-Hueckel,
-        every other force, kinetic (kJ/mol), then 1.0 if every node value is finite. Cached until the
-        context changes.
+        computes are reused by the next step. Arrays (read-only, C-contiguous views of one buffer): centres
+        (n, 3, nm), frames (n, 3, 3), on-step velocities (n, 3, lab, nm/ps), on-step angular velocities (n, 3,
+        body, rad/ps); energies: SMK, WCA, Debye-Hueckel, every other force, kinetic (kJ/mol), then 1.0 if every
+        node value is finite. Cached until the context changes.
         """
         if self._report_cache is None:
             if not self._reports_in_plugin():
                 return None
-            rows = np.empty((self.model.n_nodes, 18))
-            energies = self.integrator.getNodeReport(rows)
-            rows.flags.writeable = False  # node_state(copy=False) hands out views of it
-            self._report_cache = (rows, energies)
+            n = self.model.n_nodes
+            buf = np.empty(18 * n)
+            energies = self.integrator.getNodeReport(buf)
+            buf.flags.writeable = False  # node_state(copy=False) hands out views of it
+            arrays = (buf[:3 * n].reshape(n, 3), buf[3 * n:12 * n].reshape(n, 3, 3), buf[12 * n:15 * n].reshape(n, 3),
+                      buf[15 * n:].reshape(n, 3))
+            self._report_cache = (arrays, energies)
         return self._report_cache
 
     def _reports_in_plugin(self) -> bool:
@@ -456,7 +460,10 @@ class RodSimulation:
     def _report_healthy(self) -> bool:
         rep = self._node_report()
         assert rep is not None  # only asked on the compiled path
-        e = rep[1]
+        return self._energies_healthy(rep[1])
+
+    def _energies_healthy(self, e: Any) -> bool:
+        """The node report's energies (see :meth:`_node_report`) are finite and below the blow-up limit."""
         E, K = e[0] + e[1] + e[2] + e[3], e[4]
         if self._limit is None:
             self._limit = self._energy_limit()
@@ -531,14 +538,111 @@ class RodSimulation:
             self.step += n_steps
             self._rollback = rollback if fast else None
             return
+        raise self._locate_failure(rollback, self.step + n_steps)
+
+    def _locate_failure(self, rollback: tuple[int, Any], end_step: int) -> SimulationError:
+        """Replay from ``rollback`` one step at a time to the first bad step (at most ``end_step``); the error
+        names it (the context is left there)."""
         good_step, good = rollback
         self.context.setState(good)
-        for i in range(self.step + n_steps - good_step):
+        for i in range(end_step - good_step):
             self.integrator.step(1)
             st = self.context.getState(getEnergy=True, getPositions=True)
             if not self._healthy(st):
-                raise self._diagnose(good_step + i + 1)
-        raise self._diagnose(self.step + n_steps)
+                return self._diagnose(good_step + i + 1)
+        return self._diagnose(end_step)
+
+    #: Most reports one :meth:`advance_reports` call holds (its buffer: 18 doubles per node and report).
+    MAX_BATCH_REPORTS = 64
+
+    def advance_reports(self, n_reports: int, interval: int, duration_ps: float | None = None
+                        ) -> tuple[np.ndarray, tuple[np.ndarray, ...], dict[str, np.ndarray], SimulationError | None]:
+        """Advance ``n_reports`` times ``interval`` steps, reading the node report after each (the run layer's
+        batched reports; the compiled path only, see :meth:`supports_report_batches`).
+
+        Equivalent to ``n_reports`` calls of :meth:`advance` (``interval`` steps) each followed by
+        :meth:`node_state` and :meth:`energies` (and :meth:`update_loads` at the report's time), bit for bit,
+        without the Python work of a report per call: with loads that do not change in time, one call of the
+        compiled integrator does them all. At most :attr:`MAX_BATCH_REPORTS` reports per call, and at most
+        about :attr:`ROLLBACK_STEPS` steps (a blow-up is replayed from the state at its start); the steps
+        returned say how many were done.
+
+        Returns
+        -------
+        steps : ndarray, shape (k,)
+            The step of each report (k <= n_reports: fewer if the run blew up).
+        state : tuple of ndarray
+            On-step centres (k, n, 3) nm, frames (k, n, 3, 3), velocities (k, n, 3) nm/ps (lab), angular
+            velocities (k, n, 3) rad/ps (body): read-only views of the engine's buffer, valid until the next call.
+        energies : dict of ndarray, shape (k,)
+            As :meth:`energies`, one value per report.
+        error : SimulationError or None
+            The blow-up after the last good report (naming its step, node and term; the context is left at that
+            step), to be raised once the good reports are written.
+        """
+        n_reports, interval = int(n_reports), int(interval)
+        if not self._reports_in_plugin():
+            raise ParameterError("advance_reports needs the compiled path (supports_report_batches())")
+        if not 1 <= n_reports <= self.MAX_BATCH_REPORTS or interval < 1:
+            raise ParameterError(f"advance_reports: 1 to {self.MAX_BATCH_REPORTS} reports of >= 1 steps, got "
+                                 f"{n_reports} of {interval}")
+        # a blow-up is replayed from the rollback state: at most about ROLLBACK_STEPS steps per call
+        n_reports = max(1, min(n_reports, self.ROLLBACK_STEPS // interval))
+        n = self.model.n_nodes
+        if self._batch_buffer is None or self._batch_energies is None or self._batch_buffer.shape[1] != 18 * n:
+            self._batch_buffer = np.empty((self.MAX_BATCH_REPORTS, 18 * n))
+            self._batch_energies = np.empty((self.MAX_BATCH_REPORTS, 6))
+        buf, e_arr = self._batch_buffer, self._batch_energies
+        buf.flags.writeable = True
+        error = None
+        integ = self.integrator
+        if self._limit is None:
+            self._limit = self._energy_limit()
+        self._state_cache = self._report_cache = None
+        if self._rollback is None or not 0 <= self.step - self._rollback[0] < self.ROLLBACK_STEPS:
+            self._rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
+                                                               getParameters=True))
+        rollback = self._rollback
+        start = self.step
+        if not self.rs.load_info.get("rotation_clamps"):
+            # every report in one call (the loads do not change with time)
+            k = integ.stepAndReport(n_reports, interval, buf, e_arr, self._limit)
+            if k < n_reports:
+                self._rollback = None
+                error = self._locate_failure(rollback, start + (k + 1) * interval)
+            self.step = start + k * interval
+        else:
+            # turned to each report's time, then read again, as the run loop's advance-update-report
+            k = 0
+            while k < n_reports:
+                if integ.stepAndReport(1, interval, buf[k], e_arr[k], self._limit) < 1:
+                    self._rollback = None
+                    error = self._locate_failure(rollback, self.step + interval)
+                    break
+                self.step += interval
+                self.update_loads(self.step * self.dt, duration_ps)
+                e_arr[k] = integ.getNodeReport(buf[k])
+                k += 1
+                if not 0 <= self.step - rollback[0] < self.ROLLBACK_STEPS:
+                    rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
+                                                                 getParameters=True))
+                self._rollback = rollback
+        self._state_cache = self._report_cache = None
+        buf.flags.writeable = False
+        steps = start + interval * np.arange(1, k + 1, dtype=np.int64)
+        b = buf[:k]
+        state = (b[:, :3 * n].reshape(k, n, 3), b[:, 3 * n:12 * n].reshape(k, n, 3, 3),
+                 b[:, 12 * n:15 * n].reshape(k, n, 3), b[:, 15 * n:].reshape(k, n, 3))
+        e_arr = e_arr[:k].copy()
+        # the same sums in the same order as energies(), so both give the same bits
+        energies = dict(elastic=e_arr[:, 0], nonbonded=e_arr[:, 1] + e_arr[:, 2], external=e_arr[:, 3],
+                        potential=e_arr[:, 0] + e_arr[:, 1] + e_arr[:, 2] + e_arr[:, 3], kinetic=e_arr[:, 4],
+                        temperature=np.asarray(kinetic_temperature(e_arr[:, 4], self.rs.degrees_of_freedom), float))
+        return steps[:k], state, energies, error
+
+    def supports_report_batches(self) -> bool:
+        """True if :meth:`advance_reports` can be used (the compiled integrator evaluates every dnarod force)."""
+        return self._reports_in_plugin()
 
     # --- checkpoints ------------------------------------------------------------------
     def save_checkpoint(self, path: str | Path, n_frames: int | None = None,
