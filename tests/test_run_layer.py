@@ -214,7 +214,8 @@ def test_ctrl_c_checkpoints_and_resume_is_bit_for_bit(tmp_path, engine, monkeypa
     import dnarod.engines.openmm.simulation as sim_mod
 
     with monkeypatch.context() as mp:
-        mp.setattr(sim_mod.RodSimulation, "MAX_BATCH_REPORTS", 4)  # batches of 40 steps: one ends at 80
+        # batches: the first report alone (step 10), then 4 reports (40 steps): they end at 50, 90, ...
+        mp.setattr(sim_mod.RodSimulation, "MAX_BATCH_REPORTS", 4)
         sent = _interrupt_at(mp, 70)  # reports every 10 steps: the loop stops at the report step it reached
         with pytest.raises(KeyboardInterrupt):
             run(spec, tmp_path / "part", progress=False)
@@ -222,7 +223,7 @@ def test_ctrl_c_checkpoints_and_resume_is_bit_for_bit(tmp_path, engine, monkeypa
     from dnarod.run.api import CHECKPOINT_FORMATS
 
     stop = sent["sent"]
-    assert stop == (70 if engine == "lax" else 80)  # OpenMM's compiled path reads reports in batches
+    assert stop == (70 if engine == "lax" else 90)  # OpenMM's compiled path reads reports in batches
     meta, _ = read_checkpoint(tmp_path / "part" / "checkpoint.npz", CHECKPOINT_FORMATS[engine], ())
     assert meta["step"] == stop
     assert load_trajectory(tmp_path / "part" / "trajectory.dtraj").step[-1] == stop
@@ -343,3 +344,27 @@ def test_batched_reports_equal_reports_one_at_a_time(tmp_path, loads):
         assert np.array_equal(a, b)
     tr = load_trajectory(tmp_path / f"{loads}-True" / "t.dtraj")
     assert list(tr.step) == list(range(0, 1000, 6))
+
+
+def test_batches_of_reports_are_bounded_in_time(tmp_path, monkeypatch):
+    """Checkpoints, the progress bar and Ctrl-C act between batches, so a batch is sized to last about
+    BATCH_WALL_S: the first report alone, then as many as fit (here, with a bound far below one report's time,
+    one at a time)."""
+    import dnarod.run.loop as loop
+    from dnarod.engines.openmm.simulation import RodSimulation
+    from dnarod.run.reporters import DtrajReporter
+
+    model = load_forcefield("dna-default").model_from_sequence("ACGT" * 4)
+    sizes = {}
+    for bound in (1e-9, 60.0):
+        monkeypatch.setattr(loop, "BATCH_WALL_S", bound)
+        sim = RodSimulation.create(model, temperature=300.0, elastic="plugin", seed=2, platform="CPU")
+        calls = []
+        orig = sim.advance_reports
+        sim.advance_reports = lambda k, *a, **kw: calls.append(k) or orig(k, *a, **kw)
+        rep = DtrajReporter(tmp_path / f"{bound}.dtraj", model.n_nodes, 5)
+        loop.run_engine(sim, 500, [rep])
+        rep.close()
+        sizes[bound] = calls
+    assert sizes[1e-9] == [1] * 100
+    assert sizes[60.0][0] == 1 and max(sizes[60.0]) == RodSimulation.MAX_BATCH_REPORTS

@@ -12,7 +12,7 @@ Batched reports: when the engine can read several reports in one call
 takes them (``supports_batch``, ``report_batch``; the trajectory and energies reporters without observable
 columns), at one interval, the loop advances a batch of reports at a time and hands it to the reporters at once:
 the same files, bit for bit, without a Python round trip per report. Checkpoints, the progress bar and Ctrl-C
-then act between batches (at most ``MAX_BATCH_REPORTS`` reports, a fraction of a second).
+then act between batches (at most ``MAX_BATCH_REPORTS`` reports and about :data:`BATCH_WALL_S` seconds).
 """
 from __future__ import annotations
 
@@ -32,6 +32,10 @@ from dnarod.run.engine import BatchReportingEngine, Engine
 #: protocol samplers' interval. A checkpoint of a 1,000-node OpenMM run takes about a millisecond, so
 #: checkpointing stays far below 1 % of the run, and an interrupted run loses at most two minutes.
 CHECKPOINT_WALL_S = 120.0
+
+
+#: Longest a batch of reports runs, s (about): checkpoints, the progress bar and Ctrl-C act between batches.
+BATCH_WALL_S = 0.5
 
 
 def _next_multiple(step: int, interval: int) -> int:
@@ -159,6 +163,7 @@ def run_engine(engine: Engine, n_steps: int, reporters: Sequence[Any] = (), chec
         return bool((ci and engine.step % ci == 0) or (wall_every and time.perf_counter() - last_save >= wall_every))
 
     bi = _batch_interval(engine, reporters, ci)
+    per_report = 0.0  # wall seconds per report of the last batch
     # (step, wall) after the first advance: the speed leaves out the kernels' first-call compile
     timed: tuple[int, float] | None = None
     with _DeferredInterrupt() as interrupt:
@@ -170,8 +175,15 @@ def run_engine(engine: Engine, n_steps: int, reporters: Sequence[Any] = (), chec
                 k = (n_steps - engine.step) // bi
                 if ci:
                     k = min(k, (_next_multiple(engine.step, ci) - engine.step) // bi)
+                if timed is None:
+                    k = 1  # the first report alone (the speed is timed after it, as after a first advance)
+                elif per_report:
+                    k = min(k, max(1, int(BATCH_WALL_S / per_report)))
                 beng = cast(BatchReportingEngine, engine)
+                t_batch = time.perf_counter()
                 steps, state, energies, error = beng.advance_reports(min(k, beng.MAX_BATCH_REPORTS), bi, duration_ps)
+                if len(steps):
+                    per_report = (time.perf_counter() - t_batch) / len(steps)
                 if len(steps):
                     batch = ReportBatch(engine, steps, state, energies)
                     for r in reporters:
