@@ -133,18 +133,11 @@ class DtrajReporter(_Interval):
     supports_batch = True
 
     def report(self, engine: Any, snap: Snapshot) -> None:
-        pos, frm, v, w = snap.state
-        if self.velocities:
-            self.writer.write(snap.step, snap.time_ps, pos, frm, v, w)
-        else:
-            self.writer.write(snap.step, snap.time_ps, pos, frm)
+        # the writer stores the velocities only if the file has them
+        self.writer.write(snap.step, snap.time_ps, *snap.state)
 
     def report_batch(self, engine: Any, batch: ReportBatch) -> None:
-        pos, frm, v, w = batch.state
-        if self.velocities:
-            self.writer.write_frames(batch.steps, batch.times_ps, pos, frm, v, w)
-        else:
-            self.writer.write_frames(batch.steps, batch.times_ps, pos, frm)
+        self.writer.write_frames(batch.steps, batch.times_ps, *batch.state)
 
     def flush(self) -> None:
         self.writer.flush(sync=False)
