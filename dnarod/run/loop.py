@@ -83,6 +83,22 @@ def _batch_interval(engine: Engine, reporters: Sequence[Any], checkpoint_interva
     return bi if bi > 0 and (not checkpoint_interval or checkpoint_interval % bi == 0) else 0
 
 
+def _report_batch(engine: BatchReportingEngine, reporters: Sequence[Any], k: int, interval: int,
+                  duration_ps: float | None) -> float:
+    """Advance up to ``k`` reports in one batch and hand it to the reporters; returns the wall seconds per report
+    (0.0 if none was made). A blow-up is raised after the good reports are written."""
+    t = time.perf_counter()
+    steps, state, energies, error = engine.advance_reports(min(k, engine.MAX_BATCH_REPORTS), interval, duration_ps)
+    per_report = (time.perf_counter() - t) / len(steps) if len(steps) else 0.0
+    if len(steps):
+        batch = ReportBatch(engine, steps, state, energies)
+        for r in reporters:
+            r.report_batch(engine, batch)
+    if error is not None:
+        raise error
+    return per_report
+
+
 def run_engine(engine: Engine, n_steps: int, reporters: Sequence[Any] = (), checkpoint: str | Path | None = None,
                checkpoint_interval: int = 0, progress: Any = None,
                duration_ps: float | None = None, checkpoint_extra: dict[str, Any] | None = None,
@@ -179,17 +195,8 @@ def run_engine(engine: Engine, n_steps: int, reporters: Sequence[Any] = (), chec
                     k = 1  # the first report alone (the speed is timed after it, as after a first advance)
                 elif per_report:
                     k = min(k, max(1, int(BATCH_WALL_S / per_report)))
-                beng = cast(BatchReportingEngine, engine)
-                t_batch = time.perf_counter()
-                steps, state, energies, error = beng.advance_reports(min(k, beng.MAX_BATCH_REPORTS), bi, duration_ps)
-                if len(steps):
-                    per_report = (time.perf_counter() - t_batch) / len(steps)
-                if len(steps):
-                    batch = ReportBatch(engine, steps, state, energies)
-                    for r in reporters:
-                        r.report_batch(engine, batch)
-                if error is not None:
-                    raise error
+                per_report = _report_batch(cast(BatchReportingEngine, engine), reporters, k, bi, duration_ps) \
+                    or per_report
                 if timed is None:
                     timed = (int(engine.step), time.perf_counter())
                 if progress is not None:
