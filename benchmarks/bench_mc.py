@@ -13,7 +13,7 @@ twist spread along the chain (a turn sweep; points are run in ``--order``, so th
 transition starts from a plectoneme). Sweeps until both targets are met (relative extension error <=
 ``--target-ext``, torque error <= ``--target-torque`` pN nm, neither series flagged short) or the point's CPU budget
 is spent. One sample per sweep: the extension ``z_last - z_0`` (x/L with L = ds (n - 1)) and the tail-torque
-estimate of the clamp torque (:meth:`MCEngine.tail_torque_z`); means and errors from
+estimate of the clamp torque (:meth:`MCEngine.tail_torque_z`, height-weighted); means and errors from
 :func:`dnarod.analysis.statistics.mean_and_error` (transient cut, autocorrelation time, ``short`` flag). CPU seconds
 are the process's own (numba runs single-threaded), equilibration included.
 
@@ -93,7 +93,7 @@ def run_point(n_bp, force_pN, turns, budget_cpu, seed, target_ext, target_torque
         for _ in range(check_every):
             e.advance(1)
             ext.append((e.pos[-1, 2] - e.pos[0, 2]) / L)
-            tq.append(e.tail_torque_z() / PN)
+            tq.append(e.tail_torque_z(weighted=True) / PN)
         if len(ext) >= min_sweeps:
             est_x, est_t = mean_and_error(ext), mean_and_error(tq)
             met = (est_x.flag is None and est_t.flag is None and est_x.error <= target_ext * est_x.mean
@@ -162,7 +162,7 @@ def run_ladder(n_bp, force_pN, rungs, points, budget_cpu, seed, target_ext, targ
             for i in idx:
                 e = engines[i]
                 ext[i].append((e.pos[-1, 2] - e.pos[0, 2]) / L)
-                tq[i].append(e.tail_torque_z() / PN)
+                tq[i].append(e.tail_torque_z(weighted=True) / PN)
         if rounds >= min_rounds:
             est = {i: (mean_and_error(ext[i]), mean_and_error(tq[i])) for i in idx}
             met = all(ex.flag is None and et.flag is None and ex.error <= target_ext * ex.mean

@@ -297,8 +297,8 @@ def test_tail_torque_weights_are_functions_of_the_heights():
     assert w[:70].all() and w[150:].all() and not w[80:140].any()
     prof = e.tail_torque_z(profile=True)
     keep = np.isfinite(prof) & (w > 0)
-    assert e.tail_torque_z() == pytest.approx(np.mean(prof[keep]), rel=1e-12)
-    assert e.tail_torque_z(weighted=False) == pytest.approx(np.nanmean(prof), rel=1e-12)
+    assert e.tail_torque_z(weighted=True) == pytest.approx(np.mean(prof[keep]), rel=1e-12)
+    assert e.tail_torque_z() == pytest.approx(np.nanmean(prof), rel=1e-12)
     rng = np.random.default_rng(3)
     for k in (5, 60, 150):
         a = rng.uniform(-np.pi, np.pi)

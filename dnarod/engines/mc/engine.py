@@ -401,7 +401,7 @@ class MCEngine:
         return float(sum(rotation_clamp_load(self.frm[rc.node], self.rc_T[rc.node], rc.k)[1][2]
                          for rc in self.resolved.rotation_clamps))
 
-    def tail_torque_z(self, profile=False, weighted=True):
+    def tail_torque_z(self, profile=False, weighted=False):
         """Low-variance estimate of :meth:`clamp_torque_z`'s mean (kJ/mol), from an exact identity.
 
         Turning the tail ``k+1 .. n-1`` of an open chain rigidly about a lab z axis preserves the invariant measure
@@ -420,14 +420,16 @@ class MCEngine:
         ``2^(1/6) sigma``, or the non-bonded cut-off without excluded volume): this drops the steps inside a
         plectoneme, whose bending moments and contact forces swing by tens of pN nm from sample to sample, and
         keeps every step of a stretched chain (there it equals the plain average). If no step qualifies, the plain
-        average is returned.
+        average is returned. It lowers the spread per sample, not the slow part of the error: where the kept steps
+        are few (a short chain mostly in a plectoneme) or the run is short against the plectoneme's relaxation,
+        the plain average's error can be as small or smaller (``docs/mc.md``), hence not the default.
 
         Parameters
         ----------
         profile : bool
             Return the per-step values (n - 1,) (NaN where the identity does not apply) instead of their mean.
         weighted : bool
-            Weight the steps by the height criterion above (False: the plain average over the steps).
+            Weight the steps by the height criterion above (default False: the plain average over the steps).
 
         Returns
         -------
