@@ -1,4 +1,5 @@
-"""Turn ladder near buckling: per-rung extension series and, for pooling, every sample's reduced potential in
+"""Turn ladder near buckling (torques: height-weighted tq, plain tq_plain; runs a-c wrote the then-default
+weighted average as tq): per-rung extension series and, for pooling, every sample's reduced potential in
 every rung after the twist-ramp map (positions unchanged, so only elastic, clamp and wall terms change)."""
 import sys
 import time
@@ -24,14 +25,15 @@ lad = TurnLadder(engines, turns, seed=5 + seed)
 L = engines[0].model.ds * 999
 kt = engines[0].fp[1]
 K = len(turns)
-X, TQ, U, LAB = [], [], [], []
+X, TQ, TP, U, LAB = [], [], [], [], []
 c0 = time.process_time()
 r = 0
 while time.process_time() - c0 < budget:
     lad.advance(1)
     r += 1
     X.append([(e.pos[-1, 2] - e.pos[0, 2]) / L for e in engines])
-    TQ.append([e.tail_torque_z() / PN for e in engines])
+    TQ.append([e.tail_torque_z(weighted=True) / PN for e in engines])
+    TP.append([e.tail_torque_z(weighted=False) / PN for e in engines])
     u = np.zeros((K, K))
     for i, e in enumerate(engines if with_u else []):
         for k, ek in enumerate(engines):
@@ -41,6 +43,6 @@ while time.process_time() - c0 < budget:
     if r % xe == 0:
         lad.exchange()
 cpu = time.process_time() - c0
-np.savez(f"ladder_{tag}.npz", turns=turns, x=np.array(X), tq=np.array(TQ), u=np.array(U), labels=np.array(LAB),
+np.savez(f"ladder_{tag}.npz", turns=turns, x=np.array(X), tq=np.array(TQ), tq_plain=np.array(TP), u=np.array(U), labels=np.array(LAB),
          cpu=cpu, swap=lad.acceptance())
 print(tag, "rounds", r, "cpu", cpu, "swap", np.round(lad.acceptance(), 2), flush=True)
