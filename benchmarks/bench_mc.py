@@ -13,9 +13,20 @@ twist spread along the chain (a turn sweep; points are run in ``--order``, so th
 transition starts from a plectoneme). Sweeps until both targets are met (relative extension error <=
 ``--target-ext``, torque error <= ``--target-torque`` pN nm, neither series flagged short) or the point's CPU budget
 is spent. One sample per sweep: the extension ``z_last - z_0`` (x/L with L = ds (n - 1)) and the tail-torque
-estimate of the clamp torque (:meth:`MCEngine.tail_torque_z`); means and errors from
+estimate of the clamp torque (:meth:`MCEngine.tail_torque_z`, height-weighted); means and errors from
 :func:`dnarod.analysis.statistics.mean_and_error` (transient cut, autocorrelation time, ``short`` flag). CPU seconds
 are the process's own (numba runs single-threaded), equilibration included.
+
+``--ladder LO HI STEP``: the points with Delta Lk in [LO, HI] are sampled together by one replica-exchange ladder
+(:class:`dnarod.engines.mc.ladder.TurnLadder`) with rungs ``LO, LO + STEP, .., HI`` (which must hold them), after
+the other points, from a plectoneme (1000 sweeps of one engine at HI from the last point's final pose; the
+straight, overwound chain is metastable there), its pose turned to every rung: a sweep of every rung and
+a swap attempt of neighbours (alternating parity) per round, a sample of the requested rungs per round, until every
+requested rung meets both targets or ``--ladder-budget`` CPU seconds are spent. Past buckling the plectoneme's size
+relaxes slowly within one chain, but configurations pass between rungs whose turns suit them. The ladder's CPU
+seconds are those of all its rungs, counted once in the total.
+
+    nice -n 10 python benchmarks/bench_mc.py --dlk 0 2 4 3 --budget 300 --ladder 2.6 4.2 0.2
 
 MD cost for the same errors: the extension's spread and integrated autocorrelation time of the nearest rung of the
 earlier replica-exchange MD run ``research/hat_curve/results/hat_1kbp_r12.json`` (labelled as such: not this run), with
@@ -82,7 +93,7 @@ def run_point(n_bp, force_pN, turns, budget_cpu, seed, target_ext, target_torque
         for _ in range(check_every):
             e.advance(1)
             ext.append((e.pos[-1, 2] - e.pos[0, 2]) / L)
-            tq.append(e.tail_torque_z() / PN)
+            tq.append(e.tail_torque_z(weighted=True) / PN)
         if len(ext) >= min_sweeps:
             est_x, est_t = mean_and_error(ext), mean_and_error(tq)
             met = (est_x.flag is None and est_t.flag is None and est_x.error <= target_ext * est_x.mean
@@ -99,7 +110,86 @@ def run_point(n_bp, force_pN, turns, budget_cpu, seed, target_ext, target_torque
                 torque_n_eff=est_t.n_eff, torque_flag=est_t.flag, torque_transient_sweeps=est_t.t0,
                 met_targets=bool(met), acceptance=e.acceptance(), cpu_ms_per_sweep=1e3 * cpu / e.step,
                 x_quarters=[float(np.mean(q)) for q in np.array_split(ext[est_x.t0:], 4)],
-                torque_estimator="tail-rotation identity (MCEngine.tail_torque_z)"), e.node_pose()
+                torque_estimator="tail-rotation identity, height weights (MCEngine.tail_torque_z)"), e.node_pose()
+
+
+def run_ladder(n_bp, force_pN, rungs, points, budget_cpu, seed, target_ext, target_torque, start_pose, prev_turns,
+               start_sweeps=1000, check_every=100, min_rounds=500):
+    """One turn ladder (module docstring) sampling ``points`` (turns, each one of ``rungs``); returns rows.
+
+    The rungs start from a plectoneme: ``start_sweeps`` sweeps of one engine at the top rung from ``start_pose``
+    (the straight, overwound chain is metastable there and buckles within a few hundred sweeps), its final pose
+    then turned to every rung. Started straight, the ladder stays in the metastable straight branch for longer
+    than its error bars can tell (measured: x/L 0.80 and 18 pN nm at Delta Lk 3 after 1000 rounds)."""
+    from dnarod.analysis.statistics import mean_and_error
+    from dnarod.core.units import PN
+    from dnarod.engines.mc import MCEngine
+    from dnarod.engines.mc.ladder import TurnLadder, twist_ramp
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.tweezers import build_member
+
+    c0 = time.process_time()
+    w0 = time.perf_counter()
+    idx = [int(np.argmin(np.abs(rungs - t))) for t in points]
+    if any(abs(rungs[i] - t) > 1e-9 for i, t in zip(idx, points)):
+        raise SystemExit(f"ladder rungs {rungs.tolist()} do not hold the points {points}")
+    top = float(rungs[-1])
+    mb = build_member(dict(n_bp=n_bp, force_pN=force_pN, turns=top))
+    model = mb["model"]
+    if start_pose is not None:
+        model = model.with_pose(start_pose[0], twist_ramp(start_pose[1], top - prev_turns))
+    e = MCEngine(model, 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]), seed=seed)
+    e.advance(start_sweeps)
+    start_pose, prev_turns = e.node_pose(), top
+    engines = []
+    for i, t in enumerate(rungs):
+        mb = build_member(dict(n_bp=n_bp, force_pN=force_pN, turns=float(t)))
+        model = mb["model"].with_pose(start_pose[0], twist_ramp(start_pose[1], float(t) - prev_turns))
+        engines.append(MCEngine(model, 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]),
+                                seed=seed + 17 * (i + 1)))
+    lad = TurnLadder(engines, rungs, seed=seed)
+    L = engines[0].model.ds * (n_bp - 1)
+    ext = {i: [] for i in idx}
+    tq = {i: [] for i in idx}
+    rounds = 0
+    met = False
+    est = {}
+    while True:
+        for _ in range(check_every):
+            lad.advance(1)
+            lad.exchange()
+            rounds += 1
+            for i in idx:
+                e = engines[i]
+                ext[i].append((e.pos[-1, 2] - e.pos[0, 2]) / L)
+                tq[i].append(e.tail_torque_z(weighted=True) / PN)
+        if rounds >= min_rounds:
+            est = {i: (mean_and_error(ext[i]), mean_and_error(tq[i])) for i in idx}
+            met = all(ex.flag is None and et.flag is None and ex.error <= target_ext * ex.mean
+                      and et.error <= target_torque for ex, et in est.values())
+        if met or time.process_time() - c0 >= budget_cpu:
+            break
+    if not est:
+        est = {i: (mean_and_error(ext[i]), mean_and_error(tq[i])) for i in idx}
+    cpu = time.process_time() - c0
+    rows = []
+    for i, t in zip(idx, points):
+        ex, et = est[i]
+        e = engines[i]
+        rows.append(dict(turns=float(t), sweeps=rounds, cpu_s=cpu, wall_s=time.perf_counter() - w0,
+                         x_over_L=ex.mean, x_err=ex.error, x_rel_err=ex.error / ex.mean, x_tau_sweeps=ex.tau,
+                         x_n_eff=ex.n_eff, x_flag=ex.flag, x_transient_sweeps=ex.t0,
+                         x_sd=float(np.std(ext[i][ex.t0:])), torque_pN_nm=et.mean, torque_err=et.error,
+                         torque_tau_sweeps=et.tau, torque_n_eff=et.n_eff, torque_flag=et.flag,
+                         torque_transient_sweeps=et.t0, met_targets=bool(met), acceptance=e.acceptance(),
+                         cpu_ms_per_sweep=1e3 * cpu / (rounds * len(rungs)),
+                         x_quarters=[float(np.mean(q)) for q in np.array_split(ext[i][ex.t0:], 4)],
+                         torque_estimator="tail-rotation identity, height weights (MCEngine.tail_torque_z)",
+                         ladder=dict(rungs=rungs.tolist(), rounds=rounds, cpu_s_all_rungs=cpu,
+                                     swap_acceptance=lad.acceptance().tolist(),
+                                     note="sweeps = rounds (one sweep of every rung each); cpu_s is the whole "
+                                          "ladder's, shared by its points")))
+    return rows
 
 
 def md_speed(seconds, seed=1):
@@ -204,6 +294,10 @@ def main(argv=None):
     ap.add_argument("--hat", action="store_true", help="run the 26-rung hat-curve ladder instead")
     ap.add_argument("--hat-budget", type=float, default=1800.0, help="CPU seconds for the whole ladder")
     ap.add_argument("--exchange-every", type=int, default=5)
+    ap.add_argument("--ladder", type=float, nargs=3, metavar=("LO", "HI", "STEP"), default=None,
+                    help="sample the points with Delta Lk in [LO, HI] by one turn ladder with these rungs")
+    ap.add_argument("--ladder-budget", type=float, default=None,
+                    help="CPU seconds for the ladder (default: --budget times its points)")
     a = ap.parse_args(argv)
     c_all = time.process_time()
     if a.hat:
@@ -223,7 +317,10 @@ def main(argv=None):
     off = thermal_offset(a.n_bp, 300.0)
     print(f"torque-free state at 300 K: {off:+.4f} turns from the intrinsic twist", flush=True)
     rows, pose, prev = [], None, None
+    lad_pts = [d for d in a.dlk if a.ladder and a.ladder[0] - 1e-9 <= d <= a.ladder[1] + 1e-9]
     for dlk in a.dlk:
+        if dlk in lad_pts:
+            continue
         turns = dlk  # the protocol counts turns from the torque-free state
         r, pose_new = run_point(a.n_bp, a.force, turns, a.budget, a.seed, a.target_ext, a.target_torque, pose, prev)
         pose, prev = pose_new, turns
@@ -234,6 +331,22 @@ def main(argv=None):
               f"({100 * r['x_rel_err']:.2f} %, tau {r['x_tau_sweeps']:.0f} sweeps, {r['x_flag']}), torque "
               f"{r['torque_pN_nm']:+.2f} +- {r['torque_err']:.2f} pN nm (tau {r['torque_tau_sweeps']:.1f}), "
               f"{r['sweeps']} sweeps, {r['cpu_s']:.1f} CPU-s, met={r['met_targets']}", flush=True)
+    ladder_cpu = 0.0
+    if lad_pts:
+        lo, hi, st = a.ladder
+        rungs = np.round(lo + st * np.arange(int(round((hi - lo) / st)) + 1), 9)
+        budget = a.ladder_budget if a.ladder_budget is not None else a.budget * len(lad_pts)
+        lrows = run_ladder(a.n_bp, a.force, rungs, lad_pts, budget, a.seed, a.target_ext, a.target_torque, pose, prev)
+        ladder_cpu = lrows[0]["cpu_s"]
+        for r in lrows:
+            r["delta_lk"] = r["turns"]
+            r["turns_0K"] = r["turns"] + off
+            rows.append(r)
+            print(f"dLk {r['delta_lk']:+.1f} (ladder of {len(rungs)} rungs): x/L {r['x_over_L']:.4f} +- "
+                  f"{r['x_err']:.4f} ({100 * r['x_rel_err']:.2f} %, tau {r['x_tau_sweeps']:.0f} rounds, "
+                  f"{r['x_flag']}), torque {r['torque_pN_nm']:+.2f} +- {r['torque_err']:.2f} pN nm (tau "
+                  f"{r['torque_tau_sweeps']:.1f}), {r['sweeps']} rounds, {r['cpu_s']:.1f} CPU-s (whole ladder), "
+                  f"met={r['met_targets']}", flush=True)
     speed = md_speed(a.md_seconds)
     md = md_reference([r["turns_0K"] for r in rows], a.target_ext, speed)
     print()
@@ -246,7 +359,7 @@ def main(argv=None):
               f"{r['x_tau_sweeps']:6.0f} {r['torque_pN_nm']:8.2f} {r['torque_err']:5.2f} {r['sweeps']:7d} "
               f"{r['cpu_s']:7.1f} {str(r['met_targets']):>5} | "
               + (f"{m['md_rung_turns']:+7.1f} {m['x_over_L']:7.4f} {md_cost}" if m else ""))
-    total = sum(r["cpu_s"] for r in rows)
+    total = sum(r["cpu_s"] for r in rows if "ladder" not in r) + ladder_cpu
     print(f"MC total {total:.1f} CPU-s for {len(rows)} points; targets +-{100 * a.target_ext:g} % extension, "
           f"+-{a.target_torque:g} pN nm torque"
           + (f"; MD speed {speed['cpu_s_per_ns']:.1f} CPU-s/ns ({speed['platform']}, {speed['elastic_path']})"
@@ -254,6 +367,7 @@ def main(argv=None):
     write_results(a.json, "bench_mc", n_bp=a.n_bp, force_pN=a.force, temperature_K=300.0,
                   turns_offset_0K=off, budget_cpu_s_per_point=a.budget,
                   targets=dict(extension_rel=a.target_ext, torque_pN_nm=a.target_torque), points=rows,
+                  ladder=(dict(rungs_lo_hi_step=a.ladder, points=lad_pts) if lad_pts else None),
                   total_mc_cpu_s=total, md_speed_this_run=speed, md_reference_earlier_run=md,
                   command_cpu_s=time.process_time() - c_all)
 

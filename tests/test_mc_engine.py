@@ -277,6 +277,38 @@ def test_tail_torque_profile_matches_reference():
     assert np.allclose(got, ref, rtol=1e-9, atol=1e-9 * np.abs(ref).max())
 
 
+def test_tail_torque_weights_are_functions_of_the_heights():
+    """The weights of the tail-torque steps (MCEngine.tail_torque_weights) on a pose with a hairpin: the steps
+    inside it dropped, the others kept; unchanged when any tail is turned rigidly about a lab z axis (the condition
+    under which the weighted average keeps the identity exact); the weighted estimate is the mean of the kept
+    steps' values."""
+    from dnarod.physics.nonbonded import member_nonbonded
+    from dnarod.workflows.protocols.tweezers import build_member
+
+    mb = build_member(dict(n_bp=200, force_pN=1.0, turns=1.0))
+    e = MCEngine(mb["model"], 300.0, loads=mb["loads"], nonbonded=member_nonbonded(mb["settings"]), seed=1)
+    # a hairpin in height: nodes 100..119 run back down to node 80's height, 3 nm to the side, the rest follows
+    z = e.pos[:, 2].copy()
+    e.pos[100:120, 2] = z[100] - (z[100:120] - z[100])
+    e.pos[100:120, 0] += 3.0
+    e.pos[120:, 2] = z[120:] - 2.0 * (z[120] - z[100])
+    e._setup_caches()
+    w = e.tail_torque_weights()
+    assert w[:70].all() and w[150:].all() and not w[80:140].any()
+    prof = e.tail_torque_z(profile=True)
+    keep = np.isfinite(prof) & (w > 0)
+    assert e.tail_torque_z(weighted=True) == pytest.approx(np.mean(prof[keep]), rel=1e-12)
+    assert e.tail_torque_z() == pytest.approx(np.nanmean(prof), rel=1e-12)
+    rng = np.random.default_rng(3)
+    for k in (5, 60, 150):
+        a = rng.uniform(-np.pi, np.pi)
+        R = np.array([[np.cos(a), -np.sin(a), 0.0], [np.sin(a), np.cos(a), 0.0], [0.0, 0.0, 1.0]])
+        c = e.pos[k + 1].copy()
+        e.pos[k + 1:] = (e.pos[k + 1:] - c) @ R.T + c
+        e.frm[k + 1:] = np.einsum("ab,kbc->kac", R, e.frm[k + 1:])
+        assert np.array_equal(e.tail_torque_weights(), w)
+
+
 def test_tail_torque_estimates_the_clamp_torque():
     """Tweezers chain (60 bp, 2 pN, 0.5 turn, walls, non-bonded terms): the tail-torque estimator and the clamp's own
     torque have the same mean within 3 combined calibrated errors, and the estimator's error is several times

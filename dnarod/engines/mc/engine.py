@@ -401,21 +401,35 @@ class MCEngine:
         return float(sum(rotation_clamp_load(self.frm[rc.node], self.rc_T[rc.node], rc.k)[1][2]
                          for rc in self.resolved.rotation_clamps))
 
-    def tail_torque_z(self, profile=False):
+    def tail_torque_z(self, profile=False, weighted=False):
         """Low-variance estimate of :meth:`clamp_torque_z`'s mean (kJ/mol), from an exact identity.
 
         Turning the tail ``k+1 .. n-1`` of an open chain rigidly about a lab z axis preserves the invariant measure
         and leaves the walls, z forces and the tail's own energy unchanged, so the mean z torque on the tail
         vanishes: the clamps' mean torque equals minus the mean z torque (about node k+1) of step k, of the
         non-bonded pairs across step k and of the tail's other loads, for every k whose tail holds every rotation
-        clamp and no clamped node. Each sample here is the average of those per-step values: in a stretched chain
+        clamp and no clamped node. Each sample here is an average of those per-step values: in a stretched chain
         it reads the twist moment of every step, whose average spreads by about ``kT sqrt(C / L)`` instead of
         ``sqrt(k kT)``; non-bonded torques across plectonemes and bending moments are included exactly.
+
+        Weights. The identity holds for each step k also after multiplying by any function ``w(X)`` that the turn of
+        the tail leaves unchanged (integrate ``d/dalpha (w exp(-U/kT))`` over the invariant measure), and every
+        function of the nodes' heights alone is unchanged by every such turn. So the average over the steps may be
+        weighted by ``w_k(z)`` normalised over k without bias. ``weighted=True`` keeps the steps that no
+        interacting pair straddles at a height difference below the contact range (the WCA cut-off
+        ``2^(1/6) sigma``, or the non-bonded cut-off without excluded volume): this drops the steps inside a
+        plectoneme, whose bending moments and contact forces swing by tens of pN nm from sample to sample, and
+        keeps every step of a stretched chain (there it equals the plain average). If no step qualifies, the plain
+        average is returned. It lowers the spread per sample, not the slow part of the error: where the kept steps
+        are few (a short chain mostly in a plectoneme) or the run is short against the plectoneme's relaxation,
+        the plain average's error can be as small or smaller (``docs/mc.md``), hence not the default.
 
         Parameters
         ----------
         profile : bool
             Return the per-step values (n - 1,) (NaN where the identity does not apply) instead of their mean.
+        weighted : bool
+            Weight the steps by the height criterion above (default False: the plain average over the steps).
 
         Returns
         -------
@@ -440,7 +454,24 @@ class MCEngine:
                                self.trap_c, self.tq_mag, self.tq_axis, self.tlo, self.thi, self.tcen, self.trad,
                                self.ip, self.fp, k_first, out)
         out[first_rc:] = np.nan
-        return out if profile else float(np.nanmean(out))
+        if profile:
+            return out
+        if weighted and self.ip[kn.I_NB]:
+            w = self.tail_torque_weights()
+            ok = np.isfinite(out) & (w > 0)
+            if ok.any():
+                return float(np.mean(out[ok]))
+        return float(np.nanmean(out))
+
+    def tail_torque_weights(self):
+        """Weights (n - 1,) of the per-step tail-torque values in :meth:`tail_torque_z` (1 for a step no interacting
+        pair straddles at a height difference below the contact range, else 0): functions of the heights only.
+        All ones without non-bonded terms."""
+        w = np.ones(self.model.n_nodes - 1)
+        if self.ip[kn.I_NB]:
+            r0 = self.fp[kn.F_RCWCA] if self.ip[kn.I_EV] else self.fp[kn.F_CUT]
+            kn.height_clear_steps(np.ascontiguousarray(self.pos[:, 2]), int(self.ip[kn.I_NEX]), float(r0), w)
+        return w
 
     # --- engine protocol ---------------------------------------------------------------------------------------------
     def node_state(self, *, copy: bool = True) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

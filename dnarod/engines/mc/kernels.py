@@ -1451,3 +1451,29 @@ def tail_torque_profile(pos, frm, K, xi0, ds, force, trap_k, trap_c, tq_mag, tq_
         Z = sl[11] + (pA[k] - (px * pFy[k] - py * pFx[k])) + (gA - (px * gy - py * gx))
         out[k] = -Z
 
+
+
+@njit(cache=True)
+def height_clear_steps(z, nex, r0, out):
+    """Steps no interacting pair straddles at a height difference below ``r0``: ``out[k]`` (n - 1,) is 1.0 if no
+    pair ``i <= k < j`` with ``j - i > nex`` has ``|z_i - z_j| < r0`` (nm), else 0.0. A function of the heights
+    ``z`` (n,) only, hence unchanged by any rotation about a lab z axis of any part of the chain (the weights of
+    :meth:`dnarod.engines.mc.engine.MCEngine.tail_torque_z`). O(n log n + pairs within r0 in height)."""
+    n = z.shape[0]
+    order = np.argsort(z)
+    d = np.zeros(n + 1)
+    for a in range(n):
+        i = order[a]
+        for b in range(a + 1, n):
+            j = order[b]
+            if z[j] - z[i] >= r0:
+                break
+            lo = min(i, j)
+            hi = max(i, j)
+            if hi - lo > nex:
+                d[lo] += 1.0
+                d[hi] -= 1.0
+    c = 0.0
+    for k in range(n - 1):
+        c += d[k]
+        out[k] = 1.0 if c == 0.0 else 0.0
