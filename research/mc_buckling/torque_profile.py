@@ -3,26 +3,9 @@ import sys
 import time
 
 import numpy as np
-from numba import njit
-
 from common import engine
 from dnarod.core.units import PN
-
-
-@njit(cache=True)
-def clear_steps(z, nex, cut, out):
-    """out[k] = 1 if no pair i <= k < j (j - i > nex) has |z_i - z_j| < cut, else 0."""
-    n = z.shape[0]
-    d = np.zeros(n + 1)
-    for i in range(n):
-        for j in range(i + nex + 1, n):
-            if abs(z[i] - z[j]) < cut:
-                d[i] += 1.0
-                d[j] -= 1.0
-    c = 0.0
-    for k in range(n - 1):
-        c += d[k]
-        out[k] = 1.0 if c == 0.0 else 0.0
+from dnarod.engines.mc.kernels import height_clear_steps as clear_steps
 
 
 lk = float(sys.argv[1]) if len(sys.argv) > 1 else 4.0

@@ -525,20 +525,22 @@ class RodSimulation:
         # The state to go back to if the run blows up. On the compiled path it is kept over several short
         # advances (a run loop advancing a few steps per report would otherwise read it every report), up to
         # ROLLBACK_STEPS steps back; a blow-up is then replayed from there, one step at a time.
-        if not fast:
-            self._rollback = (self.step, self._full_state())
-        elif self._rollback is None or not 0 <= self.step - self._rollback[0] < self.ROLLBACK_STEPS:
-            # positions, velocities and parameters are all it needs: cheap
-            self._rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
-                                                               getParameters=True))
+        rollback = self._keep_rollback() if fast else (self.step, self._full_state())
         self.integrator.step(n_steps)
-        rollback = self._rollback
         self.invalidate()
         if self._report_healthy() if fast else self._healthy(self._full_state()):
             self.step += n_steps
             self._rollback = rollback if fast else None
             return
         raise self._locate_failure(rollback, self.step + n_steps)
+
+    def _keep_rollback(self) -> tuple[int, Any]:
+        """The compiled path's rollback state: kept while it is less than ROLLBACK_STEPS steps back, else read now
+        (positions, velocities and parameters are all it needs: cheap)."""
+        if self._rollback is None or not 0 <= self.step - self._rollback[0] < self.ROLLBACK_STEPS:
+            self._rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
+                                                               getParameters=True))
+        return self._rollback
 
     def _locate_failure(self, rollback: tuple[int, Any], end_step: int) -> SimulationError:
         """Replay from ``rollback`` one step at a time to the first bad step (at most ``end_step``); the error
@@ -602,11 +604,7 @@ class RodSimulation:
         integ = self.integrator
         if self._limit is None:
             self._limit = self._energy_limit()
-        self._state_cache = self._report_cache = None
-        if self._rollback is None or not 0 <= self.step - self._rollback[0] < self.ROLLBACK_STEPS:
-            self._rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
-                                                               getParameters=True))
-        rollback = self._rollback
+        rollback = self._keep_rollback()
         start = self.step
         if not self.rs.load_info.get("rotation_clamps"):
             # every report in one call (the loads do not change with time)
@@ -624,13 +622,11 @@ class RodSimulation:
                     error = self._locate_failure(rollback, self.step + interval)
                     break
                 self.step += interval
-                self.update_loads(self.step * self.dt, duration_ps)
+                self.update_loads(self.step * self.dt, duration_ps)  # forgets the rollback state: keep it
                 e_arr[k] = integ.getNodeReport(buf[k])
                 k += 1
-                if not 0 <= self.step - rollback[0] < self.ROLLBACK_STEPS:
-                    rollback = (self.step, self.context.getState(getPositions=True, getVelocities=True,
-                                                                 getParameters=True))
                 self._rollback = rollback
+                rollback = self._keep_rollback()
         self._state_cache = self._report_cache = None
         buf.flags.writeable = False
         steps = start + interval * np.arange(1, k + 1, dtype=np.int64)
